@@ -1,0 +1,1 @@
+//! Filters: linear, extended and unscented Kalman filters.
