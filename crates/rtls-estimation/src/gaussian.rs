@@ -69,7 +69,11 @@ impl<const N: usize> Gaussian<N> {
         }
         let mut covariance = covariance;
         crate::math::symmetrize(&mut covariance);
-        Ok(Self { mean, covariance, time_s })
+        Ok(Self {
+            mean,
+            covariance,
+            time_s,
+        })
     }
 
     /// Builds a state whose finiteness and symmetry the caller (a filter) has established.
@@ -77,7 +81,11 @@ impl<const N: usize> Gaussian<N> {
     pub(crate) fn from_parts_unchecked(mean: Vector<N>, covariance: Matrix<N>, time_s: f64) -> Self {
         debug_assert!(mean.iter().all(|v| v.is_finite()));
         debug_assert!(covariance.iter().all(|v| v.is_finite()));
-        Self { mean, covariance, time_s }
+        Self {
+            mean,
+            covariance,
+            time_s,
+        }
     }
 
     /// Builds a state after a filter step: checks finiteness and symmetrises the covariance.
@@ -94,7 +102,11 @@ impl<const N: usize> Gaussian<N> {
         ensure_finite(&mean, what)?;
         ensure_finite(&covariance, what)?;
         crate::math::symmetrize(&mut covariance);
-        Ok(Self { mean, covariance, time_s })
+        Ok(Self {
+            mean,
+            covariance,
+            time_s,
+        })
     }
 
     /// The mean (best estimate).
@@ -148,17 +160,18 @@ impl<const N: usize> Gaussian<N> {
     /// Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and Navigation*
     /// (2001), §5.4.2, eq. (5.4.2-1).
     pub fn nees(&self, truth: &Vector<N>) -> Result<f64> {
-        let chol = self
-            .covariance
-            .cholesky()
-            .ok_or(EstimationError::NotPositiveDefinite { what: "state covariance" })?;
+        let chol = self.covariance.cholesky().ok_or(EstimationError::NotPositiveDefinite {
+            what: "state covariance",
+        })?;
         // e = x − x̂
         let error = truth - self.mean;
         // ε = eᵀ P⁻¹ e = |L⁻¹ e|²
         let whitened = chol
             .l()
             .solve_lower_triangular(&error)
-            .ok_or(EstimationError::NotPositiveDefinite { what: "state covariance" })?;
+            .ok_or(EstimationError::NotPositiveDefinite {
+                what: "state covariance",
+            })?;
         Ok(whitened.norm_squared())
     }
 }
@@ -174,7 +187,10 @@ mod tests {
         p[(0, 1)] = 0.5;
         assert_eq!(
             Gaussian::new(Vector::<2>::zeros(), p, 0.0),
-            Err(EstimationError::InvalidParameter { name: "covariance", reason: "the matrix is not symmetric" })
+            Err(EstimationError::InvalidParameter {
+                name: "covariance",
+                reason: "the matrix is not symmetric"
+            })
         );
     }
 

@@ -17,13 +17,13 @@ mod speed_heading;
 mod stacked;
 mod tdoa;
 
-// HELPER-ENABLES: pub use noise_covariance::NoiseCovariance;
-// HELPER-ENABLES: pub use position::{ComponentSelection, PositionVelocity};
-// HELPER-ENABLES: pub use range::Ranges;
-// HELPER-ENABLES: pub use rss::{BreakpointPathLoss, LogDistancePathLoss, RssPathLoss};
-// HELPER-ENABLES: pub use speed_heading::SpeedHeading;
-// HELPER-ENABLES: pub use stacked::Stacked;
-// HELPER-ENABLES: pub use tdoa::Tdoa;
+pub use noise_covariance::NoiseCovariance;
+pub use position::ComponentSelection;
+pub use range::Ranges;
+pub use rss::{BreakpointForm, BreakpointPathLoss, LogDistancePathLoss, PathLoss, RssPathLoss};
+pub use speed_heading::SpeedHeading;
+pub use stacked::Stacked;
+pub use tdoa::Tdoa;
 
 /// Measurement Jacobian `H = ∂h/∂x`: one row per measurement component, `N` columns.
 pub type MeasurementJacobian<const N: usize> = OMatrix<f64, Dyn, Const<N>>;

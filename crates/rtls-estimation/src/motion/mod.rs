@@ -21,11 +21,11 @@ mod coordinated_turn;
 mod noise;
 mod random_walk;
 
-// HELPER-ENABLES: pub use constant_acceleration::ConstantAcceleration;
-// HELPER-ENABLES: pub use constant_velocity::ConstantVelocity;
-// HELPER-ENABLES: pub use coordinated_turn::{CoordinatedTurn, CoordinatedTurnWithRate};
-// HELPER-ENABLES: pub use noise::{GainTerm, NoiseGain, ProcessNoise};
-// HELPER-ENABLES: pub use random_walk::RandomWalk;
+pub use constant_acceleration::ConstantAcceleration;
+pub use constant_velocity::ConstantVelocity;
+pub use coordinated_turn::{CoordinatedTurn, CoordinatedTurnWithRate};
+pub use noise::{GainTerm, NoiseGain, ProcessNoise};
+pub use random_walk::RandomWalk;
 
 /// Control-input gain `B(dt)`: `N` rows, one column per control component.
 pub type ControlGain<const N: usize> = OMatrix<f64, Const<N>, Dyn>;
