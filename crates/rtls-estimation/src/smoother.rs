@@ -130,18 +130,18 @@ impl UnscentedKalmanFilter {
         filtered: &[Gaussian<N>],
         model: &M,
     ) -> Result<Vec<Gaussian<N>>> {
-        let (scale, wm, wc) = self.parameters.weights(N)?;
+        let weights = self.parameters.unscented_weights(N)?;
         smooth_with(filtered, |state, dt_s| {
             // χ = σ(x̂ₖ|ₖ, Pₖ|ₖ),  χᶠ = f(χ, dt)
-            let points = sigma_points(state, scale)?;
+            let points = sigma_points(state, weights.scale)?;
             let propagated: Vec<Vector<N>> = points.iter().map(|p| model.transition(p, dt_s)).collect();
             // x⁻ = Σ Wᵐ χᶠ,  P⁻ = Σ Wᶜ (χᶠ − x⁻)(…)ᵀ + Q
-            let (xp, pp) = weighted_moments(&propagated, &wm, &wc);
+            let (xp, pp) = weighted_moments(&propagated, &weights);
             let pp = pp + model.process_noise(state.mean(), dt_s);
             // C = Σ Wᶜ (χ − x̂)(χᶠ − x⁻)ᵀ
             let mut c = Matrix::<N>::zeros();
-            for ((p, pf), &w) in points.iter().zip(&propagated).zip(&wc) {
-                c += (p - state.mean()) * (pf - xp).transpose() * w;
+            for (i, (p, pf)) in points.iter().zip(&propagated).enumerate() {
+                c.ger(weights.covariance(i), &(p - state.mean()), &(pf - xp), 1.0);
             }
             Ok((xp, pp, c))
         })

@@ -69,6 +69,14 @@ impl SigmaPointParameters {
     /// # Errors
     /// [`EstimationError::InvalidParameter`] if `n + λ ≤ 0` (κ too negative for this `n`).
     pub fn weights(&self, n: usize) -> Result<(f64, Vec<f64>, Vec<f64>)> {
+        let w = self.unscented_weights(n)?;
+        let wm = (0..=2 * n).map(|i| w.mean(i)).collect();
+        let wc = (0..=2 * n).map(|i| w.covariance(i)).collect();
+        Ok((w.scale, wm, wc))
+    }
+
+    /// The weights as four scalars (no allocation), for the filters' hot paths.
+    pub(crate) fn unscented_weights(&self, n: usize) -> Result<UnscentedWeights> {
         let n_f = n as f64;
         // λ = α² (n + κ) − n
         let lambda = self.alpha * self.alpha * (n_f + self.kappa) - n_f;
@@ -79,15 +87,46 @@ impl SigmaPointParameters {
                 reason: "n + λ must be positive",
             });
         }
-        // Wᵢ = 1 / (2 (n + λ))
-        let wi = 0.5 / scale;
-        let mut wm = alloc::vec![wi; 2 * n + 1];
-        let mut wc = alloc::vec![wi; 2 * n + 1];
-        // W₀ᵐ = λ / (n + λ)
-        wm[0] = lambda / scale;
-        // W₀ᶜ = λ / (n + λ) + 1 − α² + β
-        wc[0] = lambda / scale + 1.0 - self.alpha * self.alpha + self.beta;
-        Ok((scale, wm, wc))
+        Ok(UnscentedWeights {
+            scale,
+            // W₀ᵐ = λ / (n + λ)
+            mean_0: lambda / scale,
+            // W₀ᶜ = λ / (n + λ) + 1 − α² + β
+            covariance_0: lambda / scale + 1.0 - self.alpha * self.alpha + self.beta,
+            // Wᵢ = 1 / (2 (n + λ))
+            other: 0.5 / scale,
+        })
+    }
+}
+
+/// Unscented-transform weights: `n + λ`, `W₀ᵐ`, `W₀ᶜ` and the common `Wᵢ` (i ≥ 1).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct UnscentedWeights {
+    pub(crate) scale: f64,
+    mean_0: f64,
+    covariance_0: f64,
+    other: f64,
+}
+
+impl UnscentedWeights {
+    /// `Wᵢᵐ`.
+    #[inline]
+    pub(crate) fn mean(&self, i: usize) -> f64 {
+        if i == 0 {
+            self.mean_0
+        } else {
+            self.other
+        }
+    }
+
+    /// `Wᵢᶜ`.
+    #[inline]
+    pub(crate) fn covariance(&self, i: usize) -> f64 {
+        if i == 0 {
+            self.covariance_0
+        } else {
+            self.other
+        }
     }
 }
 
@@ -125,17 +164,20 @@ pub(crate) fn sigma_points<const N: usize>(state: &Gaussian<N>, scale: f64) -> R
 }
 
 /// `x̄ = Σ Wᵐ χ`, `P = Σ Wᶜ (χ − x̄)(χ − x̄)ᵀ`.
-pub(crate) fn weighted_moments<const N: usize>(points: &[Vector<N>], wm: &[f64], wc: &[f64]) -> (Vector<N>, Matrix<N>) {
+pub(crate) fn weighted_moments<const N: usize>(
+    points: &[Vector<N>],
+    weights: &UnscentedWeights,
+) -> (Vector<N>, Matrix<N>) {
     // x̄ = Σ Wᵢᵐ χᵢ
     let mut mean = Vector::<N>::zeros();
-    for (p, &w) in points.iter().zip(wm) {
-        mean += p * w;
+    for (i, p) in points.iter().enumerate() {
+        mean.axpy(weights.mean(i), p, 1.0);
     }
     // P = Σ Wᵢᶜ (χᵢ − x̄)(χᵢ − x̄)ᵀ
     let mut cov = Matrix::<N>::zeros();
-    for (p, &w) in points.iter().zip(wc) {
+    for (i, p) in points.iter().enumerate() {
         let d = p - mean;
-        cov += d * d.transpose() * w;
+        cov.ger(weights.covariance(i), &d, &d, 1.0);
     }
     (mean, cov)
 }
@@ -148,7 +190,7 @@ pub(crate) fn weighted_moments<const N: usize>(points: &[Vector<N>], wm: &[f64],
 /// update:  χ = σ(x⁻, P⁻)  (redrawn)       Z = h(χ)
 ///          ẑ = Σ Wᵐ Z                     S = Σ Wᶜ (Z − ẑ)(Z − ẑ)ᵀ + R
 ///          Pxz = Σ Wᶜ (χ − x⁻)(Z − ẑ)ᵀ    K = Pxz S⁻¹
-///          x̂ = x⁻ + K (z − ẑ)             P = P⁻ − K S Kᵀ
+///          x̂ = x⁻ + K (z − ẑ)             P = P⁻ − K S Kᵀ  (computed as P⁻ − Pxz Kᵀ)
 /// ```
 /// Sigma points are redrawn from the predicted mean and covariance before the update (so the
 /// process noise `Q` is reflected in the measurement sigma points), as FilterPy 2.0 does.
@@ -228,7 +270,7 @@ impl UnscentedKalmanFilter {
         to_time_s: f64,
     ) -> Result<Gaussian<N>> {
         let dt_s = state.step_to(to_time_s)?;
-        let (scale, wm, wc) = self.parameters.weights(N)?;
+        let weights = self.parameters.unscented_weights(N)?;
         let offset = match control {
             Some(u) => {
                 let b = model.control_gain(dt_s).ok_or(EstimationError::NoControlInput)?;
@@ -237,12 +279,12 @@ impl UnscentedKalmanFilter {
             None => Vector::<N>::zeros(),
         };
         // χᶠᵢ = f(χᵢ, dt) + B u
-        let mut points = sigma_points(state, scale)?;
+        let mut points = sigma_points(state, weights.scale)?;
         for p in &mut points {
             *p = model.transition(p, dt_s) + offset;
         }
         // x⁻ = Σ Wᵐ χᶠ,  P⁻ = Σ Wᶜ (χᶠ − x⁻)(χᶠ − x⁻)ᵀ
-        let (mean, cov) = weighted_moments(&points, &wm, &wc);
+        let (mean, cov) = weighted_moments(&points, &weights);
         // P⁻ += Q
         let covariance = cov + model.process_noise(state.mean(), dt_s);
         Gaussian::from_step(mean, covariance, to_time_s, "predicted state")
@@ -270,9 +312,9 @@ impl UnscentedKalmanFilter {
                 found: r.nrows(),
             });
         }
-        let (scale, wm, wc) = self.parameters.weights(N)?;
+        let weights = self.parameters.unscented_weights(N)?;
         // χ = σ(x⁻, P⁻), redrawn after the prediction
-        let points = sigma_points(prior, scale)?;
+        let points = sigma_points(prior, weights.scale)?;
         // Zᵢ = h(χᵢ)
         let mut z_points = DMatrix::<f64>::zeros(m, points.len());
         for (i, p) in points.iter().enumerate() {
@@ -287,22 +329,28 @@ impl UnscentedKalmanFilter {
             z_points.set_column(i, &zi);
         }
         // ẑ = Σ Wᵐ Zᵢ
+        let wm: Vec<f64> = (0..points.len()).map(|i| weights.mean(i)).collect();
         let z_mean = model.weighted_mean(&z_points, &wm);
-        // S = Σ Wᶜ (Zᵢ − ẑ)(Zᵢ − ẑ)ᵀ + R,   Pxz = Σ Wᶜ (χᵢ − x⁻)(Zᵢ − ẑ)ᵀ
+        // ΔZ = [Zᵢ − ẑ]  (through the model's residual, so angles wrap)
+        let dz = model.residuals(&z_points, &z_mean);
         let mut s = r.clone();
         let mut pxz = Gain::<N>::zeros(m);
         for (i, p) in points.iter().enumerate() {
-            let dz = model.residual(&z_points.column(i).into_owned(), &z_mean);
-            let dx = p - prior.mean();
-            s += &dz * dz.transpose() * wc[i];
-            pxz += dx * dz.transpose() * wc[i];
+            let w = weights.covariance(i);
+            let dz_i = dz.column(i);
+            // S += Wᶜᵢ (Zᵢ − ẑ)(Zᵢ − ẑ)ᵀ      (S starts at R)
+            s.ger(w, &dz_i, &dz_i, 1.0);
+            // Pxz += Wᶜᵢ (χᵢ − x⁻)(Zᵢ − ẑ)ᵀ
+            pxz.ger(w, &(p - prior.mean()), &dz_i, 1.0);
         }
         let chol = s
             .clone()
             .cholesky()
             .ok_or(EstimationError::InnovationNotPositiveDefinite)?;
-        // K = Pxz S⁻¹  ⇔  Kᵀ = S⁻¹ Pxzᵀ
-        let gain: Gain<N> = chol.solve(&pxz.transpose()).transpose();
+        // Kᵀ = S⁻¹ Pxzᵀ   ⇔   K = Pxz S⁻¹
+        let mut gain_t = pxz.transpose();
+        chol.solve_mut(&mut gain_t);
+        let gain: Gain<N> = gain_t.transpose();
         // ν = z − ẑ
         let innovation = model.residual(z, &z_mean);
         // NIS = νᵀ S⁻¹ ν = |L⁻¹ ν|²
@@ -318,8 +366,8 @@ impl UnscentedKalmanFilter {
         }
         // x̂ = x⁻ + K ν
         let mean = prior.mean() + &gain * &innovation;
-        // P = P⁻ − K S Kᵀ
-        let covariance = prior.covariance() - &gain * &s * gain.transpose();
+        // P = P⁻ − K S Kᵀ = P⁻ − Pxz Kᵀ   (K S = Pxz)
+        let covariance = prior.covariance() - &pxz * &gain_t;
         let state = Gaussian::from_step(mean, covariance, prior.time_s(), "posterior state")?;
         Ok(Updated {
             state,

@@ -114,7 +114,9 @@ pub(crate) fn linearized_update<const N: usize>(
         .cholesky()
         .ok_or(EstimationError::InnovationNotPositiveDefinite)?;
     // Kᵀ = S⁻¹ (P Hᵀ)ᵀ   ⇒   K = P Hᵀ S⁻¹   (S symmetric)
-    let gain: Gain<N> = chol.solve(&pht.transpose()).transpose();
+    let mut gain_t = pht.transpose();
+    chol.solve_mut(&mut gain_t);
+    let gain: Gain<N> = gain_t.transpose();
     // NIS = νᵀ S⁻¹ ν = |L⁻¹ ν|²
     let whitened = chol
         .l_dirty()
@@ -127,7 +129,7 @@ pub(crate) fn linearized_update<const N: usize>(
     let i_kh: Matrix<N> = Matrix::<N>::identity() - &gain * h;
     let covariance = match form {
         // P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ
-        CovarianceUpdate::Joseph => i_kh * p * i_kh.transpose() + &gain * r * gain.transpose(),
+        CovarianceUpdate::Joseph => i_kh * p * i_kh.transpose() + (&gain * r) * &gain_t,
         // P = (I − K H) P⁻
         CovarianceUpdate::Simple => i_kh * p,
     };

@@ -53,6 +53,17 @@ pub trait MeasurementModel<const N: usize> {
     fn residual(&self, z: &DVector<f64>, predicted: &DVector<f64>) -> DVector<f64> {
         z - predicted
     }
+    /// Residuals `Zᵢ − ẑ` of every column of `points` (`m × k`) against `mean`, as an `m × k`
+    /// matrix (the UKF's measurement deviations). The default applies [`Self::residual`] to
+    /// each column, so angle-wrapping models are handled; models whose residual is a plain
+    /// subtraction override it with [`subtract_from_columns`], which allocates once.
+    fn residuals(&self, points: &DMatrix<f64>, mean: &DVector<f64>) -> DMatrix<f64> {
+        let mut deviations = DMatrix::zeros(points.nrows(), points.ncols());
+        for (i, column) in points.column_iter().enumerate() {
+            deviations.set_column(i, &self.residual(&column.into_owned(), mean));
+        }
+        deviations
+    }
     /// Weighted mean `Σ wᵢ zᵢ` of measurement sigma points (columns of `points`, `m × k`);
     /// models with angle components override it with a circular mean.
     fn weighted_mean(&self, points: &DMatrix<f64>, weights: &[f64]) -> DVector<f64> {
@@ -62,6 +73,17 @@ pub trait MeasurementModel<const N: usize> {
         }
         mean
     }
+}
+
+/// `Zᵢ − ẑ` for every column `Zᵢ` of `points`: the residuals of a model without angles.
+#[must_use]
+pub fn subtract_from_columns(points: &DMatrix<f64>, mean: &DVector<f64>) -> DMatrix<f64> {
+    let mut deviations = points.clone();
+    for mut column in deviations.column_iter_mut() {
+        // Zᵢ − ẑ
+        column -= mean;
+    }
+    deviations
 }
 
 /// A linear measurement model `z = H x + v` with constant `H`.

@@ -192,6 +192,10 @@ impl<const N: usize> MeasurementModel<N> for ComponentSelection<N> {
     fn noise_covariance(&self) -> &DMatrix<f64> {
         self.noise.matrix()
     }
+
+    fn residuals(&self, points: &DMatrix<f64>, mean: &DVector<f64>) -> DMatrix<f64> {
+        super::subtract_from_columns(points, mean)
+    }
 }
 
 impl<const N: usize> LinearMeasurementModel<N> for ComponentSelection<N> {

@@ -261,6 +261,10 @@ impl<const N: usize> MeasurementModel<N> for Ranges {
     fn noise_covariance(&self) -> &DMatrix<f64> {
         self.noise.matrix()
     }
+
+    fn residuals(&self, points: &DMatrix<f64>, mean: &DVector<f64>) -> DMatrix<f64> {
+        super::subtract_from_columns(points, mean)
+    }
 }
 
 /// Shared test helpers: finite-difference Jacobian checks and reproducible test states.

@@ -550,6 +550,10 @@ impl<L: PathLoss, const N: usize> MeasurementModel<N> for RssPathLoss<L> {
     fn noise_covariance(&self) -> &DMatrix<f64> {
         self.noise.matrix()
     }
+
+    fn residuals(&self, points: &DMatrix<f64>, mean: &DVector<f64>) -> DMatrix<f64> {
+        super::subtract_from_columns(points, mean)
+    }
 }
 
 #[cfg(test)]
