@@ -10,6 +10,7 @@ use crate::error::Result;
 use crate::gaussian::Vector;
 
 mod noise_covariance;
+mod path_loss;
 mod position;
 mod range;
 mod rss;
@@ -18,9 +19,10 @@ mod stacked;
 mod tdoa;
 
 pub use noise_covariance::NoiseCovariance;
+pub use path_loss::{BreakpointForm, BreakpointPathLoss, LogDistancePathLoss, PathLoss};
 pub use position::ComponentSelection;
 pub use range::Ranges;
-pub use rss::{BreakpointForm, BreakpointPathLoss, LogDistancePathLoss, PathLoss, RssPathLoss};
+pub use rss::RssPathLoss;
 pub use speed_heading::SpeedHeading;
 pub use stacked::Stacked;
 pub use tdoa::Tdoa;
