@@ -9,7 +9,7 @@ use crate::math::log10;
 /// distance, and its derivative.
 ///
 /// Implementations decide what the value is (received power in dBm, or path loss in dB) and
-/// document it; [`RssPathLoss`] only needs the value and the slope. Both are called with
+/// document it; [`RssPathLoss`](super::RssPathLoss) only needs the value and the slope. Both are called with
 /// `distance_m > 0` only.
 ///
 /// # Example

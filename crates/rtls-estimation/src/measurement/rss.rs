@@ -20,14 +20,14 @@ use crate::gaussian::Vector;
 /// and, for spatial models, 4) and 0 elsewhere.
 ///
 /// # Units
-/// Those of the law: dBm for [`LogDistancePathLoss`] (received power), dB for
-/// [`BreakpointPathLoss`] (path loss); `R` in dB². Anchors and positions in m.
+/// Those of the law: dBm for [`LogDistancePathLoss`](super::LogDistancePathLoss) (received power), dB for
+/// [`BreakpointPathLoss`](super::BreakpointPathLoss) (path loss); `R` in dB². Anchors and positions in m.
 ///
 /// # Errors
 /// [`MeasurementModel::predict`] and [`MeasurementModel::jacobian`] return
-/// [`EstimationError::SingularMeasurement`] (model `"rss"`) when the tag is within `1e-9` m
-/// of an anchor (the logarithm diverges), [`EstimationError::NonFinite`] if the law returns
-/// NaN/∞, and [`EstimationError::DimensionMismatch`] if the state is too small (planar needs
+/// [`EstimationError::SingularMeasurement`](crate::EstimationError::SingularMeasurement) (model `"rss"`) when the tag is within `1e-9` m
+/// of an anchor (the logarithm diverges), [`EstimationError::NonFinite`](crate::EstimationError::NonFinite) if the law returns
+/// NaN/∞, and [`EstimationError::DimensionMismatch`](crate::EstimationError::DimensionMismatch) if the state is too small (planar needs
 /// `N ≥ 4`, spatial `N ≥ 6`).
 ///
 /// # Example
@@ -60,9 +60,9 @@ impl<L: PathLoss> RssPathLoss<L> {
     /// (indices 0 and 2); `noise` has one component per anchor.
     ///
     /// # Errors
-    /// [`EstimationError::InvalidParameter`] for an empty anchor list;
-    /// [`EstimationError::NonFinite`] for a NaN/∞ coordinate;
-    /// [`EstimationError::DimensionMismatch`] if `noise.dim()` is not the number of anchors.
+    /// [`EstimationError::InvalidParameter`](crate::EstimationError::InvalidParameter) for an empty anchor list;
+    /// [`EstimationError::NonFinite`](crate::EstimationError::NonFinite) for a NaN/∞ coordinate;
+    /// [`EstimationError::DimensionMismatch`](crate::EstimationError::DimensionMismatch) if `noise.dim()` is not the number of anchors.
     ///
     /// # Example
     /// ```

@@ -13,7 +13,7 @@
 //!   χ² statistics (average NEES over Monte Carlo runs, time-averaged NIS).
 //!
 //! Everything is pure arithmetic on `f64` and works without `std`. Invalid input and numerical
-//! failure are reported as [`EstimationError`]; no function here panics or returns NaN.
+//! failure are reported as [`EstimationError`](crate::EstimationError); no function here panics or returns NaN.
 //!
 //! # References
 //! - W. H. Press, S. A. Teukolsky, W. T. Vetterling, B. P. Flannery, *Numerical Recipes*,
