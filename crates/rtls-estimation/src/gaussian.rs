@@ -137,17 +137,7 @@ impl<const N: usize> Gaussian<N> {
     /// [`EstimationError::NonFinite`] if `to_time_s` is not finite.
     #[inline]
     pub fn step_to(&self, to_time_s: f64) -> Result<f64> {
-        if !to_time_s.is_finite() {
-            return Err(EstimationError::NonFinite { what: "requested time" });
-        }
-        let dt_s = to_time_s - self.time_s;
-        if dt_s < 0.0 {
-            return Err(EstimationError::TimeWentBackwards {
-                state_time_s: self.time_s,
-                requested_time_s: to_time_s,
-            });
-        }
-        Ok(dt_s)
+        step_between(self.time_s, to_time_s)
     }
 
     /// Normalised estimation error squared `(x − x̂)ᵀ P⁻¹ (x − x̂)` of this estimate against the
@@ -174,6 +164,26 @@ impl<const N: usize> Gaussian<N> {
             })?;
         Ok(whitened.norm_squared())
     }
+}
+
+/// The step `dt = to_time_s − from_time_s` between two time stamps (s), refusing to go back.
+///
+/// # Errors
+/// [`EstimationError::TimeWentBackwards`] if `to_time_s < from_time_s`;
+/// [`EstimationError::NonFinite`] if `to_time_s` is not finite.
+#[inline]
+pub(crate) fn step_between(from_time_s: f64, to_time_s: f64) -> Result<f64> {
+    if !to_time_s.is_finite() {
+        return Err(EstimationError::NonFinite { what: "requested time" });
+    }
+    let dt_s = to_time_s - from_time_s;
+    if dt_s < 0.0 {
+        return Err(EstimationError::TimeWentBackwards {
+            state_time_s: from_time_s,
+            requested_time_s: to_time_s,
+        });
+    }
+    Ok(dt_s)
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@
 //! check the two paths agree.
 
 use crate::error::{EstimationError, Result};
-use crate::gaussian::{Gaussian, Matrix, Vector};
+use crate::gaussian::{step_between, Gaussian, Matrix, Vector};
 use crate::motion::ProcessNoise;
 
 /// One axis of a decoupled constant-velocity state: position, velocity and their 2 × 2
@@ -158,16 +158,7 @@ impl DecoupledCvFilter {
     /// [`EstimationError::TimeWentBackwards`], [`EstimationError::NonFinite`].
     #[inline]
     pub fn predict<const D: usize>(&self, state: &DecoupledCvState<D>, to_time_s: f64) -> Result<DecoupledCvState<D>> {
-        if !to_time_s.is_finite() {
-            return Err(EstimationError::NonFinite { what: "requested time" });
-        }
-        let dt = to_time_s - state.time_s;
-        if dt < 0.0 {
-            return Err(EstimationError::TimeWentBackwards {
-                state_time_s: state.time_s,
-                requested_time_s: to_time_s,
-            });
-        }
+        let dt = step_between(state.time_s, to_time_s)?;
         let [[q_pp, q_pv], [_, q_vv]] = self.noise.cv_axis_block(dt);
         let mut axes = state.axes;
         for a in &mut axes {

@@ -3,7 +3,10 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::kf::control_effect;
-use super::update::{check_measurement, check_model_shapes, linearized_update, CovarianceUpdate, Updated};
+use super::update::{
+    check_measurement, check_model_shapes, linearized_innovation_covariance, linearized_update, solve_gain,
+    CovarianceUpdate, GainSolution, Updated,
+};
 use crate::error::{EstimationError, Result};
 use crate::gaussian::Gaussian;
 use crate::measurement::MeasurementModel;
@@ -164,9 +167,10 @@ pub(crate) fn sequential_update<const N: usize, H: MeasurementModel<N>>(
             }
         }
     }
-    // Batch quantities at the prior, for gating and NIS.
-    let innovation0 = model.residual(z, &model.predict(prior.mean())?);
-    let batch = linearized_update(prior, innovation0, &h0, r, form)?;
+    // Batch quantities at the prior, for gating and NIS: ν, S = H P Hᵀ + R, K, νᵀ S⁻¹ ν.
+    let innovation = model.residual(z, &model.predict(prior.mean())?);
+    let (pht, innovation_covariance) = linearized_innovation_covariance(prior, &h0, r);
+    let GainSolution { gain, nis, .. } = solve_gain(&innovation_covariance, &pht, &innovation)?;
     let mut state = *prior;
     for i in 0..m {
         // hᵢ(x), Hᵢ = ∂hᵢ/∂x at the current estimate
@@ -177,5 +181,11 @@ pub(crate) fn sequential_update<const N: usize, H: MeasurementModel<N>>(
         let r_i = DMatrix::from_element(1, 1, r[(i, i)]);
         state = linearized_update(&state, DVector::from_element(1, nu), &h_row, &r_i, form)?.state;
     }
-    Ok(Updated { state, ..batch })
+    Ok(Updated {
+        state,
+        innovation,
+        innovation_covariance,
+        gain,
+        nis,
+    })
 }

@@ -67,13 +67,7 @@ impl KalmanFilter {
         model: &M,
         to_time_s: f64,
     ) -> Result<Gaussian<N>> {
-        let dt_s = state.step_to(to_time_s)?;
-        let f = model.transition_matrix(dt_s);
-        // x⁻ = F x̂
-        let mean = f * state.mean();
-        // P⁻ = F P Fᵀ + Q
-        let covariance = f * state.covariance() * f.transpose() + model.process_noise_matrix(dt_s);
-        Gaussian::from_step(mean, covariance, to_time_s, "predicted state")
+        linear_predict(state, model, None, to_time_s)
     }
 
     /// Predicts with a control input `u` (e.g. acceleration in m/s² from an on-tag
@@ -89,14 +83,7 @@ impl KalmanFilter {
         control: &DVector<f64>,
         to_time_s: f64,
     ) -> Result<Gaussian<N>> {
-        let dt_s = state.step_to(to_time_s)?;
-        let b = model.control_matrix(dt_s).ok_or(EstimationError::NoControlInput)?;
-        let f = model.transition_matrix(dt_s);
-        // x⁻ = F x̂ + B u
-        let mean = f * state.mean() + control_effect(&b, control)?;
-        // P⁻ = F P Fᵀ + Q
-        let covariance = f * state.covariance() * f.transpose() + model.process_noise_matrix(dt_s);
-        Gaussian::from_step(mean, covariance, to_time_s, "predicted state")
+        linear_predict(state, model, Some(control), to_time_s)
     }
 
     /// Updates a predicted state with measurement `z` of a linear model.
@@ -137,6 +124,27 @@ impl KalmanFilter {
     ) -> Result<Updated<N>> {
         super::ekf::sequential_update(prior, model, z, self.covariance_update)
     }
+}
+
+/// `x⁻ = F x̂ (+ B u)`, `P⁻ = F P Fᵀ + Q` with `F` built once.
+fn linear_predict<const N: usize, M: LinearMotionModel<N>>(
+    state: &Gaussian<N>,
+    model: &M,
+    control: Option<&DVector<f64>>,
+    to_time_s: f64,
+) -> Result<Gaussian<N>> {
+    let dt_s = state.step_to(to_time_s)?;
+    let f = model.transition_matrix(dt_s);
+    // x⁻ = F x̂
+    let mut mean = f * state.mean();
+    if let Some(u) = control {
+        let b = model.control_matrix(dt_s).ok_or(EstimationError::NoControlInput)?;
+        // x⁻ += B u
+        mean += control_effect(&b, u)?;
+    }
+    // P⁻ = F P Fᵀ + Q
+    let covariance = f * state.covariance() * f.transpose() + model.process_noise_matrix(dt_s);
+    Gaussian::from_step(mean, covariance, to_time_s, "predicted state")
 }
 
 /// `B u` with a size check of `u`.

@@ -5,7 +5,7 @@ use alloc::vec::Vec;
 use nalgebra::{DMatrix, DVector};
 
 use super::kf::control_effect;
-use super::update::{check_measurement, Gain, Updated};
+use super::update::{check_measurement, solve_gain, Gain, GainSolution, Updated};
 use crate::error::{EstimationError, Result};
 use crate::gaussian::{Gaussian, Matrix, Vector};
 use crate::measurement::MeasurementModel;
@@ -343,27 +343,10 @@ impl UnscentedKalmanFilter {
             // Pxz += Wᶜᵢ (χᵢ − x⁻)(Zᵢ − ẑ)ᵀ
             pxz.ger(w, &(p - prior.mean()), &dz_i, 1.0);
         }
-        let chol = s
-            .clone()
-            .cholesky()
-            .ok_or(EstimationError::InnovationNotPositiveDefinite)?;
-        // Kᵀ = S⁻¹ Pxzᵀ   ⇔   K = Pxz S⁻¹
-        let mut gain_t = pxz.transpose();
-        chol.solve_mut(&mut gain_t);
-        let gain: Gain<N> = gain_t.transpose();
         // ν = z − ẑ
         let innovation = model.residual(z, &z_mean);
-        // NIS = νᵀ S⁻¹ ν = |L⁻¹ ν|²
-        let nis = chol
-            .l_dirty()
-            .solve_lower_triangular(&innovation)
-            .ok_or(EstimationError::InnovationNotPositiveDefinite)?
-            .norm_squared();
-        if !nis.is_finite() {
-            return Err(EstimationError::NonFinite {
-                what: "normalised innovation squared",
-            });
-        }
+        // K = Pxz S⁻¹,  NIS = νᵀ S⁻¹ ν
+        let GainSolution { gain, gain_t, nis } = solve_gain(&s, &pxz, &innovation)?;
         // x̂ = x⁻ + K ν
         let mean = prior.mean() + &gain * &innovation;
         // P = P⁻ − K S Kᵀ = P⁻ − Pxz Kᵀ   (K S = Pxz)

@@ -88,6 +88,72 @@ pub(crate) fn check_model_shapes<const N: usize>(h: &MeasurementJacobian<N>, r: 
     Ok(())
 }
 
+/// The gain and NIS of an update, solved from `S` by one Cholesky factorisation.
+pub(crate) struct GainSolution<const N: usize> {
+    /// `K` (`N × m`).
+    pub(crate) gain: Gain<N>,
+    /// `Kᵀ` (`m × N`), kept because the covariance updates need it too.
+    pub(crate) gain_t: MeasurementJacobian<N>,
+    /// `νᵀ S⁻¹ ν`.
+    pub(crate) nis: f64,
+}
+
+/// Solves the gain and NIS shared by every Kalman update, given the innovation covariance `S`,
+/// the state–measurement cross-covariance `C` (`P⁻ Hᵀ` for the KF/EKF, the sigma-point `Pxz`
+/// for the UKF) and the innovation `ν`:
+/// ```text
+/// S = L Lᵀ
+/// Kᵀ = S⁻¹ Cᵀ        ⇔   K = C S⁻¹   (S symmetric)
+/// NIS = νᵀ S⁻¹ ν = |L⁻¹ ν|²
+/// ```
+///
+/// # Errors
+/// [`EstimationError::InnovationNotPositiveDefinite`] if `S` cannot be factorised;
+/// [`EstimationError::NonFinite`] if the NIS is not finite.
+pub(crate) fn solve_gain<const N: usize>(
+    s: &DMatrix<f64>,
+    cross_covariance: &Gain<N>,
+    innovation: &DVector<f64>,
+) -> Result<GainSolution<N>> {
+    // S = L Lᵀ
+    let chol = s
+        .clone()
+        .cholesky()
+        .ok_or(EstimationError::InnovationNotPositiveDefinite)?;
+    // Kᵀ = S⁻¹ Cᵀ
+    let mut gain_t = cross_covariance.transpose();
+    chol.solve_mut(&mut gain_t);
+    // NIS = |L⁻¹ ν|²
+    let nis = chol
+        .l_dirty()
+        .solve_lower_triangular(innovation)
+        .ok_or(EstimationError::InnovationNotPositiveDefinite)?
+        .norm_squared();
+    if !nis.is_finite() {
+        return Err(EstimationError::NonFinite {
+            what: "normalised innovation squared",
+        });
+    }
+    Ok(GainSolution {
+        gain: gain_t.transpose(),
+        gain_t,
+        nis,
+    })
+}
+
+/// `P⁻ Hᵀ` and `S = H P⁻ Hᵀ + R` of a linearised update.
+pub(crate) fn linearized_innovation_covariance<const N: usize>(
+    prior: &Gaussian<N>,
+    h: &MeasurementJacobian<N>,
+    r: &DMatrix<f64>,
+) -> (Gain<N>, DMatrix<f64>) {
+    // P Hᵀ  (N × m)
+    let pht: Gain<N> = prior.covariance() * h.transpose();
+    // S = H P Hᵀ + R
+    let s = h * &pht + r;
+    (pht, s)
+}
+
 /// Linearised Kalman update given `ν`, `H` and `R` at the prior `state`.
 ///
 /// ```text
@@ -104,25 +170,8 @@ pub(crate) fn linearized_update<const N: usize>(
     form: CovarianceUpdate,
 ) -> Result<Updated<N>> {
     let p = prior.covariance();
-    // P Hᵀ  (N × m)
-    let pht: Gain<N> = p * h.transpose();
-    // S = H P Hᵀ + R
-    let s: DMatrix<f64> = h * &pht + r;
-    // S = L Lᵀ
-    let chol = s
-        .clone()
-        .cholesky()
-        .ok_or(EstimationError::InnovationNotPositiveDefinite)?;
-    // Kᵀ = S⁻¹ (P Hᵀ)ᵀ   ⇒   K = P Hᵀ S⁻¹   (S symmetric)
-    let mut gain_t = pht.transpose();
-    chol.solve_mut(&mut gain_t);
-    let gain: Gain<N> = gain_t.transpose();
-    // NIS = νᵀ S⁻¹ ν = |L⁻¹ ν|²
-    let whitened = chol
-        .l_dirty()
-        .solve_lower_triangular(&innovation)
-        .ok_or(EstimationError::InnovationNotPositiveDefinite)?;
-    let nis = whitened.norm_squared();
+    let (pht, s) = linearized_innovation_covariance(prior, h, r);
+    let GainSolution { gain, gain_t, nis } = solve_gain(&s, &pht, &innovation)?;
     // x̂ = x⁻ + K ν
     let mean = prior.mean() + &gain * &innovation;
     // I − K H
@@ -134,11 +183,6 @@ pub(crate) fn linearized_update<const N: usize>(
         CovarianceUpdate::Simple => i_kh * p,
     };
     let state = Gaussian::from_step(mean, covariance, prior.time_s(), "posterior state")?;
-    if !nis.is_finite() {
-        return Err(EstimationError::NonFinite {
-            what: "normalised innovation squared",
-        });
-    }
     Ok(Updated {
         state,
         innovation,

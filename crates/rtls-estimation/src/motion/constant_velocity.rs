@@ -161,18 +161,9 @@ impl<const N: usize> LinearMotionModel<N> for ConstantVelocity {
     #[inline]
     fn process_noise_matrix(&self, dt_s: f64) -> Matrix<N> {
         let axes = const { axis_count::<N>() };
-        // Q_axis = G σ² Gᵀ (discrete) or ∫ Φ L q Lᵀ Φᵀ (continuous), the same for every axis
-        let block = self.noise.cv_axis_block(dt_s);
-        // Q = blockdiag(Q_axis)
+        // Q = blockdiag(Q_axis), Q_axis = G σ² Gᵀ (discrete) or ∫ Φ L q Lᵀ Φᵀ (continuous)
         let mut q = Matrix::<N>::zeros();
-        for axis in 0..axes {
-            let base = 2 * axis;
-            for (i, row) in block.iter().enumerate() {
-                for (j, &value) in row.iter().enumerate() {
-                    q[(base + i, base + j)] = value;
-                }
-            }
-        }
+        self.noise.write_cv_blocks(dt_s, axes, &mut q);
         q
     }
 

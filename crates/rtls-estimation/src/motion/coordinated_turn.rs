@@ -99,20 +99,6 @@ impl TurnCoefficients {
     }
 }
 
-/// Writes `blockdiag(Q_x, Q_y)` (constant-velocity blocks) into the top-left 4 × 4 of `q`.
-#[inline]
-fn write_planar_noise<const N: usize>(noise: &ProcessNoise, dt_s: f64, q: &mut Matrix<N>) {
-    // Q_axis = G σ² Gᵀ (discrete) or q·[[dt³/3, dt²/2], [dt²/2, dt]] (continuous)
-    let block = noise.cv_axis_block(dt_s);
-    for base in [0, 2] {
-        for (i, row) in block.iter().enumerate() {
-            for (j, &value) in row.iter().enumerate() {
-                q[(base + i, base + j)] = value;
-            }
-        }
-    }
-}
-
 /// Coordinated turn at a known, constant turn rate `ω` in the plane; state `[x, vx, y, vy]`.
 ///
 /// Over a step `T` the velocity rotates by `ωT` (speed is preserved) and the position follows
@@ -219,7 +205,7 @@ impl LinearMotionModel<4> for CoordinatedTurn {
     #[inline]
     fn process_noise_matrix(&self, dt_s: f64) -> Matrix<4> {
         let mut q = Matrix::<4>::zeros();
-        write_planar_noise(&self.noise, dt_s, &mut q);
+        self.noise.write_cv_blocks(dt_s, 2, &mut q);
         q
     }
 }
@@ -376,7 +362,7 @@ impl MotionModel<5> for CoordinatedTurnWithRate {
     fn process_noise(&self, _x: &Vector<5>, dt_s: f64) -> Matrix<5> {
         let mut q = Matrix::<5>::zeros();
         // Q_xy = blockdiag(Q_x, Q_y)
-        write_planar_noise(&self.noise, dt_s, &mut q);
+        self.noise.write_cv_blocks(dt_s, 2, &mut q);
         // Q_ω = T σ_ω̇² T
         q[(4, 4)] = dt_s * self.turn_rate_variance * dt_s;
         q

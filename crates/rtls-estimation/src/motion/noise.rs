@@ -2,6 +2,7 @@
 //! gain `G(dt)`, or continuous white noise integrated exactly over the step.
 
 use crate::error::{EstimationError, Result};
+use crate::gaussian::Matrix;
 
 /// `xⁿ` for an integer `n`, by repeated squaring (no `powi`, so it also works in `no_std`).
 ///
@@ -333,6 +334,22 @@ impl ProcessNoise {
                     });
                 }
                 Ok(())
+            }
+        }
+    }
+
+    /// Writes `blockdiag(Q_axis, …)` of constant-velocity blocks for `axes` axes into `q`, the
+    /// block of axis `i` at rows/columns `2i, 2i+1` (the CV layout `[x, vx, y, vy, z, vz]`).
+    #[inline]
+    pub(crate) fn write_cv_blocks<const N: usize>(&self, dt_s: f64, axes: usize, q: &mut Matrix<N>) {
+        // Q_axis = G σ² Gᵀ (discrete) or q·[[dt³/3, dt²/2], [dt²/2, dt]] (continuous)
+        let block = self.cv_axis_block(dt_s);
+        for axis in 0..axes {
+            let base = 2 * axis;
+            for (i, row) in block.iter().enumerate() {
+                for (j, &value) in row.iter().enumerate() {
+                    q[(base + i, base + j)] = value;
+                }
             }
         }
     }
