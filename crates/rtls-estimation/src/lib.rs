@@ -13,6 +13,10 @@
 //! - [`measurement`] — immutable measurement strategies (`h`, `H`, `R`, residual).
 //! - [`filter`] — KF, EKF, UKF: pure functions of (state, model, data) → new state, each
 //!   update carrying its innovation, innovation covariance, gain and NIS.
+//! - [`manoeuvre`] — seed 004's variable-dimension KF (CV ↔ CA) with manoeuvre detection.
+//! - [`imm`] — interacting multiple models across CV, CA and coordinated-turn models of
+//!   different state size, each run by a KF, EKF or UKF.
+//! - [`aided`] — accelerometer-aided (seed 002) and odometry-aided (seed 004) tracking.
 //! - [`smoother`] — RTS smoothing of a filtered sequence.
 //! - [`stats`] — chi-square quantiles, gates and consistency intervals.
 //!
@@ -42,9 +46,12 @@
 
 extern crate alloc;
 
+pub mod aided;
 mod error;
 pub mod filter;
 mod gaussian;
+pub mod imm;
+pub mod manoeuvre;
 pub(crate) mod math;
 pub mod measurement;
 pub mod motion;

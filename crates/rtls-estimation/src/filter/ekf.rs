@@ -170,7 +170,7 @@ pub(crate) fn sequential_update<const N: usize, H: MeasurementModel<N>>(
     // Batch quantities at the prior, for gating and NIS: ν, S = H P Hᵀ + R, K, νᵀ S⁻¹ ν.
     let innovation = model.residual(z, &model.predict(prior.mean())?);
     let (pht, innovation_covariance) = linearized_innovation_covariance(prior, &h0, r);
-    let GainSolution { gain, nis, .. } = solve_gain(&innovation_covariance, &pht, &innovation)?;
+    let GainSolution { gain, nis, log_det, .. } = solve_gain(&innovation_covariance, &pht, &innovation)?;
     let mut state = *prior;
     for i in 0..m {
         // hᵢ(x), Hᵢ = ∂hᵢ/∂x at the current estimate
@@ -187,5 +187,6 @@ pub(crate) fn sequential_update<const N: usize, H: MeasurementModel<N>>(
         innovation_covariance,
         gain,
         nis,
+        log_det_innovation_covariance: log_det,
     })
 }

@@ -12,12 +12,14 @@
 
 mod cv_axes;
 mod ekf;
+mod gaussian_filter;
 mod kf;
 mod ukf;
 mod update;
 
 pub use cv_axes::{CvAxis, DecoupledCvFilter, DecoupledCvState};
 pub use ekf::ExtendedKalmanFilter;
+pub use gaussian_filter::GaussianFilter;
 pub use kf::KalmanFilter;
 pub use ukf::{SigmaPointParameters, UnscentedKalmanFilter};
 pub use update::{CovarianceUpdate, Gain, Updated};

@@ -346,7 +346,12 @@ impl UnscentedKalmanFilter {
         // ν = z − ẑ
         let innovation = model.residual(z, &z_mean);
         // K = Pxz S⁻¹,  NIS = νᵀ S⁻¹ ν
-        let GainSolution { gain, gain_t, nis } = solve_gain(&s, &pxz, &innovation)?;
+        let GainSolution {
+            gain,
+            gain_t,
+            nis,
+            log_det,
+        } = solve_gain(&s, &pxz, &innovation)?;
         // x̂ = x⁻ + K ν
         let mean = prior.mean() + &gain * &innovation;
         // P = P⁻ − K S Kᵀ = P⁻ − Pxz Kᵀ   (K S = Pxz)
@@ -358,6 +363,7 @@ impl UnscentedKalmanFilter {
             innovation_covariance: s,
             gain,
             nis,
+            log_det_innovation_covariance: log_det,
         })
     }
 }

@@ -35,6 +35,8 @@ pub enum CovarianceUpdate {
 /// - `gain`: `K` (`N × m`).
 /// - `nis`: normalised innovation squared `νᵀ S⁻¹ ν`, `χ²(m)` under the model; compare it
 ///   with a [`crate::stats::ChiSquareGate`] to gate, or average it for a consistency test.
+/// - `log_det_innovation_covariance`: `ln |S|`, from the same Cholesky factor; with the NIS it
+///   gives the measurement log-likelihood ([`Updated::log_likelihood`]) an IMM weighs modes by.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Updated<const N: usize> {
     /// The posterior state.
@@ -47,6 +49,8 @@ pub struct Updated<const N: usize> {
     pub gain: Gain<N>,
     /// Normalised innovation squared `νᵀ S⁻¹ ν`.
     pub nis: f64,
+    /// `ln |S|` (natural logarithm of the determinant of the innovation covariance).
+    pub log_det_innovation_covariance: f64,
 }
 
 impl<const N: usize> Updated<N> {
@@ -54,6 +58,35 @@ impl<const N: usize> Updated<N> {
     #[must_use]
     pub fn measurement_dim(&self) -> usize {
         self.innovation.len()
+    }
+
+    /// Gaussian log-likelihood of the measurement under the prior:
+    /// `ln N(ν; 0, S) = −½ (νᵀ S⁻¹ ν + ln |S| + m ln 2π)`.
+    ///
+    /// This is the mode likelihood `Λⱼ` of an interacting multiple model filter, kept in the
+    /// log domain so that very unlikely modes do not underflow to 0.
+    ///
+    /// # Example
+    /// ```
+    /// use rtls_estimation::filter::KalmanFilter;
+    /// use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
+    /// use rtls_estimation::{Gaussian, Matrix, Vector};
+    /// use nalgebra::DVector;
+    /// let fix = ComponentSelection::<2>::new(&[0], NoiseCovariance::isotropic(1, 1.0)?)?;
+    /// let prior = Gaussian::new(Vector::<2>::zeros(), Matrix::<2>::identity(), 0.0)?;
+    /// // S = 1 + 1 = 2, ν = 0: ln N(0; 0, 2) = −½ ln(2π·2)
+    /// let up = KalmanFilter::default().update(&prior, &fix, &DVector::from_vec(vec![0.0]))?;
+    /// assert!((up.log_likelihood() + 0.5 * (4.0 * std::f64::consts::PI).ln()).abs() < 1e-12);
+    /// # Ok::<(), rtls_estimation::EstimationError>(())
+    /// ```
+    ///
+    /// # References
+    /// Bar-Shalom, Li, Kirubarajan (2001), eq. (11.6.6-8) (mode-matched likelihood).
+    #[must_use]
+    pub fn log_likelihood(&self) -> f64 {
+        // −½ (νᵀ S⁻¹ ν + ln |S| + m ln 2π)
+        let m = self.measurement_dim() as f64;
+        -0.5 * (self.nis + self.log_det_innovation_covariance + m * crate::math::ln(core::f64::consts::TAU))
     }
 }
 
@@ -96,6 +129,8 @@ pub(crate) struct GainSolution<const N: usize> {
     pub(crate) gain_t: MeasurementJacobian<N>,
     /// `νᵀ S⁻¹ ν`.
     pub(crate) nis: f64,
+    /// `ln |S| = 2 Σ ln Lᵢᵢ`.
+    pub(crate) log_det: f64,
 }
 
 /// Solves the gain and NIS shared by every Kalman update, given the innovation covariance `S`,
@@ -105,6 +140,7 @@ pub(crate) struct GainSolution<const N: usize> {
 /// S = L Lᵀ
 /// Kᵀ = S⁻¹ Cᵀ        ⇔   K = C S⁻¹   (S symmetric)
 /// NIS = νᵀ S⁻¹ ν = |L⁻¹ ν|²
+/// ln |S| = 2 Σ ln Lᵢᵢ
 /// ```
 ///
 /// # Errors
@@ -134,10 +170,19 @@ pub(crate) fn solve_gain<const N: usize>(
             what: "normalised innovation squared",
         });
     }
+    // ln |S| = 2 Σ ln Lᵢᵢ
+    let log_det = 2.0
+        * chol
+            .l_dirty()
+            .diagonal()
+            .iter()
+            .map(|&l| crate::math::ln(l))
+            .sum::<f64>();
     Ok(GainSolution {
         gain: gain_t.transpose(),
         gain_t,
         nis,
+        log_det,
     })
 }
 
@@ -171,7 +216,12 @@ pub(crate) fn linearized_update<const N: usize>(
 ) -> Result<Updated<N>> {
     let p = prior.covariance();
     let (pht, s) = linearized_innovation_covariance(prior, h, r);
-    let GainSolution { gain, gain_t, nis } = solve_gain(&s, &pht, &innovation)?;
+    let GainSolution {
+        gain,
+        gain_t,
+        nis,
+        log_det,
+    } = solve_gain(&s, &pht, &innovation)?;
     // x̂ = x⁻ + K ν
     let mean = prior.mean() + &gain * &innovation;
     // I − K H
@@ -189,5 +239,6 @@ pub(crate) fn linearized_update<const N: usize>(
         innovation_covariance: s,
         gain,
         nis,
+        log_det_innovation_covariance: log_det,
     })
 }

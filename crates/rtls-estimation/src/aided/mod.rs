@@ -1,0 +1,16 @@
+//! Sensor-aided tracking: on-tag accelerometers (seed 002) and odometry (seed 004).
+//!
+//! - [`PrintedAccelerometerModel`]: seed 002's first- and second-order dead-reckoning models
+//!   with the accumulating `Q(k)`, as printed; [`TextbookAccelerometerModel`]: state
+//!   `[x, vx, y, vy]`, the accelerometer as control input, its noise propagated into `Q`.
+//! - [`OdometryErrorModel`]: speed + heading with speed error, heading noise and heading drift,
+//!   turned into a velocity measurement ([`position_velocity_observation`], seed 004 eq. (9))
+//!   or a control input ([`OdometryDeadReckoning`]).
+
+mod accelerometer;
+mod odometry;
+
+pub use accelerometer::{
+    AccelerometerSample, DeadReckoning, ModelOrder, PositionStep, PrintedAccelerometerModel, TextbookAccelerometerModel,
+};
+pub use odometry::{position_velocity_observation, OdometryDeadReckoning, OdometryErrorModel, OdometryReading};

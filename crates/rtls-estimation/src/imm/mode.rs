@@ -1,0 +1,184 @@
+//! IMM modes: a motion model, a measurement model and a Kalman-type filter of any state size,
+//! behind one object-safe interface on dynamically sized estimates.
+
+use alloc::string::String;
+
+use core::marker::PhantomData;
+
+use nalgebra::{DMatrix, DVector};
+
+use super::layout::{check_estimate, StateLayout};
+use crate::error::{EstimationError, Result};
+use crate::filter::GaussianFilter;
+use crate::gaussian::{Gaussian, Matrix, Vector};
+
+/// A mode-conditioned estimate in its mode's [`StateLayout`] (the size varies between modes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModeEstimate {
+    /// Mean, one entry per layout component.
+    pub mean: DVector<f64>,
+    /// Covariance (symmetric positive semi-definite).
+    pub covariance: DMatrix<f64>,
+}
+
+impl ModeEstimate {
+    /// The estimate of a statically sized [`Gaussian`] (its time is kept by the IMM state).
+    #[must_use]
+    pub fn from_gaussian<const N: usize>(state: &Gaussian<N>) -> Self {
+        Self {
+            mean: DVector::from_column_slice(state.mean().as_slice()),
+            covariance: DMatrix::from_column_slice(N, N, state.covariance().as_slice()),
+        }
+    }
+
+    /// The statically sized [`Gaussian`] at `time_s`.
+    ///
+    /// # Errors
+    /// [`EstimationError::DimensionMismatch`] if the estimate does not have `N` entries; the
+    /// errors of [`Gaussian::new`] for non-finite or asymmetric values.
+    pub fn to_gaussian<const N: usize>(&self, time_s: f64) -> Result<Gaussian<N>> {
+        check_estimate(&self.mean, &self.covariance, N, "mode estimate")?;
+        Gaussian::new(
+            Vector::<N>::from_column_slice(self.mean.as_slice()),
+            Matrix::<N>::from_column_slice(self.covariance.as_slice()),
+            time_s,
+        )
+    }
+}
+
+/// The result of a mode-matched measurement update.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModeUpdate {
+    /// The mode-conditioned posterior.
+    pub estimate: ModeEstimate,
+    /// `ln Λⱼ = ln N(ν; 0, S)`: the measurement log-likelihood under this mode.
+    pub log_likelihood: f64,
+    /// `νᵀ S⁻¹ ν` under this mode.
+    pub nis: f64,
+}
+
+/// One mode of an interacting multiple model filter: a state layout, a prediction and a
+/// measurement update. Object safe, so modes of different state sizes and filter kinds live
+/// in one `Vec<Box<dyn ImmMode>>`. `Send + Sync`, so one IMM serves tracks on many threads.
+///
+/// [`FilterMode`] implements it for any motion model, measurement model and KF/EKF/UKF.
+pub trait ImmMode: Send + Sync {
+    /// A short name for reports ("CV", "CA", "CT").
+    fn name(&self) -> &str;
+    /// The meaning of each state entry.
+    fn layout(&self) -> &StateLayout;
+    /// Mode-matched prediction from `from_time_s` to `to_time_s`.
+    ///
+    /// # Errors
+    /// The filter's prediction errors.
+    fn predict(&self, estimate: &ModeEstimate, from_time_s: f64, to_time_s: f64) -> Result<ModeEstimate>;
+    /// Mode-matched update with measurement `z` at `time_s`.
+    ///
+    /// # Errors
+    /// The filter's update errors.
+    fn update(&self, prior: &ModeEstimate, time_s: f64, z: &DVector<f64>) -> Result<ModeUpdate>;
+}
+
+/// An [`ImmMode`] made of a motion model `M`, a measurement model `H` and a filter `F`
+/// ([`crate::filter::KalmanFilter`], [`crate::filter::ExtendedKalmanFilter`] or
+/// [`crate::filter::UnscentedKalmanFilter`]) on an `N`-entry state described by a layout.
+///
+/// # Example
+/// ```
+/// use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter};
+/// use rtls_estimation::imm::{FilterMode, ImmMode, StateLayout};
+/// use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
+/// use rtls_estimation::motion::{ConstantVelocity, CoordinatedTurnWithRate, NoiseGain, ProcessNoise};
+/// let fixes4 = ComponentSelection::<4>::position(2, NoiseCovariance::isotropic(2, 25.0)?)?;
+/// let fixes5 = ComponentSelection::<5>::position(2, NoiseCovariance::isotropic(2, 25.0)?)?;
+/// let cv = FilterMode::<4, _, _, _>::new(
+///     "CV",
+///     StateLayout::cv_2d(),
+///     ConstantVelocity::new(ProcessNoise::discrete(0.01, NoiseGain::kinematic()))?,
+///     fixes4,
+///     KalmanFilter::default(),
+/// )?;
+/// let ct = FilterMode::<5, _, _, _>::new(
+///     "CT",
+///     StateLayout::ct_2d(),
+///     CoordinatedTurnWithRate::new(ProcessNoise::discrete(0.01, NoiseGain::kinematic()), 1e-4)?,
+///     fixes5,
+///     ExtendedKalmanFilter::default(),
+/// )?;
+/// let modes: Vec<Box<dyn ImmMode>> = vec![Box::new(cv), Box::new(ct)];
+/// assert_eq!(modes[1].layout().len(), 5);
+/// # Ok::<(), rtls_estimation::EstimationError>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct FilterMode<const N: usize, M, H, F> {
+    name: String,
+    layout: StateLayout,
+    motion: M,
+    measurement: H,
+    filter: F,
+    _state: PhantomData<[f64; N]>,
+}
+
+impl<const N: usize, M, H, F: GaussianFilter<N, M, H>> FilterMode<N, M, H, F> {
+    /// A mode named `name` over states described by `layout`.
+    ///
+    /// # Errors
+    /// [`EstimationError::DimensionMismatch`] if `layout` does not have `N` components.
+    pub fn new(name: &str, layout: StateLayout, motion: M, measurement: H, filter: F) -> Result<Self> {
+        if layout.len() != N {
+            return Err(EstimationError::DimensionMismatch {
+                what: "mode state layout",
+                expected: N,
+                found: layout.len(),
+            });
+        }
+        Ok(Self {
+            name: String::from(name),
+            layout,
+            motion,
+            measurement,
+            filter,
+            _state: PhantomData,
+        })
+    }
+
+    /// The motion model.
+    #[must_use]
+    pub fn motion(&self) -> &M {
+        &self.motion
+    }
+
+    /// The measurement model.
+    #[must_use]
+    pub fn measurement(&self) -> &H {
+        &self.measurement
+    }
+}
+
+impl<const N: usize, M: Send + Sync, H: Send + Sync, F: GaussianFilter<N, M, H> + Send + Sync> ImmMode
+    for FilterMode<N, M, H, F>
+{
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn layout(&self) -> &StateLayout {
+        &self.layout
+    }
+
+    fn predict(&self, estimate: &ModeEstimate, from_time_s: f64, to_time_s: f64) -> Result<ModeEstimate> {
+        let state = estimate.to_gaussian::<N>(from_time_s)?;
+        let prior = self.filter.predict(&state, &self.motion, to_time_s)?;
+        Ok(ModeEstimate::from_gaussian(&prior))
+    }
+
+    fn update(&self, prior: &ModeEstimate, time_s: f64, z: &DVector<f64>) -> Result<ModeUpdate> {
+        let state = prior.to_gaussian::<N>(time_s)?;
+        let updated = self.filter.update(&state, &self.measurement, z)?;
+        Ok(ModeUpdate {
+            estimate: ModeEstimate::from_gaussian(&updated.state),
+            log_likelihood: updated.log_likelihood(),
+            nis: updated.nis,
+        })
+    }
+}
