@@ -6,7 +6,7 @@ use alloc::vec::Vec;
 use nalgebra::{DMatrix, DVector};
 
 use super::layout::{check_estimate, convert, Fill, StateLayout};
-use super::mode::{ImmMode, ModeEstimate};
+use super::mode::{ComponentObservation, ImmMode, ModeEstimate, ModeUpdate};
 use super::transitions::ModeTransitions;
 use crate::error::{EstimationError, Result};
 
@@ -346,11 +346,31 @@ impl InteractingMultipleModel {
     /// A mode's update errors; [`EstimationError::NonFinite`] if every mode gives the
     /// measurement zero likelihood (underflow even in the log domain).
     pub fn update(&self, prior: &ImmState, z: &DVector<f64>) -> Result<ImmUpdate> {
+        self.update_with(prior, |mode, estimate| mode.update(estimate, prior.time_s, z))
+    }
+
+    /// As [`InteractingMultipleModel::update`], with a direct observation of layout components
+    /// (see [`ComponentObservation`]) that every mode maps onto its own state.
+    ///
+    /// # Errors
+    /// As [`InteractingMultipleModel::update`], plus [`EstimationError::InvalidParameter`] if a
+    /// mode lacks an observed component.
+    pub fn update_components(&self, prior: &ImmState, observation: &ComponentObservation) -> Result<ImmUpdate> {
+        self.update_with(prior, |mode, estimate| {
+            mode.update_components(estimate, prior.time_s, observation)
+        })
+    }
+
+    fn update_with(
+        &self,
+        prior: &ImmState,
+        update_mode: impl Fn(&dyn ImmMode, &ModeEstimate) -> Result<ModeUpdate>,
+    ) -> Result<ImmUpdate> {
         let mut estimates = Vec::with_capacity(self.modes.len());
         let mut log_likelihoods = Vec::with_capacity(self.modes.len());
         let mut nis = Vec::with_capacity(self.modes.len());
         for (mode, estimate) in self.modes.iter().zip(&prior.estimates) {
-            let update = mode.update(estimate, prior.time_s, z)?;
+            let update = update_mode(mode.as_ref(), estimate)?;
             estimates.push(update.estimate);
             log_likelihoods.push(update.log_likelihood);
             nis.push(update.nis);

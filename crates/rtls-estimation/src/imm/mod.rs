@@ -19,5 +19,5 @@ mod transitions;
 
 pub use filter::{ImmState, ImmUpdate, InteractingMultipleModel};
 pub use layout::{convert, Axis, Component, Fill, StateLayout};
-pub use mode::{FilterMode, ImmMode, ModeEstimate, ModeUpdate};
+pub use mode::{ComponentObservation, FilterMode, ImmMode, ModeEstimate, ModeUpdate};
 pub use transitions::ModeTransitions;

@@ -7,10 +7,11 @@ use core::marker::PhantomData;
 
 use nalgebra::{DMatrix, DVector};
 
-use super::layout::{check_estimate, StateLayout};
+use super::layout::{check_estimate, Component, StateLayout};
 use crate::error::{EstimationError, Result};
 use crate::filter::GaussianFilter;
 use crate::gaussian::{Gaussian, Matrix, Vector};
+use crate::measurement::{ComponentSelection, NoiseCovariance};
 
 /// A mode-conditioned estimate in its mode's [`StateLayout`] (the size varies between modes).
 #[derive(Debug, Clone, PartialEq)]
@@ -77,6 +78,79 @@ pub trait ImmMode: Send + Sync {
     /// # Errors
     /// The filter's update errors.
     fn update(&self, prior: &ModeEstimate, time_s: f64, z: &DVector<f64>) -> Result<ModeUpdate>;
+    /// Mode-matched update with a direct observation of layout components (a position fix, a
+    /// velocity from odometry) whose noise may change every epoch.
+    ///
+    /// # Errors
+    /// [`EstimationError::InvalidParameter`] if the mode's layout lacks an observed component;
+    /// the filter's update errors.
+    fn update_components(
+        &self,
+        prior: &ModeEstimate,
+        time_s: f64,
+        observation: &ComponentObservation,
+    ) -> Result<ModeUpdate>;
+}
+
+/// A direct, linear observation of named state components, `z = x[components] + v`,
+/// `v ~ N(0, R)`: every IMM mode whose layout has the components can use it, whatever its
+/// state size, and `R` may change every epoch (e.g. a TDOA fix's covariance).
+///
+/// # Example
+/// ```
+/// use rtls_estimation::imm::{Axis, Component, ComponentObservation};
+/// use rtls_estimation::measurement::NoiseCovariance;
+/// use nalgebra::DVector;
+/// let fix = ComponentObservation::new(
+///     vec![Component::Position(Axis::X), Component::Position(Axis::Y)],
+///     DVector::from_vec(vec![12.0, -3.0]),
+///     NoiseCovariance::isotropic(2, 900.0)?,
+/// )?;
+/// assert_eq!(fix.components().len(), 2);
+/// # Ok::<(), rtls_estimation::EstimationError>(())
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct ComponentObservation {
+    components: alloc::vec::Vec<Component>,
+    z: DVector<f64>,
+    noise: NoiseCovariance,
+}
+
+impl ComponentObservation {
+    /// An observation `z` of `components` with noise `noise`.
+    ///
+    /// # Errors
+    /// [`EstimationError::DimensionMismatch`] if `z`, `components` and `noise` disagree in size;
+    /// [`EstimationError::NonFinite`] for NaN/∞ in `z`.
+    pub fn new(components: alloc::vec::Vec<Component>, z: DVector<f64>, noise: NoiseCovariance) -> Result<Self> {
+        if components.len() != z.len() || noise.dim() != z.len() {
+            return Err(EstimationError::DimensionMismatch {
+                what: "component observation",
+                expected: components.len(),
+                found: if noise.dim() != z.len() { noise.dim() } else { z.len() },
+            });
+        }
+        crate::math::ensure_finite(&z, "component observation")?;
+        Ok(Self { components, z, noise })
+    }
+
+    /// The observed components.
+    #[must_use]
+    pub fn components(&self) -> &[Component] {
+        &self.components
+    }
+
+    /// The measured values.
+    #[must_use]
+    pub fn z(&self) -> &DVector<f64> {
+        &self.z
+    }
+
+    /// The noise covariance.
+    #[must_use]
+    pub fn noise(&self) -> &NoiseCovariance {
+        &self.noise
+    }
 }
 
 /// An [`ImmMode`] made of a motion model `M`, a measurement model `H` and a filter `F`
@@ -155,8 +229,11 @@ impl<const N: usize, M, H, F: GaussianFilter<N, M, H>> FilterMode<N, M, H, F> {
     }
 }
 
-impl<const N: usize, M: Send + Sync, H: Send + Sync, F: GaussianFilter<N, M, H> + Send + Sync> ImmMode
-    for FilterMode<N, M, H, F>
+impl<const N: usize, M, H, F> ImmMode for FilterMode<N, M, H, F>
+where
+    M: Send + Sync,
+    H: Send + Sync,
+    F: GaussianFilter<N, M, H> + GaussianFilter<N, M, ComponentSelection<N>> + Send + Sync,
 {
     fn name(&self) -> &str {
         &self.name
@@ -168,13 +245,40 @@ impl<const N: usize, M: Send + Sync, H: Send + Sync, F: GaussianFilter<N, M, H> 
 
     fn predict(&self, estimate: &ModeEstimate, from_time_s: f64, to_time_s: f64) -> Result<ModeEstimate> {
         let state = estimate.to_gaussian::<N>(from_time_s)?;
-        let prior = self.filter.predict(&state, &self.motion, to_time_s)?;
+        let prior = GaussianFilter::<N, M, H>::predict(&self.filter, &state, &self.motion, to_time_s)?;
         Ok(ModeEstimate::from_gaussian(&prior))
     }
 
     fn update(&self, prior: &ModeEstimate, time_s: f64, z: &DVector<f64>) -> Result<ModeUpdate> {
         let state = prior.to_gaussian::<N>(time_s)?;
-        let updated = self.filter.update(&state, &self.measurement, z)?;
+        let updated = GaussianFilter::<N, M, H>::update(&self.filter, &state, &self.measurement, z)?;
+        Ok(ModeUpdate {
+            estimate: ModeEstimate::from_gaussian(&updated.state),
+            log_likelihood: updated.log_likelihood(),
+            nis: updated.nis,
+        })
+    }
+
+    fn update_components(
+        &self,
+        prior: &ModeEstimate,
+        time_s: f64,
+        observation: &ComponentObservation,
+    ) -> Result<ModeUpdate> {
+        let indices = observation
+            .components()
+            .iter()
+            .map(|&c| {
+                self.layout.index_of(c).ok_or(EstimationError::InvalidParameter {
+                    name: "component observation",
+                    reason: "an IMM mode's state layout lacks an observed component",
+                })
+            })
+            .collect::<Result<alloc::vec::Vec<usize>>>()?;
+        let model = ComponentSelection::<N>::new(&indices, observation.noise().clone())?;
+        let state = prior.to_gaussian::<N>(time_s)?;
+        let updated =
+            GaussianFilter::<N, M, ComponentSelection<N>>::update(&self.filter, &state, &model, observation.z())?;
         Ok(ModeUpdate {
             estimate: ModeEstimate::from_gaussian(&updated.state),
             log_likelihood: updated.log_likelihood(),
