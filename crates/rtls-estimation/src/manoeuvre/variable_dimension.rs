@@ -188,7 +188,14 @@ pub struct VariableDimensionFilter {
     manoeuvring: ConstantAcceleration,
     detector: ManoeuvreDetector,
     filter: KalmanFilter,
+    /// `Th` for `m = 1..=CACHED_DIMS` (χ² quantiles are iterative; computed once).
+    onset_thresholds: [f64; CACHED_DIMS],
+    /// The exit threshold for a planar acceleration.
+    exit_threshold: f64,
 }
+
+/// Measurement sizes whose onset threshold is precomputed.
+const CACHED_DIMS: usize = 8;
 
 impl VariableDimensionFilter {
     /// A VD-KF with the given CV and CA models and detector.
@@ -201,11 +208,17 @@ impl VariableDimensionFilter {
         detector: ManoeuvreDetector,
     ) -> Result<Self> {
         detector.validate()?;
+        let mut onset_thresholds = [0.0; CACHED_DIMS];
+        for (i, th) in onset_thresholds.iter_mut().enumerate() {
+            *th = detector.onset_threshold(i + 1)?;
+        }
         Ok(Self {
             quiescent,
             manoeuvring,
             detector,
             filter: KalmanFilter::default(),
+            onset_thresholds,
+            exit_threshold: detector.exit_threshold(2)?,
         })
     }
 
@@ -228,8 +241,15 @@ impl VariableDimensionFilter {
     /// # Errors
     /// [`EstimationError::InvalidParameter`] for invalid detector parameters.
     pub fn with_detector(self, detector: ManoeuvreDetector) -> Result<Self> {
-        detector.validate()?;
-        Ok(Self { detector, ..self })
+        Self::new(self.quiescent, self.manoeuvring, detector)
+    }
+
+    /// `Th` for an observation of `m` components (cached for small `m`).
+    fn onset_threshold(&self, m: usize) -> Result<f64> {
+        match self.onset_thresholds.get(m.wrapping_sub(1)) {
+            Some(&th) => Ok(th),
+            None => self.detector.onset_threshold(m),
+        }
     }
 
     /// The detector.
@@ -294,7 +314,7 @@ impl VariableDimensionFilter {
         while history.len() > self.detector.window_steps() + 1 {
             history.pop_front();
         }
-        let threshold = self.detector.onset_threshold(observation.dim())?;
+        let threshold = self.onset_threshold(observation.dim())?;
         if mu < threshold {
             return Ok(VdStep {
                 state: VdState {
@@ -356,7 +376,7 @@ impl VariableDimensionFilter {
         }
         // Uₐ = Σ over the last p steps of δₐ
         let u_a: f64 = significance.iter().sum();
-        let threshold = self.detector.exit_threshold(2)?;
+        let threshold = self.exit_threshold;
         if significance.len() == self.detector.exit_window_steps && u_a < threshold {
             return Ok(VdStep {
                 state: VdState {
