@@ -1,0 +1,101 @@
+//! The one error type of the simulation crate.
+
+/// Why a scenario, a simulated sensor or a metric could not be computed.
+///
+/// Every bad parameter or input is reported through this type; no function of the crate panics
+/// on user input or returns a NaN. Messages are lowercase and name the cause and the fix.
+///
+/// # Example
+/// ```
+/// use rtls_sim::{SimError, Trajectory};
+/// let err = Trajectory::builder([0.0, 0.0], [1.0, 0.0]).constant_velocity(-1.0).build().unwrap_err();
+/// assert!(matches!(err, SimError::InvalidParameter { name: "duration_s", .. }));
+/// assert!(err.to_string().starts_with("invalid parameter `duration_s`"));
+/// ```
+///
+/// # References
+/// STYLE.md, "Errors": one `thiserror` enum per library crate.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// A parameter is outside its valid range.
+    #[error("invalid parameter `{name}`: {reason}")]
+    InvalidParameter {
+        /// Parameter name as in the function signature or struct field.
+        name: &'static str,
+        /// What is wrong with it and what is allowed.
+        reason: &'static str,
+    },
+    /// An input contains NaN or infinity.
+    #[error("{what} contains a non-finite value (NaN or infinity): pass finite numbers only")]
+    NonFinite {
+        /// Which input, e.g. "start position".
+        what: &'static str,
+    },
+    /// An input that must hold at least one element is empty.
+    #[error("{what} is empty: pass at least one element")]
+    EmptyInput {
+        /// Which input, e.g. "errors".
+        what: &'static str,
+    },
+    /// Two inputs that must have the same length do not.
+    #[error("length mismatch in {what}: expected {expected}, found {found}; pass inputs of equal length")]
+    LengthMismatch {
+        /// What was being compared, e.g. "estimates vs truth".
+        what: &'static str,
+        /// Length required.
+        expected: usize,
+        /// Length supplied.
+        found: usize,
+    },
+}
+
+/// Result alias of this crate: `Result<T, SimError>`.
+///
+/// # Example
+/// ```
+/// fn speed() -> rtls_sim::Result<f64> {
+///     Ok(rtls_sim::seed_004_trajectory(10.0)?.state_at(0.0)?.speed_mps())
+/// }
+/// assert_eq!(speed(), Ok(10.0));
+/// ```
+///
+/// # References
+/// STYLE.md, "Errors".
+pub type Result<T> = core::result::Result<T, SimError>;
+
+/// Checks that `value` is finite.
+pub(crate) fn finite(value: f64, what: &'static str) -> Result<f64> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(SimError::NonFinite { what })
+    }
+}
+
+/// Checks that both components of `value` are finite.
+pub(crate) fn finite2(value: [f64; 2], what: &'static str) -> Result<[f64; 2]> {
+    finite(value[0], what)?;
+    finite(value[1], what)?;
+    Ok(value)
+}
+
+/// Checks that `value` is finite and strictly positive.
+pub(crate) fn positive(value: f64, name: &'static str, reason: &'static str) -> Result<f64> {
+    finite(value, name)?;
+    if value > 0.0 {
+        Ok(value)
+    } else {
+        Err(SimError::InvalidParameter { name, reason })
+    }
+}
+
+/// Checks that `value` is finite and not negative.
+pub(crate) fn non_negative(value: f64, name: &'static str, reason: &'static str) -> Result<f64> {
+    finite(value, name)?;
+    if value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(SimError::InvalidParameter { name, reason })
+    }
+}

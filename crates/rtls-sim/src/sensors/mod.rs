@@ -1,0 +1,16 @@
+//! Simulated sensors: cellular TDOA and odometry (seed 004), accelerometer and RSSI (seed 002).
+//!
+//! Every simulator takes its randomness as `rng: &mut impl rand::Rng`, so a seeded generator
+//! (e.g. `rand_chacha::ChaCha8Rng::seed_from_u64`) reproduces a run exactly.
+
+mod accelerometer;
+mod odometry;
+mod rssi;
+mod tdoa;
+
+pub use accelerometer::{AccelerometerNoise, AccelerometerReading, AccelerometerSimulator};
+pub use odometry::{
+    OdometryReading, OdometryRun, OdometrySimulator, SEED_004_HEADING_DRIFT_RAD_PER_S, SEED_004_HEADING_NOISE_STD_RAD,
+};
+pub use rssi::{fingerprint_means, LogDistanceRadio};
+pub use tdoa::{TdoaSimulator, SPEED_OF_LIGHT_MPS};
