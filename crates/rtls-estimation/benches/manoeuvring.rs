@@ -35,19 +35,16 @@ fn initial() -> Gaussian<4> {
 
 fn bench_vd(c: &mut Criterion) {
     let vd = VariableDimensionFilter::seed_004(0.01, 0.01).unwrap();
-    let full = ComponentSelection::<4>::position_velocity(2, NoiseCovariance::diagonal(&[900.0, 1.0, 900.0, 1.0]).unwrap())
-        .unwrap();
+    let full =
+        ComponentSelection::<4>::position_velocity(2, NoiseCovariance::diagonal(&[900.0, 1.0, 900.0, 1.0]).unwrap())
+            .unwrap();
     let z = DVector::from_vec(vec![10.0, 10.0, 0.5, 0.1]);
     let obs = LinearObservation::from_model(1.0, &full, z.clone()).unwrap();
     // A CV state whose history window is full (as in steady tracking).
     let mut cv_state = vd.initial_state(initial());
     for k in 0..10 {
-        let o = LinearObservation::from_model(
-            k as f64 * 0.1,
-            &full,
-            DVector::from_vec(vec![k as f64, 10.0, 0.0, 0.0]),
-        )
-        .unwrap();
+        let o = LinearObservation::from_model(k as f64 * 0.1, &full, DVector::from_vec(vec![k as f64, 10.0, 0.0, 0.0]))
+            .unwrap();
         cv_state = vd.step(&cv_state, &o).unwrap().state;
     }
     let obs_late = LinearObservation::from_model(1.5, &full, z.clone()).unwrap();
@@ -71,8 +68,12 @@ fn bench_vd(c: &mut Criterion) {
             kf.update(&prior, &full, black_box(&z)).unwrap()
         })
     });
-    group.bench_function("vd_in_cv", |b| b.iter(|| vd.step(black_box(&cv_state), black_box(&obs_late)).unwrap()));
-    group.bench_function("vd_in_ca", |b| b.iter(|| vd.step(black_box(&ca_state), black_box(&obs_late)).unwrap()));
+    group.bench_function("vd_in_cv", |b| {
+        b.iter(|| vd.step(black_box(&cv_state), black_box(&obs_late)).unwrap())
+    });
+    group.bench_function("vd_in_ca", |b| {
+        b.iter(|| vd.step(black_box(&ca_state), black_box(&obs_late)).unwrap())
+    });
     group.bench_function("vd_onset_refilter", |b| {
         b.iter(|| eager.step(black_box(&cv_state), black_box(&obs_late)).unwrap())
     });
@@ -85,8 +86,14 @@ fn bench_imm(c: &mut Criterion) {
     let fix4 = ComponentSelection::<4>::position(2, r.clone()).unwrap();
     let modes: Vec<Box<dyn ImmMode>> = vec![
         Box::new(
-            FilterMode::<4, _, _, _>::new("CV", StateLayout::cv_2d(), cv_model, fix4.clone(), KalmanFilter::default())
-                .unwrap(),
+            FilterMode::<4, _, _, _>::new(
+                "CV",
+                StateLayout::cv_2d(),
+                cv_model,
+                fix4.clone(),
+                KalmanFilter::default(),
+            )
+            .unwrap(),
         ),
         Box::new(
             FilterMode::<6, _, _, _>::new(
@@ -109,8 +116,8 @@ fn bench_imm(c: &mut Criterion) {
             .unwrap(),
         ),
     ];
-    let imm = InteractingMultipleModel::new(modes, ModeTransitions::mean_sojourn(vec![60.0, 15.0, 20.0]).unwrap())
-        .unwrap();
+    let imm =
+        InteractingMultipleModel::new(modes, ModeTransitions::mean_sojourn(vec![60.0, 15.0, 20.0]).unwrap()).unwrap();
     let x0 = initial();
     let state = imm
         .initial_state(

@@ -80,6 +80,14 @@ pub enum PositioningError {
         /// Why and what to do.
         reason: &'static str,
     },
+    /// An iterative solver did not converge within its iteration limit.
+    #[error(
+        "the iterative solver did not converge in {iterations} iterations; check the geometry and the initial guess"
+    )]
+    DidNotConverge {
+        /// Iterations performed.
+        iterations: usize,
+    },
     /// A fingerprint query hears no anchor, so it cannot be compared with any reference point.
     #[error(
         "the fingerprint query shares no heard anchor with the database (every value is None); \

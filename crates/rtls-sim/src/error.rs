@@ -48,6 +48,25 @@ pub enum SimError {
         /// Length supplied.
         found: usize,
     },
+    /// A filter step failed (numerical failure or bad input to `rtls-estimation`).
+    #[error("estimation failed at t = {time_s} s: {source}")]
+    Estimation {
+        /// Simulation time of the failing step (s).
+        time_s: f64,
+        /// The filter's error.
+        source: rtls_estimation::EstimationError,
+    },
+    /// A positioning algorithm was given bad input (as opposed to a fix that is simply
+    /// unavailable this epoch, which a reproduction counts and coasts through).
+    #[error("positioning failed: {0}")]
+    Positioning(#[from] rtls_positioning::PositioningError),
+}
+
+impl SimError {
+    /// Wraps a filter error with the simulation time it happened at.
+    pub fn estimation(time_s: f64) -> impl FnOnce(rtls_estimation::EstimationError) -> Self {
+        move |source| Self::Estimation { time_s, source }
+    }
 }
 
 /// Result alias of this crate: `Result<T, SimError>`.

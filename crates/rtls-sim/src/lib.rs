@@ -39,6 +39,7 @@
 
 mod error;
 pub mod metrics;
+pub mod reproduction;
 pub mod scenarios;
 pub mod sensors;
 pub mod trajectory;

@@ -13,4 +13,7 @@ mod odometry;
 pub use accelerometer::{
     AccelerometerSample, DeadReckoning, ModelOrder, PositionStep, PrintedAccelerometerModel, TextbookAccelerometerModel,
 };
-pub use odometry::{position_velocity_observation, OdometryDeadReckoning, OdometryErrorModel, OdometryReading};
+pub use odometry::{
+    position_velocity_observation, HeadingBias, HeadingBiasEstimator, OdometryDeadReckoning, OdometryErrorModel,
+    OdometryReading,
+};

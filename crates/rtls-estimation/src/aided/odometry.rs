@@ -104,6 +104,42 @@ impl OdometryErrorModel {
         }
     }
 
+    /// The white heading error `σ_θ` (rad).
+    #[must_use]
+    pub fn heading_std_rad(&self) -> f64 {
+        self.heading_std_rad
+    }
+
+    /// The velocity and covariance of a reading whose heading has already been corrected for
+    /// drift, with the correction's variance `bias_variance_rad2` in place of `(ḋ t)²`:
+    /// `σ_θ² = σ_θ² + var(b̂)` (see [`HeadingBiasEstimator`]).
+    ///
+    /// # Errors
+    /// As [`OdometryErrorModel::velocity`].
+    pub fn corrected_velocity(
+        &self,
+        reading: &OdometryReading,
+        bias_rad: f64,
+        bias_variance_rad2: f64,
+    ) -> Result<(Vector2<f64>, Matrix2<f64>)> {
+        if !bias_rad.is_finite() || !bias_variance_rad2.is_finite() || bias_variance_rad2 < 0.0 {
+            return Err(EstimationError::InvalidParameter {
+                name: "bias_variance_rad2",
+                reason: "the heading bias and its variance must be finite, the variance non-negative",
+            });
+        }
+        let corrected = OdometryReading {
+            speed_mps: reading.speed_mps,
+            heading_rad: reading.heading_rad - bias_rad,
+        };
+        let unbiased = Self {
+            heading_std_rad: (self.heading_std_rad * self.heading_std_rad + bias_variance_rad2).sqrt(),
+            heading_drift_rad_per_s: 0.0,
+            ..*self
+        };
+        unbiased.velocity(&corrected, 0.0)
+    }
+
     /// `σ_θ²(t) = σ_θ² + (ḋ t)²`, `elapsed_s` after the last heading reference.
     #[must_use]
     pub fn heading_variance(&self, elapsed_s: f64) -> f64 {
@@ -142,6 +178,168 @@ impl OdometryErrorModel {
         Ok((v, r))
     }
 }
+
+/// Online estimate of the heading sensor's drift `b(t) = b₀ + ḃ t` from a heading reference
+/// that does not use the odometer (the course of a track filtered from position fixes alone).
+///
+/// A two-state Kalman filter on `[b, ḃ]` (constant drift rate, a small random walk on it):
+/// ```text
+/// y = wrap(θ_odo − atan2(v̂_y, v̂_x))                 observed bias
+/// R_y = σ_θ² + σ²_course,  σ²_course ≈ (v̂ᵀ⊥ P_v v̂⊥)/‖v̂‖⁴   course variance of the reference
+/// update only when ‖v̂‖ ≥ min_speed_mps (the course of a slow track is meaningless)
+/// and (y − b̂)² ≤ 3² (P_bb + R_y) (a reference lagging in a turn is not a bias)
+/// ```
+/// The corrected heading `θ_odo − b̂` then has variance `σ_θ² + var(b̂)`
+/// ([`OdometryErrorModel::corrected_velocity`]) instead of a variance that grows with time, so a
+/// fused filter neither trusts drifted headings nor discards the odometer after an hour.
+///
+/// # Example
+/// ```
+/// use rtls_estimation::aided::HeadingBiasEstimator;
+/// use nalgebra::{Matrix2, Vector2};
+/// let mut estimator = HeadingBiasEstimator::new(1e-10, 2.0)?.start(0.0)?;
+/// // the odometer reads 0.1 rad more than the course of the reference track
+/// for k in 1..=200 {
+///     estimator = estimator.update(k as f64, 0.1, &Vector2::new(10.0, 0.0), &(Matrix2::identity() * 0.01), 1e-4)?;
+/// }
+/// let (bias, variance) = estimator.bias();
+/// assert!((bias - 0.1).abs() < 0.01 && variance < 1e-4);
+/// # Ok::<(), rtls_estimation::EstimationError>(())
+/// ```
+///
+/// # References
+/// Seed 004 §3 (heading drift 20°/h degrades the fused track late in the run); Groves,
+/// *Principles of GNSS, Inertial, and Multisensor Integrated Navigation Systems* (2013), §16.2
+/// (heading and odometer calibration from position fixes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadingBiasEstimator {
+    drift_rate_random_walk: f64,
+    min_speed_mps: f64,
+}
+
+/// The state of a [`HeadingBiasEstimator`]: `[b, ḃ]` with covariance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadingBias {
+    state: crate::Gaussian<2>,
+    filter: HeadingBiasEstimator,
+}
+
+impl HeadingBiasEstimator {
+    /// An estimator with drift-rate random-walk variance rate `drift_rate_random_walk`
+    /// ((rad/s)²/s) that updates only while the reference speed is at least `min_speed_mps`.
+    ///
+    /// # Errors
+    /// [`EstimationError::InvalidParameter`] for a negative or non-finite parameter.
+    pub fn new(drift_rate_random_walk: f64, min_speed_mps: f64) -> Result<Self> {
+        if !(drift_rate_random_walk.is_finite() && drift_rate_random_walk >= 0.0) {
+            return Err(EstimationError::InvalidParameter {
+                name: "drift_rate_random_walk",
+                reason: "must be finite and non-negative",
+            });
+        }
+        if !(min_speed_mps.is_finite() && min_speed_mps > 0.0) {
+            return Err(EstimationError::InvalidParameter {
+                name: "min_speed_mps",
+                reason: "must be positive and finite",
+            });
+        }
+        Ok(Self {
+            drift_rate_random_walk,
+            min_speed_mps,
+        })
+    }
+
+    /// Starts at `time_s` with the heading aligned (`b = 0`, var 0) and an unknown drift rate
+    /// (std 1°/s, far above any gyro's).
+    ///
+    /// # Errors
+    /// [`EstimationError::NonFinite`] for a NaN/∞ time.
+    pub fn start(&self, time_s: f64) -> Result<HeadingBias> {
+        let rate_std = 1.0_f64.to_radians();
+        Ok(HeadingBias {
+            state: crate::Gaussian::new(
+                crate::Vector::<2>::zeros(),
+                crate::Matrix::<2>::new(0.0, 0.0, 0.0, rate_std * rate_std),
+                time_s,
+            )?,
+            filter: *self,
+        })
+    }
+}
+
+impl HeadingBias {
+    /// `(b̂, var(b̂))` (rad, rad²) at the state's time.
+    #[must_use]
+    pub fn bias(&self) -> (f64, f64) {
+        (self.state.mean()[0], self.state.covariance()[(0, 0)])
+    }
+
+    /// `(b̂, var(b̂))` predicted to `time_s` without a new reference.
+    ///
+    /// # Errors
+    /// [`EstimationError::TimeWentBackwards`] for an earlier time.
+    pub fn bias_at(&self, time_s: f64) -> Result<(f64, f64)> {
+        let predicted = crate::filter::KalmanFilter::default().predict(&self.state, &self.model()?, time_s)?;
+        Ok((predicted.mean()[0], predicted.covariance()[(0, 0)]))
+    }
+
+    fn model(&self) -> Result<crate::motion::ConstantVelocity> {
+        crate::motion::ConstantVelocity::new(crate::motion::ProcessNoise::continuous(
+            self.filter.drift_rate_random_walk,
+        ))
+    }
+
+    /// Predicts to `time_s` and, if the reference track moves fast enough, updates with the
+    /// odometer heading `heading_rad` against the reference velocity `velocity_mps`
+    /// (covariance `velocity_covariance`), heading noise variance `heading_variance_rad2`.
+    ///
+    /// # Errors
+    /// [`EstimationError::TimeWentBackwards`]; [`EstimationError::NonFinite`] for NaN/∞ input.
+    pub fn update(
+        &self,
+        time_s: f64,
+        heading_rad: f64,
+        velocity_mps: &Vector2<f64>,
+        velocity_covariance: &Matrix2<f64>,
+        heading_variance_rad2: f64,
+    ) -> Result<Self> {
+        let kf = crate::filter::KalmanFilter::default();
+        let prior = kf.predict(&self.state, &self.model()?, time_s)?;
+        let speed = velocity_mps.norm();
+        if !heading_rad.is_finite() || !speed.is_finite() {
+            return Err(EstimationError::NonFinite {
+                what: "heading bias reference",
+            });
+        }
+        if speed < self.filter.min_speed_mps {
+            return Ok(Self { state: prior, ..*self });
+        }
+        // y = wrap(θ_odo − atan2(v_y, v_x))
+        let course = crate::math::atan2(velocity_mps[1], velocity_mps[0]);
+        let y = crate::math::wrap_angle(heading_rad - course);
+        // σ²_course = v⊥ᵀ P_v v⊥ / ‖v‖⁴,  v⊥ = (−v_y, v_x)
+        let perpendicular = Vector2::new(-velocity_mps[1], velocity_mps[0]);
+        let course_variance =
+            perpendicular.dot(&(velocity_covariance * perpendicular)) / (speed * speed * speed * speed);
+        let r_y = heading_variance_rad2 + course_variance;
+        // gate: (y − b̂)² / (P_bb + R_y) ≤ 3²; a reference track lagging in a turn would teach a
+        // false bias, so such epochs are skipped
+        let residual = crate::math::wrap_angle(y - prior.mean()[0]);
+        if residual * residual > GATE_SIGMAS * GATE_SIGMAS * (prior.covariance()[(0, 0)] + r_y) {
+            return Ok(Self { state: prior, ..*self });
+        }
+        let noise = NoiseCovariance::isotropic(1, r_y)?;
+        let observe_bias = crate::measurement::ComponentSelection::<2>::new(&[0], noise)?;
+        let updated = kf.update(&prior, &observe_bias, &DVector::from_element(1, y))?;
+        Ok(Self {
+            state: updated.state,
+            ..*self
+        })
+    }
+}
+
+/// Gate of [`HeadingBias::update`], in standard deviations.
+const GATE_SIGMAS: f64 = 3.0;
 
 /// Seed 004's fused observation `Z = [zx, zvx, zy, zvy]ᵀ` with `H = I₄` (eq. (9)): a position
 /// fix (e.g. from TDOA) with covariance `R_p` and an odometry velocity with covariance `R_v`,

@@ -200,19 +200,19 @@ pub fn chan(
 /// A validated TDOA problem in coordinates centred on the reference station.
 pub(crate) struct Problem {
     /// `s_ref` (m), the origin of the centred coordinates.
-    reference_m: Vector2<f64>,
+    pub(crate) reference_m: Vector2<f64>,
     /// `s_i − s_ref` for every `i ≠ ref`, in station order (m).
-    others_m: Vec<Vector2<f64>>,
+    pub(crate) others_m: Vec<Vector2<f64>>,
     /// `r_{i,ref}` (m).
-    differences_m: DVector<f64>,
+    pub(crate) differences_m: DVector<f64>,
     /// `Q⁻¹` (1/m²).
-    q_inverse: DMatrix<f64>,
+    pub(crate) q_inverse: DMatrix<f64>,
     /// `G_a`, rows `−[x_i, y_i, r_{i,ref}]`.
     g: MatrixXx3<f64>,
     /// `h_i = ½ (r_{i,ref}² − K_i)`.
     h: DVector<f64>,
     /// Largest `‖s_i − s_ref‖` (m), the length scale of relative tolerances.
-    scale_m: f64,
+    pub(crate) scale_m: f64,
 }
 
 impl Problem {

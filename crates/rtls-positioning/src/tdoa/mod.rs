@@ -6,13 +6,16 @@
 //! to [`chan`] for a fix or to an EKF/UKF as a raw measurement.
 //!
 //! - [`chan`] — Chan & Ho's closed-form estimator (≥ 3 stations in the plane).
+//! - [`taylor`] — Gauss–Newton (Foy/Torrieri) refinement to the maximum-likelihood fix.
 //! - [`cyclic_reference`] — seed 004's rotating master station.
 //! - [`range_differences_at`], [`differenced_range_covariance`] — the noise-free measurement
 //!   and the covariance of differenced independent TOAs, for simulation and configuration.
 
 mod chan;
+mod taylor;
 
 pub use chan::{chan, ChanSolution};
+pub use taylor::{chan_taylor, taylor, TAYLOR_MAX_ITERATIONS};
 
 use nalgebra::{DMatrix, Vector2};
 

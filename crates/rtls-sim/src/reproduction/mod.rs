@@ -1,0 +1,7 @@
+//! Paper reproductions: the experiments of the seed papers, seeded and end to end (truth,
+//! simulated sensors, positioning, filters), returning every estimate so tests, examples and
+//! docs compute their figures from the same runs.
+
+pub mod seed_004;
+
+pub use seed_004::{run_seed_004, seed_004_imm, Seed004Config, Seed004Run};
