@@ -197,13 +197,16 @@ impl OdometryErrorModel {
 /// ```
 /// use rtls_estimation::aided::HeadingBiasEstimator;
 /// use nalgebra::{Matrix2, Vector2};
-/// let mut estimator = HeadingBiasEstimator::new(1e-10, 2.0)?.start(0.0)?;
-/// // the odometer reads 0.1 rad more than the course of the reference track
-/// for k in 1..=200 {
-///     estimator = estimator.update(k as f64, 0.1, &Vector2::new(10.0, 0.0), &(Matrix2::identity() * 0.01), 1e-4)?;
+/// // seed 004's gyro drifts by 20°/h; prior on the rate: 40°/h
+/// let drift = 20f64.to_radians() / 3600.0;
+/// let mut estimator = HeadingBiasEstimator::new(2.0 * drift, 1e-14, 2.0)?.start(0.0)?;
+/// // heading east at 10 m/s: the odometer's heading is the course plus the drift
+/// for k in 1..=600 {
+///     let t = k as f64;
+///     estimator = estimator.update(t, drift * t, &Vector2::new(10.0, 0.0), &(Matrix2::identity() * 0.01), 1e-4)?;
 /// }
 /// let (bias, variance) = estimator.bias();
-/// assert!((bias - 0.1).abs() < 0.01 && variance < 1e-4);
+/// assert!((bias - drift * 600.0).abs() < 0.2f64.to_radians() && variance < 1e-5);
 /// # Ok::<(), rtls_estimation::EstimationError>(())
 /// ```
 ///
@@ -213,6 +216,7 @@ impl OdometryErrorModel {
 /// (heading and odometer calibration from position fixes).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HeadingBiasEstimator {
+    drift_rate_std_rad_per_s: f64,
     drift_rate_random_walk: f64,
     min_speed_mps: f64,
 }
@@ -225,12 +229,20 @@ pub struct HeadingBias {
 }
 
 impl HeadingBiasEstimator {
-    /// An estimator with drift-rate random-walk variance rate `drift_rate_random_walk`
-    /// ((rad/s)²/s) that updates only while the reference speed is at least `min_speed_mps`.
+    /// An estimator with prior drift-rate standard deviation `drift_rate_std_rad_per_s` (the
+    /// gyro's specified drift, e.g. 20°/h), drift-rate random-walk variance rate
+    /// `drift_rate_random_walk` ((rad/s)²/s), updating only while the reference speed is at
+    /// least `min_speed_mps`.
     ///
     /// # Errors
     /// [`EstimationError::InvalidParameter`] for a negative or non-finite parameter.
-    pub fn new(drift_rate_random_walk: f64, min_speed_mps: f64) -> Result<Self> {
+    pub fn new(drift_rate_std_rad_per_s: f64, drift_rate_random_walk: f64, min_speed_mps: f64) -> Result<Self> {
+        if !(drift_rate_std_rad_per_s.is_finite() && drift_rate_std_rad_per_s > 0.0) {
+            return Err(EstimationError::InvalidParameter {
+                name: "drift_rate_std_rad_per_s",
+                reason: "must be positive and finite",
+            });
+        }
         if !(drift_rate_random_walk.is_finite() && drift_rate_random_walk >= 0.0) {
             return Err(EstimationError::InvalidParameter {
                 name: "drift_rate_random_walk",
@@ -244,18 +256,18 @@ impl HeadingBiasEstimator {
             });
         }
         Ok(Self {
+            drift_rate_std_rad_per_s,
             drift_rate_random_walk,
             min_speed_mps,
         })
     }
 
-    /// Starts at `time_s` with the heading aligned (`b = 0`, var 0) and an unknown drift rate
-    /// (std 1°/s, far above any gyro's).
+    /// Starts at `time_s` with the heading aligned (`b = 0`, var 0) and the drift rate's prior.
     ///
     /// # Errors
     /// [`EstimationError::NonFinite`] for a NaN/∞ time.
     pub fn start(&self, time_s: f64) -> Result<HeadingBias> {
-        let rate_std = 1.0_f64.to_radians();
+        let rate_std = self.drift_rate_std_rad_per_s;
         Ok(HeadingBias {
             state: crate::Gaussian::new(
                 crate::Vector::<2>::zeros(),

@@ -245,7 +245,9 @@ fn odometry_velocities(
     reference_track: &[Gaussian<4>],
 ) -> Result<Vec<(Vector2<f64>, Matrix2<f64>)>> {
     let model = config.odometry_model;
-    let estimator = HeadingBiasEstimator::new(1e-14, 3.0).map_err(SimError::estimation(0.0))?;
+    // prior on the drift rate: twice seed 004's 20°/h
+    let drift_prior = 2.0 * 20f64.to_radians() / 3600.0;
+    let estimator = HeadingBiasEstimator::new(drift_prior, 1e-14, 3.0).map_err(SimError::estimation(0.0))?;
     let mut bias = estimator.start(0.0).map_err(SimError::estimation(0.0))?;
     let heading_variance = model.heading_std_rad() * model.heading_std_rad();
     let mut out = Vec::with_capacity(readings.len());
