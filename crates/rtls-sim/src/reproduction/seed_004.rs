@@ -103,6 +103,9 @@ pub struct Seed004Run {
     pub imm_probabilities: Vec<[f64; 3]>,
     /// The calibrated fix covariance `R` (m²) all filters use.
     pub fix_covariance_m2: Matrix2<f64>,
+    /// The odometry velocity (m/s) and its covariance ((m/s)²) the fused filters used at each
+    /// epoch (heading drift-corrected when configured).
+    pub odometry_velocities: Vec<(Vector2<f64>, Matrix2<f64>)>,
 }
 
 impl Seed004Run {
@@ -203,6 +206,7 @@ pub fn run_seed_004(config: &Seed004Config, seed: u64) -> Result<Seed004Run> {
         imm,
         imm_probabilities,
         fix_covariance_m2,
+        odometry_velocities: velocities,
     })
 }
 
