@@ -20,8 +20,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .iter()
                 .position(|(a, b, _)| sample.time_s > *a && sample.time_s <= *b)
             {
-                for j in 0..3 {
-                    per_phase[i].0[j] += p[j];
+                for (sum, pj) in per_phase[i].0.iter_mut().zip(p) {
+                    *sum += pj;
                 }
                 per_phase[i].1 += 1;
             }
