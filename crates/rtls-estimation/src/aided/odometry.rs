@@ -133,7 +133,7 @@ impl OdometryErrorModel {
             heading_rad: reading.heading_rad - bias_rad,
         };
         let unbiased = Self {
-            heading_std_rad: (self.heading_std_rad * self.heading_std_rad + bias_variance_rad2).sqrt(),
+            heading_std_rad: crate::math::sqrt(self.heading_std_rad * self.heading_std_rad + bias_variance_rad2),
             heading_drift_rad_per_s: 0.0,
             ..*self
         };
@@ -424,7 +424,7 @@ pub fn position_velocity_observation(
 /// ```
 ///
 /// # References
-/// Seed 004 §1 (odometry-based dead reckoning, its ref. [4]).
+/// Seed 004 §1 (odometry-based dead reckoning, its ref. 4).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OdometryDeadReckoning {
     velocity_covariance_m2ps2: Matrix2<f64>,
