@@ -14,9 +14,9 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter};
-use rtls_estimation::imm::{FilterMode, ImmMode, InteractingMultipleModel, ModeTransitions, StateLayout};
+use rtls_estimation::imm::{FilterMode, ImmMode, InteractingMultipleModel, ModeEstimate, ModeTransitions, StateLayout};
 use rtls_estimation::manoeuvre::{LinearObservation, ManoeuvreDetector, Threshold, VariableDimensionFilter};
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
 use rtls_estimation::motion::{
@@ -121,8 +121,7 @@ fn bench_imm(c: &mut Criterion) {
     let x0 = initial();
     let state = imm
         .initial_state(
-            &DVector::from_column_slice(x0.mean().as_slice()),
-            &DMatrix::from_column_slice(4, 4, x0.covariance().as_slice()),
+            &ModeEstimate::from_gaussian(&x0),
             &StateLayout::cv_2d(),
             0.01,
             &[0.6, 0.2, 0.2],

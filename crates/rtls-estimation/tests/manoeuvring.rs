@@ -1,13 +1,14 @@
 //! The variable-dimension filter and the IMM on synthetic manoeuvres: the re-filtering rule,
 //! the detector's false-alarm rate, and mode probabilities across models of different size.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter};
 use rtls_estimation::imm::{
-    Axis, Component, ComponentObservation, FilterMode, ImmMode, InteractingMultipleModel, ModeTransitions, StateLayout,
+    Axis, Component, ComponentObservation, FilterMode, ImmMode, InteractingMultipleModel, ModeEstimate,
+    ModeTransitions, StateLayout,
 };
 use rtls_estimation::manoeuvre::{LinearObservation, ManoeuvreDetector, Threshold, VariableDimensionFilter, VdMode};
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
@@ -257,8 +258,7 @@ fn imm_mode_probabilities_follow_turn_and_acceleration() {
             let init = initial();
             let mut state = imm
                 .initial_state(
-                    &DVector::from_column_slice(init.mean().as_slice()),
-                    &DMatrix::from_column_slice(4, 4, init.covariance().as_slice()),
+                    &ModeEstimate::from_gaussian(&init),
                     &StateLayout::cv_2d(),
                     0.01,
                     &[0.8, 0.1, 0.1],
@@ -312,8 +312,7 @@ fn component_observation_equals_the_fixed_model_update() {
     let init = initial();
     let state = imm
         .initial_state(
-            &DVector::from_column_slice(init.mean().as_slice()),
-            &DMatrix::from_column_slice(4, 4, init.covariance().as_slice()),
+            &ModeEstimate::from_gaussian(&init),
             &StateLayout::cv_2d(),
             0.01,
             &[0.6, 0.2, 0.2],
@@ -339,4 +338,33 @@ fn component_observation_equals_the_fixed_model_update() {
     )
     .unwrap();
     assert!(imm.update_components(&prior, &bad).is_err());
+
+    // A CV observation converts only when every row selects one state entry.
+    let mut h = rtls_estimation::measurement::MeasurementJacobian::<4>::zeros(1);
+    h[(0, 0)] = 1.0;
+    h[(0, 2)] = 1.0; // x + y: not a component
+    let summed = LinearObservation::new(
+        1.0,
+        DVector::from_vec(vec![3.0]),
+        h,
+        &NoiseCovariance::isotropic(1, 1.0).unwrap(),
+    )
+    .unwrap();
+    assert!(matches!(
+        ComponentObservation::from_cv_observation(&summed),
+        Err(rtls_estimation::EstimationError::InvalidParameter {
+            name: "observation matrix",
+            ..
+        })
+    ));
+    // A state with the wrong number of probabilities names what is wrong.
+    let estimates = state.estimates().to_vec();
+    assert!(matches!(
+        imm.state(estimates, vec![1.0], 0.0),
+        Err(rtls_estimation::EstimationError::DimensionMismatch {
+            what: "IMM mode probabilities",
+            expected: 3,
+            found: 1
+        })
+    ));
 }

@@ -5,12 +5,12 @@
 //!
 //! Run: `cargo run --release -p rtls-sim --example odometry [runs]` (default 20).
 use nalgebra::{DMatrix, DVector, Matrix2};
-use rtls_estimation::aided::{position_velocity_observation, OdometryDeadReckoning};
+use rtls_estimation::aided::OdometryDeadReckoning;
 use rtls_estimation::filter::KalmanFilter;
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
 use rtls_estimation::motion::{ConstantVelocity, NoiseGain, ProcessNoise};
 use rtls_estimation::{Gaussian, Matrix, Vector};
-use rtls_sim::reproduction::{run_seed_004, Seed004Config, Seed004Run};
+use rtls_sim::reproduction::{fused_observation, run_seed_004, Seed004Config, Seed004Run};
 use rtls_sim::ErrorSummary;
 
 /// CV KF with the fused `[x, vx, y, vy]` observation (velocity-only when there is no fix).
@@ -26,21 +26,11 @@ fn velocity_measurement(run: &Seed004Run) -> Result<Vec<[f64; 2]>, Box<dyn std::
         0.0,
     )?;
     let mut out = Vec::new();
-    for ((truth, fix), (v, rv)) in run.truth.iter().zip(&run.fixes).zip(&run.odometry_velocities) {
+    for ((truth, fix), velocity) in run.truth.iter().zip(&run.fixes).zip(&run.odometry_velocities) {
         let prior = kf.predict(&x, &cv, truth.time_s)?;
-        x = match fix {
-            Some(p) => {
-                let obs = position_velocity_observation(truth.time_s, &(*p).into(), &r, v, rv)?;
-                let noise = NoiseCovariance::full(interleave(&r, rv))?;
-                let model = ComponentSelection::<4>::position_velocity(2, noise)?;
-                kf.update(&prior, &model, obs.z())?.state
-            }
-            None => {
-                let model = ComponentSelection::<4>::new(&[1, 3], NoiseCovariance::full(to_d(rv))?)?;
-                kf.update(&prior, &model, &DVector::from_column_slice(v.as_slice()))?
-                    .state
-            }
-        };
+        // [x, vx, y, vy] with H = I₄, or the velocity alone without a fix; its own linear model
+        let observation = fused_observation(truth.time_s, &fix.map(Into::into), velocity, &r)?;
+        x = kf.update(&prior, &observation, observation.z())?.state;
         out.push([x.mean()[0], x.mean()[2]]);
     }
     Ok(out)
@@ -68,17 +58,6 @@ fn control_input(run: &Seed004Run) -> Result<Vec<[f64; 2]>, Box<dyn std::error::
 
 fn to_d(m: &Matrix2<f64>) -> DMatrix<f64> {
     DMatrix::from_column_slice(2, 2, m.as_slice())
-}
-
-fn interleave(r: &Matrix2<f64>, rv: &Matrix2<f64>) -> DMatrix<f64> {
-    let mut m = DMatrix::zeros(4, 4);
-    for i in 0..2 {
-        for j in 0..2 {
-            m[(2 * i, 2 * j)] = r[(i, j)];
-            m[(2 * i + 1, 2 * j + 1)] = rv[(i, j)];
-        }
-    }
-    m
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -92,7 +92,7 @@ pub struct ImmUpdate {
 /// # Example
 /// ```
 /// use rtls_estimation::filter::KalmanFilter;
-/// use rtls_estimation::imm::{FilterMode, ImmMode, InteractingMultipleModel, ModeTransitions, StateLayout};
+/// use rtls_estimation::imm::{FilterMode, InteractingMultipleModel, ModeEstimate, ModeTransitions, StateLayout};
 /// use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
 /// use rtls_estimation::motion::{ConstantAcceleration, ConstantVelocity, NoiseGain, ProcessNoise};
 /// use nalgebra::{DMatrix, DVector};
@@ -108,8 +108,8 @@ pub struct ImmUpdate {
 ///     vec![Box::new(cv), Box::new(ca)],
 ///     ModeTransitions::per_step(DMatrix::from_row_slice(2, 2, &[0.95, 0.05, 0.05, 0.95]))?,
 /// )?;
-/// let mut state = imm.initial_state(&DVector::zeros(4), &(DMatrix::identity(4, 4) * 10.0),
-///     &StateLayout::cv_2d(), 1.0, &[0.5, 0.5], 0.0)?;
+/// let start = ModeEstimate { mean: DVector::zeros(4), covariance: DMatrix::identity(4, 4) * 10.0 };
+/// let mut state = imm.initial_state(&start, &StateLayout::cv_2d(), 1.0, &[0.5, 0.5], 0.0)?;
 /// // A target accelerating at 1 m/s² along x: the CA mode takes over.
 /// for k in 1..=15 {
 ///     let t = k as f64;
@@ -171,7 +171,8 @@ impl InteractingMultipleModel {
         &self.modes
     }
 
-    /// An initial state from one estimate `(mean, covariance)` in `layout`: each mode gets the
+    /// An initial state from one estimate in `layout` (e.g. [`ModeEstimate::from_gaussian`] of a
+    /// CV track's state): each mode gets the
     /// shared components, and components `layout` lacks get mean 0 and variance
     /// `missing_variance` (e.g. an acceleration or turn-rate prior).
     ///
@@ -182,8 +183,7 @@ impl InteractingMultipleModel {
     /// to 1, or `missing_variance` is negative or not finite.
     pub fn initial_state(
         &self,
-        mean: &DVector<f64>,
-        covariance: &DMatrix<f64>,
+        estimate: &ModeEstimate,
         layout: &StateLayout,
         missing_variance: f64,
         probabilities: &[f64],
@@ -203,8 +203,8 @@ impl InteractingMultipleModel {
                 let fill_mean = DVector::zeros(n);
                 let fill_cov = DMatrix::from_diagonal_element(n, n, missing_variance);
                 let (m, p) = convert(
-                    mean,
-                    covariance,
+                    &estimate.mean,
+                    &estimate.covariance,
                     layout,
                     mode.layout(),
                     Fill::From {
@@ -224,12 +224,17 @@ impl InteractingMultipleModel {
     /// As [`InteractingMultipleModel::initial_state`]; [`EstimationError::NonFinite`] for a
     /// NaN/∞ entry or time.
     pub fn state(&self, estimates: Vec<ModeEstimate>, probabilities: Vec<f64>, time_s: f64) -> Result<ImmState> {
-        if estimates.len() != self.modes.len() || probabilities.len() != self.modes.len() {
-            return Err(EstimationError::DimensionMismatch {
-                what: "IMM mode estimates / probabilities",
-                expected: self.modes.len(),
-                found: estimates.len().min(probabilities.len()),
-            });
+        for (what, found) in [
+            ("IMM mode estimates", estimates.len()),
+            ("IMM mode probabilities", probabilities.len()),
+        ] {
+            if found != self.modes.len() {
+                return Err(EstimationError::DimensionMismatch {
+                    what,
+                    expected: self.modes.len(),
+                    found,
+                });
+            }
         }
         for (estimate, mode) in estimates.iter().zip(&self.modes) {
             check_estimate(
@@ -305,7 +310,6 @@ impl InteractingMultipleModel {
             covariance: &own.covariance,
         };
         let mut converted = Vec::with_capacity(self.modes.len());
-        let mut mean = DVector::zeros(n);
         for (i, source) in self.modes.iter().enumerate() {
             // μᵢ|ⱼ = pᵢⱼ μᵢ / c̄ⱼ
             let weight = pi[(i, j)] * state.probabilities[i] / c_bar[j];
@@ -324,18 +328,10 @@ impl InteractingMultipleModel {
                     fill,
                 )?
             };
-            // x⁰ⱼ += μᵢ|ⱼ conv(x̂ᵢ)
-            mean.axpy(weight, &m, 1.0);
             converted.push((weight, m, p));
         }
-        let mut covariance = DMatrix::zeros(n, n);
-        for (weight, m, p) in &converted {
-            // P⁰ⱼ += μᵢ|ⱼ [conv(Pᵢ) + (conv(x̂ᵢ) − x⁰ⱼ)(conv(x̂ᵢ) − x⁰ⱼ)ᵀ]
-            let d = m - &mean;
-            covariance += p * *weight;
-            covariance.ger(*weight, &d, &d, 1.0);
-        }
-        symmetrize_dyn(&mut covariance);
+        // x⁰ⱼ = Σᵢ μᵢ|ⱼ conv(x̂ᵢ),  P⁰ⱼ = Σᵢ μᵢ|ⱼ [conv(Pᵢ) + (conv(x̂ᵢ) − x⁰ⱼ)(·)ᵀ]
+        let (mean, covariance) = moment_match(n, &converted);
         Ok(ModeEstimate { mean, covariance })
     }
 
@@ -414,23 +410,13 @@ impl InteractingMultipleModel {
                 found: state.estimates.len(),
             });
         }
-        let n = layout.len();
         let mut converted = Vec::with_capacity(self.modes.len());
-        let mut mean = DVector::zeros(n);
         for ((mode, estimate), &mu) in self.modes.iter().zip(&state.estimates).zip(&state.probabilities) {
             let (m, p) = convert(&estimate.mean, &estimate.covariance, mode.layout(), layout, Fill::Zero)?;
-            // x̂ += μⱼ conv(x̂ⱼ)
-            mean.axpy(mu, &m, 1.0);
             converted.push((mu, m, p));
         }
-        let mut covariance = DMatrix::zeros(n, n);
-        for (mu, m, p) in &converted {
-            // P += μⱼ [conv(Pⱼ) + (conv(x̂ⱼ) − x̂)(conv(x̂ⱼ) − x̂)ᵀ]
-            let d = m - &mean;
-            covariance += p * *mu;
-            covariance.ger(*mu, &d, &d, 1.0);
-        }
-        symmetrize_dyn(&mut covariance);
+        // x̂ = Σⱼ μⱼ conv(x̂ⱼ),  P = Σⱼ μⱼ [conv(Pⱼ) + (conv(x̂ⱼ) − x̂)(·)ᵀ]
+        let (mean, covariance) = moment_match(layout.len(), &converted);
         Ok((mean, covariance))
     }
 }
@@ -449,14 +435,25 @@ fn normalised(mut weights: Vec<f64>) -> Result<Vec<f64>> {
     Ok(weights)
 }
 
-/// `P ← (P + Pᵀ)/2`.
-fn symmetrize_dyn(p: &mut DMatrix<f64>) {
-    let n = p.nrows();
-    for i in 0..n {
-        for j in (i + 1)..n {
-            let v = 0.5 * (p[(i, j)] + p[(j, i)]);
-            p[(i, j)] = v;
-            p[(j, i)] = v;
-        }
+/// The moment-matched Gaussian of a mixture `Σ wᵢ N(mᵢ, Pᵢ)` (weights summing to 1) in an
+/// `n`-entry layout, shared by IMM mixing and the combined output:
+/// ```text
+/// x = Σ wᵢ mᵢ
+/// P = Σ wᵢ [Pᵢ + (mᵢ − x)(mᵢ − x)ᵀ]
+/// ```
+fn moment_match(n: usize, components: &[(f64, DVector<f64>, DMatrix<f64>)]) -> (DVector<f64>, DMatrix<f64>) {
+    let mut mean = DVector::zeros(n);
+    for (weight, m, _) in components {
+        // x += wᵢ mᵢ
+        mean.axpy(*weight, m, 1.0);
     }
+    let mut covariance = DMatrix::zeros(n, n);
+    for (weight, m, p) in components {
+        // P += wᵢ [Pᵢ + (mᵢ − x)(mᵢ − x)ᵀ]
+        let d = m - &mean;
+        covariance += p * *weight;
+        covariance.ger(*weight, &d, &d, 1.0);
+    }
+    crate::math::symmetrize(&mut covariance);
+    (mean, covariance)
 }

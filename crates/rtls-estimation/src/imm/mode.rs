@@ -134,6 +134,50 @@ impl ComponentObservation {
         Ok(Self { components, z, noise })
     }
 
+    /// The same observation of a planar CV state ([`StateLayout::cv_2d`]) whose matrix rows each
+    /// select one state entry (a fix, a velocity, or both, as seed 004's `H = I₄`).
+    ///
+    /// # Errors
+    /// [`EstimationError::InvalidParameter`] if a row of `H` is not a unit selection row;
+    /// [`EstimationError::InvalidParameter`] from [`NoiseCovariance::full`].
+    ///
+    /// # Example
+    /// ```
+    /// use rtls_estimation::imm::{Axis, Component, ComponentObservation};
+    /// use rtls_estimation::manoeuvre::LinearObservation;
+    /// use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
+    /// use nalgebra::DVector;
+    /// let fix = ComponentSelection::<4>::position(2, NoiseCovariance::isotropic(2, 9.0)?)?;
+    /// let obs = LinearObservation::from_model(1.0, &fix, DVector::from_vec(vec![3.0, 4.0]))?;
+    /// let components = ComponentObservation::from_cv_observation(&obs)?;
+    /// assert_eq!(components.components(), &[Component::Position(Axis::X), Component::Position(Axis::Y)]);
+    /// # Ok::<(), rtls_estimation::EstimationError>(())
+    /// ```
+    pub fn from_cv_observation(observation: &crate::manoeuvre::LinearObservation) -> Result<Self> {
+        use crate::measurement::LinearMeasurementModel;
+        let layout = StateLayout::cv_2d();
+        let h = observation.matrix();
+        let components = h
+            .row_iter()
+            .map(|row| {
+                let ones: alloc::vec::Vec<usize> = (0..4).filter(|&c| row[c] == 1.0).collect();
+                let zeros = (0..4).filter(|&c| row[c] == 0.0).count();
+                match (ones.as_slice(), zeros) {
+                    ([c], 3) => Ok(layout.components()[*c]),
+                    _ => Err(EstimationError::InvalidParameter {
+                        name: "observation matrix",
+                        reason: "every row must select exactly one state entry (a single 1, zeros elsewhere)",
+                    }),
+                }
+            })
+            .collect::<Result<alloc::vec::Vec<_>>>()?;
+        Self::new(
+            components,
+            observation.z().clone(),
+            NoiseCovariance::full(observation.noise().clone())?,
+        )
+    }
+
     /// The observed components.
     #[must_use]
     pub fn components(&self) -> &[Component] {

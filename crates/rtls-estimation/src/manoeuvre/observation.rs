@@ -27,6 +27,12 @@ use crate::Vector;
 /// let obs = LinearObservation::from_model(3.0, &fix, DVector::from_vec(vec![10.0, 20.0]))?;
 /// assert_eq!(obs.dim(), 2);
 /// assert!(LinearObservation::from_model(3.0, &fix, DVector::from_vec(vec![1.0])).is_err());
+/// // it is its own linear model of the CV state
+/// use rtls_estimation::filter::KalmanFilter;
+/// use rtls_estimation::{Gaussian, Matrix, Vector};
+/// let prior = Gaussian::new(Vector::<4>::zeros(), Matrix::<4>::identity() * 100.0, 3.0)?;
+/// let posterior = KalmanFilter::default().update(&prior, &obs, obs.z())?.state;
+/// assert!(posterior.mean()[0] > 0.0);
 /// # Ok::<(), rtls_estimation::EstimationError>(())
 /// ```
 #[derive(Debug, Clone, PartialEq)]
@@ -107,8 +113,14 @@ impl LinearObservation {
         &self.z
     }
 
+    /// The noise covariance `R` (`m × m`).
+    #[must_use]
+    pub fn noise(&self) -> &DMatrix<f64> {
+        &self.noise
+    }
+
     /// The model of this observation for an `N`-entry state whose first four entries are the CV
-    /// state: `H_N = [H | 0]`.
+    /// state: `H_N = [H | 0]` (for the CV state itself the observation is its own model).
     pub(crate) fn model<const N: usize>(&self) -> PaddedObservation<N> {
         let mut matrix = MeasurementJacobian::<N>::zeros_generic(Dyn(self.dim()), nalgebra::Const::<N>);
         // H_N = [H | 0]
@@ -117,6 +129,30 @@ impl LinearObservation {
             matrix,
             noise: self.noise.clone(),
         }
+    }
+}
+
+/// The observation is its own linear model of the CV state (`H`, `R`), so a KF updates with it
+/// directly: `kf.update(&prior, &observation, observation.z())`.
+impl MeasurementModel<4> for LinearObservation {
+    fn dim(&self) -> usize {
+        self.z.len()
+    }
+    fn predict(&self, x: &Vector<4>) -> Result<DVector<f64>> {
+        // ẑ = H x
+        Ok(&self.matrix * x)
+    }
+    fn jacobian(&self, _x: &Vector<4>) -> Result<MeasurementJacobian<4>> {
+        Ok(self.matrix.clone())
+    }
+    fn noise_covariance(&self) -> &DMatrix<f64> {
+        &self.noise
+    }
+}
+
+impl LinearMeasurementModel<4> for LinearObservation {
+    fn matrix(&self) -> &MeasurementJacobian<4> {
+        &self.matrix
     }
 }
 

@@ -2,6 +2,7 @@
 //! with fading-memory manoeuvre detection and re-filtering from the manoeuvre's onset.
 
 use alloc::collections::VecDeque;
+use alloc::sync::Arc;
 
 use nalgebra::{Matrix2, Vector2};
 
@@ -60,16 +61,27 @@ impl VdEstimate {
 }
 
 /// The state a track owns: the estimate, the detector's statistics, and (in CV) the last
-/// `Δ + 1` observations with the estimate before each, for re-filtering at an onset.
+/// `Δ + 1` observations with the estimate before each, for re-filtering at an onset. The
+/// observations are shared (`Arc`), so stepping a state does not copy them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VdState {
     estimate: VdEstimate,
     fading_statistic: f64,
-    history: VecDeque<(Gaussian<4>, LinearObservation)>,
+    history: VecDeque<(Gaussian<4>, Arc<LinearObservation>)>,
     significance: VecDeque<f64>,
 }
 
 impl VdState {
+    /// A state in `estimate`'s model with the detector reset (after a start or a switch).
+    fn reset(estimate: VdEstimate) -> Self {
+        Self {
+            estimate,
+            fading_statistic: 0.0,
+            history: VecDeque::new(),
+            significance: VecDeque::new(),
+        }
+    }
+
     /// The current estimate.
     #[must_use]
     pub fn estimate(&self) -> &VdEstimate {
@@ -261,12 +273,7 @@ impl VariableDimensionFilter {
     /// A state starting in the CV model from `initial`.
     #[must_use]
     pub fn initial_state(&self, initial: Gaussian<4>) -> VdState {
-        VdState {
-            estimate: VdEstimate::ConstantVelocity(initial),
-            fading_statistic: 0.0,
-            history: VecDeque::new(),
-            significance: VecDeque::new(),
-        }
+        VdState::reset(VdEstimate::ConstantVelocity(initial))
     }
 
     /// Predicts the estimate to `to_time_s` in the current model (coasting without an
@@ -305,11 +312,11 @@ impl VariableDimensionFilter {
 
     fn step_quiescent(&self, state: &VdState, x: &Gaussian<4>, observation: &LinearObservation) -> Result<VdStep> {
         let prior = self.filter.predict(x, &self.quiescent, observation.time_s())?;
-        let updated = self.filter.update(&prior, &observation.model::<4>(), observation.z())?;
+        let updated = self.filter.update(&prior, observation, observation.z())?;
         // μ(k) = α μ(k−1) + νᵀ S⁻¹ ν
         let mu = self.detector.fading_factor * state.fading_statistic + updated.nis;
         let mut history = state.history.clone();
-        history.push_back((*x, observation.clone()));
+        history.push_back((*x, Arc::new(observation.clone())));
         // keep the last Δ + 1 observations: the onset is Δ steps back from this one
         while history.len() > self.detector.window_steps() + 1 {
             history.pop_front();
@@ -340,12 +347,7 @@ impl VariableDimensionFilter {
             ca = self.filter.update(&ca_prior, &stored.model::<6>(), stored.z())?.state;
         }
         Ok(VdStep {
-            state: VdState {
-                estimate: VdEstimate::ConstantAcceleration(ca),
-                fading_statistic: 0.0,
-                history: VecDeque::new(),
-                significance: VecDeque::new(),
-            },
+            state: VdState::reset(VdEstimate::ConstantAcceleration(ca)),
             nis: updated.nis,
             event: Some(ModeSwitch {
                 time_s: observation.time_s(),
@@ -379,12 +381,7 @@ impl VariableDimensionFilter {
         let threshold = self.exit_threshold;
         if significance.len() == self.detector.exit_window_steps && u_a < threshold {
             return Ok(VdStep {
-                state: VdState {
-                    estimate: VdEstimate::ConstantVelocity(cv_marginal(&posterior)),
-                    fading_statistic: 0.0,
-                    history: VecDeque::new(),
-                    significance: VecDeque::new(),
-                },
+                state: VdState::reset(VdEstimate::ConstantVelocity(cv_marginal(&posterior))),
                 nis: updated.nis,
                 event: Some(ModeSwitch {
                     time_s: observation.time_s(),

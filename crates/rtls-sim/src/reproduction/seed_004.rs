@@ -10,7 +10,7 @@ use rtls_estimation::aided::{
 };
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter};
 use rtls_estimation::imm::{
-    Axis, Component, ComponentObservation, FilterMode, ImmMode, InteractingMultipleModel, ModeTransitions, StateLayout,
+    ComponentObservation, FilterMode, ImmMode, InteractingMultipleModel, ModeEstimate, ModeTransitions, StateLayout,
 };
 use rtls_estimation::manoeuvre::{
     LinearObservation, ManoeuvreDetector, ModeSwitch, VariableDimensionFilter, VdMode, VdState,
@@ -319,8 +319,12 @@ fn run_kf(
 }
 
 /// The fused observation of one epoch: `[x, vx, y, vy]` with `H = I₄` (seed 004 eq. (9)), or
-/// the velocity alone when there is no fix.
-fn fused_observation(
+/// the velocity alone when there is no fix. `velocity` is the odometry velocity and its
+/// covariance, `r` the fix covariance.
+///
+/// # Errors
+/// [`SimError::Estimation`] for a non-positive-definite covariance or non-finite values.
+pub fn fused_observation(
     time_s: f64,
     fix: &Option<Vector2<f64>>,
     velocity: &(Vector2<f64>, Matrix2<f64>),
@@ -378,8 +382,7 @@ fn run_imm(
     let imm = seed_004_imm(config).map_err(SimError::estimation(0.0))?;
     let mut state = imm
         .initial_state(
-            &DVector::from_column_slice(initial.mean().as_slice()),
-            &DMatrix::from_column_slice(4, 4, initial.covariance().as_slice()),
+            &ModeEstimate::from_gaussian(&initial),
             &StateLayout::cv_2d(),
             1e-4,
             &[0.8, 0.1, 0.1],
@@ -387,30 +390,11 @@ fn run_imm(
         )
         .map_err(SimError::estimation(0.0))?;
     let (mut out, mut probabilities) = (Vec::new(), Vec::new());
-    for ((sample, fix), (v, rv)) in truth.iter().zip(fixes).zip(velocities) {
+    for ((sample, fix), velocity) in truth.iter().zip(fixes).zip(velocities) {
         let t = sample.time_s;
         let prior = imm.predict(&state, t).map_err(SimError::estimation(t))?;
-        let observation = match fix {
-            Some(p) => {
-                let obs = position_velocity_observation(t, p, r, v, rv).map_err(SimError::estimation(t))?;
-                ComponentObservation::new(
-                    vec![
-                        Component::Position(Axis::X),
-                        Component::Velocity(Axis::X),
-                        Component::Position(Axis::Y),
-                        Component::Velocity(Axis::Y),
-                    ],
-                    obs.z().clone(),
-                    interleaved_noise(r, rv)?,
-                )
-            }
-            None => ComponentObservation::new(
-                vec![Component::Velocity(Axis::X), Component::Velocity(Axis::Y)],
-                DVector::from_column_slice(v.as_slice()),
-                full_noise(rv)?,
-            ),
-        }
-        .map_err(SimError::estimation(t))?;
+        let observation = ComponentObservation::from_cv_observation(&fused_observation(t, fix, velocity, r)?)
+            .map_err(SimError::estimation(t))?;
         state = imm
             .update_components(&prior, &observation)
             .map_err(SimError::estimation(t))?
@@ -464,16 +448,4 @@ pub fn seed_004_imm(config: &Seed004Config) -> rtls_estimation::Result<Interacti
 
 fn full_noise(m: &Matrix2<f64>) -> Result<NoiseCovariance> {
     NoiseCovariance::full(DMatrix::from_column_slice(2, 2, m.as_slice())).map_err(SimError::estimation(0.0))
-}
-
-/// `R` of `[x, vx, y, vy]` from the position block `r` and velocity block `rv`.
-fn interleaved_noise(r: &Matrix2<f64>, rv: &Matrix2<f64>) -> Result<NoiseCovariance> {
-    let mut m = DMatrix::zeros(4, 4);
-    for i in 0..2 {
-        for j in 0..2 {
-            m[(2 * i, 2 * j)] = r[(i, j)];
-            m[(2 * i + 1, 2 * j + 1)] = rv[(i, j)];
-        }
-    }
-    NoiseCovariance::full(m).map_err(SimError::estimation(0.0))
 }
