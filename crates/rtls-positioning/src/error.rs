@@ -21,6 +21,15 @@ pub enum PositioningError {
         /// What is degenerate and what to do, e.g. "stations are collinear; …".
         reason: &'static str,
     },
+    /// Two anchors share one position, so they add no geometry (and make differenced equations
+    /// singular).
+    #[error("anchors {first} and {second} are at the same position; remove the duplicate or fix its coordinates")]
+    DuplicateAnchors {
+        /// Index of the first anchor (0-based).
+        first: usize,
+        /// Index of the second anchor at the same position.
+        second: usize,
+    },
     /// An input or a result contains NaN or infinity.
     #[error("{what} contains a non-finite value (nan or infinity); check the input data")]
     NonFinite {

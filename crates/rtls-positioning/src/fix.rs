@@ -1,11 +1,12 @@
 //! The output of every positioning method: a planar fix with its (estimated) covariance, and
 //! the calibration of a method's fix noise from surveyed points.
 
-use nalgebra::{Matrix2, Vector2};
+use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
 
 use crate::error::{PositioningError, Result};
 
-/// A planar position fix: `position` (m) and `covariance` (m²).
+/// A position fix in `D` dimensions: `position` (m) and `covariance` (m²). [`Fix2`] is the
+/// planar fix, [`Fix3`] the spatial one.
 ///
 /// The covariance is whatever the method can say about its own error, and is **an estimate**:
 /// for Chan's TDOA estimator it is the first-order (small-noise) covariance, which equals the
@@ -32,16 +33,22 @@ use crate::error::{PositioningError, Result};
 /// Seed 000 (fixes smoothed by a Kalman filter); seed 002 eq. (12) (the fix is the filter's
 /// observation `z(k) = x̂(k)` with covariance `U`).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Fix2 {
-    /// Estimated position `(x, y)` in m.
-    pub position: Vector2<f64>,
+pub struct Fix<const D: usize> {
+    /// Estimated position (`(x, y)` or `(x, y, z)`) in m.
+    pub position: SVector<f64, D>,
     /// Estimated covariance of `position` in m² (symmetric, positive semi-definite).
-    pub covariance: Matrix2<f64>,
+    pub covariance: SMatrix<f64, D, D>,
 }
 
-impl Fix2 {
+/// A planar fix `(x, y)`.
+pub type Fix2 = Fix<2>;
+
+/// A spatial fix `(x, y, z)`.
+pub type Fix3 = Fix<3>;
+
+impl<const D: usize> Fix<D> {
     /// Distance root mean square `DRMS = √(tr P)` (m): the expected radial error implied by the
-    /// covariance.
+    /// covariance (in 3-D this is the mean radial spherical error).
     ///
     /// # Example
     /// ```
@@ -56,7 +63,7 @@ impl Fix2 {
     #[inline]
     #[must_use]
     pub fn drms_m(&self) -> f64 {
-        // DRMS = √(σ_x² + σ_y²)
+        // DRMS = √(σ_x² + σ_y² [+ σ_z²])
         self.covariance.trace().max(0.0).sqrt()
     }
 
