@@ -1,24 +1,23 @@
-//! Chan & Ho's closed-form TDOA estimator (planar): two-step weighted least squares for four
-//! or more stations, the exact quadratic solution for three.
+//! Chan & Ho's closed-form TDOA estimator in the plane and in space: two-step weighted least
+//! squares for `D + 2` or more stations, the exact quadratic solution for `D + 1`.
 
-use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Matrix3x2, MatrixXx3, Vector2, Vector3};
+use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 
+use super::problem::{constraint_jacobian, fixed_square, Problem, COINCIDENCE_TOLERANCE};
 use crate::error::{PositioningError, Result};
-use crate::fix::Fix2;
-use crate::linalg::{covariance_inverse, solve_spd};
+use crate::fix::Fix;
+use crate::linalg::solve_spd;
 
-/// Distances below `COINCIDENCE_TOLERANCE × scale` (scale = largest station distance from the
-/// reference) count as "at a station".
-const COINCIDENCE_TOLERANCE: f64 = 1e-9;
-
-/// The result of [`chan`]: a fix and, for three stations only, a possible second fix.
+/// The result of [`chan`]: a fix and, for `D + 1` stations only, a possible second fix.
 ///
-/// With three stations (two range differences) two hyperbolas can intersect twice; when both
-/// intersections have non-negative ranges the measurements cannot tell them apart, so both
-/// are returned: `fix` is the one nearer the reference station (smaller `r_ref`) and
-/// `alternative` the other. Resolve with prior knowledge, e.g. a tracker's prediction and
-/// [`ChanSolution::closest_to`], or add a fourth station. With four or more stations
-/// `alternative` is always `None`.
+/// With the minimum number of stations (three in the plane, four in space) the hyperbolae
+/// (hyperboloids) can intersect twice; when both intersections have non-negative ranges the
+/// measurements cannot tell them apart, so both are returned: `fix` is the one nearer the
+/// reference station (smaller `r_ref`) and `alternative` the other. Resolve with prior
+/// knowledge, e.g. a tracker's prediction and [`ChanSolution::closest_to`], or add a station.
+/// With more stations `alternative` is always `None`.
+///
+/// `D` defaults to 2, so `ChanSolution` alone names the planar solution.
 ///
 /// # Example
 /// ```
@@ -35,17 +34,17 @@ const COINCIDENCE_TOLERANCE: f64 = 1e-9;
 ///
 /// # References
 /// Y. T. Chan, K. C. Ho, "A simple and efficient estimator for hyperbolic location",
-/// *IEEE Trans. Signal Processing* 42(8), 1994, §IV (three stations: two solutions).
+/// *IEEE Trans. Signal Processing* 42(8), 1994, §IV (minimum number of stations: two solutions).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ChanSolution {
-    /// The fix (the only one for four or more stations).
-    pub fix: Fix2,
-    /// The second intersection of the hyperbolas, when three stations leave two valid ones.
-    pub alternative: Option<Fix2>,
+pub struct ChanSolution<const D: usize = 2> {
+    /// The fix (the only one with more than `D + 1` stations).
+    pub fix: Fix<D>,
+    /// The second intersection, when `D + 1` stations leave two valid ones.
+    pub alternative: Option<Fix<D>>,
 }
 
-impl ChanSolution {
-    /// Whether two fixes fit the measurements equally well (three stations only).
+impl<const D: usize> ChanSolution<D> {
+    /// Whether two fixes fit the measurements equally well (`D + 1` stations only).
     ///
     /// # Example
     /// ```
@@ -80,7 +79,7 @@ impl ChanSolution {
     /// # References
     /// Chan & Ho (1994), §IV: the ambiguity "can be resolved by a priori information".
     #[must_use]
-    pub fn closest_to(&self, prior_m: &Vector2<f64>) -> &Fix2 {
+    pub fn closest_to(&self, prior_m: &SVector<f64, D>) -> &Fix<D> {
         match &self.alternative {
             Some(other) if (other.position - prior_m).norm() < (self.fix.position - prior_m).norm() => other,
             _ => &self.fix,
@@ -88,51 +87,66 @@ impl ChanSolution {
     }
 }
 
-/// Chan's closed-form TDOA fix in the plane.
+/// Chan's closed-form TDOA fix in the plane (`D = 2`) or in space (`D = 3`).
 ///
-/// Stations `s_i` (m), a reference station `s_ref` (any index), and the range differences
-/// `r_{i,ref} = ‖p − s_i‖ − ‖p − s_ref‖` (m) for every station `i ≠ ref` **in station order,
-/// skipping the reference** (the convention of `rtls_estimation::measurement::Tdoa`), with
-/// covariance `Q` (m², `(n − 1) × (n − 1)`, symmetric positive definite). A TDOA `τ` in
-/// seconds is the range difference `c τ`, and `Q = c² Q_τ`.
+/// Stations `s_i` (m, `[x, y]` or `[x, y, z]`), a reference station `s_ref` (any index), and
+/// the range differences `r_{i,ref} = ‖p − s_i‖ − ‖p − s_ref‖` (m) for every station `i ≠ ref`
+/// **in station order, skipping the reference** (the convention of
+/// `rtls_estimation::measurement::Tdoa`), with covariance `Q` (m², `(n − 1) × (n − 1)`,
+/// symmetric positive definite). A TDOA `τ` in seconds is the range difference `c τ`, and
+/// `Q = c² Q_τ`.
 ///
 /// Working in coordinates centred on the reference (`s_ref = 0`, `K_i = ‖s_i‖²`), squaring
 /// `r_i = r_{i,ref} + r_ref` gives the pseudo-linear equations (Chan & Ho eq. 5)
 ///
-/// `h = G_a z_a + ψ`, `h_i = ½ (r_{i,ref}² − K_i)`, `G_a` rows `−[x_i, y_i, r_{i,ref}]`,
-/// `z_a = [x, y, r_ref]ᵀ`, `ψ ≈ B n`, `B = diag(r_i)`.
+/// `h = G_a z_a + ψ`, `h_i = ½ (r_{i,ref}² − K_i)`, `G_a` rows `−[s_iᵀ, r_{i,ref}]`,
+/// `z_a = [pᵀ, r_ref]ᵀ` (`D + 1` unknowns), `ψ ≈ B n`, `B = diag(r_i)`.
 ///
-/// **Four or more stations** — two-step WLS:
+/// **`D + 2` or more stations** (four in the plane, five in space) — two-step WLS:
 /// 1. `z_a = (G_aᵀ Q⁻¹ G_a)⁻¹ G_aᵀ Q⁻¹ h` (eq. 14, `B ≈ r⁰ I`), then, with `B` from that
 ///    solution, `Ψ = B Q B` (eq. 10, `Ψ = c² B Q B` for TDOAs in seconds) and
 ///    `z_a = (G_aᵀ Ψ⁻¹ G_a)⁻¹ G_aᵀ Ψ⁻¹ h` (eq. 12), `cov z_a = (G_aᵀ Ψ⁻¹ G_a)⁻¹` (eq. 17).
-/// 2. The constraint `r_ref² = x² + y²` in squared coordinates: `h' = [x̂², ŷ², r̂_ref²]ᵀ`,
-///    `G' = [[1, 0], [0, 1], [1, 1]]`, `B' = diag(x̂, ŷ, r̂_ref)`, `Ψ' = 4 B' cov(z_a) B'`
-///    (eq. 21), `z'_a = (G'ᵀ Ψ'⁻¹ G')⁻¹ G'ᵀ Ψ'⁻¹ h'` (eq. 22), and
-///    `p = s_ref + sign(x̂, ŷ) ⊙ √z'_a` (eq. 24; the sign is the step-1 solution's).
+/// 2. The constraint `r_ref² = ‖p‖²` in squared coordinates: `h' = z_a ⊙ z_a`,
+///    `G' = [I_D; 1ᵀ]` (`[[1, 0], [0, 1], [1, 1]]` in the plane, `[I₃; 1 1 1]` in space),
+///    `B' = diag(z_a)`, `Ψ' = 4 B' cov(z_a) B'` (eq. 21),
+///    `z'_a = (G'ᵀ Ψ'⁻¹ G')⁻¹ G'ᵀ Ψ'⁻¹ h'` (eq. 22), and
+///    `p = s_ref + sign(p̂) ⊙ √z'_a` (eq. 24; the sign is the step-1 solution's).
 ///
 /// Step 2 is evaluated in the algebraically identical form
-/// `z'_a = E (Mᵀ F M)⁻¹ Mᵀ F z_a`, `E = diag(x̂, ŷ)`, `M = B'⁻¹ G' E = [I₂; [x̂, ŷ]/r̂_ref]`,
-/// `F = G_aᵀ Ψ⁻¹ G_a`, which never divides by `x̂` or `ŷ` (the printed form is singular when
-/// the tag shares a coordinate with the reference station). If step 1 gives `r̂_ref ≤ 0` or
-/// step 2 a negative squared coordinate (noise with the tag near the reference or near a
-/// coordinate axis through it), the step-1 position is returned, as Sun & Ho's reference
-/// implementation does.
+/// `z'_a = E (Mᵀ F M)⁻¹ Mᵀ F z_a`, `E = diag(p̂)`, `M = B'⁻¹ G' E = [I_D; p̂ᵀ/r̂_ref]`,
+/// `F = G_aᵀ Ψ⁻¹ G_a`, which never divides by a coordinate of `p̂` (the printed form is
+/// singular when the tag shares a coordinate with the reference station). If step 1 gives
+/// `r̂_ref ≤ 0` or step 2 a negative squared coordinate (noise with the tag near the reference
+/// or near a coordinate plane through it), the step-1 position is returned, as Sun & Ho's
+/// reference implementation does.
 ///
 /// **Covariance** — Chan's step-2 covariance `Φ = ¼ B''⁻¹ (G'ᵀ Ψ'⁻¹ G')⁻¹ B''⁻¹`
-/// (eq. 25, `B'' = diag(x, y)`), with `B`, `B'` and `B''` evaluated at the final fix. In the
-/// same substitution it is `Φ = (Mᵀ F M)⁻¹` with `M = [I₂; pᵀ/r_ref] = ∂z_a/∂p`, which is what
-/// is computed. Since `G_a M = B J` (`J` the TDOA Jacobian), `Φ = (Jᵀ Q⁻¹ J)⁻¹`: the
+/// (eq. 25, `B'' = diag(p)`), with `B`, `B'` and `B''` evaluated at the final fix. In the
+/// same substitution it is `Φ = (Mᵀ F M)⁻¹` with `M = [I_D; pᵀ/r_ref] = ∂z_a/∂p`, which is
+/// what is computed. Since `G_a M = B J` (`J` the TDOA Jacobian), `Φ = (Jᵀ Q⁻¹ J)⁻¹`: the
 /// Cramér–Rao bound at the fix. It is a first-order (small-noise) estimate.
 ///
-/// **Three stations** — no redundancy: `S p = ½ (K − r ⊙ r) − r r_ref` with `S = [s_iᵀ]`
-/// gives `p = a + b r_ref`; substituting into `r_ref² = ‖p‖²` gives the quadratic
+/// **`D + 1` stations** (three in the plane, four in space) — no redundancy:
+/// `S p = ½ (K − r ⊙ r) − r r_ref` with `S = [s_iᵀ]` (`D × D`) gives `p = a + b r_ref`;
+/// substituting into `r_ref² = ‖p‖²` gives the quadratic
 /// `(bᵀb − 1) r_ref² + 2 aᵀb r_ref + aᵀa = 0`. Roots with `r_ref ≥ 0` and `r_i = r_{i,ref} +
 /// r_ref ≥ 0` are valid; if both are valid the result carries both
 /// ([`ChanSolution::alternative`]). Covariance as above, `(Jᵀ Q⁻¹ J)⁻¹` at each root.
 ///
+/// **Space** — the paper derives the plane; the spatial form is the same derivation with a
+/// third coordinate (`z_a = [x, y, z, r_ref]`, `G'` gains the row `[0, 0, 1]`), as Chan & Ho
+/// indicate. Stations must not be coplanar: anchors all mounted at one ceiling height are, and
+/// then the TDOAs cannot tell the tag from its mirror image in that plane (use [`super::taylor`]
+/// from a prior on the right side, or mount one anchor lower). Near-coplanar layouts are
+/// accepted but leave `z` much less certain than `x` and `y`, which the covariance shows.
+/// Indoors the tag's height relative to the reference is small against step 1's noise, and
+/// step 2 squares it, so Chan's second-order bias appears at lower noise than in the plane:
+/// in a 20 m × 15 m hall with anchors at 3 m and 0.5 m, σ = 2 cm per TOA biases `z` by 8 mm
+/// (a tenth of the position standard deviation; NEES 3.35 instead of 3 at σ = 1 cm).
+/// [`super::chan_taylor`] removes the bias.
+///
 /// Chan's estimator reaches the bound only at small noise: its step-1 intermediate
-/// `(x, y, r_ref)` is typically 10–30× noisier than the final fix, and once that error is a
+/// `z_a` is typically 10–30× noisier than the final fix, and once that error is a
 /// few per cent of `r_ref` the fix is biased and the reported covariance is optimistic (four
 /// stations on a 3 km square, tag at (1200, 800) m, σ = 10 m per TOA: empirical covariance
 /// 2.6× the bound). It also degrades (as the paper notes) when the tag is near a coordinate axis
@@ -145,24 +159,25 @@ impl ChanSolution {
 /// Stations, range differences and the fix in m; `Q` and the fix covariance in m².
 ///
 /// # Errors
-/// - [`PositioningError::Underdetermined`] for fewer than 3 stations;
+/// - [`PositioningError::Underdetermined`] for fewer than `D + 1` stations;
 /// - [`PositioningError::InvalidParameter`] (`reference`) if `reference ≥ n`, (`covariance_m2`)
 ///   if `Q` is not symmetric;
 /// - [`PositioningError::DimensionMismatch`] unless there are `n − 1` range differences and
 ///   `Q` is `(n − 1) × (n − 1)`;
 /// - [`PositioningError::NonFiniteEntry`] (station, axis) / [`PositioningError::NonFinite`]
 ///   for NaN/∞ stations, differences or `Q`;
+/// - [`PositioningError::DuplicateAnchors`] for two stations at one position;
 /// - [`PositioningError::NotPositiveDefinite`] if `Q` is not positive definite;
-/// - [`PositioningError::DegenerateGeometry`] for coincident or collinear stations, a singular
-///   or ill-conditioned normal matrix, or a solution at a station (where the TDOA Jacobian is
-///   undefined);
-/// - [`PositioningError::NoConsistentSolution`] (three stations) when no root of the quadratic
-///   gives non-negative ranges, usually noise making the hyperbolas miss each other;
+/// - [`PositioningError::DegenerateGeometry`] for collinear (plane) or coplanar (space)
+///   stations, a singular or ill-conditioned normal matrix, or a solution at a station (where
+///   the TDOA Jacobian is undefined);
+/// - [`PositioningError::NoConsistentSolution`] (`D + 1` stations) when no root of the
+///   quadratic gives non-negative ranges, usually noise making the hyperbolas miss each other;
 /// - [`PositioningError::NonFinite`] if the result would not be finite.
 ///
 /// # Example
 /// ```
-/// use nalgebra::{DMatrix, Vector2};
+/// use nalgebra::{DMatrix, Vector2, Vector3};
 /// use rtls_positioning::tdoa::{chan, differenced_range_covariance, range_differences_at};
 /// // Seed 004: four cellular base stations; the master (reference) is station 2.
 /// let stations = [[0.0, 0.0], [3000.0, 0.0], [0.0, 3000.0], [3000.0, 3000.0]];
@@ -173,139 +188,55 @@ impl ChanSolution {
 /// let fix = chan(&stations, 2, &r, &q)?.fix;
 /// assert!((fix.position - truth).norm() < 1e-6);
 /// assert!(fix.drms_m() > 30.0); // outside the hull: worse than one TOA
+///
+/// // Indoor UWB in space: five anchors, two of them low on the walls; reference station 4.
+/// let anchors = [[0.0, 0.0, 3.0], [20.0, 0.0, 3.0], [20.0, 15.0, 3.0], [0.0, 15.0, 0.5], [10.0, 7.5, 0.5]];
+/// let tag = Vector3::new(6.0, 4.0, 1.2);
+/// let r = range_differences_at(&anchors, 4, &tag)?;
+/// let q = differenced_range_covariance(&[0.01; 5], 4)?; // σ = 10 cm per TOA
+/// let fix = chan(&anchors, 4, &r, &q)?.fix;
+/// assert!((fix.position - tag).norm() < 1e-6);
 /// # Ok::<(), rtls_positioning::PositioningError>(())
 /// ```
 ///
 /// # References
 /// Y. T. Chan, K. C. Ho, "A simple and efficient estimator for hyperbolic location",
 /// *IEEE Trans. Signal Processing* 42(8), 1994: eqs. (5), (10)–(14), (17), (21)–(25); §IV for
-/// three stations. M. Sun, K. C. Ho, `TDOALoc.m` (reference MATLAB implementation, University
-/// of Missouri, 2009/2010: step-1 fallback). Seed 004 (cellular TDOA fixes, its ref. 3).
-pub fn chan(
-    stations_m: &[[f64; 2]],
+/// the minimum number of stations. M. Sun, K. C. Ho, `TDOALoc.m` (reference MATLAB
+/// implementation, University of Missouri, 2009/2010: step-1 fallback). Seed 004 (cellular TDOA
+/// fixes, its ref. 3).
+pub fn chan<const D: usize>(
+    stations_m: &[[f64; D]],
     reference: usize,
     range_differences_m: &[f64],
     covariance_m2: &DMatrix<f64>,
-) -> Result<ChanSolution> {
+) -> Result<ChanSolution<D>> {
     let problem = Problem::new(stations_m, reference, range_differences_m, covariance_m2)?;
-    if problem.others_m.len() == 2 {
-        return problem.exact_three();
+    problem.require_full_span()?;
+    if problem.others_m.len() == D {
+        return problem.exact_minimal();
     }
     let (z_a, fisher) = problem.step_one()?;
-    let position = step_two(&z_a, &fisher, problem.scale_m)?;
+    let position = step_two::<D>(&z_a, &fisher, problem.scale_m)?;
     let fix = problem.fix_at(position)?;
     Ok(ChanSolution { fix, alternative: None })
 }
 
-/// A validated TDOA problem in coordinates centred on the reference station.
-pub(crate) struct Problem {
-    /// `s_ref` (m), the origin of the centred coordinates.
-    pub(crate) reference_m: Vector2<f64>,
-    /// `s_i − s_ref` for every `i ≠ ref`, in station order (m).
-    pub(crate) others_m: Vec<Vector2<f64>>,
-    /// `r_{i,ref}` (m).
-    pub(crate) differences_m: DVector<f64>,
-    /// `Q⁻¹` (1/m²).
-    pub(crate) q_inverse: DMatrix<f64>,
-    /// `G_a`, rows `−[x_i, y_i, r_{i,ref}]`.
-    g: MatrixXx3<f64>,
-    /// `h_i = ½ (r_{i,ref}² − K_i)`.
-    h: DVector<f64>,
-    /// Largest `‖s_i − s_ref‖` (m), the length scale of relative tolerances.
-    pub(crate) scale_m: f64,
-}
-
-impl Problem {
-    /// Validates the inputs and builds `G_a`, `h` and `Q⁻¹`.
-    pub(crate) fn new(
-        stations_m: &[[f64; 2]],
-        reference: usize,
-        range_differences_m: &[f64],
-        covariance_m2: &DMatrix<f64>,
-    ) -> Result<Self> {
-        let n = stations_m.len();
-        if n < 3 {
-            return Err(PositioningError::Underdetermined { anchors: n, needed: 3 });
-        }
-        if reference >= n {
-            return Err(PositioningError::InvalidParameter {
-                name: "reference",
-                reason: "the reference index must be below the number of stations",
-            });
-        }
-        if range_differences_m.len() != n - 1 {
-            return Err(PositioningError::DimensionMismatch {
-                what: "range differences (one per non-reference station)",
-                expected: n - 1,
-                found: range_differences_m.len(),
-            });
-        }
-        for (row, s) in stations_m.iter().enumerate() {
-            if let Some(column) = s.iter().position(|v| !v.is_finite()) {
-                return Err(PositioningError::NonFiniteEntry {
-                    what: "station positions (row = station, column = axis)",
-                    row,
-                    column,
-                });
-            }
-        }
-        if !range_differences_m.iter().all(|v| v.is_finite()) {
-            return Err(PositioningError::NonFinite {
-                what: "range differences",
-            });
-        }
-        let q_inverse = covariance_inverse(covariance_m2, n - 1, "covariance_m2", "range-difference covariance")?;
-
-        let reference_m = Vector2::new(stations_m[reference][0], stations_m[reference][1]);
-        // s_i ← s_i − s_ref
-        let others_m: Vec<Vector2<f64>> = stations_m
-            .iter()
-            .enumerate()
-            .filter(|&(i, _)| i != reference)
-            .map(|(_, s)| Vector2::new(s[0], s[1]) - reference_m)
-            .collect();
-        let scale_m = others_m.iter().map(|s| s.norm()).fold(0.0, f64::max);
-        if !(scale_m > 0.0 && scale_m.is_finite()) {
-            return Err(PositioningError::DegenerateGeometry {
-                reason: "all stations coincide with the reference; stations must be spread out",
-            });
-        }
-        let differences_m = DVector::from_column_slice(range_differences_m);
-        let m = others_m.len();
-        // G_a = −[x_i, y_i, r_{i,ref}]
-        let g = MatrixXx3::from_fn(m, |i, j| match j {
-            0 => -others_m[i].x,
-            1 => -others_m[i].y,
-            _ => -differences_m[i],
-        });
-        // h_i = ½ (r_{i,ref}² − K_i),  K_i = x_i² + y_i²  (K_ref = 0)
-        let h = DVector::from_fn(m, |i, _| {
-            0.5 * (differences_m[i] * differences_m[i] - others_m[i].norm_squared())
-        });
-        Ok(Self {
-            reference_m,
-            others_m,
-            differences_m,
-            q_inverse,
-            g,
-            h,
-            scale_m,
-        })
-    }
-
-    /// Chan's step 1 (≥ 4 stations): returns `z_a = [x, y, r_ref]` (centred) and the
+impl<const D: usize> Problem<D> {
+    /// Chan's step 1 (≥ `D + 2` stations): returns `z_a = [p, r_ref]` (centred) and the
     /// information matrix `F = G_aᵀ Ψ⁻¹ G_a = cov(z_a)⁻¹`.
-    pub(crate) fn step_one(&self) -> Result<(Vector3<f64>, Matrix3<f64>)> {
-        const SINGULAR: &str =
-            "chan step 1: singular normal matrix G_aᵀ Ψ⁻¹ G_a (collinear stations or a tag far outside them)";
+    pub(crate) fn step_one(&self) -> Result<(DVector<f64>, DMatrix<f64>)> {
+        const SINGULAR: &str = "chan step 1: singular normal matrix G_aᵀ Ψ⁻¹ G_a (stations nearly \
+                                collinear/coplanar, or a tag far outside them)";
         // z_a = (G_aᵀ Q⁻¹ G_a)⁻¹ G_aᵀ Q⁻¹ h        (eq. 14: Ψ ≈ Q when B ≈ r⁰ I)
         let (first, _) = self.weighted_least_squares(&self.q_inverse, SINGULAR)?;
+        let first_position = SVector::<f64, D>::from_fn(|i, _| first[i]);
         // B = diag(r_i⁰), r_i⁰ = ‖p⁰ − s_i‖ from the first solution (floored: weights only)
         let floor_m = COINCIDENCE_TOLERANCE * self.scale_m;
         let b: Vec<f64> = self
             .others_m
             .iter()
-            .map(|s| (first.xy() - s).norm().max(floor_m))
+            .map(|s| (first_position - s).norm().max(floor_m))
             .collect();
         // Ψ⁻¹ = B⁻¹ Q⁻¹ B⁻¹                         (eq. 10: Ψ = B Q B)
         let psi_inverse = self.psi_inverse(&b);
@@ -318,76 +249,32 @@ impl Problem {
         &self,
         weight: &DMatrix<f64>,
         reason: &'static str,
-    ) -> Result<(Vector3<f64>, Matrix3<f64>)> {
+    ) -> Result<(DVector<f64>, DMatrix<f64>)> {
         let gt_w = self.g.transpose() * weight;
         // N = G_aᵀ W G_a,  b = G_aᵀ W h
-        let normal: Matrix3<f64> = &gt_w * &self.g;
-        let rhs: Vector3<f64> = &gt_w * &self.h;
+        let normal = &gt_w * &self.g;
+        let rhs = &gt_w * &self.h;
         let (z, _) = solve_spd(&normal, &rhs, reason)?;
         Ok((z, normal))
     }
 
-    /// `Ψ⁻¹ = B⁻¹ Q⁻¹ B⁻¹` for `B = diag(b)`.
-    fn psi_inverse(&self, b: &[f64]) -> DMatrix<f64> {
-        DMatrix::from_fn(b.len(), b.len(), |i, j| self.q_inverse[(i, j)] / (b[i] * b[j]))
-    }
-
-    /// Chan's covariance at a centred position `p`: `Φ = (Mᵀ F M)⁻¹`,
-    /// `M = [I₂; pᵀ/r_ref]`, `F = G_aᵀ Ψ⁻¹ G_a` with `B = diag(‖p − s_i‖)`.
-    pub(crate) fn covariance_at(&self, p: &Vector2<f64>) -> Result<Matrix2<f64>> {
-        const AT_STATION: PositioningError = PositioningError::DegenerateGeometry {
-            reason: "the fix coincides with a station, where the tdoa jacobian is undefined; \
-                     use another reference station or method",
-        };
-        let floor_m = COINCIDENCE_TOLERANCE * self.scale_m;
-        // r_ref = ‖p‖, r_i = ‖p − s_i‖
-        let r_ref = p.norm();
-        let b: Vec<f64> = self.others_m.iter().map(|s| (p - s).norm()).collect();
-        if r_ref <= floor_m || b.iter().any(|&r| r <= floor_m) {
-            return Err(AT_STATION);
-        }
-        // F = G_aᵀ Ψ⁻¹ G_a,  Ψ⁻¹ = B⁻¹ Q⁻¹ B⁻¹
-        let fisher: Matrix3<f64> = self.g.transpose() * self.psi_inverse(&b) * &self.g;
-        // M = ∂z_a/∂p = [I₂; pᵀ/r_ref]   (= B'⁻¹ G' B'' at the fix)
-        let m = Matrix3x2::new(1.0, 0.0, 0.0, 1.0, p.x / r_ref, p.y / r_ref);
-        // Φ = (Mᵀ F M)⁻¹   (= ¼ B''⁻¹ (G'ᵀ Ψ'⁻¹ G')⁻¹ B''⁻¹, eq. 25)
-        let information = m.transpose() * fisher * m;
-        let (_, covariance) = solve_spd(
-            &information,
-            &Vector2::zeros(),
-            "the tdoa information matrix Jᵀ Q⁻¹ J is singular at the fix (stations and fix nearly collinear)",
-        )?;
-        // symmetrise against round-off
-        Ok((covariance + covariance.transpose()) * 0.5)
-    }
-
-    /// The fix (absolute coordinates) at a centred position, with its covariance.
-    pub(crate) fn fix_at(&self, p: Vector2<f64>) -> Result<Fix2> {
-        let covariance = self.covariance_at(&p)?;
-        Fix2 {
-            position: p + self.reference_m,
-            covariance,
-        }
-        .checked()
-    }
-
-    /// Chan & Ho §IV: the exact solution for three stations (two differences).
-    fn exact_three(&self) -> Result<ChanSolution> {
-        let (s2, s3) = (self.others_m[0], self.others_m[1]);
-        let (r2, r3) = (self.differences_m[0], self.differences_m[1]);
-        // S = [s_2ᵀ; s_3ᵀ]
-        let s = Matrix2::new(s2.x, s2.y, s3.x, s3.y);
-        let collinear = PositioningError::DegenerateGeometry {
-            reason: "the three stations are collinear (or two coincide); move one off the line or add a station",
-        };
-        if s.determinant().abs() <= 1e-12 * s2.norm() * s3.norm() {
-            return Err(collinear);
-        }
-        let s_inverse = s.try_inverse().ok_or(collinear)?;
+    /// Chan & Ho §IV: the exact solution for `D + 1` stations (`D` differences).
+    fn exact_minimal(&self) -> Result<ChanSolution<D>> {
+        // S = [s_iᵀ]  (D × D, centred stations as rows)
+        let s = SMatrix::<f64, D, D>::from_fn(|i, j| self.others_m[i][j]);
+        let r = SVector::<f64, D>::from_fn(|i, _| self.differences_m[i]);
+        let k = SVector::<f64, D>::from_fn(|i, _| self.others_m[i].norm_squared());
+        // S⁻¹ (S is invertible: require_full_span has checked that the stations span the space)
+        let s_inverse = s
+            .try_inverse()
+            .filter(|inverse| inverse.iter().all(|v| v.is_finite()))
+            .ok_or(PositioningError::DegenerateGeometry {
+                reason: "the stations are collinear/coplanar; move one off the line/plane or add a station",
+            })?;
         // S p = ½ (K − r ⊙ r) − r r_ref  ⇒  p = a + b r_ref
         // a = S⁻¹ ½ (K − r ⊙ r),  b = −S⁻¹ r
-        let a = s_inverse * Vector2::new(0.5 * (s2.norm_squared() - r2 * r2), 0.5 * (s3.norm_squared() - r3 * r3));
-        let b = -(s_inverse * Vector2::new(r2, r3));
+        let a = s_inverse * ((k - r.component_mul(&r)) * 0.5);
+        let b = -(s_inverse * r);
         // ‖a + b r_ref‖² = r_ref²  ⇒  α r_ref² + β r_ref + γ = 0
         let alpha = b.norm_squared() - 1.0;
         let beta = 2.0 * a.dot(&b);
@@ -396,7 +283,7 @@ impl Problem {
         let discriminant = beta * beta - 4.0 * alpha * gamma;
         if discriminant.is_nan() || discriminant < 0.0 {
             return Err(PositioningError::NoConsistentSolution {
-                reason: "chan's quadratic in r_ref has no real root (the two hyperbolas do not intersect, \
+                reason: "chan's quadratic in r_ref has no real root (the hyperbolas do not intersect, \
                          usually because of noise); add a station or filter the raw range differences",
             });
         }
@@ -411,7 +298,8 @@ impl Problem {
         }
         // Valid: r_ref ≥ 0 and r_i = r_{i,ref} + r_ref ≥ 0 (the squared equations lost the signs).
         let tolerance_m = COINCIDENCE_TOLERANCE * self.scale_m;
-        roots.retain(|r| r.is_finite() && *r >= -tolerance_m && r + r2 >= -tolerance_m && r + r3 >= -tolerance_m);
+        roots
+            .retain(|root| root.is_finite() && *root >= -tolerance_m && r.iter().all(|r_i| root + r_i >= -tolerance_m));
         roots.sort_by(f64::total_cmp);
         roots.dedup_by(|x, y| (*x - *y).abs() <= tolerance_m);
         let mut fixes = roots.iter().map(|&r_ref| self.fix_at(a + b * r_ref));
@@ -428,41 +316,46 @@ impl Problem {
     }
 }
 
-/// Chan's step 2 (centred coordinates): from `z_a = [x̂, ŷ, r̂_ref]` and `F = cov(z_a)⁻¹`
-/// returns the position `sign(x̂, ŷ) ⊙ √z'_a`.
+/// Chan's step 2 (centred coordinates): from `z_a = [p̂, r̂_ref]` and `F = cov(z_a)⁻¹`
+/// returns the position `sign(p̂) ⊙ √z'_a`.
 ///
 /// `z'_a = (G'ᵀ Ψ'⁻¹ G')⁻¹ G'ᵀ Ψ'⁻¹ h'` with `Ψ' = 4 B' F⁻¹ B'` equals `E v`,
-/// `v = (Mᵀ F M)⁻¹ Mᵀ F z_a`, `E = diag(x̂, ŷ)`, `M = [I₂; [x̂, ŷ]/r̂_ref]`
+/// `v = (Mᵀ F M)⁻¹ Mᵀ F z_a`, `E = diag(p̂)`, `M = [I_D; p̂ᵀ/r̂_ref]`
 /// (substitute `z'_a = E v` and multiply the normal equations by `E`).
-pub(crate) fn step_two(z_a: &Vector3<f64>, fisher: &Matrix3<f64>, scale_m: f64) -> Result<Vector2<f64>> {
-    let r_ref = z_a.z;
+pub(crate) fn step_two<const D: usize>(
+    z_a: &DVector<f64>,
+    fisher: &DMatrix<f64>,
+    scale_m: f64,
+) -> Result<SVector<f64, D>> {
+    debug_assert_eq!(z_a.len(), D + 1);
+    let p_hat = SVector::<f64, D>::from_fn(|i, _| z_a[i]);
+    let r_ref = z_a[D];
     if r_ref <= COINCIDENCE_TOLERANCE * scale_m {
         // r̂_ref ≤ 0: step 2's weighting is meaningless; keep step 1 (Sun & Ho's reference code)
-        return Ok(z_a.xy());
+        return Ok(p_hat);
     }
-    // M = B'⁻¹ G' E = [I₂; [x̂, ŷ]/r̂_ref]
-    let m = Matrix3x2::new(1.0, 0.0, 0.0, 1.0, z_a.x / r_ref, z_a.y / r_ref);
+    // M = B'⁻¹ G' E = [I_D; p̂ᵀ/r̂_ref]
+    let m = constraint_jacobian(&p_hat, r_ref);
     let mt_f = m.transpose() * fisher;
     // v = (Mᵀ F M)⁻¹ Mᵀ F z_a      (B'⁻¹ h' = z_a)
-    let (v, _) = solve_spd(
-        &(mt_f * m),
-        &(mt_f * z_a),
-        "chan step 2: singular normal matrix G'ᵀ Ψ'⁻¹ G'",
-    )?;
-    // z'_a = E v = [x̂ v_x, ŷ v_y]  (squared coordinates)
-    let squared = Vector2::new(z_a.x * v.x, z_a.y * v.y);
-    if squared.x < 0.0 || squared.y < 0.0 {
+    let normal = fixed_square::<D>(&(&mt_f * &m));
+    let rhs = SVector::<f64, D>::from_iterator((&mt_f * z_a).iter().copied());
+    let (v, _) = solve_spd(&normal, &rhs, "chan step 2: singular normal matrix G'ᵀ Ψ'⁻¹ G'")?;
+    // z'_a = E v = p̂ ⊙ v  (squared coordinates)
+    let squared = p_hat.component_mul(&v);
+    if squared.iter().any(|&c| c < 0.0) {
         // a negative square: keep step 1 (Sun & Ho's reference code)
-        return Ok(z_a.xy());
+        return Ok(p_hat);
     }
-    // p = sign(x̂, ŷ) ⊙ √z'_a     (eq. 24)
+    // p = sign(p̂) ⊙ √z'_a     (eq. 24)
     let sign = |c: f64| if c < 0.0 { -1.0 } else { 1.0 };
-    Ok(Vector2::new(
-        sign(z_a.x) * squared.x.sqrt(),
-        sign(z_a.y) * squared.y.sqrt(),
-    ))
+    Ok(SVector::<f64, D>::from_fn(|i, _| sign(p_hat[i]) * squared[i].sqrt()))
 }
 
 #[cfg(test)]
 #[path = "chan_tests.rs"]
 mod tests;
+
+#[cfg(test)]
+#[path = "chan_tests_3d.rs"]
+mod tests_3d;

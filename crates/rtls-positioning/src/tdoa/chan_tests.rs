@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::tdoa::{differenced_range_covariance, range_differences_at};
-use nalgebra::{Matrix2x3, Vector2};
+use nalgebra::{Matrix2, Matrix2x3, Matrix3, Vector2, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -155,7 +155,9 @@ fn step_two_equals_the_printed_weighted_least_squares() {
     }
     let problem = Problem::new(&stations, 3, &r, &q).unwrap();
     let (z_a, fisher) = problem.step_one().unwrap();
-    let implemented = step_two(&z_a, &fisher, problem.scale_m).unwrap();
+    let implemented = step_two::<2>(&z_a, &fisher, problem.scale_m).unwrap();
+    let z_a = Vector3::from_column_slice(z_a.as_slice());
+    let fisher = Matrix3::from_column_slice(fisher.as_slice());
     // Printed form: h' = z_a ⊙ z_a, G' = [I; 1 1], B' = diag(z_a), Ψ' = 4 B' F⁻¹ B',
     // z' = (G'ᵀ Ψ'⁻¹ G')⁻¹ G'ᵀ Ψ'⁻¹ h', p = sign ⊙ √z'.
     let h2 = z_a.component_mul(&z_a);
@@ -219,9 +221,16 @@ fn covariance_equals_the_printed_step_two_covariance_and_the_crlb() {
 #[test]
 fn step_one_falls_back_when_step_two_has_a_negative_square() {
     // z_a with r_ref ≤ 0 → the step-1 position is returned unchanged.
+    let dynamic = |z: &Vector3<f64>, f: &Matrix3<f64>| {
+        (
+            DVector::from_column_slice(z.as_slice()),
+            DMatrix::from_column_slice(3, 3, f.as_slice()),
+        )
+    };
     let fisher = Matrix3::identity();
     let z_a = Vector3::new(3.0, -4.0, -1.0);
-    assert_eq!(step_two(&z_a, &fisher, 10.0).unwrap(), Vector2::new(3.0, -4.0));
+    let (z, f) = dynamic(&z_a, &fisher);
+    assert_eq!(step_two::<2>(&z, &f, 10.0).unwrap(), Vector2::new(3.0, -4.0));
     // M = [I; (x, y)/r], v = (Mᵀ F M)⁻¹ Mᵀ F z_a; a strongly correlated F can give
     // x̂ v_x < 0 (a negative squared coordinate).
     let z_a = Vector3::new(0.1, 5.0, 0.2);
@@ -230,7 +239,8 @@ fn step_one_falls_back_when_step_two_has_a_negative_square() {
     let m = Matrix2x3::new(1.0, 0.0, 0.5, 0.0, 1.0, 25.0).transpose();
     let v = (m.transpose() * fisher * m).try_inverse().unwrap() * m.transpose() * fisher * z_a;
     assert!(z_a.x * v.x < 0.0, "test premise: {v:?}");
-    assert_eq!(step_two(&z_a, &fisher, 10.0).unwrap(), Vector2::new(0.1, 5.0));
+    let (z, f) = dynamic(&z_a, &fisher);
+    assert_eq!(step_two::<2>(&z, &f, 10.0).unwrap(), Vector2::new(0.1, 5.0));
 }
 
 #[test]
@@ -300,7 +310,7 @@ fn error_paths() {
         chan(&square, 0, &r3, &(-q3.clone())),
         Err(PositioningError::NotPositiveDefinite { .. })
     ));
-    // collinear stations (4 and 3), all stations at the reference
+    // collinear stations (4 and 3), duplicate stations
     let line = [[0.0, 0.0], [10.0, 10.0], [25.0, 25.0], [40.0, 40.0]];
     let r_line = range_differences_at(&line, 0, &Vector2::new(5.0, 30.0)).unwrap();
     assert!(matches!(
@@ -313,10 +323,19 @@ fn error_paths() {
         Err(PositioningError::DegenerateGeometry { .. })
     ));
     let heap = [[5.0, 5.0]; 4];
-    assert!(matches!(
+    assert_eq!(
         chan(&heap, 0, &[0.0; 3], &q3),
-        Err(PositioningError::DegenerateGeometry { .. })
-    ));
+        Err(PositioningError::DuplicateAnchors { first: 0, second: 1 })
+    );
+    let twin = [[0.0, 0.0], [100.0, 0.0], [0.0, 100.0], [100.0, 0.0]];
+    assert_eq!(
+        chan(&twin, 2, &r3, &q3),
+        Err(PositioningError::DuplicateAnchors { first: 1, second: 3 })
+    );
+    assert_eq!(
+        chan(&twin[1..], 0, &r3[..2], &q2),
+        Err(PositioningError::DuplicateAnchors { first: 0, second: 2 })
+    );
     // a tag exactly at a station: the covariance (TDOA Jacobian) is undefined there
     for (reference, station) in [(0, 1), (0, 0), (2, 3)] {
         let at = Vector2::new(square[station][0], square[station][1]);

@@ -5,19 +5,26 @@
 //! `rtls_estimation::measurement::Tdoa` orders them, so the same vector and covariance can go
 //! to [`chan`] for a fix or to an EKF/UKF as a raw measurement.
 //!
-//! - [`chan`] — Chan & Ho's closed-form estimator (≥ 3 stations in the plane).
-//! - [`taylor`] — Gauss–Newton (Foy/Torrieri) refinement to the maximum-likelihood fix.
+//! Every solver works in the plane (`[f64; 2]` stations, [`crate::Fix2`]) and in space
+//! (`[f64; 3]` stations, [`crate::Fix3`]) through one const-generic implementation; the
+//! dimension is inferred from the station array.
+//!
+//! - [`chan`] — Chan & Ho's closed-form estimator (≥ 3 stations in the plane, ≥ 4 in space;
+//!   two-step WLS from 4 in the plane and 5 in space).
+//! - [`taylor`], [`chan_taylor`] — Gauss–Newton / Levenberg–Marquardt (Foy/Torrieri)
+//!   refinement to the maximum-likelihood fix.
 //! - [`cyclic_reference`] — seed 004's rotating master station.
 //! - [`range_differences_at`], [`differenced_range_covariance`] — the noise-free measurement
 //!   and the covariance of differenced independent TOAs, for simulation and configuration.
 
 mod chan;
+mod problem;
 mod taylor;
 
 pub use chan::{chan, ChanSolution};
 pub use taylor::{chan_taylor, taylor, TAYLOR_MAX_ITERATIONS};
 
-use nalgebra::{DMatrix, Vector2};
+use nalgebra::{DMatrix, SVector};
 
 use crate::error::{PositioningError, Result};
 
@@ -56,7 +63,8 @@ pub fn cyclic_reference(epoch: u64, stations: usize) -> Result<usize> {
 }
 
 /// The noise-free range differences `r_{i,ref} = ‖p − s_i‖ − ‖p − s_ref‖` (m) of a position
-/// `p`, for every station `i ≠ ref` in station order.
+/// `p`, for every station `i ≠ ref` in station order, in the plane or in space (`D` = 2 or 3,
+/// or any other dimension).
 ///
 /// # Errors
 /// [`PositioningError::Underdetermined`] for fewer than 2 stations;
@@ -70,12 +78,19 @@ pub fn cyclic_reference(epoch: u64, stations: usize) -> Result<usize> {
 /// let stations = [[0.0, 0.0], [6.0, 0.0], [0.0, 8.0]];
 /// let r = range_differences_at(&stations, 1, &Vector2::new(0.0, 0.0))?;
 /// assert_eq!(r, vec![-6.0, 2.0]); // 0 − 6, 8 − 6
+/// let spatial = [[0.0, 0.0, 0.0], [0.0, 0.0, 3.0], [4.0, 0.0, 0.0]];
+/// let r = range_differences_at(&spatial, 0, &nalgebra::Vector3::new(0.0, 0.0, 3.0))?;
+/// assert_eq!(r, vec![-3.0, 2.0]); // 0 − 3, 5 − 3
 /// # Ok::<(), rtls_positioning::PositioningError>(())
 /// ```
 ///
 /// # References
 /// Chan & Ho (1994), eq. (2): `r_{i,1} = r_i − r_1`.
-pub fn range_differences_at(stations_m: &[[f64; 2]], reference: usize, position_m: &Vector2<f64>) -> Result<Vec<f64>> {
+pub fn range_differences_at<const D: usize>(
+    stations_m: &[[f64; D]],
+    reference: usize,
+    position_m: &SVector<f64, D>,
+) -> Result<Vec<f64>> {
     if stations_m.len() < 2 {
         return Err(PositioningError::Underdetermined {
             anchors: stations_m.len(),
@@ -88,7 +103,7 @@ pub fn range_differences_at(stations_m: &[[f64; 2]], reference: usize, position_
             reason: "the reference index must be below the number of stations",
         });
     }
-    let range = |s: &[f64; 2]| (position_m - Vector2::new(s[0], s[1])).norm();
+    let range = |s: &[f64; D]| (position_m - SVector::<f64, D>::from(*s)).norm();
     // r_ref = ‖p − s_ref‖
     let reference_m = range(&stations_m[reference]);
     // r_{i,ref} = ‖p − s_i‖ − r_ref
@@ -177,6 +192,7 @@ pub fn differenced_range_covariance(range_variances_m2: &[f64], reference: usize
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Vector2;
 
     #[test]
     fn cyclic_reference_is_round_robin() {
