@@ -120,6 +120,62 @@ pub enum PositioningError {
         /// Minimum needed.
         needed: usize,
     },
+    /// A node of a multi-hop network (DV-Hop) reaches too few anchors through the network
+    /// graph to be located, or, for an anchor, no other anchor (so its hop size is undefined).
+    #[error(
+        "network node {node} reaches {anchors} anchors other than itself through the graph, at least {needed} \
+         needed; add radio links or anchors near it, or leave the node unlocated"
+    )]
+    NodeUnderdetermined {
+        /// Index of the node in the network (0-based).
+        node: usize,
+        /// Anchors (other than the node itself) it reaches.
+        anchors: usize,
+        /// Minimum needed (`D + 1` for an unknown node, 1 for an anchor).
+        needed: usize,
+    },
+    /// A fingerprint reading names an anchor index the survey does not have.
+    #[error("fingerprint row {row} has a reading of anchor {anchor}, but the survey has {anchors} anchors (0-based)")]
+    AnchorOutOfRange {
+        /// Reference point (row, 0-based).
+        row: usize,
+        /// Anchor index given.
+        anchor: usize,
+        /// Anchors in the survey.
+        anchors: usize,
+    },
+    /// One fingerprint row lists the same anchor twice.
+    #[error("fingerprint row {row} lists anchor {column} twice; merge the readings (e.g. average them) first")]
+    DuplicateReading {
+        /// Reference point (row, 0-based).
+        row: usize,
+        /// The repeated anchor (column).
+        column: usize,
+    },
+    /// A heard RSSI reading is weaker than the signal representation's floor.
+    #[error(
+        "{what} [row {row}, column {column}] = {rssi_dbm} dBm is below the representation floor {floor_dbm} dBm; \
+         lower floor_dbm to the receivers' weakest reading"
+    )]
+    RssiBelowFloor {
+        /// Which table, e.g. "fingerprint rssi (row = reference point, column = anchor)".
+        what: &'static str,
+        /// Row (reference point; 0 for a query).
+        row: usize,
+        /// Column (anchor).
+        column: usize,
+        /// The reading (dBm).
+        rssi_dbm: f64,
+        /// The floor (dBm).
+        floor_dbm: f64,
+    },
+    /// No candidate reference point hears any anchor the query hears, so signal space says
+    /// nothing about where the query is.
+    #[error(
+        "no fingerprint match: no candidate reference point hears any of the query's anchors; \
+         the receiver is outside the surveyed area or hears only unsurveyed anchors"
+    )]
+    NoFingerprintMatch,
 }
 
 /// Result alias of this crate.

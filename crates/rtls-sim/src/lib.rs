@@ -48,7 +48,7 @@ pub use error::{Result, SimError};
 pub use metrics::{axis_rmse, empirical_cdf, euclidean_errors, percentile, ErrorSummary};
 pub use scenarios::{
     seed_002_acceleration_profile, seed_002_manoeuvre_then_cruise, seed_002_reference_points,
-    seed_002_step_acceleration, seed_002_trajectory, seed_004_phase_at, seed_004_phases, seed_004_trajectory,
+    seed_002_step_acceleration, seed_002_trajectory, seed_004_phase_at, seed_004_phases, seed_004_trajectory, GridSite,
     MotionPhase, SEED_002_ANCHORS, SEED_002_AREA_SIDE_M, SEED_002_MANOEUVRE_END_S, SEED_002_MANOEUVRE_SAMPLES,
     SEED_002_SAMPLES, SEED_002_START_M, SEED_004_DURATION_S, SEED_004_SPEED_MPS, SEED_004_START_M, SEED_004_STATIONS,
     SEED_004_TURN_RATE_RAD_S,

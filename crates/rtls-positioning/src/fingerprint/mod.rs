@@ -1,35 +1,72 @@
-//! RSSI fingerprinting: weighted k-nearest neighbours over a surveyed fingerprint map, globally
-//! ([`Wknn`]) or restricted to reference points near the strongest anchors ([`LocalWknn`],
-//! seed 002's L-WKNN).
+//! RSSI fingerprinting: k-nearest neighbours in signal space over a surveyed fingerprint map,
+//! globally ([`Knn`]: KNN and WKNN) or restricted to reference points near the strongest
+//! anchors ([`LocalWknn`], seed 002's L-WKNN), with building and floor classification.
+//!
+//! The pieces:
+//! - [`FingerprintDatabase`] (from a [`Survey`]): reference points with optional floor and
+//!   building labels, anchors with known, estimated ([`FingerprintDatabase::with_estimated_anchors`])
+//!   or unknown positions, and the heard readings only: an absent reading is absent, not a
+//!   magic RSSI;
+//! - [`SignalSpace`]: how readings are represented ([`SignalRepresentation`]; "not heard" is
+//!   `ψ = 0` in all of them) and compared ([`SignalDistance`]);
+//! - [`FingerprintIndex`]: the database represented once in a signal space, which the matchers
+//!   query.
 //!
 //! A query is the measured RSSI vector `&[Option<f64>]` (dBm), one entry per database anchor;
-//! `None` means the anchor was not heard. Signal-space distances use the heard anchors only:
+//! `None` means the anchor was not heard. A query that hears nothing is
+//! [`PositioningError::NoCommonAnchors`]; one that shares no heard anchor with any candidate
+//! reference point is [`PositioningError::NoFingerprintMatch`].
 //!
-//! `D_l = √( Σ_{x heard} (ρ_x − ρ_{l,x})² )` (dB)
-//!
-//! Database values are always present, so every heard anchor is compared at every reference
-//! point. An unheard anchor is simply left out rather than replaced by a floor value: a caller
-//! who prefers "not heard = −100 dBm" passes `Some(-100.0)`. A query that hears nothing is
-//! [`PositioningError::NoCommonAnchors`].
+//! # Example: multi-floor Wi-Fi with unknown access-point positions
+//! ```
+//! use rtls_positioning::fingerprint::{FingerprintDatabase, FingerprintIndex, Knn, LocalWknn, SignalSpace, Survey};
+//! let survey = Survey {
+//!     reference_points_m: vec![[0.0, 0.0], [10.0, 0.0], [0.0, 0.0], [10.0, 0.0]],
+//!     floors: Some(vec![0, 0, 1, 1]),
+//!     buildings: None,
+//!     anchor_count: 3,
+//!     anchors_m: None,
+//!     readings_dbm: vec![
+//!         vec![(0, -40.0), (1, -70.0)],
+//!         vec![(0, -70.0), (1, -45.0)],
+//!         vec![(2, -42.0), (0, -85.0)],
+//!         vec![(2, -60.0), (1, -88.0)],
+//!     ],
+//! };
+//! let db = FingerprintDatabase::from_survey(survey)?.with_estimated_anchors(3)?;
+//! let index = FingerprintIndex::new(db, SignalSpace::powed_sorensen())?;
+//! let query = [Some(-84.0), None, Some(-44.0)];
+//! let global = Knn::wknn(2).locate(&index, &query)?;
+//! assert_eq!(global.floor, Some(1));
+//! let local = LocalWknn { strongest_anchors: 1, radius_m: 15.0, knn: Knn::wknn(2) }.build(&index)?;
+//! assert_eq!(local.locate(&query)?.fix.position, global.fix.position);
+//! # Ok::<(), rtls_positioning::PositioningError>(())
+//! ```
 
+mod anchors;
 mod database;
+mod index;
+mod knn;
 mod local;
-mod wknn;
+mod signal;
 
-pub use database::FingerprintDatabase;
+pub use database::{FingerprintDatabase, Survey};
+pub use index::FingerprintIndex;
+pub use knn::{Knn, Weighting};
 pub use local::{LocalWknn, LocalWknnLocator};
-pub use wknn::Wknn;
+pub use signal::{SignalDistance, SignalRepresentation, SignalSpace};
 
-use crate::error::{PositioningError, Result};
+#[cfg(doc)]
+use crate::error::PositioningError;
 use crate::fix::Fix2;
 
-/// One neighbour chosen by (L-)WKNN: a reference point, its signal-space distance and its
+/// One neighbour chosen by (L-)WKNN or KNN: a reference point, its signal-space distance and its
 /// weight in the fix.
 ///
 /// # Example
 /// ```
 /// use rtls_positioning::fingerprint::Neighbour;
-/// let n = Neighbour { reference_point: 3, distance_db: 2.0, weight: 0.25 };
+/// let n = Neighbour { reference_point: 3, distance: 2.0, weight: 0.25 };
 /// assert_eq!(n.reference_point, 3);
 /// ```
 ///
@@ -39,8 +76,9 @@ use crate::fix::Fix2;
 pub struct Neighbour {
     /// Row of the reference point in the database.
     pub reference_point: usize,
-    /// Signal-space distance `D_l` (dB) over the heard anchors.
-    pub distance_db: f64,
+    /// Signal-space distance `D_l`, in the units of the index's [`SignalSpace`] (dB for
+    /// Euclidean on the `Positive` representation).
+    pub distance: f64,
     /// Normalised weight `w_l` (the weights of one fix sum to 1).
     pub weight: f64,
 }
@@ -53,17 +91,21 @@ pub struct Neighbour {
 /// For a tracking filter, use an observation covariance measured at surveyed points with
 /// [`calibrate_fix_noise`](crate::calibrate_fix_noise), as seed 002 does.
 ///
-/// `neighbours` are sorted by increasing signal-space distance (ties by reference-point index).
+/// `neighbours` are sorted by increasing signal-space distance (ties by reference-point index);
+/// a neighbour on another floor than the voted one has weight 0 when
+/// [`Knn::same_floor_only`] is set. `building` and `floor` are the weighted votes of the
+/// neighbours (`None` when the survey has no such labels).
 ///
 /// # Example
 /// ```
-/// use rtls_positioning::fingerprint::{FingerprintDatabase, Wknn};
+/// use rtls_positioning::fingerprint::{FingerprintDatabase, FingerprintIndex, Knn, SignalSpace};
 /// let db = FingerprintDatabase::new(
 ///     vec![[0.0, 0.0], [10.0, 0.0]],
 ///     vec![[0.0, 0.0], [10.0, 0.0]],
 ///     vec![vec![-30.0, -70.0], vec![-70.0, -30.0]],
 /// )?;
-/// let result = Wknn { neighbours: 2 }.locate(&db, &[Some(-40.0), Some(-60.0)])?;
+/// let index = FingerprintIndex::new(db, SignalSpace::default())?;
+/// let result = Knn::wknn(2).locate(&index, &[Some(-40.0), Some(-60.0)])?;
 /// assert_eq!(result.neighbours[0].reference_point, 0);
 /// assert!(result.fix.position.x < 5.0);
 /// # Ok::<(), rtls_positioning::PositioningError>(())
@@ -77,34 +119,10 @@ pub struct FingerprintFix {
     pub fix: Fix2,
     /// The chosen neighbours, nearest first.
     pub neighbours: Vec<Neighbour>,
-}
-
-/// The heard anchors of a validated query: `(anchor, ρ_x dBm)`, in anchor order.
-pub(crate) fn heard_anchors(database: &FingerprintDatabase, measured_dbm: &[Option<f64>]) -> Result<Vec<(usize, f64)>> {
-    if measured_dbm.len() != database.anchor_count() {
-        return Err(PositioningError::DimensionMismatch {
-            what: "measured rssi (one entry per database anchor)",
-            expected: database.anchor_count(),
-            found: measured_dbm.len(),
-        });
-    }
-    let mut heard = Vec::with_capacity(measured_dbm.len());
-    for (anchor, value) in measured_dbm.iter().enumerate() {
-        if let Some(rssi_dbm) = *value {
-            if !rssi_dbm.is_finite() {
-                return Err(PositioningError::NonFiniteEntry {
-                    what: "measured rssi (row 0, column = anchor)",
-                    row: 0,
-                    column: anchor,
-                });
-            }
-            heard.push((anchor, rssi_dbm));
-        }
-    }
-    if heard.is_empty() {
-        return Err(PositioningError::NoCommonAnchors);
-    }
-    Ok(heard)
+    /// Voted building, if the survey labels buildings.
+    pub building: Option<u32>,
+    /// Voted floor, if the survey labels floors.
+    pub floor: Option<i32>,
 }
 
 #[cfg(test)]

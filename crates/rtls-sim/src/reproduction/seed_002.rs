@@ -11,7 +11,7 @@ use rtls_estimation::aided::{
 use rtls_estimation::filter::KalmanFilter;
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
 use rtls_estimation::Gaussian;
-use rtls_positioning::fingerprint::{FingerprintDatabase, LocalWknn};
+use rtls_positioning::fingerprint::{FingerprintDatabase, FingerprintIndex, Knn, LocalWknn, SignalSpace};
 
 use crate::error::{Result, SimError};
 use crate::scenarios::{
@@ -56,7 +56,7 @@ impl Default for Seed002Config {
             locator: LocalWknn {
                 strongest_anchors: 4,
                 radius_m: 20.0,
-                neighbours: 4,
+                knn: Knn::wknn(4),
             },
             fix_variance_m2: [1.5, 2.0],
             accelerometer: AccelerometerNoise::SEED_002_ABSOLUTE,
@@ -125,7 +125,9 @@ pub fn run_seed_002(config: &Seed002Config, seed: u64) -> Result<Seed002Run> {
         &mut rng,
     )?;
     let database = FingerprintDatabase::new(reference_points, SEED_002_ANCHORS.to_vec(), rows)?;
-    let locator = config.locator.build(&database)?;
+    // seed 002's signal space: Euclidean distance on dBm (every anchor is heard)
+    let index = FingerprintIndex::new(database, SignalSpace::default())?;
+    let locator = config.locator.build(&index)?;
     let accelerometer = AccelerometerSimulator {
         noise: config.accelerometer,
     };

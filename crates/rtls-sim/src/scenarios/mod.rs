@@ -1,9 +1,11 @@
 //! The seed papers' scenarios: truth trajectories, site layouts and the choices we made where
 //! a paper is silent.
 
+mod grid_site;
 mod seed_002;
 mod seed_004;
 
+pub use grid_site::GridSite;
 pub use seed_002::{
     seed_002_acceleration_profile, seed_002_manoeuvre_then_cruise, seed_002_reference_points,
     seed_002_step_acceleration, seed_002_trajectory, SEED_002_ANCHORS, SEED_002_AREA_SIDE_M, SEED_002_MANOEUVRE_END_S,
