@@ -11,31 +11,8 @@ use rtls_positioning::multilateration::{
     gauss_newton, gdop, linear_least_squares, toa_rss, two_range, weighted_linear_least_squares, CircleIntersection,
     GaussNewtonOptions, Initial, RangeObservation, ReferenceAnchor, RssObservation,
 };
-use rtls_positioning::pathloss::PathLossModel;
+use rtls_positioning::pathloss::{LogDistance, PathLossModel};
 use rtls_positioning::{Fix2, PositioningError, Result};
-
-/// Log-distance law `μ(d) = P0 − 10 n lg d` (dBm), test-only (the crate's concrete models are
-/// tested in `pathloss`).
-struct LogDistance {
-    p0_dbm: f64,
-    exponent: f64,
-    sigma_db: f64,
-}
-
-impl PathLossModel for LogDistance {
-    fn mean_rssi_dbm(&self, distance_m: f64) -> f64 {
-        self.p0_dbm - 10.0 * self.exponent * distance_m.log10()
-    }
-    fn slope_db_per_m(&self, distance_m: f64) -> f64 {
-        -10.0 * self.exponent / (distance_m * core::f64::consts::LN_10)
-    }
-    fn shadowing_std_db(&self) -> f64 {
-        self.sigma_db
-    }
-    fn distance_m(&self, rssi_dbm: f64) -> Result<f64> {
-        Ok(10f64.powf((self.p0_dbm - rssi_dbm) / (10.0 * self.exponent)))
-    }
-}
 
 fn distances<const D: usize>(anchors: &[[f64; D]], p: &SVector<f64, D>) -> Vec<f64> {
     anchors.iter().map(|a| (p - SVector::from(*a)).norm()).collect()
@@ -79,11 +56,7 @@ fn random_case<const D: usize>(rng: &mut ChaCha8Rng) -> (Vec<[f64; D]>, SVector<
 
 fn recovers_on_random_geometries<const D: usize>(seed: u64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let model = LogDistance {
-        p0_dbm: -40.0,
-        exponent: 2.0,
-        sigma_db: 2.0,
-    };
+    let model = LogDistance::new(-40.0, 2.0, 1.0, 2.0).unwrap();
     let options = GaussNewtonOptions::default();
     let geometries = 250;
     for case in 0..geometries {
@@ -277,17 +250,13 @@ fn gauss_newton_covariance_is_consistent_3d() {
 #[test]
 fn toa_rss_covariance_is_consistent_and_never_larger_than_toa_alone() {
     let mut rng = ChaCha8Rng::seed_from_u64(2004);
-    let model = LogDistance {
-        p0_dbm: -45.0,
-        exponent: 2.0,
-        sigma_db: 0.5,
-    };
+    let model = LogDistance::new(-45.0, 2.0, 1.0, 0.5).unwrap();
     let anchors = [[0.0, 0.0], [12.0, 0.0], [0.0, 10.0], [12.0, 10.0]];
     let truth = Vector2::new(4.0, 6.5);
     let sigma_r = 0.3;
     let clean = distances(&anchors, &truth);
     let range_noise = Normal::new(0.0, sigma_r).unwrap();
-    let rss_noise = Normal::new(0.0, model.sigma_db).unwrap();
+    let rss_noise = Normal::new(0.0, model.shadowing_std_db()).unwrap();
     let options = GaussNewtonOptions::default();
     let trials = 2000;
     let mut sum = 0.0;

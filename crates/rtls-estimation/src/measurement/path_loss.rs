@@ -159,7 +159,19 @@ impl PathLoss for LogDistancePathLoss {
 }
 
 /// Which of the two far-branch formulas a [`BreakpointPathLoss`] uses beyond the breakpoint.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+///
+/// **Erratum (seed 001).** The paper prints the far branch as
+/// `P0 + 10 n lg(10/d₀) + 10 n lg(d/d₀)`: it adds the whole near-branch loss again instead of
+/// continuing from the breakpoint, so the path loss jumps up by `10 n lg(d_b/d₀)` at `d_b`
+/// (20 dB for `n = 2`, `d_b = 10` m, `d₀ = 1` m). No physical channel does that; the standard
+/// dual-slope law continues from the breakpoint and is the [`Default`].
+///
+/// # References
+/// Seed 001, §2.2; V. Erceg et al., "TGn channel models", IEEE 802.11-03/940r4, 2004, eq. (1)
+/// (dual-slope law continuous at the breakpoint); A. F. Molisch et al., "A comprehensive
+/// standardized model for ultrawideband propagation channels", *IEEE Trans. Antennas Propag.*
+/// 54(11), 2006.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum BreakpointForm {
     /// Seed 001 as printed: `P0 + 10 n lg(d_b/d₀) + 10 n lg(d/d₀)` beyond `d_b`.
     ///
@@ -171,6 +183,7 @@ pub enum BreakpointForm {
     /// equal to the near branch at `d = d_b`. With a single exponent it coincides with the
     /// one-slope law `P0 + 10 n lg(d/d₀)` everywhere; set a different far exponent with
     /// [`BreakpointPathLoss::with_far_exponent`] for a genuine dual-slope law.
+    #[default]
     Continuous,
 }
 

@@ -315,33 +315,13 @@ impl<const D: usize> Model<D> for Joint<'_, '_, D> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::pathloss::LogDistance;
     use nalgebra::{Vector2, Vector3};
 
-    /// Log-distance law `μ(d) = P0 − 10 n lg(d/d0)`, test-only.
-    struct LogDistance {
-        p0_dbm: f64,
-        exponent: f64,
-        sigma_db: f64,
+    /// The crate's log-distance law: −40 dBm at 1 m, η = 2.2, σ_X = 3 dB.
+    fn model() -> LogDistance {
+        LogDistance::new(-40.0, 2.2, 1.0, 3.0).unwrap()
     }
-    impl PathLossModel for LogDistance {
-        fn mean_rssi_dbm(&self, distance_m: f64) -> f64 {
-            self.p0_dbm - 10.0 * self.exponent * distance_m.log10()
-        }
-        fn slope_db_per_m(&self, distance_m: f64) -> f64 {
-            -10.0 * self.exponent / (distance_m * core::f64::consts::LN_10)
-        }
-        fn shadowing_std_db(&self) -> f64 {
-            self.sigma_db
-        }
-        fn distance_m(&self, rssi_dbm: f64) -> Result<f64> {
-            Ok(10f64.powf((self.p0_dbm - rssi_dbm) / (10.0 * self.exponent)))
-        }
-    }
-    const MODEL: LogDistance = LogDistance {
-        p0_dbm: -40.0,
-        exponent: 2.2,
-        sigma_db: 3.0,
-    };
 
     fn observations<'m, const D: usize>(
         anchors: &[[f64; D]],
@@ -370,7 +350,8 @@ mod tests {
     fn rss_only_and_mixed_anchor_sets_recover_the_truth() {
         let anchors = [[0.0, 0.0, 0.0], [20.0, 0.0, 1.0], [0.0, 20.0, 2.0], [10.0, 10.0, 6.0]];
         let truth = Vector3::new(7.0, 11.0, 1.2);
-        let (ranges, rss) = observations(&anchors, &truth, &MODEL);
+        let model = model();
+        let (ranges, rss) = observations(&anchors, &truth, &model);
         let options = GaussNewtonOptions::default();
         // RSS only
         let s = toa_rss(&anchors, &[], &rss, Initial::Linear, &options).unwrap();
@@ -394,7 +375,8 @@ mod tests {
             Vector2::new(12.0, 3.0),
             Vector2::new(30.0, 30.0),
         ] {
-            let (ranges, rss) = observations(&anchors, &truth, &MODEL);
+            let model = model();
+            let (ranges, rss) = observations(&anchors, &truth, &model);
             let toa = toa_rss(&anchors, &ranges, &[], Initial::Linear, &options).unwrap();
             let joint = toa_rss(&anchors, &ranges, &rss, Initial::Linear, &options).unwrap();
             // P_toa − P_joint is positive semi-definite
@@ -409,7 +391,8 @@ mod tests {
     fn errors() {
         let anchors = [[0.0, 0.0], [20.0, 0.0], [0.0, 20.0]];
         let truth = Vector2::new(5.0, 5.0);
-        let (ranges, rss) = observations(&anchors, &truth, &MODEL);
+        let model = model();
+        let (ranges, rss) = observations(&anchors, &truth, &model);
         let options = GaussNewtonOptions::default();
         let mut bad = ranges.clone();
         bad[1].anchor = 3;
@@ -435,7 +418,7 @@ mod tests {
             toa_rss(&anchors, &ranges, &bad, Initial::Linear, &options),
             Err(PositioningError::NonFiniteEntry { row: 0, column: 0, .. })
         ));
-        let silent = LogDistance { sigma_db: 0.0, ..MODEL };
+        let silent = LogDistance::new(-40.0, 2.2, 1.0, 0.0).unwrap();
         let mut bad = rss.clone();
         bad[1].model = &silent;
         assert!(matches!(

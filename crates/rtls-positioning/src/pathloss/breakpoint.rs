@@ -1,37 +1,11 @@
 //! Seed 001's UWB path-loss law with a breakpoint: the continuous dual-slope form (default)
 //! and the printed, discontinuous one.
 
-use core::f64::consts::LN_10;
+pub use rtls_estimation::measurement::BreakpointForm;
+use rtls_estimation::measurement::{BreakpointPathLoss, PathLoss};
 
-use super::{clamp_distance, finite, finite_rssi, inverted_distance, non_negative, positive, PathLossModel};
-use crate::error::{PositioningError, Result};
-
-/// Which far-branch formula a [`Breakpoint`] law uses beyond the breakpoint `d_b`.
-///
-/// **Erratum (seed 001).** The paper prints the far branch as
-/// `P0 + 10 n lg(10/d₀) + 10 n lg(d/d₀)`: it adds the whole near-branch loss
-/// `10 n lg(d/d₀)` again instead of continuing from the breakpoint, so the path loss jumps up
-/// by `10 n lg(d_b/d₀)` at `d_b` — **20 dB** for the paper's `n = 2`, `d_b = 10` m and
-/// `d₀ = 1` m (the received power drops by 20 dB between 10 m and 10 m + ε). No physical
-/// channel does that; the standard dual-slope law continues from the breakpoint,
-/// `P0 + 10 n₁ lg(d_b/d₀) + 10 n₂ lg(d/d_b)`, and is the default here.
-///
-/// # References
-/// Seed 001, §2.2 (the printed RSS model, breakpoint at 10 m); V. Erceg et al., "TGn channel
-/// models", IEEE 802.11-03/940r4, 2004, eq. (1) (dual-slope law continuous at the
-/// breakpoint); A. F. Molisch et al., "A comprehensive standardized model for ultrawideband
-/// propagation channels", *IEEE Trans. Antennas Propag.* 54(11), 2006 (IEEE 802.15.4a UWB
-/// path loss `PL0 + 10 n lg(d/d₀)` with log-normal shadowing).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum BreakpointForm {
-    /// `P0 + 10 n₁ lg(d_b/d₀) + 10 n₂ lg(d/d_b)` beyond `d_b`: continuous at `d_b` (the
-    /// standard dual-slope law). With `n₁ = n₂` it is the one-slope law everywhere.
-    #[default]
-    Continuous,
-    /// Seed 001 as printed: `P0 + 10 n₁ lg(d_b/d₀) + 10 n₂ lg(d/d₀)` beyond `d_b`; jumps up by
-    /// `10 n₂ lg(d_b/d₀)` dB at `d_b`. Use it only to reproduce the paper.
-    AsPrinted,
-}
+use super::{clamp_distance, finite, finite_rssi, inverted_distance, law_error, non_negative, PathLossModel};
+use crate::error::Result;
 
 /// The parameters of a [`Breakpoint`] law (validated by [`Breakpoint::new`]).
 ///
@@ -98,7 +72,8 @@ impl BreakpointParameters {
 /// μ(d) = P_tx − P(d),   ρ = μ(d) + θ,   θ ~ N(0, σ_s²)
 /// ```
 ///
-/// Seed 001's `P` is *path loss* (dB, increasing with `d`); [`PathLossModel`] speaks
+/// Seed 001's `P` is *path loss* (dB, increasing with `d`), computed by `rtls-estimation`'s
+/// [`BreakpointPathLoss`] (the law the filters' RSS model uses); [`PathLossModel`] speaks
 /// received power (dBm), hence the transmit power. The slope is
 /// `dμ/dd = −10 n / (d ln 10)` with `n = n₁` for `d ≤ d_b` and `n₂` beyond (the same in both
 /// forms; the printed form's jump is not part of the derivative). See [`BreakpointForm`] for
@@ -127,7 +102,9 @@ impl BreakpointParameters {
 /// [`BreakpointForm`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Breakpoint {
-    parameters: BreakpointParameters,
+    law: BreakpointPathLoss,
+    transmit_power_dbm: f64,
+    shadowing_std_db: f64,
 }
 
 impl Breakpoint {
@@ -151,35 +128,27 @@ impl Breakpoint {
     pub fn new(parameters: BreakpointParameters) -> Result<Self> {
         let p = parameters;
         finite(p.transmit_power_dbm, "transmit_power_dbm")?;
-        finite(p.reference_loss_db, "reference_loss_db")?;
-        positive(
-            p.reference_distance_m,
-            "reference_distance_m",
-            "the reference distance must be positive (usually 1 m)",
-        )?;
-        positive(
-            p.near_exponent,
-            "near_exponent",
-            "the path-loss exponent must be positive",
-        )?;
-        positive(
-            p.far_exponent,
-            "far_exponent",
-            "the path-loss exponent must be positive",
-        )?;
-        finite(p.breakpoint_m, "breakpoint_m")?;
-        if p.breakpoint_m < p.reference_distance_m {
-            return Err(PositioningError::InvalidParameter {
-                name: "breakpoint_m",
-                reason: "the breakpoint must not be closer than the reference distance",
-            });
-        }
         non_negative(
             p.shadowing_std_db,
             "shadowing_std_db",
             "the shadowing standard deviation must be non-negative",
         )?;
-        Ok(Self { parameters })
+        // the law's names → the fields of BreakpointParameters
+        let renames = [("p0_db", "reference_loss_db"), ("exponent", "near_exponent")];
+        let law = BreakpointPathLoss::new(
+            p.reference_loss_db,
+            p.reference_distance_m,
+            p.near_exponent,
+            p.breakpoint_m,
+            p.form,
+        )
+        .and_then(|law| law.with_far_exponent(p.far_exponent))
+        .map_err(|e| law_error(e, &renames))?;
+        Ok(Self {
+            law,
+            transmit_power_dbm: p.transmit_power_dbm,
+            shadowing_std_db: p.shadowing_std_db,
+        })
     }
 
     /// [`BreakpointParameters::seed_001`] with the chosen far-branch `form`
@@ -195,19 +164,35 @@ impl Breakpoint {
     /// Seed 001, §2.2.
     #[must_use]
     pub fn seed_001(form: BreakpointForm) -> Self {
+        let p = BreakpointParameters::seed_001();
+        let law = BreakpointPathLoss::new(
+            p.reference_loss_db,
+            p.reference_distance_m,
+            p.near_exponent,
+            p.breakpoint_m,
+            form,
+        )
+        .expect("seed 001's constants are a valid law");
         Self {
-            parameters: BreakpointParameters {
-                form,
-                ..BreakpointParameters::seed_001()
-            },
+            law,
+            transmit_power_dbm: p.transmit_power_dbm,
+            shadowing_std_db: p.shadowing_std_db,
         }
     }
 
     /// The law's parameters.
-    #[inline]
     #[must_use]
-    pub fn parameters(&self) -> &BreakpointParameters {
-        &self.parameters
+    pub fn parameters(&self) -> BreakpointParameters {
+        BreakpointParameters {
+            transmit_power_dbm: self.transmit_power_dbm,
+            reference_loss_db: self.law.p0_db(),
+            reference_distance_m: self.law.reference_distance_m(),
+            near_exponent: self.law.exponent(),
+            far_exponent: self.law.far_exponent(),
+            breakpoint_m: self.law.breakpoint_m(),
+            shadowing_std_db: self.shadowing_std_db,
+            form: self.law.form(),
+        }
     }
 
     /// Path loss `P(d)` (dB) at `distance_m`, the quantity seed 001 prints (distances outside
@@ -222,83 +207,59 @@ impl Breakpoint {
     /// ```
     #[must_use]
     pub fn path_loss_db(&self, distance_m: f64) -> f64 {
-        let p = &self.parameters;
-        let (d, d0, db) = (clamp_distance(distance_m), p.reference_distance_m, p.breakpoint_m);
-        if d <= db {
-            // P = P0 + 10 n₁ lg(d/d₀)
-            return p.reference_loss_db + 10.0 * p.near_exponent * (d / d0).log10();
-        }
-        let at_breakpoint_db = self.breakpoint_loss_db();
-        match p.form {
-            // P = P0 + 10 n₁ lg(d_b/d₀) + 10 n₂ lg(d/d_b)
-            BreakpointForm::Continuous => at_breakpoint_db + 10.0 * p.far_exponent * (d / db).log10(),
-            // P = P0 + 10 n₁ lg(d_b/d₀) + 10 n₂ lg(d/d₀)
-            BreakpointForm::AsPrinted => at_breakpoint_db + 10.0 * p.far_exponent * (d / d0).log10(),
-        }
+        self.law.value_db(clamp_distance(distance_m))
     }
 
     /// The jump of the path loss at the breakpoint, `P(d_b⁺) − P(d_b)` (dB): 0 for the
     /// continuous form, `10 n₂ lg(d_b/d₀)` for the printed one (20 dB with seed 001's values).
     #[must_use]
     pub fn discontinuity_db(&self) -> f64 {
-        let p = &self.parameters;
-        match p.form {
+        let law = &self.law;
+        match law.form() {
             BreakpointForm::Continuous => 0.0,
             // 10 n₂ lg(d_b/d₀)
-            BreakpointForm::AsPrinted => 10.0 * p.far_exponent * (p.breakpoint_m / p.reference_distance_m).log10(),
+            BreakpointForm::AsPrinted => {
+                10.0 * law.far_exponent() * (law.breakpoint_m() / law.reference_distance_m()).log10()
+            }
         }
-    }
-
-    /// `P_b = P0 + 10 n₁ lg(d_b/d₀)`: the path loss at the breakpoint (dB).
-    fn breakpoint_loss_db(&self) -> f64 {
-        let p = &self.parameters;
-        p.reference_loss_db + 10.0 * p.near_exponent * (p.breakpoint_m / p.reference_distance_m).log10()
     }
 }
 
 impl PathLossModel for Breakpoint {
     fn mean_rssi_dbm(&self, distance_m: f64) -> f64 {
         // μ(d) = P_tx − P(d)
-        self.parameters.transmit_power_dbm - self.path_loss_db(distance_m)
+        self.transmit_power_dbm - self.path_loss_db(distance_m)
     }
 
     fn slope_db_per_m(&self, distance_m: f64) -> f64 {
-        let p = &self.parameters;
-        let d = clamp_distance(distance_m);
-        let exponent = if d <= p.breakpoint_m {
-            p.near_exponent
-        } else {
-            p.far_exponent
-        };
-        // dμ/dd = −10 n / (d ln 10)
-        -10.0 * exponent / (d * LN_10)
+        // dμ/dd = −dP/dd = −10 n / (d ln 10)
+        -self.law.slope_db_per_m(clamp_distance(distance_m))
     }
 
     fn shadowing_std_db(&self) -> f64 {
-        self.parameters.shadowing_std_db
+        self.shadowing_std_db
     }
 
     fn distance_m(&self, rssi_dbm: f64) -> Result<f64> {
         let rssi_dbm = finite_rssi(rssi_dbm)?;
-        let p = &self.parameters;
+        let law = &self.law;
+        let (d0, db) = (law.reference_distance_m(), law.breakpoint_m());
         // P = P_tx − ρ
-        let loss_db = p.transmit_power_dbm - rssi_dbm;
-        let at_breakpoint_db = self.breakpoint_loss_db();
+        let loss_db = self.transmit_power_dbm - rssi_dbm;
+        // P_b = P0 + 10 n₁ lg(d_b/d₀): the loss at the breakpoint
+        let at_breakpoint_db = law.value_db(db);
         let distance_m = if loss_db <= at_breakpoint_db {
             // d = d₀ 10^((P − P0)/(10 n₁))
-            p.reference_distance_m * 10f64.powf((loss_db - p.reference_loss_db) / (10.0 * p.near_exponent))
+            d0 * 10f64.powf((loss_db - law.p0_db()) / (10.0 * law.exponent()))
         } else {
-            match p.form {
+            let far = 10f64.powf((loss_db - at_breakpoint_db) / (10.0 * law.far_exponent()));
+            match law.form() {
                 // d = d_b 10^((P − P_b)/(10 n₂))
-                BreakpointForm::Continuous => {
-                    p.breakpoint_m * 10f64.powf((loss_db - at_breakpoint_db) / (10.0 * p.far_exponent))
-                }
+                BreakpointForm::Continuous => db * far,
                 // inside the printed form's jump: no preimage, the breakpoint is nearest
-                BreakpointForm::AsPrinted if loss_db <= at_breakpoint_db + self.discontinuity_db() => p.breakpoint_m,
+                BreakpointForm::AsPrinted if loss_db <= at_breakpoint_db + self.discontinuity_db() => db,
                 // d = d₀ 10^((P − P_b)/(10 n₂))
-                BreakpointForm::AsPrinted => {
-                    p.reference_distance_m * 10f64.powf((loss_db - at_breakpoint_db) / (10.0 * p.far_exponent))
-                }
+                BreakpointForm::AsPrinted => d0 * far,
             }
         };
         inverted_distance(distance_m)
@@ -308,6 +269,8 @@ impl PathLossModel for Breakpoint {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::PositioningError;
+    use core::f64::consts::LN_10;
 
     fn dual(form: BreakpointForm) -> Breakpoint {
         Breakpoint::new(BreakpointParameters {

@@ -2,7 +2,9 @@
 
 use core::f64::consts::LN_10;
 
-use super::{clamp_distance, finite, finite_rssi, inverted_distance, non_negative, positive, PathLossModel};
+use rtls_estimation::measurement::{LogDistancePathLoss, PathLoss};
+
+use super::{clamp_distance, finite, finite_rssi, inverted_distance, law_error, non_negative, PathLossModel};
 use crate::error::Result;
 
 /// The log-distance law with log-normal shadowing (seed 002 eq. (1)):
@@ -19,8 +21,10 @@ use crate::error::Result;
 /// - range standard deviation `σ_d(d) = d ln 10 σ_X / (10 η)`, bias factor
 ///   `exp(½ (σ_X ln 10 / (10 η))²)`.
 ///
-/// The fields are private so that every value is valid (finite, `η > 0`, `d₀ > 0`,
-/// `σ_X ≥ 0`); build with [`LogDistance::new`] or [`LogDistance::seed_002`], or calibrate with
+/// The mean law is `rtls-estimation`'s [`LogDistancePathLoss`] (the one the filters'
+/// RSS measurement model uses); this type adds the shadowing and the inversion. The fields are
+/// private so that every value is valid (finite, `η > 0`, `d₀ > 0`, `σ_X ≥ 0`); build with
+/// [`LogDistance::new`] or [`LogDistance::seed_002`], or calibrate with
 /// [`super::fit_log_distance`].
 ///
 /// # Units
@@ -41,9 +45,7 @@ use crate::error::Result;
 /// shadowing).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LogDistance {
-    reference_rssi_dbm: f64,
-    exponent: f64,
-    reference_distance_m: f64,
+    law: LogDistancePathLoss,
     shadowing_std_db: f64,
 }
 
@@ -71,27 +73,14 @@ impl LogDistance {
         shadowing_std_db: f64,
     ) -> Result<Self> {
         finite(reference_rssi_dbm, "reference_rssi_dbm")?;
-        positive(
-            exponent,
-            "exponent",
-            "the path-loss exponent must be positive (2 in free space, 2–4 indoors)",
-        )?;
-        positive(
-            reference_distance_m,
-            "reference_distance_m",
-            "the reference distance must be positive (usually 1 m)",
-        )?;
         non_negative(
             shadowing_std_db,
             "shadowing_std_db",
             "the shadowing standard deviation must be non-negative",
         )?;
-        Ok(Self {
-            reference_rssi_dbm,
-            exponent,
-            reference_distance_m,
-            shadowing_std_db,
-        })
+        let law = LogDistancePathLoss::new(reference_rssi_dbm, reference_distance_m, exponent)
+            .map_err(|e| law_error(e, &[("reference_power_dbm", "reference_rssi_dbm")]))?;
+        Ok(Self { law, shadowing_std_db })
     }
 
     /// Seed 002's simulation law: `ρ_T = 0` dBm at `d₀ = 1` m, `η = 4`, `σ_X = 4` dB (the
@@ -110,9 +99,7 @@ impl LogDistance {
     #[must_use]
     pub fn seed_002() -> Self {
         Self {
-            reference_rssi_dbm: 0.0,
-            exponent: 4.0,
-            reference_distance_m: 1.0,
+            law: LogDistancePathLoss::seed_002(),
             shadowing_std_db: 4.0,
         }
     }
@@ -121,21 +108,21 @@ impl LogDistance {
     #[inline]
     #[must_use]
     pub fn reference_rssi_dbm(&self) -> f64 {
-        self.reference_rssi_dbm
+        self.law.reference_power_dbm()
     }
 
     /// `η`: path-loss exponent.
     #[inline]
     #[must_use]
     pub fn exponent(&self) -> f64 {
-        self.exponent
+        self.law.exponent()
     }
 
     /// `d₀`: reference distance (m).
     #[inline]
     #[must_use]
     pub fn reference_distance_m(&self) -> f64 {
-        self.reference_distance_m
+        self.law.reference_distance_m()
     }
 
     /// `σ_X`: shadowing standard deviation (dB).
@@ -150,21 +137,19 @@ impl LogDistance {
     #[inline]
     #[must_use]
     pub fn log_range_std(&self) -> f64 {
-        self.shadowing_std_db * LN_10 / (10.0 * self.exponent)
+        self.shadowing_std_db * LN_10 / (10.0 * self.exponent())
     }
 }
 
 impl PathLossModel for LogDistance {
     fn mean_rssi_dbm(&self, distance_m: f64) -> f64 {
-        let d = clamp_distance(distance_m);
         // μ(d) = ρ_T − 10 η lg(d/d₀)
-        self.reference_rssi_dbm - 10.0 * self.exponent * (d / self.reference_distance_m).log10()
+        self.law.value_db(clamp_distance(distance_m))
     }
 
     fn slope_db_per_m(&self, distance_m: f64) -> f64 {
-        let d = clamp_distance(distance_m);
         // dμ/dd = −10 η / (d ln 10)
-        -10.0 * self.exponent / (d * LN_10)
+        self.law.slope_db_per_m(clamp_distance(distance_m))
     }
 
     fn shadowing_std_db(&self) -> f64 {
@@ -175,7 +160,7 @@ impl PathLossModel for LogDistance {
         let rssi_dbm = finite_rssi(rssi_dbm)?;
         // d = d₀ · 10^((ρ_T − ρ) / (10 η))
         inverted_distance(
-            self.reference_distance_m * 10f64.powf((self.reference_rssi_dbm - rssi_dbm) / (10.0 * self.exponent)),
+            self.reference_distance_m() * 10f64.powf((self.reference_rssi_dbm() - rssi_dbm) / (10.0 * self.exponent())),
         )
     }
 }

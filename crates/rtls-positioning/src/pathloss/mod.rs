@@ -32,6 +32,8 @@ pub use calibration::{
 };
 pub use log_distance::LogDistance;
 
+use rtls_estimation::EstimationError;
+
 use crate::error::{PositioningError, Result};
 
 /// Distances below this (m) are evaluated as this distance by the models of this module (the
@@ -213,6 +215,31 @@ pub trait PathLossModel {
             // d̂ = μ⁻¹(ρ) · exp(−½ s²)
             DistanceEstimate::MeanUnbiased => Ok(median_m / self.range_bias_factor(median_m)?),
         }
+    }
+}
+
+/// A parameter error of an `rtls-estimation` path-loss law, as this crate's error, with the
+/// law's parameter names translated to the caller's (`renames`: `(law name, our name)`).
+pub(crate) fn law_error(error: EstimationError, renames: &[(&'static str, &'static str)]) -> PositioningError {
+    let rename = |name: &'static str| {
+        renames
+            .iter()
+            .find(|(law, _)| *law == name)
+            .map_or(name, |&(_, ours)| ours)
+    };
+    match error {
+        EstimationError::InvalidParameter { name, reason } => PositioningError::InvalidParameter {
+            name: rename(name),
+            reason,
+        },
+        EstimationError::NonFinite { what } => PositioningError::InvalidParameter {
+            name: rename(what),
+            reason: "the value must be finite (not nan or infinity)",
+        },
+        _ => PositioningError::InvalidParameter {
+            name: "path-loss law",
+            reason: "the law's parameters were rejected",
+        },
     }
 }
 
