@@ -7,7 +7,7 @@
 //! Prints the markdown tables of `docs/FINGERPRINTING.md`. Set `RTLS_DATA_DIR` if the datasets
 //! are not in `../shared/data`.
 
-use rtls_data::ujiindoorloc::{self, evaluate, neighbour_agreement, Evaluation, Fingerprint};
+use rtls_data::ujiindoorloc::{self, evaluate, locate_all, neighbour_agreement, score, Evaluation, Fingerprint};
 use rtls_data::{data_dir, DataError};
 use rtls_positioning::fingerprint::{
     FingerprintDatabase, FingerprintIndex, Knn, LocalWknn, SignalDistance, SignalRepresentation, SignalSpace,
@@ -39,31 +39,29 @@ fn main() -> Result<(), DataError> {
         knn: wknn,
     };
     let locator = local.build(&index)?;
+    // each method locates every query once; scores and agreements reuse the outcomes
+    let global = locate_all(&validation, |q| wknn.locate(&index, q));
+    let restricted = locate_all(&validation, |q| locator.locate(q));
     row("KNN", &evaluate(&validation, |q| knn.locate(&index, q))?);
-    row("WKNN (w ∝ 1/D)", &evaluate(&validation, |q| wknn.locate(&index, q))?);
+    row("WKNN (w ∝ 1/D)", &score(&validation, &global)?);
     row(
         &format!(
             "L-WKNN (N_k = {}, radius {} m)",
             local.strongest_anchors, local.radius_m
         ),
-        &evaluate(&validation, |q| locator.locate(q))?,
+        &score(&validation, &restricted)?,
     );
-    let agreement = neighbour_agreement(&validation, |q| wknn.locate(&index, q), |q| locator.locate(q));
     let candidates = mean_candidates(&locator, &validation, index.database().reference_point_count());
     println!(
         "\nL-WKNN chooses the same {NEIGHBOURS} neighbours as global WKNN on {:.1} % of the queries; \
          it compares {:.1} % of the reference points per query on average.\n",
-        100.0 * agreement,
+        100.0 * neighbour_agreement(&global, &restricted),
         100.0 * candidates
     );
 
     println!("## L-WKNN: strongest access points N_k and radius (powed, Sørensen, k = {NEIGHBOURS})\n");
     println!("| N_k | radius | same neighbours as global WKNN | reference points compared | mean 2-D error |");
     println!("|---|---|---|---|---|");
-    let global: Vec<Option<Vec<usize>>> = validation
-        .iter()
-        .map(|q| wknn.locate(&index, &q.query()).ok().map(|r| neighbour_set(&r)))
-        .collect();
     for strongest_anchors in [1, 2, 3, 4] {
         for radius_m in [20.0, 30.0, 40.0, 60.0] {
             let locator = LocalWknn {
@@ -72,18 +70,13 @@ fn main() -> Result<(), DataError> {
                 knn: wknn,
             }
             .build(&index)?;
-            let same = validation
-                .iter()
-                .zip(&global)
-                .filter(|(q, g)| locator.locate(&q.query()).ok().map(|r| neighbour_set(&r)) == **g)
-                .count();
+            let restricted = locate_all(&validation, |q| locator.locate(q));
             let compared = mean_candidates(&locator, &validation, index.database().reference_point_count());
-            let score = evaluate(&validation, |q| locator.locate(q))?;
             println!(
                 "| {strongest_anchors} | {radius_m} m | {:.1} % | {:.1} % | {:.2} m |",
-                100.0 * same as f64 / validation.len() as f64,
+                100.0 * neighbour_agreement(&global, &restricted),
                 100.0 * compared,
-                score.mean_error_m
+                score(&validation, &restricted)?.mean_error_m
             );
         }
     }
@@ -151,13 +144,6 @@ fn row(name: &str, e: &Evaluation) {
         e.p95_error_m,
         e.failures.len()
     );
-}
-
-/// The chosen reference points as a sorted set.
-fn neighbour_set(result: &rtls_positioning::fingerprint::FingerprintFix) -> Vec<usize> {
-    let mut set: Vec<usize> = result.neighbours.iter().map(|n| n.reference_point).collect();
-    set.sort_unstable();
-    set
 }
 
 /// Mean fraction of reference points an L-WKNN query compares.

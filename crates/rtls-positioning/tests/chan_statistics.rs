@@ -133,24 +133,30 @@ fn chan_agrees_with_the_maximum_likelihood_fix_at_small_noise() {
     }
 }
 
+/// A 20 m × 15 m indoor UWB hall: four anchors at 3 m, two at 0.5 m.
+const HALL: [[f64; 3]; 6] = [
+    [0.0, 0.0, 3.0],
+    [20.0, 0.0, 3.0],
+    [20.0, 15.0, 3.0],
+    [0.0, 15.0, 3.0],
+    [10.0, 0.0, 0.5],
+    [10.0, 15.0, 0.5],
+];
+
+/// A cellular site of five masts (30–400 m high) over 3 km.
+const CELLS: [[f64; 3]; 5] = [
+    [0.0, 0.0, 30.0],
+    [3000.0, 0.0, 60.0],
+    [0.0, 3000.0, 45.0],
+    [3000.0, 3000.0, 90.0],
+    [1500.0, -800.0, 400.0],
+];
+
 #[test]
 fn chan_agrees_with_the_maximum_likelihood_fix_at_small_noise_in_space() {
     // A 20 m × 15 m hall, anchors at 3 m and 0.5 m; a cellular-scale box of 6 stations.
-    let hall = [
-        [0.0, 0.0, 3.0],
-        [20.0, 0.0, 3.0],
-        [20.0, 15.0, 3.0],
-        [0.0, 15.0, 3.0],
-        [10.0, 0.0, 0.5],
-        [10.0, 15.0, 0.5],
-    ];
-    let cells = [
-        [0.0, 0.0, 30.0],
-        [3000.0, 0.0, 60.0],
-        [0.0, 3000.0, 45.0],
-        [3000.0, 3000.0, 90.0],
-        [1500.0, -800.0, 400.0],
-    ];
+    let hall = HALL;
+    let cells = CELLS;
     let cases: [SpaceCase<'_>; 5] = [
         (&hall, 0, Vector3::new(6.0, 4.0, 1.2)),
         (&hall, 3, Vector3::new(14.0, 11.0, 1.8)),
@@ -306,14 +312,7 @@ fn monte_carlo_covariance_matches_the_reported_covariance_and_the_crlb_in_space(
     // small, which Chan's step 2 squares: at σ = 1 cm its fixes are biased by 1 cm in z and the
     // NEES is 3.3–3.5 (see `chan_taylor`, which removes this); σ = 2 mm is in the small-noise
     // regime where the first-order covariance holds.
-    let hall = [
-        [0.0, 0.0, 3.0],
-        [20.0, 0.0, 3.0],
-        [20.0, 15.0, 3.0],
-        [0.0, 15.0, 3.0],
-        [10.0, 0.0, 0.5],
-        [10.0, 15.0, 0.5],
-    ];
+    let hall = HALL;
     let cube: Vec<[f64; 3]> = (0..8)
         .map(|k| {
             [
@@ -323,13 +322,7 @@ fn monte_carlo_covariance_matches_the_reported_covariance_and_the_crlb_in_space(
             ]
         })
         .collect();
-    let cells = [
-        [0.0, 0.0, 30.0],
-        [3000.0, 0.0, 60.0],
-        [0.0, 3000.0, 45.0],
-        [3000.0, 3000.0, 90.0],
-        [1500.0, -800.0, 400.0],
-    ];
+    let cells = CELLS;
     let cases: [SpaceNoisyCase<'_>; 5] = [
         (&hall, 0, Vector3::new(6.0, 4.0, 1.2), 0.002),
         (&hall, 4, Vector3::new(14.0, 11.0, 1.8), 0.002),

@@ -31,17 +31,40 @@ pub struct Evaluation {
     pub failures: Vec<(usize, PositioningError)>,
 }
 
-/// Runs `locate` on every query and scores it against the labels.
+/// One method's outcome on every query, in query order.
+pub type Outcomes = Vec<Result<FingerprintFix, PositioningError>>;
+
+/// Runs `locate` on every query (once), in order.
+///
+/// # Example
+/// ```
+/// use rtls_data::ujiindoorloc::{locate_all, Fingerprint};
+/// use rtls_positioning::PositioningError;
+/// let q = Fingerprint {
+///     readings_dbm: vec![], position_m: [0.0, 0.0], floor: 0, building: 0,
+///     space_id: 0, relative_position: 1, user_id: 0, phone_id: 0, timestamp_s: 0,
+/// };
+/// let outcomes = locate_all(&[q], |_| Err(PositioningError::NoCommonAnchors));
+/// assert_eq!(outcomes, vec![Err(PositioningError::NoCommonAnchors)]);
+/// ```
+pub fn locate_all(
+    queries: &[Fingerprint],
+    locate: impl Fn(&[Option<f64>]) -> Result<FingerprintFix, PositioningError>,
+) -> Outcomes {
+    queries.iter().map(|q| locate(&q.query())).collect()
+}
+
+/// Scores outcomes ([`locate_all`]) against the queries' labels.
 ///
 /// # Errors
-/// [`crate::DataError::Content`]-free: a method's error on a query is recorded in
-/// [`Evaluation::failures`]; the function fails only if `queries` is empty or nothing was
-/// located ([`PositioningError::TooFewSamples`]).
+/// A method's error on a query is recorded in [`Evaluation::failures`], not returned; the
+/// function fails only if nothing was located (no queries, every query failed, or fewer
+/// outcomes than queries): [`PositioningError::TooFewSamples`].
 ///
 /// # Example
 /// ```
 /// use nalgebra::{Matrix2, Vector2};
-/// use rtls_data::ujiindoorloc::{evaluate, Fingerprint};
+/// use rtls_data::ujiindoorloc::{locate_all, score, Fingerprint};
 /// use rtls_positioning::{fingerprint::FingerprintFix, Fix2};
 /// let q = Fingerprint {
 ///     readings_dbm: vec![(0, -50.0)], position_m: [3.0, 4.0], floor: 1, building: 0,
@@ -51,19 +74,26 @@ pub struct Evaluation {
 ///     fix: Fix2 { position: Vector2::zeros(), covariance: Matrix2::zeros() },
 ///     neighbours: vec![], building: Some(0), floor: Some(2),
 /// });
-/// let score = evaluate(&[q], origin)?;
-/// assert_eq!((score.mean_error_m, score.building_hit_rate, score.floor_hit_rate), (5.0, 1.0, 0.0));
+/// let queries = [q];
+/// let e = score(&queries, &locate_all(&queries, origin))?;
+/// assert_eq!((e.mean_error_m, e.building_hit_rate, e.floor_hit_rate), (5.0, 1.0, 0.0));
 /// # Ok::<(), rtls_positioning::PositioningError>(())
 /// ```
-pub fn evaluate(
+pub fn score(
     queries: &[Fingerprint],
-    locate: impl Fn(&[Option<f64>]) -> Result<FingerprintFix, PositioningError>,
+    outcomes: &[Result<FingerprintFix, PositioningError>],
 ) -> Result<Evaluation, PositioningError> {
+    if outcomes.len() != queries.len() {
+        return Err(PositioningError::TooFewSamples {
+            found: outcomes.len(),
+            needed: queries.len(),
+        });
+    }
     let mut errors_m = Vec::with_capacity(queries.len());
     let (mut building_hits, mut floor_hits) = (0usize, 0usize);
     let mut failures = Vec::new();
-    for (k, query) in queries.iter().enumerate() {
-        match locate(&query.query()) {
+    for (k, (query, outcome)) in queries.iter().zip(outcomes).enumerate() {
+        match outcome {
             Ok(result) => {
                 let building_hit = result.building == Some(query.building);
                 building_hits += usize::from(building_hit);
@@ -73,7 +103,7 @@ pub fn evaluate(
                 let dy = result.fix.position.y - query.position_m[1];
                 errors_m.push(dx.hypot(dy));
             }
-            Err(error) => failures.push((k, error)),
+            Err(error) => failures.push((k, error.clone())),
         }
     }
     if errors_m.is_empty() {
@@ -93,43 +123,48 @@ pub fn evaluate(
     })
 }
 
-/// Fraction of queries on which two methods choose the same neighbours (as sets, by
-/// reference point); a query on which either fails counts as a disagreement unless both fail
-/// with the same error.
+/// [`locate_all`] then [`score`].
+///
+/// # Errors
+/// As [`score`].
+pub fn evaluate(
+    queries: &[Fingerprint],
+    locate: impl Fn(&[Option<f64>]) -> Result<FingerprintFix, PositioningError>,
+) -> Result<Evaluation, PositioningError> {
+    score(queries, &locate_all(queries, locate))
+}
+
+/// Fraction of queries on which two methods' outcomes choose the same neighbours (as sets,
+/// by reference point); a query on which either fails counts as a disagreement unless both
+/// fail with the same error. Outcomes beyond the shorter list count as disagreements.
 ///
 /// # Example
 /// ```
-/// use rtls_data::ujiindoorloc::{neighbour_agreement, Fingerprint};
+/// use rtls_data::ujiindoorloc::neighbour_agreement;
 /// use rtls_positioning::PositioningError;
-/// let q = Fingerprint {
-///     readings_dbm: vec![], position_m: [0.0, 0.0], floor: 0, building: 0,
-///     space_id: 0, relative_position: 1, user_id: 0, phone_id: 0, timestamp_s: 0,
-/// };
-/// let fail = |_: &[Option<f64>]| Err(PositioningError::NoCommonAnchors);
-/// assert_eq!(neighbour_agreement(&[q], fail, fail), 1.0);
+/// let failed = vec![Err(PositioningError::NoCommonAnchors)];
+/// assert_eq!(neighbour_agreement(&failed, &failed), 1.0);
 /// ```
+#[must_use]
 pub fn neighbour_agreement(
-    queries: &[Fingerprint],
-    first: impl Fn(&[Option<f64>]) -> Result<FingerprintFix, PositioningError>,
-    second: impl Fn(&[Option<f64>]) -> Result<FingerprintFix, PositioningError>,
+    first: &[Result<FingerprintFix, PositioningError>],
+    second: &[Result<FingerprintFix, PositioningError>],
 ) -> f64 {
     let chosen = |result: &FingerprintFix| {
         let mut set: Vec<usize> = result.neighbours.iter().map(|n| n.reference_point).collect();
         set.sort_unstable();
         set
     };
-    let same = queries
+    let same = first
         .iter()
-        .filter(|q| {
-            let query = q.query();
-            match (first(&query), second(&query)) {
-                (Ok(a), Ok(b)) => chosen(&a) == chosen(&b),
-                (Err(a), Err(b)) => a == b,
-                _ => false,
-            }
+        .zip(second)
+        .filter(|(a, b)| match (a, b) {
+            (Ok(a), Ok(b)) => chosen(a) == chosen(b),
+            (Err(a), Err(b)) => a == b,
+            _ => false,
         })
         .count();
-    same as f64 / queries.len().max(1) as f64
+    same as f64 / first.len().max(second.len()).max(1) as f64
 }
 
 /// Nearest-rank percentile of sorted values (`p` in [0, 1]).

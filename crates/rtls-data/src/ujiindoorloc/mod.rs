@@ -23,7 +23,7 @@
 
 mod evaluation;
 
-pub use evaluation::{evaluate, neighbour_agreement, Evaluation};
+pub use evaluation::{evaluate, locate_all, neighbour_agreement, score, Evaluation, Outcomes};
 
 use std::path::Path;
 

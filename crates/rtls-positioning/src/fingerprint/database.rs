@@ -182,7 +182,7 @@ impl FingerprintDatabase {
             return Err(PositioningError::EmptyDatabase);
         }
         first_non_finite(
-            reference_points_m.iter(),
+            &reference_points_m,
             "reference point positions (row = reference point, column = axis)",
         )?;
         let anchors_m = anchors_m.unwrap_or_else(|| vec![None; anchor_count]);
@@ -381,28 +381,22 @@ fn check_length(what: &'static str, expected: usize, found: usize) -> Result<()>
 }
 
 fn check_anchor_positions(anchors_m: &[Option<[f64; 2]>]) -> Result<()> {
-    first_non_finite(
-        anchors_m.iter().flatten(),
-        "anchor positions (row = known anchor, column = axis)",
-    )
-    .map_err(|_| {
-        // report the anchor's own index, not its rank among the known ones
-        let (row, column) = anchors_m
-            .iter()
-            .enumerate()
-            .find_map(|(row, p)| p.and_then(|p| p.iter().position(|v| !v.is_finite()).map(|c| (row, c))))
-            .unwrap_or((0, 0));
-        PositioningError::NonFiniteEntry {
-            what: "anchor positions (row = anchor, column = axis)",
-            row,
-            column,
+    // rows are anchor indices: unknown anchors keep their place
+    for (row, position) in anchors_m.iter().enumerate() {
+        if let Some(column) = position.and_then(|p| p.iter().position(|v| !v.is_finite())) {
+            return Err(PositioningError::NonFiniteEntry {
+                what: "anchor positions (row = anchor, column = axis)",
+                row,
+                column,
+            });
         }
-    })
+    }
+    Ok(())
 }
 
 /// The first NaN/∞ coordinate of a point list, as [`PositioningError::NonFiniteEntry`].
-fn first_non_finite<'a>(points: impl Iterator<Item = &'a [f64; 2]>, what: &'static str) -> Result<()> {
-    for (row, p) in points.enumerate() {
+fn first_non_finite(points: &[[f64; 2]], what: &'static str) -> Result<()> {
+    for (row, p) in points.iter().enumerate() {
         if let Some(column) = p.iter().position(|v| !v.is_finite()) {
             return Err(PositioningError::NonFiniteEntry { what, row, column });
         }

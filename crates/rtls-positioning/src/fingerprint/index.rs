@@ -146,5 +146,5 @@ fn represent(space: &SignalSpace, rssi_dbm: f64, what: &'static str, row: usize,
             floor_dbm,
         });
     }
-    space.representation.value(rssi_dbm)
+    space.representation.value_above_floor(rssi_dbm)
 }

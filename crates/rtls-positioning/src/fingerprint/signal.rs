@@ -127,20 +127,28 @@ impl SignalRepresentation {
         if !rssi_dbm.is_finite() {
             return Err(PositioningError::NonFinite { what: "rssi reading" });
         }
-        let (floor_dbm, psi) = match *self {
-            // ψ = ρ − ρ_min
-            Self::Positive { floor_dbm } => (floor_dbm, rssi_dbm - floor_dbm),
-            // ψ = exp((ρ − ρ_min)/α) / exp(−ρ_min/α) = exp(ρ/α)
-            Self::Exponential { floor_dbm, alpha_db } => (floor_dbm, (rssi_dbm / alpha_db).exp()),
-            // ψ = ((ρ − ρ_min)/(−ρ_min))^β
-            Self::Powed { floor_dbm, beta } => (floor_dbm, ((rssi_dbm - floor_dbm) / -floor_dbm).max(0.0).powf(beta)),
-        };
-        if rssi_dbm < floor_dbm {
+        if rssi_dbm < self.floor_dbm() {
             return Err(invalid(
                 "rssi_dbm",
                 "a heard reading is below the representation's floor_dbm; lower the floor to the receivers' weakest reading",
             ));
         }
+        self.value_above_floor(rssi_dbm)
+    }
+
+    /// `ψ(ρ)` of a finite reading at or above the floor (the caller has checked both).
+    ///
+    /// # Errors
+    /// [`PositioningError::NonFinite`] if the representation overflows.
+    pub(crate) fn value_above_floor(&self, rssi_dbm: f64) -> Result<f64> {
+        let psi = match *self {
+            // ψ = ρ − ρ_min
+            Self::Positive { floor_dbm } => rssi_dbm - floor_dbm,
+            // ψ = exp((ρ − ρ_min)/α) / exp(−ρ_min/α) = exp(ρ/α)
+            Self::Exponential { alpha_db, .. } => (rssi_dbm / alpha_db).exp(),
+            // ψ = ((ρ − ρ_min)/(−ρ_min))^β
+            Self::Powed { floor_dbm, beta } => ((rssi_dbm - floor_dbm) / -floor_dbm).powf(beta),
+        };
         if psi.is_finite() {
             Ok(psi)
         } else {

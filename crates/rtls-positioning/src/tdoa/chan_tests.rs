@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::tdoa::{differenced_range_covariance, range_differences_at};
-use nalgebra::{Matrix2, Matrix2x3, Matrix3, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix2x3, Matrix3, SMatrix, SVector, Vector2, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -43,22 +43,28 @@ fn extent(stations: &[[f64; 2]]) -> (Vector2<f64>, f64) {
     (centre, radius)
 }
 
-/// `(Jᵀ Q⁻¹ J)⁻¹` with `J_i = (p − s_i)ᵀ/r_i − (p − s_ref)ᵀ/r_ref`.
-fn crlb(stations: &[[f64; 2]], reference: usize, p: &Vector2<f64>, q: &DMatrix<f64>) -> Matrix2<f64> {
-    let unit = |s: &[f64; 2]| {
-        let d = p - Vector2::new(s[0], s[1]);
+/// `(Jᵀ Q⁻¹ J)⁻¹` with `J_i = (p − s_i)ᵀ/r_i − (p − s_ref)ᵀ/r_ref`, in `D` dimensions (the
+/// independent reference the 2-D and 3-D tests compare covariances with).
+pub(super) fn crlb<const D: usize>(
+    stations: &[[f64; D]],
+    reference: usize,
+    p: &SVector<f64, D>,
+    q: &DMatrix<f64>,
+) -> SMatrix<f64, D, D> {
+    let unit = |s: &[f64; D]| {
+        let d = p - SVector::<f64, D>::from(*s);
         d / d.norm()
     };
     let u_ref = unit(&stations[reference]);
-    let rows: Vec<Vector2<f64>> = stations
+    let rows: Vec<SVector<f64, D>> = stations
         .iter()
         .enumerate()
         .filter(|&(i, _)| i != reference)
         .map(|(_, s)| unit(s) - u_ref)
         .collect();
-    let j = DMatrix::from_fn(rows.len(), 2, |i, k| rows[i][k]);
+    let j = DMatrix::from_fn(rows.len(), D, |i, k| rows[i][k]);
     let info = j.transpose() * q.clone().try_inverse().unwrap() * j;
-    Matrix2::new(info[(0, 0)], info[(0, 1)], info[(1, 0)], info[(1, 1)])
+    SMatrix::<f64, D, D>::from_column_slice(info.as_slice())
         .try_inverse()
         .unwrap()
 }

@@ -9,23 +9,7 @@ use nalgebra::{Matrix3, Matrix4x3, Vector3, Vector4};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// `(Jᵀ Q⁻¹ J)⁻¹` with `J_i = (p − s_i)ᵀ/r_i − (p − s_ref)ᵀ/r_ref`.
-fn crlb(stations: &[[f64; 3]], reference: usize, p: &Vector3<f64>, q: &DMatrix<f64>) -> Matrix3<f64> {
-    let unit = |s: &[f64; 3]| {
-        let d = p - Vector3::from(*s);
-        d / d.norm()
-    };
-    let u_ref = unit(&stations[reference]);
-    let rows: Vec<Vector3<f64>> = stations
-        .iter()
-        .enumerate()
-        .filter(|&(i, _)| i != reference)
-        .map(|(_, s)| unit(s) - u_ref)
-        .collect();
-    let j = DMatrix::from_fn(rows.len(), 3, |i, k| rows[i][k]);
-    let info = j.transpose() * q.clone().try_inverse().unwrap() * j;
-    Matrix3::from_column_slice(info.as_slice()).try_inverse().unwrap()
-}
+use super::tests::crlb;
 
 /// Thinnest extent of the stations relative to their size: the smallest singular value of the
 /// centred station matrix over the largest.
