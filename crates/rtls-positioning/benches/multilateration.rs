@@ -46,7 +46,12 @@ fn bench_dimension<const D: usize>(c: &mut Criterion, label: &str) {
     for n in [4usize, 8, 16] {
         let (anchors, ranges, variances) = case::<D>(n, 42 + n as u64);
         // the case must be solvable, or the benchmark measures an error path
-        gauss_newton(&anchors, &ranges, &variances, Initial::Linear, &options).expect("benchmark case is solvable");
+        let fix =
+            gauss_newton(&anchors, &ranges, &variances, Initial::Linear, &options).expect("benchmark case is solvable");
+        eprintln!(
+            "case {label}/{n}: Gauss–Newton converges in {} iterations, GDOP {:.1}",
+            fix.iterations, fix.gdop
+        );
         c.bench_with_input(BenchmarkId::new(format!("lls/{label}"), n), &n, |b, _| {
             b.iter(|| {
                 linear_least_squares(black_box(&anchors), black_box(&ranges), ReferenceAnchor::NearestRange).unwrap()
