@@ -17,9 +17,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use rand::{Rng, SeedableRng};
 use rtls_data::{data_dir, ujiindoorloc};
-use rtls_positioning::fingerprint::{
-    FingerprintDatabase, FingerprintIndex, Knn, LocalWknn, SignalDistance, SignalRepresentation, SignalSpace,
-};
+use rtls_positioning::fingerprint::{FingerprintDatabase, FingerprintIndex, Knn, LocalWknn, SignalSpace};
 use rtls_sim::GridSite;
 
 /// L-WKNN on UJIIndoorLoc: the 3 strongest access points, 40 m.
@@ -60,7 +58,7 @@ fn grid_site_queries(c: &mut Criterion) {
     let site = GridSite::ujiindoorloc_size();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2002);
     let database = FingerprintDatabase::from_survey(site.survey(1.0, &mut rng).expect("survey")).expect("database");
-    let index = FingerprintIndex::new(database, sensitivity_floor(&site)).expect("index");
+    let index = FingerprintIndex::new(database, site.signal_space()).expect("index");
     let queries: Vec<Vec<Option<f64>>> = (0..200)
         .map(|_| {
             let p = [rng.gen_range(20.0..500.0), rng.gen_range(20.0..380.0)];
@@ -91,15 +89,3 @@ fn grid_site_queries(c: &mut Criterion) {
 
 criterion_group!(benches, ujiindoorloc_queries, grid_site_queries);
 criterion_main!(benches);
-
-/// Seed 002's signal space (Euclidean on dBm) with "not heard" at the receiver's sensitivity:
-/// an anchor heard just above it and missed just below it then differ by little, as they
-/// should (a floor far below the sensitivity would turn every such miss into a huge distance).
-fn sensitivity_floor(site: &GridSite) -> SignalSpace {
-    SignalSpace {
-        representation: SignalRepresentation::Positive {
-            floor_dbm: site.sensitivity_dbm,
-        },
-        distance: SignalDistance::Euclidean,
-    }
-}

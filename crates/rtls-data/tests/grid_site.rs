@@ -4,9 +4,7 @@
 //! configurations is benchmarked in `benches/fingerprint.rs`.
 
 use rand::{Rng, SeedableRng};
-use rtls_positioning::fingerprint::{
-    FingerprintDatabase, FingerprintIndex, LocalWknn, SignalDistance, SignalRepresentation, SignalSpace,
-};
+use rtls_positioning::fingerprint::{FingerprintDatabase, FingerprintIndex, LocalWknn};
 use rtls_sim::GridSite;
 
 #[test]
@@ -14,7 +12,7 @@ fn l_wknn_finds_the_global_neighbours_at_ujiindoorloc_size() {
     let site = GridSite::ujiindoorloc_size();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2002);
     let database = FingerprintDatabase::from_survey(site.survey(1.0, &mut rng).unwrap()).unwrap();
-    let index = FingerprintIndex::new(database, sensitivity_floor(&site)).unwrap();
+    let index = FingerprintIndex::new(database, site.signal_space()).unwrap();
     // seed 002's N_k = 4 and n = 4; on this 3.25 m grid with σ_p = 4 dB the global neighbours
     // reach beyond seed 002's 20 m radius on 7.5 % of the queries, so the radius is 30 m
     let local = LocalWknn {
@@ -51,16 +49,4 @@ fn l_wknn_finds_the_global_neighbours_at_ujiindoorloc_size() {
         "mean error {}",
         error_sum_m / f64::from(trials)
     );
-}
-
-/// Seed 002's signal space (Euclidean on dBm) with "not heard" at the receiver's sensitivity:
-/// an anchor heard just above it and missed just below it then differ by little, as they
-/// should (a floor far below the sensitivity would turn every such miss into a huge distance).
-fn sensitivity_floor(site: &GridSite) -> SignalSpace {
-    SignalSpace {
-        representation: SignalRepresentation::Positive {
-            floor_dbm: site.sensitivity_dbm,
-        },
-        distance: SignalDistance::Euclidean,
-    }
 }

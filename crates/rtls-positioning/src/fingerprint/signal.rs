@@ -210,7 +210,11 @@ pub enum SignalDistance {
 /// A representation and a distance: the geometry of signal space.
 ///
 /// [`Default`] is seed 002's: Euclidean on dBm with the floor at −150 dBm (seed 002's anchors
-/// are all heard, so the floor only matters for absent readings).
+/// are all heard, so the floor only matters for absent readings). **Where anchors can be
+/// missed, set the floor to the receivers' sensitivity**: "not heard" is compared as the floor,
+/// and a floor far below the sensitivity turns every anchor missed by a little into a large
+/// distance (on a 520-anchor grid site the mean error rose from 2.3 m to 9.2 m with −150 dBm
+/// against a −85 dBm sensitivity, `docs/FINGERPRINTING.md`).
 ///
 /// # Example
 /// ```
