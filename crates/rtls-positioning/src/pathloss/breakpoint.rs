@@ -111,7 +111,7 @@ impl Breakpoint {
     /// A validated breakpoint law.
     ///
     /// # Errors
-    /// [`PositioningError::InvalidParameter`] naming the field unless every value is finite,
+    /// [`crate::PositioningError::InvalidParameter`] naming the field unless every value is finite,
     /// `d₀ > 0`, `n₁ > 0`, `n₂ > 0`, `d_b ≥ d₀` and `σ_s ≥ 0`.
     ///
     /// # Example
