@@ -56,6 +56,14 @@ pub enum SimError {
         /// The filter's error.
         source: rtls_estimation::EstimationError,
     },
+    /// A scenario file could not be read as its experiment's parameters.
+    #[error("scenario `{file}`: {reason}")]
+    Scenario {
+        /// The scenario file's name (e.g. `scenarios/001-cv.toml`).
+        file: String,
+        /// What is wrong, with line, column and key where the parser knows them.
+        reason: String,
+    },
     /// A positioning algorithm was given bad input (as opposed to a fix that is simply
     /// unavailable this epoch, which a reproduction counts and coasts through).
     #[error("positioning failed: {0}")]

@@ -38,7 +38,11 @@
 //! ```
 
 mod error;
+pub mod experiments;
 pub mod metrics;
+pub mod montecarlo;
+pub mod pcrb;
+pub mod report;
 pub mod reproduction;
 pub mod scenarios;
 pub mod sensors;

@@ -7,10 +7,12 @@
 
 mod builder;
 mod segment;
+mod waypoints;
 #[cfg(test)]
 mod tests;
 
 pub use builder::TrajectoryBuilder;
+pub use waypoints::{PathSample, Waypoint, WaypointPath};
 
 use crate::error::{finite, positive, Result, SimError};
 use segment::{Kinematics, Segment};

@@ -5,6 +5,10 @@
 //! default of NumPy, R and Excel's `PERCENTILE.INC`): for sorted values `x₀ ≤ … ≤ x_{n−1}` and
 //! `p ∈ [0, 100]`, `h = (n − 1) p/100`, `Q(p) = x_⌊h⌋ + (h − ⌊h⌋)(x_⌊h⌋₊₁ − x_⌊h⌋)`.
 
+mod tracking;
+
+pub use tracking::{average_over_runs, empty_location_percentage, error_rate, mean_axis_error_rates};
+
 use crate::error::{finite, Result, SimError};
 
 /// Summary statistics of a set of non-negative position errors (m).
