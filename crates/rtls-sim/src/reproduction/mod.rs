@@ -2,6 +2,10 @@
 //! simulated sensors, positioning, filters), returning every estimate so tests, examples and
 //! docs compute their figures from the same runs.
 
+pub mod seed_000;
+pub mod seed_001;
+pub mod seed_003;
+
 pub mod seed_002;
 pub mod seed_004;
 

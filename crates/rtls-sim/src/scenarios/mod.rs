@@ -1,6 +1,10 @@
 //! The seed papers' scenarios: truth trajectories, site layouts and the choices we made where
 //! a paper is silent.
 
+pub mod seed_000;
+pub mod seed_001;
+pub mod seed_003;
+
 mod grid_site;
 mod seed_002;
 mod seed_004;

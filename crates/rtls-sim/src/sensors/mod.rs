@@ -3,6 +3,10 @@
 //! Every simulator takes its randomness as `rng: &mut impl rand::Rng`, so a seeded generator
 //! (e.g. `rand_chacha::ChaCha8Rng::seed_from_u64`) reproduces a run exactly.
 
+pub mod readers;
+pub mod ultrasonic;
+pub mod uwb;
+
 mod accelerometer;
 mod odometry;
 mod rssi;
