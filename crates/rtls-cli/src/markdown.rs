@@ -126,12 +126,16 @@ mod tests {
     #[test]
     fn report_lists_metrics_with_ratio_and_figures() {
         let mut r = ExperimentReport::new("vdkf", "Seed 004: VD-KF", 3, 9);
-        r.metrics.push(Metric::new("VD-KF RMSE", "m", 8.0).paper(10.0).bound(4.0));
+        r.metrics
+            .push(Metric::new("VD-KF RMSE", "m", 8.0).paper(10.0).bound(4.0));
         r.metrics.push(Metric::new("switches", "", 3.0));
         r.figures.push(Figure::new("vdkf-rmse", "RMSE over time", "t (s)", "m"));
         r.notes.push("A note.".into());
         let text = report(&[r], "rtls repro vdkf --runs 3 --seed 9");
-        assert!(text.contains("| VD-KF RMSE | m | 10.000 | 8.000 | 4.000 | 2.000 |"), "{text}");
+        assert!(
+            text.contains("| VD-KF RMSE | m | 10.000 | 8.000 | 4.000 | 2.000 |"),
+            "{text}"
+        );
         assert!(text.contains("| switches |  | – | 3.000 | – | – |"));
         assert!(text.contains("![RMSE over time](figures/vdkf-rmse.png)"));
         assert!(text.contains("- [Seed 004: VD-KF](#seed-004-vd-kf)"));

@@ -108,7 +108,7 @@ where
         let points = series.points.iter().map(|p| (p[0], p[1]));
         let annotation = match series.style {
             SeriesStyle::Line => chart
-                .draw_series(LineSeries::new(points, colour.stroke_width(2)))
+                .draw_series(LineSeries::new(points, colour.stroke_width(1)))
                 .map_err(error)?,
             SeriesStyle::Dashed => chart
                 .draw_series(DashedLineSeries::new(points, 8, 5, colour.stroke_width(2)))

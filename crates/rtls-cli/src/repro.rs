@@ -1,5 +1,6 @@
 //! `rtls repro`: runs the paper reproductions and reports them.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -111,16 +112,21 @@ pub fn run(args: &ReproArgs) -> Result<()> {
                 seed: report.seed,
                 metrics: &report.metrics,
             };
-            println!("{}", serde_json::to_string(&line)?);
+            writeln!(std::io::stdout().lock(), "{}", serde_json::to_string(&line)?).context("writing to stdout")?;
         } else {
-            print_table(&report, elapsed_s);
+            print_table(&mut std::io::stdout().lock(), &report, elapsed_s).context("writing to stdout")?;
         }
         reports.push(report);
     }
     if let Some(dir) = &args.out {
         write_report(dir, &reports, args)?;
         if !args.json {
-            println!("report: {}", dir.join("REPRODUCTIONS.md").display());
+            writeln!(
+                std::io::stdout().lock(),
+                "report: {}",
+                dir.join("REPRODUCTIONS.md").display()
+            )
+            .context("writing to stdout")?;
         }
     }
     Ok(())
@@ -165,25 +171,33 @@ fn format_value(value: Option<f64>) -> String {
     }
 }
 
-fn print_table(report: &ExperimentReport, elapsed_s: f64) {
-    println!("\n{} ({} runs, seed {})", report.title, report.runs, report.seed);
-    let width = report.metrics.iter().map(|m| m.name.chars().count()).max().unwrap_or(6).max(6);
-    println!(
+fn print_table(out: &mut impl Write, report: &ExperimentReport, elapsed_s: f64) -> std::io::Result<()> {
+    writeln!(out, "\n{} ({} runs, seed {})", report.title, report.runs, report.seed)?;
+    let width = report
+        .metrics
+        .iter()
+        .map(|m| m.name.chars().count())
+        .max()
+        .unwrap_or(6)
+        .max(6);
+    writeln!(
+        out,
         "{:<width$} | {:>6} | {:>10} | {:>10} | {:>10}",
         "metric", "unit", "paper", "ours", "PCRB"
-    );
-    println!("{}", "-".repeat(width + 47));
+    )?;
+    writeln!(out, "{}", "-".repeat(width + 47))?;
     for m in &report.metrics {
-        println!(
+        writeln!(
+            out,
             "{:<width$} | {:>6} | {:>10} | {:>10} | {:>10}",
             m.name,
             m.unit,
             format_value(m.paper),
             format_value(Some(m.ours)),
             format_value(m.bound)
-        );
+        )?;
     }
-    println!("({elapsed_s:.1} s)");
+    writeln!(out, "({elapsed_s:.1} s)")
 }
 
 fn write_report(dir: &Path, reports: &[ExperimentReport], args: &ReproArgs) -> Result<()> {

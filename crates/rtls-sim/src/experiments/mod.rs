@@ -16,6 +16,7 @@ use crate::error::{Result, SimError};
 use crate::montecarlo::Progress;
 use crate::report::ExperimentReport;
 
+mod common;
 pub mod lwknn;
 pub mod mekf;
 pub mod ukf_uwb;

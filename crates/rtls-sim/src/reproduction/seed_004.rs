@@ -24,7 +24,7 @@ use rtls_positioning::tdoa::{chan_taylor, cyclic_reference};
 use rtls_positioning::{calibrate_fix_noise, PositioningError};
 
 use crate::error::{Result, SimError};
-use crate::scenarios::{seed_004_trajectory, SEED_004_STATIONS};
+use crate::scenarios::seed_004_trajectory;
 use crate::sensors::{OdometrySimulator, TdoaSimulator};
 use crate::trajectory::TruthSample;
 
@@ -49,6 +49,9 @@ pub struct Seed004Config {
     pub imm_ca_variance: f64,
     /// Turn-rate random-walk variance rate of the IMM's CT mode ((rad/s)²/s).
     pub imm_turn_rate_variance: f64,
+    /// The cellular TDOA network: stations and timing errors (seed 004: Gaussian 100 ns plus
+    /// uniform 0–200 ns NLOS delay).
+    pub tdoa: TdoaSimulator,
     /// Number of surveyed points used to calibrate the fix covariance `R` (seed 002's method).
     pub calibration_points: usize,
     /// The simulated odometer (seed 004: speed error 1 m/s, heading drift 20°/h).
@@ -72,6 +75,7 @@ impl Default for Seed004Config {
             imm_cv_variance: 0.01,
             imm_ca_variance: 0.01,
             imm_turn_rate_variance: 1e-6,
+            tdoa: TdoaSimulator::seed_004(),
             calibration_points: 300,
             odometer: OdometrySimulator::default(),
             odometry_model: OdometryErrorModel::seed_004(),
@@ -147,9 +151,11 @@ pub fn run_seed_004(config: &Seed004Config, seed: u64) -> Result<Seed004Run> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let trajectory = seed_004_trajectory(config.speed_mps)?;
     let truth: Vec<TruthSample> = trajectory.sample(1.0)?.into_iter().skip(1).collect();
-    let tdoa = TdoaSimulator::seed_004();
+    let tdoa = &config.tdoa;
+    tdoa.validate()?;
+    let stations = tdoa.stations.as_slice();
     let q_tdoa = DMatrix::from_diagonal_element(3, 3, tdoa.range_difference_variance_m2());
-    let fix_covariance_m2 = calibrate(&tdoa, &q_tdoa, config.calibration_points, &mut rng)?;
+    let fix_covariance_m2 = calibrate(tdoa, &q_tdoa, config.calibration_points, &mut rng)?;
     let odometry_model = config.odometry_model;
     let mut odometer = config.odometer.start_run(&mut rng)?;
 
@@ -157,14 +163,9 @@ pub fn run_seed_004(config: &Seed004Config, seed: u64) -> Result<Seed004Run> {
     let mut fixes = Vec::with_capacity(truth.len());
     let mut readings = Vec::with_capacity(truth.len());
     for (k, sample) in truth.iter().enumerate() {
-        let reference = cyclic_reference(k as u64, SEED_004_STATIONS.len())?;
+        let reference = cyclic_reference(k as u64, stations.len())?;
         let differences = tdoa.measure(sample.position_m, reference, &mut rng)?;
-        fixes.push(fix_or_none(chan_taylor(
-            &SEED_004_STATIONS,
-            reference,
-            &differences,
-            &q_tdoa,
-        ))?);
+        fixes.push(fix_or_none(chan_taylor(stations, reference, &differences, &q_tdoa))?);
         let reading = odometer.measure(sample, &mut rng)?;
         readings.push(OdometryInput {
             speed_mps: reading.speed_mps,
@@ -230,9 +231,9 @@ fn calibrate(tdoa: &TdoaSimulator, q: &DMatrix<f64>, points: usize, rng: &mut Ch
     let mut errors = Vec::with_capacity(points);
     for k in 0..points {
         let p = [rng.gen_range(-1500.0..5000.0), rng.gen_range(-2500.0..2500.0)];
-        let reference = cyclic_reference(k as u64, SEED_004_STATIONS.len())?;
+        let reference = cyclic_reference(k as u64, tdoa.stations.len())?;
         let differences = tdoa.measure(p, reference, rng)?;
-        if let Some(fix) = fix_or_none(chan_taylor(&SEED_004_STATIONS, reference, &differences, q))? {
+        if let Some(fix) = fix_or_none(chan_taylor(&tdoa.stations, reference, &differences, q))? {
             errors.push([fix[0] - p[0], fix[1] - p[1]]);
         }
     }

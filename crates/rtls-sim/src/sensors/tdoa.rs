@@ -231,8 +231,12 @@ impl TdoaSimulator {
         self.speed_of_light_mps * self.nlos_uniform_max_s / 2.0
     }
 
-    /// Checks the fields.
-    fn validate(&self) -> Result<()> {
+    /// Checks the fields (for a simulator whose public fields were set directly).
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for fewer than two stations or a negative or non-finite
+    /// timing error; [`SimError::NonFinite`] for a NaN/∞ station coordinate.
+    pub fn validate(&self) -> Result<()> {
         if self.stations.len() < 2 {
             return Err(SimError::InvalidParameter {
                 name: "stations",
