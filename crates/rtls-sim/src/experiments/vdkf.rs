@@ -122,8 +122,8 @@ impl VehicleScenario {
     /// [`SimError::Scenario`] naming the section and field that is out of range.
     pub fn config(&self) -> Result<Seed004Config> {
         let mut tdoa = TdoaSimulator::new(&self.stations_m).map_err(|e| scenario_error("stations_m", e))?;
-        tdoa.gaussian_std_s = self.tdoa.gaussian_std_ns * 1e-9;
-        tdoa.nlos_uniform_max_s = self.tdoa.nlos_uniform_max_ns * 1e-9;
+        tdoa.gaussian_std_s = self.tdoa.gaussian_std_ns / 1e9;
+        tdoa.nlos_uniform_max_s = self.tdoa.nlos_uniform_max_ns / 1e9;
         tdoa.validate().map_err(|e| scenario_error("[tdoa]", e))?;
         let odometer = OdometrySimulator {
             speed_std_mps: self.odometer.speed_std_mps,

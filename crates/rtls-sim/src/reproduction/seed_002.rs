@@ -11,13 +11,13 @@ use rtls_estimation::aided::{
 use rtls_estimation::filter::KalmanFilter;
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
 use rtls_estimation::Gaussian;
-use rtls_positioning::fingerprint::{FingerprintDatabase, FingerprintIndex, Knn, LocalWknn, SignalSpace};
+use rtls_positioning::fingerprint::{
+    FingerprintDatabase, FingerprintFix, FingerprintIndex, Knn, LocalWknn, SignalSpace,
+};
 
 use crate::error::{Result, SimError};
-use crate::scenarios::{
-    seed_002_manoeuvre_then_cruise, seed_002_reference_points, seed_002_trajectory, SEED_002_ANCHORS,
-};
-use crate::sensors::{fingerprint_means, AccelerometerNoise, AccelerometerSimulator, LogDistanceRadio};
+use crate::scenarios::{seed_002_manoeuvre_then_cruise, seed_002_trajectory, GridSite};
+use crate::sensors::{fingerprint_means, AccelerometerNoise, AccelerometerSimulator};
 
 /// Which of seed 002's trajectories.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -45,6 +45,8 @@ pub struct Seed002Config {
     pub accelerometer: AccelerometerNoise,
     /// Extra white-acceleration variance of the textbook model ((m/s²)²); 0 = accelerometer only.
     pub textbook_extra_variance_m2ps4: f64,
+    /// The site: anchors, reference-point grid and radio (Table 1: [`GridSite::seed_002`]).
+    pub site: GridSite,
 }
 
 impl Default for Seed002Config {
@@ -61,6 +63,7 @@ impl Default for Seed002Config {
             fix_variance_m2: [1.5, 2.0],
             accelerometer: AccelerometerNoise::SEED_002_ABSOLUTE,
             textbook_extra_variance_m2ps4: 0.0,
+            site: GridSite::seed_002(),
         }
     }
 }
@@ -93,6 +96,8 @@ pub struct Seed002Run {
     pub second_order: Vec<[f64; 2]>,
     /// Textbook model: state `[p, v]`, accelerometer as control input.
     pub textbook: Vec<[f64; 2]>,
+    /// Whether L-WKNN chose the same neighbours as global WKNN (same `n`) at each epoch.
+    pub same_neighbours_as_wknn: Vec<bool>,
 }
 
 /// Runs seed 002's experiment once with `seed`.
@@ -114,17 +119,19 @@ pub fn run_seed_002(config: &Seed002Config, seed: u64) -> Result<Seed002Run> {
         Seed002Trajectory::Tracking => seed_002_trajectory()?,
         Seed002Trajectory::ManoeuvreThenCruise => seed_002_manoeuvre_then_cruise()?,
     };
-    let radio = LogDistanceRadio::default();
-    let reference_points = seed_002_reference_points();
+    config.site.validate()?;
+    let radio = config.site.radio;
+    let anchors = config.site.anchors_m();
+    let reference_points = config.site.reference_points_m();
     let rows = fingerprint_means(
-        &SEED_002_ANCHORS,
+        &anchors,
         &reference_points,
         &radio,
         config.fingerprint_variance_db2,
         1,
         &mut rng,
     )?;
-    let database = FingerprintDatabase::new(reference_points, SEED_002_ANCHORS.to_vec(), rows)?;
+    let database = FingerprintDatabase::new(reference_points, anchors.clone(), rows)?;
     // seed 002's signal space: Euclidean distance on dBm (every anchor is heard)
     let index = FingerprintIndex::new(database, SignalSpace::default())?;
     let locator = config.locator.build(&index)?;
@@ -157,15 +164,18 @@ pub fn run_seed_002(config: &Seed002Config, seed: u64) -> Result<Seed002Run> {
         first_order: Vec::new(),
         second_order: Vec::new(),
         textbook: Vec::new(),
+        same_neighbours_as_wknn: Vec::new(),
     };
     for (truth, reading) in samples.iter().skip(1).zip(&readings) {
         let t = truth.time_s;
         let rssi: Vec<Option<f64>> = radio
-            .measure(&SEED_002_ANCHORS, truth.position_m, config.rssi_variance_db2, &mut rng)?
+            .measure(&anchors, truth.position_m, config.rssi_variance_db2, &mut rng)?
             .into_iter()
             .map(Some)
             .collect();
-        let fix = locator.locate(&rssi)?.fix.position;
+        let local = locator.locate(&rssi)?;
+        let global = config.locator.knn.locate(&index, &rssi)?;
+        let fix = local.fix.position;
         let z = DVector::from_column_slice(fix.as_slice());
         // the filter's ε: what a real filter knows — the configured std, or 10 % of the reading
         let std = config.accelerometer.filter_std_mps2(reading.acceleration_mps2);
@@ -187,9 +197,21 @@ pub fn run_seed_002(config: &Seed002Config, seed: u64) -> Result<Seed002Run> {
 
         run.truth.push(truth.position_m);
         run.fixes.push([fix[0], fix[1]]);
+        run.same_neighbours_as_wknn.push(same_neighbours(&local, &global));
         run.first_order.push([first.mean()[0], first.mean()[1]]);
         run.second_order.push([second.mean()[0], second.mean()[1]]);
         run.textbook.push([textbook.mean()[0], textbook.mean()[2]]);
     }
     Ok(run)
+}
+
+/// Whether two fixes averaged the same set of reference points (seed 002: "L-WKNN finds the same
+/// neighbours as global WKNN").
+fn same_neighbours(a: &FingerprintFix, b: &FingerprintFix) -> bool {
+    let set = |fix: &FingerprintFix| {
+        let mut points: Vec<usize> = fix.neighbours.iter().map(|n| n.reference_point).collect();
+        points.sort_unstable();
+        points
+    };
+    set(a) == set(b)
 }

@@ -44,6 +44,31 @@ pub struct GridSite {
 }
 
 impl GridSite {
+    /// Seed 002's simulated field: 100 m × 100 m, 25 anchors on a 20 m grid (5 × 5, at 10, 30,
+    /// …, 90 m), 121 reference points on a 10 m grid, `ρ = 0 − 40 log10(d)` dBm; every anchor is
+    /// heard everywhere (sensitivity far below the weakest mean RSSI, −64 dBm at the far corner).
+    ///
+    /// # Example
+    /// ```
+    /// let site = rtls_sim::GridSite::seed_002();
+    /// assert_eq!(site.anchors_m(), rtls_sim::SEED_002_ANCHORS.to_vec());
+    /// assert_eq!(site.reference_points_m(), rtls_sim::seed_002_reference_points());
+    /// ```
+    ///
+    /// # References
+    /// Seed 002 §2 (simulation setup).
+    #[must_use]
+    pub fn seed_002() -> Self {
+        Self {
+            width_m: 100.0,
+            height_m: 100.0,
+            anchor_spacing_m: 20.0,
+            reference_spacing_m: 10.0,
+            sensitivity_dbm: -150.0,
+            radio: LogDistanceRadio::default(),
+        }
+    }
+
     /// UJIIndoorLoc's size with seed 002's layout: 520 m × 400 m, anchors every 20 m
     /// (26 × 20 = 520), reference points every 3.25 m (161 × 124 = 19 964), seed 002's radio
     /// (`ρ_T = 0 dBm`, `η = 4`), sensitivity −85 dBm (anchors heard within 133 m, about 140 per
@@ -152,7 +177,12 @@ impl GridSite {
             .collect())
     }
 
-    fn validate(&self) -> Result<()> {
+    /// Checks the fields (for a site whose public fields were set directly).
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for a non-positive size or spacing, a spacing that gives
+    /// no point inside the site or over 10⁷ points; [`SimError::NonFinite`] for a NaN/∞ sensitivity.
+    pub fn validate(&self) -> Result<()> {
         positive(self.width_m, "width_m", "the site must have a positive width")?;
         positive(self.height_m, "height_m", "the site must have a positive height")?;
         positive(
