@@ -29,7 +29,9 @@ pub struct Progress<'a> {
 
 impl std::fmt::Debug for Progress<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Progress").field("reporting", &self.tick.is_some()).finish()
+        f.debug_struct("Progress")
+            .field("reporting", &self.tick.is_some())
+            .finish()
     }
 }
 

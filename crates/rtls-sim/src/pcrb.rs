@@ -218,7 +218,11 @@ fn check_square(matrix: &DMatrix<f64>, n: usize, what: &'static str) -> Result<(
         return Err(SimError::LengthMismatch {
             what,
             expected: n,
-            found: if matrix.nrows() != n { matrix.nrows() } else { matrix.ncols() },
+            found: if matrix.nrows() != n {
+                matrix.nrows()
+            } else {
+                matrix.ncols()
+            },
         });
     }
     if matrix.iter().any(|v| !v.is_finite()) {
@@ -241,14 +245,26 @@ mod tests {
     /// For a linear-Gaussian model the PCRB is the Kalman filter's covariance, step by step.
     #[test]
     fn linear_gaussian_bound_equals_the_kalman_covariance() {
-        let model = ConstantVelocity::new(ProcessNoise::discrete(0.3, rtls_estimation::motion::NoiseGain::kinematic())).unwrap();
+        let model = ConstantVelocity::new(ProcessNoise::discrete(
+            0.3,
+            rtls_estimation::motion::NoiseGain::kinematic(),
+        ))
+        .unwrap();
         let h = ComponentSelection::<4>::position(2, NoiseCovariance::isotropic(2, 0.25).unwrap()).unwrap();
         let p0 = Matrix4::from_diagonal(&Vector4::new(4.0, 1.0, 4.0, 1.0));
         let hm = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
         let j = measurement_information(&hm, &(DMatrix::identity(2, 2) * 0.25)).unwrap();
         let step = PcrbStep {
-            transition: DMatrix::from_column_slice(4, 4, LinearMotionModel::<4>::transition_matrix(&model, 1.0).as_slice()),
-            process_noise: DMatrix::from_column_slice(4, 4, LinearMotionModel::<4>::process_noise_matrix(&model, 1.0).as_slice()),
+            transition: DMatrix::from_column_slice(
+                4,
+                4,
+                LinearMotionModel::<4>::transition_matrix(&model, 1.0).as_slice(),
+            ),
+            process_noise: DMatrix::from_column_slice(
+                4,
+                4,
+                LinearMotionModel::<4>::process_noise_matrix(&model, 1.0).as_slice(),
+            ),
             measurement_information: j,
         };
         let bounds = posterior_crb(&DMatrix::from_column_slice(4, 4, p0.as_slice()), vec![step; 20]).unwrap();
@@ -257,7 +273,9 @@ mod tests {
         for (k, bound) in bounds.iter().enumerate() {
             let prior = kf.predict(&state, &model, (k + 1) as f64).unwrap();
             state = kf.update(&prior, &h, &DVector::from_vec(vec![0.0, 0.0])).unwrap().state;
-            let difference = (DMatrix::from_column_slice(4, 4, state.covariance().as_slice()) - bound).abs().max();
+            let difference = (DMatrix::from_column_slice(4, 4, state.covariance().as_slice()) - bound)
+                .abs()
+                .max();
             assert!(difference < 1e-10, "epoch {k}: {difference}");
         }
     }
@@ -298,7 +316,10 @@ mod tests {
             mistuned += (m2 - x).powi(2);
         }
         let (optimal, mistuned) = (optimal / runs as f64, mistuned / runs as f64);
-        assert!((optimal / bound - 1.0).abs() < 0.08, "optimal {optimal} vs bound {bound}");
+        assert!(
+            (optimal / bound - 1.0).abs() < 0.08,
+            "optimal {optimal} vs bound {bound}"
+        );
         assert!(mistuned > 1.5 * bound, "mistuned {mistuned} vs bound {bound}");
     }
 

@@ -140,7 +140,10 @@ impl WaypointPath {
             });
         }
         // the last leg that has started by time_s
-        let leg = self.leg_start_s.partition_point(|&start| start <= time_s).saturating_sub(1);
+        let leg = self
+            .leg_start_s
+            .partition_point(|&start| start <= time_s)
+            .saturating_sub(1);
         let (from, to) = (self.waypoints[leg].position_m, self.waypoints[leg + 1].position_m);
         let duration = self.leg_duration_s[leg];
         let tau = time_s - self.leg_start_s[leg];
