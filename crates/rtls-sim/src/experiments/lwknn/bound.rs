@@ -47,11 +47,11 @@ impl Bounds {
             let std = config.accelerometer.std_mps2(acceleration);
             let mut transition = DMatrix::identity(4, 4);
             let mut process_noise = DMatrix::zeros(4, 4);
-            for axis in 0..2 {
+            for (axis, std_axis) in std.iter().enumerate() {
                 let (p, v) = (2 * axis, 2 * axis + 1);
                 transition[(p, v)] = dt;
                 // Q = B σ_a² Bᵀ, B = [T²/2, T]ᵀ
-                let variance = std[axis] * std[axis] + config.textbook_extra_variance_m2ps4;
+                let variance = std_axis * std_axis + config.textbook_extra_variance_m2ps4;
                 let b = [dt * dt / 2.0, dt];
                 process_noise[(p, p)] = b[0] * b[0] * variance;
                 process_noise[(p, v)] = b[0] * b[1] * variance;

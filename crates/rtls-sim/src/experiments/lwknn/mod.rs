@@ -204,7 +204,7 @@ pub fn reproduce(
                 neighbours: row.neighbours,
             }
             .locator(),
-            ..s.base.clone()
+            ..s.base
         };
         let outcome = simulate(&config, options, progress)?;
         let label = format!(
@@ -249,7 +249,7 @@ pub fn reproduce(
     for &variance in &s.noise.rssi_variance_db2 {
         let config = Seed002Config {
             rssi_variance_db2: variance,
-            ..s.base.clone()
+            ..s.base
         };
         let outcome = simulate(&config, options, progress)?;
         report.metrics.push(
@@ -282,7 +282,7 @@ pub fn reproduce(
     let order_config = Seed002Config {
         trajectory: s.model_order.trajectory.into(),
         accelerometer: s.model_order.accelerometer.into(),
-        ..s.base.clone()
+        ..s.base
     };
     let order = simulate(&order_config, options, progress)?;
     let order_bounds = Bounds::new(&order_config)?;
