@@ -88,8 +88,10 @@ where
     let error = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("{e:?}");
     let ((x0, x1), (y0, y1)) = ranges(figure)?;
     root.fill(&WHITE).map_err(error)?;
+    // shrink long captions to fit the width (DejaVu Sans averages ≈ 0.55 em per character)
+    let caption_px = (f64::from(SIZE_PX.0 - 40) / (0.55 * figure.title.chars().count().max(1) as f64)).clamp(11.0, 20.0);
     let mut chart = ChartBuilder::on(&root)
-        .caption(&figure.title, ("sans-serif", 20))
+        .caption(&figure.title, ("sans-serif", caption_px))
         .margin(14)
         .x_label_area_size(44)
         .y_label_area_size(64)
