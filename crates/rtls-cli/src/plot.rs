@@ -13,8 +13,9 @@ use rtls_sim::report::{Figure, SeriesStyle};
 
 const SIZE_PX: (u32, u32) = (960, 640);
 
-/// Colour-blind-safe palette (Okabe & Ito, 2008).
-const PALETTE: [RGBColor; 8] = [
+/// Colour-blind-safe palette (Okabe & Ito, 2008), extended with darker tones for figures with
+/// many series (maps with tunnels, readers and several tracks).
+const PALETTE: [RGBColor; 14] = [
     RGBColor(0, 0, 0),
     RGBColor(0, 114, 178),
     RGBColor(213, 94, 0),
@@ -23,6 +24,12 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(230, 159, 0),
     RGBColor(86, 180, 233),
     RGBColor(120, 120, 120),
+    RGBColor(136, 34, 85),
+    RGBColor(17, 119, 51),
+    RGBColor(51, 34, 136),
+    RGBColor(153, 153, 51),
+    RGBColor(102, 51, 0),
+    RGBColor(68, 170, 153),
 ];
 
 static FONT: Once = Once::new();
@@ -89,7 +96,8 @@ where
     let ((x0, x1), (y0, y1)) = ranges(figure)?;
     root.fill(&WHITE).map_err(error)?;
     // shrink long captions to fit the width (DejaVu Sans averages ≈ 0.55 em per character)
-    let caption_px = (f64::from(SIZE_PX.0 - 40) / (0.55 * figure.title.chars().count().max(1) as f64)).clamp(11.0, 20.0);
+    let caption_px =
+        (f64::from(SIZE_PX.0 - 40) / (0.55 * figure.title.chars().count().max(1) as f64)).clamp(11.0, 20.0);
     let mut chart = ChartBuilder::on(&root)
         .caption(&figure.title, ("sans-serif", caption_px))
         .margin(14)

@@ -68,24 +68,48 @@ pub fn parse_scenario<T: DeserializeOwned>(source: &ScenarioSource) -> Result<T>
 /// # Errors
 /// [`SimError::Scenario`] if it is missing.
 pub fn find_source<'a>(sources: &'a [ScenarioSource], name: &str) -> Result<&'a ScenarioSource> {
-    sources.iter().find(|s| s.name == name).ok_or_else(|| SimError::Scenario {
-        file: name.to_string(),
-        reason: "the experiment needs this scenario file and it was not given".to_string(),
-    })
+    sources
+        .iter()
+        .find(|s| s.name == name)
+        .ok_or_else(|| SimError::Scenario {
+            file: name.to_string(),
+            reason: "the experiment needs this scenario file and it was not given".to_string(),
+        })
 }
 
 /// The scenario files shipped in `scenarios/`, embedded at compile time.
 const EMBEDDED: &[(&str, &str)] = &[
-    ("000-mine-walk.toml", include_str!("../../../../scenarios/000-mine-walk.toml")),
-    ("000-table-1.toml", include_str!("../../../../scenarios/000-table-1.toml")),
+    (
+        "000-mine-walk.toml",
+        include_str!("../../../../scenarios/000-mine-walk.toml"),
+    ),
+    (
+        "000-table-1.toml",
+        include_str!("../../../../scenarios/000-table-1.toml"),
+    ),
     ("001-cv.toml", include_str!("../../../../scenarios/001-cv.toml")),
     ("001-turn.toml", include_str!("../../../../scenarios/001-turn.toml")),
     ("002-field.toml", include_str!("../../../../scenarios/002-field.toml")),
-    ("002-table-2.toml", include_str!("../../../../scenarios/002-table-2.toml")),
-    ("002-noise-sweep.toml", include_str!("../../../../scenarios/002-noise-sweep.toml")),
-    ("002-model-order.toml", include_str!("../../../../scenarios/002-model-order.toml")),
-    ("003-test-bed.toml", include_str!("../../../../scenarios/003-test-bed.toml")),
-    ("004-vehicle.toml", include_str!("../../../../scenarios/004-vehicle.toml")),
+    (
+        "002-table-2.toml",
+        include_str!("../../../../scenarios/002-table-2.toml"),
+    ),
+    (
+        "002-noise-sweep.toml",
+        include_str!("../../../../scenarios/002-noise-sweep.toml"),
+    ),
+    (
+        "002-model-order.toml",
+        include_str!("../../../../scenarios/002-model-order.toml"),
+    ),
+    (
+        "003-test-bed.toml",
+        include_str!("../../../../scenarios/003-test-bed.toml"),
+    ),
+    (
+        "004-vehicle.toml",
+        include_str!("../../../../scenarios/004-vehicle.toml"),
+    ),
 ];
 
 /// One of the five paper reproductions.
@@ -212,7 +236,12 @@ mod tests {
     #[test]
     fn every_scenario_file_is_embedded() {
         for id in ExperimentId::ALL {
-            assert_eq!(id.embedded_scenarios().len(), id.scenario_files().len(), "{}", id.name());
+            assert_eq!(
+                id.embedded_scenarios().len(),
+                id.scenario_files().len(),
+                "{}",
+                id.name()
+            );
         }
         assert!(find_source(&[], "x.toml").is_err());
     }

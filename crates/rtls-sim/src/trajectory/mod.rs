@@ -7,9 +7,9 @@
 
 mod builder;
 mod segment;
-mod waypoints;
 #[cfg(test)]
 mod tests;
+mod waypoints;
 
 pub use builder::TrajectoryBuilder;
 pub use waypoints::{PathSample, Waypoint, WaypointPath};
