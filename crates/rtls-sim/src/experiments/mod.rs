@@ -49,7 +49,7 @@ pub struct ReproOptions {
 /// # Example
 /// ```
 /// use rtls_sim::experiments::{parse_scenario, ScenarioSource};
-/// #[derive(serde::Deserialize)]
+/// #[derive(Debug, serde::Deserialize)]
 /// #[serde(deny_unknown_fields)]
 /// struct S { runs: usize }
 /// let bad = ScenarioSource { name: "x.toml".into(), text: "runs = 5\nspeed = 2".into() };
