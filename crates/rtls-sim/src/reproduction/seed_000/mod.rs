@@ -25,7 +25,7 @@ use crate::sensors::readers::{DvHopNetwork, ReaderLayer, ReaderRadio, RssiFix};
 use crate::trajectory::{PathSample, WaypointPath};
 
 pub use models::{
-    detected_information, expected_information, MapSpread, PedestrianCv, TunnelConstraint, POSITION_INDICES,
+    detected_information, expected_information, MapSpread, PedestrianCv, PositionConstraint, POSITION_INDICES,
 };
 pub use tracker::{InnovationSum, OursConfig, TrackerCounts};
 

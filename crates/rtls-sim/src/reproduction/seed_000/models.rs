@@ -117,22 +117,23 @@ pub struct MapSpread {
     pub vertical_std_m: f64,
 }
 
-/// The tunnel map as a linear pseudo-measurement of the state `[x, vx, y, vy, z, vz]`: the two
-/// constraints of a [`WalkingLine`] (lateral offset 0, height on the walking line), with
-/// `R = diag(σ_lat², σ_vert²)`.
+/// Linear soft constraints on the position as a pseudo-measurement of the state
+/// `[x, vx, y, vy, z, vz]`: the tunnel map (the two constraints of a [`WalkingLine`]: lateral
+/// offset 0, height on the walking line, `R = diag(σ_lat², σ_vert²)`), a height plane near a
+/// junction, or a tunnel's end.
 ///
 /// # Example
 /// ```
 /// use nalgebra::DVector;
 /// use rtls_estimation::measurement::MeasurementModel;
 /// use rtls_estimation::Vector;
-/// use rtls_sim::reproduction::seed_000::{MapSpread, TunnelConstraint};
+/// use rtls_sim::reproduction::seed_000::{MapSpread, PositionConstraint};
 /// use rtls_sim::scenarios::seed_000::WalkingLine;
 /// let line = WalkingLine {
 ///     start_m: [0.0, 0.0, 0.0], direction: [1.0, 0.0], grade: 0.0, length_m: 20.0, dead_start: true, dead_end: true,
 /// };
 /// let spread = MapSpread { lateral_std_m: 1.0, vertical_std_m: 0.2 };
-/// let (model, z) = TunnelConstraint::new(&line, &spread)?;
+/// let (model, z) = PositionConstraint::tunnel(&line, &spread)?;
 /// // a tag 3 m left of an east-going line, 0.5 m high: offsets (3, 0.5) against z = (0, 0)
 /// let h = model.predict(&Vector::<6>::new(5.0, 1.0, 3.0, 0.0, 0.5, 0.0)).expect("linear");
 /// assert_eq!((h, z), (DVector::from_vec(vec![3.0, 0.5]), DVector::from_vec(vec![0.0, 0.0])));
@@ -144,37 +145,58 @@ pub struct MapSpread {
 /// algorithms", *IET Control Theory & Applications* 4(8), 2010, §2.4 (perfect and soft
 /// constraints as pseudo-measurements).
 #[derive(Debug, Clone, PartialEq)]
-pub struct TunnelConstraint {
+pub struct PositionConstraint {
     h: MeasurementJacobian<6>,
     noise: DMatrix<f64>,
 }
 
-impl TunnelConstraint {
-    /// The constraint of `line` with spreads `spread`, and its pseudo-measurement value `z`.
+impl PositionConstraint {
+    /// Soft constraints `cᵢ · p = rᵢ` on the position, each with std `σᵢ`: rows
+    /// `(cᵢ, rᵢ, σᵢ)`; returns the model and its pseudo-measurement `z = [r₁, r₂, …]`.
     ///
     /// # Errors
-    /// [`SimError::InvalidParameter`] (`spread`) for a non-positive or non-finite spread.
-    pub fn new(line: &WalkingLine, spread: &MapSpread) -> Result<(Self, DVector<f64>)> {
-        let reason = "the map spreads must be finite and positive";
-        let lateral = positive(spread.lateral_std_m, "lateral_std_m", reason)?;
-        let vertical = positive(spread.vertical_std_m, "vertical_std_m", reason)?;
-        let mut h = MeasurementJacobian::<6>::zeros(2);
-        let mut z = DVector::zeros(2);
-        for (row, (c, r)) in [line.lateral(), line.vertical()].into_iter().enumerate() {
+    /// [`SimError::InvalidParameter`] (`std_m`) for a non-positive or non-finite σ;
+    /// [`SimError::EmptyInput`] for no rows.
+    pub fn new(rows: &[([f64; 3], f64, f64)]) -> Result<(Self, DVector<f64>)> {
+        if rows.is_empty() {
+            return Err(SimError::EmptyInput {
+                what: "position constraint rows",
+            });
+        }
+        let mut h = MeasurementJacobian::<6>::zeros(rows.len());
+        let mut z = DVector::zeros(rows.len());
+        let mut variances = Vec::with_capacity(rows.len());
+        for (row, &(c, r, std_m)) in rows.iter().enumerate() {
+            let std_m = positive(std_m, "std_m", "a constraint's spread must be finite and positive")?;
             for (axis, &index) in POSITION_INDICES.iter().enumerate() {
                 h[(row, index)] = c[axis];
             }
             z[row] = r;
+            variances.push(std_m * std_m);
         }
-        // R = diag(σ_lat², σ_vert²)
-        let noise = DMatrix::from_diagonal(&DVector::from_vec(vec![lateral * lateral, vertical * vertical]));
+        // R = diag(σ₁², σ₂², …)
+        let noise = DMatrix::from_diagonal(&DVector::from_vec(variances));
         Ok((Self { h, noise }, z))
+    }
+
+    /// The two constraints of a tunnel's walking line (lateral offset 0, height on the line)
+    /// with `R = diag(σ_lat², σ_vert²)`.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] (`lateral_std_m`, `vertical_std_m`) for a non-positive
+    /// or non-finite spread.
+    pub fn tunnel(line: &WalkingLine, spread: &MapSpread) -> Result<(Self, DVector<f64>)> {
+        let reason = "the map spreads must be finite and positive";
+        let lateral = positive(spread.lateral_std_m, "lateral_std_m", reason)?;
+        let vertical = positive(spread.vertical_std_m, "vertical_std_m", reason)?;
+        let ((c_lat, r_lat), (c_vert, r_vert)) = (line.lateral(), line.vertical());
+        Self::new(&[(c_lat, r_lat, lateral), (c_vert, r_vert, vertical)])
     }
 }
 
-impl MeasurementModel<6> for TunnelConstraint {
+impl MeasurementModel<6> for PositionConstraint {
     fn dim(&self) -> usize {
-        2
+        self.h.nrows()
     }
 
     fn predict(&self, x: &Vector<6>) -> rtls_estimation::Result<DVector<f64>> {
@@ -191,7 +213,7 @@ impl MeasurementModel<6> for TunnelConstraint {
     }
 }
 
-impl LinearMeasurementModel<6> for TunnelConstraint {
+impl LinearMeasurementModel<6> for PositionConstraint {
     fn matrix(&self) -> &MeasurementJacobian<6> {
         &self.h
     }
@@ -211,12 +233,12 @@ impl LinearMeasurementModel<6> for TunnelConstraint {
 /// ```
 ///
 /// (silence is information too: a reader that does not hear the tag says it is far). The map
-/// adds `Hᵀ R⁻¹ H` of the [`TunnelConstraint`] of the walking line nearest the truth. A broken
+/// adds `Hᵀ R⁻¹ H` of the [`PositionConstraint`] of the walking line nearest the truth. A broken
 /// reader adds nothing.
 ///
 /// # Errors
 /// [`SimError::LengthMismatch`] unless `excess_loss_db` has one entry per reader; the errors
-/// of [`TunnelConstraint::new`].
+/// of [`PositionConstraint::new`].
 ///
 /// # References
 /// P. Tichavský, C. H. Muravchik, A. Nehorai, *IEEE Trans. Signal Processing* 46(5), 1998
@@ -231,7 +253,7 @@ pub fn expected_information(
 ) -> Result<DMatrix<f64>> {
     let mut j = reader_information(layer, truth_m, excess_loss_db, censored_information_fraction)?;
     if let Some(line) = layout.nearest_walking_line(truth_m) {
-        let (model, _) = TunnelConstraint::new(&line, map)?;
+        let (model, _) = PositionConstraint::tunnel(&line, map)?;
         let h = DMatrix::from_column_slice(2, 6, model.matrix().as_slice());
         j += measurement_information(&h, model.noise_covariance())?;
     }
@@ -387,7 +409,7 @@ mod tests {
             lateral_std_m: 1.0,
             vertical_std_m: 0.1,
         };
-        let (model, z) = TunnelConstraint::new(&line, &spread).unwrap();
+        let (model, z) = PositionConstraint::tunnel(&line, &spread).unwrap();
         // a point on the walking line satisfies both rows exactly
         let on_line = Vector::<6>::new(3.0, 0.0, 4.0, 0.0, 0.5, 0.0);
         assert!((model.predict(&on_line).unwrap() - &z).norm() < 1e-12);
@@ -398,6 +420,6 @@ mod tests {
             lateral_std_m: 0.0,
             ..spread
         };
-        assert!(TunnelConstraint::new(&line, &bad).is_err());
+        assert!(PositionConstraint::tunnel(&line, &bad).is_err());
     }
 }

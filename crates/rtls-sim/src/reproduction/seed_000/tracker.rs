@@ -5,15 +5,13 @@
 //!
 //! The steps of an epoch are listed on [`OursConfig`].
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DVector, Matrix3, Vector3};
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter};
-use rtls_estimation::measurement::{
-    LogDistancePathLoss, MeasurementJacobian, MeasurementModel, NoiseCovariance, RssPathLoss,
-};
+use rtls_estimation::measurement::{LogDistancePathLoss, MeasurementModel, NoiseCovariance, RssPathLoss};
 use rtls_estimation::stats::ChiSquareGate;
 use rtls_estimation::{Gaussian, Matrix, Vector};
 
-use super::models::{MapSpread, PedestrianCv, TunnelConstraint, POSITION_INDICES};
+use super::models::{MapSpread, PedestrianCv, PositionConstraint, POSITION_INDICES};
 use crate::error::{Result, SimError};
 use crate::scenarios::seed_000::MineLayout;
 use crate::sensors::readers::{Detection, ReaderLayer, ReaderStatus, RssiFix};
@@ -275,13 +273,13 @@ impl<'a> Ours<'a> {
             .is_some_and(|d| d < self.config.junction_radius_m);
         let mut state = if near_junction {
             let (c, r) = line.vertical();
-            let vertical = PlaneConstraint::new(c, self.config.map.vertical_std_m);
+            let (vertical, z) = PositionConstraint::new(&[(c, r, self.config.map.vertical_std_m)])?;
             self.kf
-                .update(&state, &vertical, &DVector::from_element(1, r))
+                .update(&state, &vertical, &z)
                 .map_err(SimError::estimation(t))?
                 .state
         } else {
-            let (model, z) = TunnelConstraint::new(&line, &self.config.map)?;
+            let (model, z) = PositionConstraint::tunnel(&line, &self.config.map)?;
             self.kf
                 .update(&state, &model, &z)
                 .map_err(SimError::estimation(t))?
@@ -289,12 +287,8 @@ impl<'a> Ours<'a> {
         };
         if let Some((c, r)) = line.overshoot(position) {
             // d · p = end, σ = σ_lat
-            let end = PlaneConstraint::new(c, self.config.map.lateral_std_m);
-            state = self
-                .kf
-                .update(&state, &end, &DVector::from_element(1, r))
-                .map_err(SimError::estimation(t))?
-                .state;
+            let (end, z) = PositionConstraint::new(&[(c, r, self.config.map.lateral_std_m)])?;
+            state = self.kf.update(&state, &end, &z).map_err(SimError::estimation(t))?.state;
         }
         Ok(state)
     }
@@ -346,50 +340,6 @@ impl<'a> Ours<'a> {
             covariance[(i + 1, i + 1)] = (self.config.max_speed_mps / 2.0).powi(2);
         }
         Gaussian::new(mean, covariance, time_s).map_err(SimError::estimation(time_s))
-    }
-}
-
-/// A scalar linear pseudo-measurement `c · p = r` on the position, noise `σ²`.
-struct PlaneConstraint {
-    h: MeasurementJacobian<6>,
-    noise: DMatrix<f64>,
-}
-
-impl PlaneConstraint {
-    fn new(c: [f64; 3], std_m: f64) -> Self {
-        let mut h = MeasurementJacobian::<6>::zeros(1);
-        for (a, &i) in POSITION_INDICES.iter().enumerate() {
-            h[(0, i)] = c[a];
-        }
-        Self {
-            h,
-            noise: DMatrix::from_element(1, 1, std_m * std_m),
-        }
-    }
-}
-
-impl MeasurementModel<6> for PlaneConstraint {
-    fn dim(&self) -> usize {
-        1
-    }
-
-    fn predict(&self, x: &Vector<6>) -> rtls_estimation::Result<DVector<f64>> {
-        // h(x) = c · p
-        Ok(&self.h * x)
-    }
-
-    fn jacobian(&self, _x: &Vector<6>) -> rtls_estimation::Result<MeasurementJacobian<6>> {
-        Ok(self.h.clone())
-    }
-
-    fn noise_covariance(&self) -> &DMatrix<f64> {
-        &self.noise
-    }
-}
-
-impl rtls_estimation::measurement::LinearMeasurementModel<6> for PlaneConstraint {
-    fn matrix(&self) -> &MeasurementJacobian<6> {
-        &self.h
     }
 }
 
