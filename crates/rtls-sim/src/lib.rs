@@ -15,7 +15,14 @@
 //!   [`OdometrySimulator`] (speed noise, drifting heading), [`AccelerometerSimulator`]
 //!   (absolute or proportional noise), [`LogDistanceRadio`] and [`fingerprint_means`].
 //! - [`metrics`] — [`ErrorSummary`] (mean, RMSE, std, median, p90, p95, max),
-//!   [`euclidean_errors`], [`axis_rmse`], [`empirical_cdf`], [`percentile`].
+//!   [`euclidean_errors`], [`axis_rmse`], [`empirical_cdf`], [`percentile`], seed 000's
+//!   per-axis error rate and PEL, run-averaged NEES/NIS.
+//! - [`pcrb`] — the posterior Cramér–Rao bound (Tichavský's recursion, covariance form).
+//! - [`montecarlo`] — seeded parallel Monte Carlo whose results do not depend on the thread count.
+//! - [`experiments`] — the five paper reproductions behind `rtls repro`, read from the TOML
+//!   scenarios in `scenarios/`, each returning a [`report::ExperimentReport`] (metric | paper |
+//!   ours | bound, tables, figures as data, notes).
+//! - [`reproduction`] — one seeded run of each paper's experiment, with every estimate.
 //!
 //! ## Example: seed 004 truth, TDOA and odometry
 //! ```

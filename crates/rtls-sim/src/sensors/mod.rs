@@ -1,4 +1,7 @@
-//! Simulated sensors: cellular TDOA and odometry (seed 004), accelerometer and RSSI (seed 002).
+//! Simulated sensors: cellular TDOA and odometry (seed 004), accelerometer and RSSI (seed 002),
+//! mine readers with shadowed RSSI, sensitivity and broken readers (seed 000, [`readers`]), UWB
+//! TOA with NLOS bias and UWB RSS (seed 001, [`uwb`]), ultrasonic sonar rings (seed 003,
+//! [`ultrasonic`]).
 //!
 //! Every simulator takes its randomness as `rng: &mut impl rand::Rng`, so a seeded generator
 //! (e.g. `rand_chacha::ChaCha8Rng::seed_from_u64`) reproduces a run exactly.
