@@ -1,0 +1,46 @@
+//! The one error type of the engine crate.
+
+/// Why the engine could not read an input or process a record.
+///
+/// Messages are lowercase and name the cause and, for text inputs, the file, line and field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum EngineError {
+    /// A text input (record file, site file) is malformed.
+    #[error("{file}:{line}: field `{field}`: {reason}")]
+    Parse {
+        /// File name as given by the caller (e.g. `input.jsonl`).
+        file: String,
+        /// 1-based line number (0 when the parser cannot tell).
+        line: usize,
+        /// The offending field (`-` for the record as a whole).
+        field: String,
+        /// What is wrong and what is allowed.
+        reason: String,
+    },
+    /// A site model is inconsistent (e.g. a zone names an unknown floor, duplicate reader ids).
+    #[error("site `{file}`: {reason}")]
+    Site {
+        /// The site file's name.
+        file: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A parameter is outside its valid range.
+    #[error("invalid parameter `{name}`: {reason}")]
+    InvalidParameter {
+        /// Parameter name.
+        name: &'static str,
+        /// What is wrong and what is allowed.
+        reason: &'static str,
+    },
+    /// A filter step failed.
+    #[error("estimation failed: {0}")]
+    Estimation(#[from] rtls_estimation::EstimationError),
+    /// A positioning solver was given bad input.
+    #[error("positioning failed: {0}")]
+    Positioning(#[from] rtls_positioning::PositioningError),
+}
+
+/// Result alias of this crate.
+pub type Result<T> = core::result::Result<T, EngineError>;

@@ -1,0 +1,20 @@
+//! # rtls-engine
+//!
+//! The manager layer of seed 000's architecture: it turns raw reader measurements into clean,
+//! predictive tracks for every tag. Synchronous and deterministic: records in, track updates
+//! and events out, no threads, no clocks, no I/O beyond parsing text handed to it.
+//!
+//! ## Vocabulary
+//! - [`record`] — the measurement record format (JSON Lines and CSV): a time stamp, a tag id and
+//!   one measurement (range, RSSI, TDOA, RSSI vector, position fix, accelerometer, odometry,
+//!   velocity), parsed with errors that name the file, line and field.
+//! - [`site`] — the site model (TOML): readers/anchors, zones, tracker settings.
+//! - [`zones`] — zone geometry (2-D polygons with floor or height range, 3-D boxes), and
+//!   enter / exit / dwell events with anti-flap tolerance.
+
+mod error;
+pub mod record;
+pub mod site;
+pub mod zones;
+
+pub use error::{EngineError, Result};
