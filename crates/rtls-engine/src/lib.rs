@@ -9,10 +9,13 @@
 //!   one measurement (range, RSSI, TDOA, RSSI vector, position fix, accelerometer, odometry,
 //!   velocity), parsed with errors that name the file, line and field.
 //! - [`site`] — the site model (TOML): readers/anchors, zones, tracker settings.
+//! - [`lifecycle`] — track initiation, M-of-N confirmation, coasting (000's gap filling), lost
+//!   and deleted states.
 //! - [`zones`] — zone geometry (2-D polygons with floor or height range, 3-D boxes), and
 //!   enter / exit / dwell events with anti-flap tolerance.
 
 mod error;
+pub mod lifecycle;
 pub mod record;
 pub mod site;
 pub mod zones;
