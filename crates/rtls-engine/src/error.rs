@@ -6,7 +6,8 @@
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum EngineError {
-    /// A text input (record file, site file) is malformed.
+    /// A text input (record file, site file) is malformed or inconsistent (the field is the
+    /// key path, e.g. `readers[3].position_m`).
     #[error("{file}:{line}: field `{field}`: {reason}")]
     Parse {
         /// File name as given by the caller (e.g. `input.jsonl`).
@@ -16,14 +17,6 @@ pub enum EngineError {
         /// The offending field (`-` for the record as a whole).
         field: String,
         /// What is wrong and what is allowed.
-        reason: String,
-    },
-    /// A site model is inconsistent (e.g. a zone names an unknown floor, duplicate reader ids).
-    #[error("site `{file}`: {reason}")]
-    Site {
-        /// The site file's name.
-        file: String,
-        /// What is wrong.
         reason: String,
     },
     /// A parameter is outside its valid range.

@@ -1,0 +1,445 @@
+//! The site model (TOML): readers/anchors, floors, zones, an optional fingerprint database
+//! reference, tracker settings and zone-event settings.
+//!
+//! `examples/site.toml` documents every key with its unit; `examples/mine-site.toml` is a small
+//! seed-000 deployment (tunnel readers, a hazard zone around a broken reader). Load a site with
+//! [`Site::from_toml_str`]: unknown keys are rejected everywhere, and every problem is an
+//! [`EngineError::Parse`] naming the file, the line and the key path (e.g.
+//! `readers[3].position_m`).
+//!
+//! # References
+//! - Seed 000 (ME-KF): the three-layer architecture, the manager layer's settings.
+//! - Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking and
+//!   Navigation*, Wiley 2001: gates (§2.6), M-of-N track initiation and deletion.
+
+mod keys;
+mod load;
+
+use std::path::PathBuf;
+
+use serde::Deserialize;
+
+use crate::error::{EngineError, Result};
+use crate::zones::{AntiFlap, Zone, ZoneMonitor};
+
+/// A whole site, as loaded from TOML by [`Site::from_toml_str`].
+///
+/// # Examples
+/// ```
+/// use rtls_engine::site::Site;
+/// let site = Site::from_toml_str(
+///     r#"
+///     [[readers]]
+///     id = "R1"
+///     position_m = [0.0, 0.0, 2.5]
+///     technology = "uwb"
+///
+///     [tracker]
+///     pipeline = "fix-then-filter"
+///     motion_model = "cv"
+///     filter = "kf"
+///     acceleration_noise_std_mps2 = 1.0
+///     gate_probability = 0.99
+///     initiation = { confirm_updates = 3, within_s = 5.0 }
+///     coast_timeout_s = 10.0
+///     delete_timeout_s = 60.0
+///     reorder_window_s = 0.5
+///     "#,
+///     "site.toml",
+/// )
+/// .unwrap();
+/// assert!(site.reader("R1").unwrap().working);
+/// assert!(site.reader("R2").is_none());
+/// ```
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Site {
+    /// Human-readable site name.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Fixed readers, anchors, base stations and access points.
+    #[serde(default)]
+    pub readers: Vec<Reader>,
+    /// Floors (levels), referenced by polygon zones.
+    #[serde(default)]
+    pub floors: Vec<Floor>,
+    /// Zones; after loading, a polygon's `floor` has been resolved into its `z_range_m`.
+    #[serde(default)]
+    pub zones: Vec<Zone>,
+    /// Zone-event settings (anti-flap and dwell); no hysteresis, no delay and no dwell reports
+    /// when the section is absent.
+    #[serde(default)]
+    pub zone_events: ZoneEventSettings,
+    /// A fingerprint database to load (only referenced here, not loaded).
+    #[serde(default)]
+    pub fingerprints: Option<FingerprintDatabase>,
+    /// How tags are tracked.
+    pub tracker: TrackerSettings,
+}
+
+/// Radio technology of a reader.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Technology {
+    /// Ultra-wideband (ranges, TDOA).
+    Uwb,
+    /// Bluetooth Low Energy (RSSI).
+    Ble,
+    /// Wi-Fi (RSSI, fingerprints, round-trip time).
+    Wifi,
+    /// Active or passive RFID (RSSI, presence).
+    Rfid,
+    /// Cellular base station (RSSI, TDOA).
+    Cellular,
+    /// Ultrasonic time-of-flight ranges.
+    Ultrasonic,
+}
+
+/// One fixed reader / anchor.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Reader {
+    /// Unique id, as used by measurement records.
+    pub id: String,
+    /// Position `[x, y]` or `[x, y, z]`, m (site frame).
+    pub position_m: Vec<f64>,
+    /// Radio technology.
+    pub technology: Technology,
+    /// `false` for a broken reader: its measurements are ignored and its coverage is a hole
+    /// (seed 000's hazard example). Default `true`.
+    #[serde(default = "yes")]
+    pub working: bool,
+    /// Radio parameters, when known.
+    #[serde(default)]
+    pub radio: Option<Radio>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Reader {
+    /// The position as `[x, y, z]`, m; a 2-D reader (`[x, y]`) is placed at `z = 0`.
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::site::{Reader, Technology};
+    /// let reader = Reader {
+    ///     id: "A".into(),
+    ///     position_m: vec![1.0, 2.0],
+    ///     technology: Technology::Ble,
+    ///     working: true,
+    ///     radio: None,
+    /// };
+    /// assert_eq!(reader.position_xyz_m(), [1.0, 2.0, 0.0]);
+    /// ```
+    #[must_use]
+    pub fn position_xyz_m(&self) -> [f64; 3] {
+        let at = |k: usize| self.position_m.get(k).copied().unwrap_or(0.0);
+        [at(0), at(1), at(2)]
+    }
+}
+
+/// A reader's radio parameters (both parts optional).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Radio {
+    /// Log-distance path-loss model for RSSI.
+    #[serde(default)]
+    pub path_loss: Option<PathLoss>,
+    /// Range error model for time-of-flight ranges.
+    #[serde(default)]
+    pub range: Option<RangeErrors>,
+}
+
+/// Log-distance path loss: `P(d) = reference_power_dbm − 10·exponent·log10(d / d₀) + X`,
+/// `X ~ N(0, shadowing_std_db²)`.
+///
+/// # References
+/// T. S. Rappaport, *Wireless Communications*, 2nd ed., §4.9 (log-distance path loss).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PathLoss {
+    /// Received power at the reference distance, dBm.
+    pub reference_power_dbm: f64,
+    /// Path-loss exponent (> 0; 2 in free space, 1.6–6 indoors and underground).
+    pub exponent: f64,
+    /// Log-normal shadowing, dB (1σ, ≥ 0).
+    pub shadowing_std_db: f64,
+    /// Reference distance `d₀`, m (> 0).
+    pub reference_distance_m: f64,
+}
+
+/// Range measurement errors: `r = d + bias_m + N(0, range_std_m²)`.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RangeErrors {
+    /// Range noise, m (1σ, > 0).
+    pub range_std_m: f64,
+    /// Constant range bias, m (subtracted before use).
+    pub bias_m: f64,
+}
+
+/// A floor (level) and its height range.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Floor {
+    /// Unique id, referenced by polygon zones.
+    pub id: String,
+    /// Height range `[z_min, z_max]`, m.
+    pub z_range_m: [f64; 2],
+}
+
+/// File format of a fingerprint database.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FingerprintFormat {
+    /// The UJIIndoorLoc CSV layout (520 WAP columns, 100 = not heard).
+    Ujiindoorloc,
+    /// CSV: `x_m,y_m,z_m` then one RSSI column per entry of `readers`, dBm.
+    Csv,
+    /// JSON Lines: `{"position_m": [x, y, z], "rssi_dbm": [...]}` in `readers` order.
+    JsonLines,
+}
+
+/// A reference to a fingerprint (radio map) database; the site only names it.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FingerprintDatabase {
+    /// Path of the database file, relative to the site file's directory.
+    pub path: PathBuf,
+    /// Its format.
+    pub format: FingerprintFormat,
+    /// Reader ids in the order of the RSSI columns (empty when the format fixes the order).
+    #[serde(default)]
+    pub readers: Vec<String>,
+}
+
+/// Where positions come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Pipeline {
+    /// A positioning solver turns each epoch's measurements into a fix; the filter smooths the
+    /// fixes (seed 000's ME-KF).
+    FixThenFilter,
+    /// Raw ranges / RSSI / TDOA update the filter directly (seeds 001, 004); needs `ekf` or `ukf`.
+    TightlyCoupled,
+}
+
+/// Motion model of the track state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MotionModelKind {
+    /// Constant velocity with white-noise acceleration (seed 000).
+    Cv,
+    /// Constant acceleration.
+    Ca,
+    /// Random walk (position only).
+    RandomWalk,
+}
+
+/// Filter kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FilterKind {
+    /// Linear Kalman filter (position fixes only).
+    Kf,
+    /// Extended Kalman filter.
+    Ekf,
+    /// Unscented Kalman filter (seed 001).
+    Ukf,
+}
+
+/// M-of-N track confirmation: a tentative track is confirmed after `confirm_updates` updates
+/// within `within_s`.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Initiation {
+    /// Updates needed (M, ≥ 1).
+    pub confirm_updates: u32,
+    /// Window in which they must arrive, s (> 0).
+    pub within_s: f64,
+}
+
+/// `[tracker]`: how tags are tracked.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackerSettings {
+    /// Fix-then-filter or tightly coupled.
+    pub pipeline: Pipeline,
+    /// Motion model.
+    pub motion_model: MotionModelKind,
+    /// Filter kind.
+    pub filter: FilterKind,
+    /// Process noise: white acceleration (CV, random walk: velocity) std, m/s² (> 0).
+    pub acceleration_noise_std_mps2: f64,
+    /// Probability that a correct measurement falls inside the χ² validation gate, in (0, 1).
+    pub gate_probability: f64,
+    /// Track confirmation rule.
+    pub initiation: Initiation,
+    /// After this long without a measurement a track coasts no more and is reported lost, s
+    /// (> 0).
+    pub coast_timeout_s: f64,
+    /// After this long without a measurement a track is deleted, s (≥ `coast_timeout_s`).
+    pub delete_timeout_s: f64,
+    /// Records up to this much older than the newest are re-ordered; older ones are reported
+    /// late, s (≥ 0).
+    pub reorder_window_s: f64,
+}
+
+impl TrackerSettings {
+    /// The track lifecycle these settings describe (`initiation`, `coast_timeout_s`,
+    /// `delete_timeout_s`).
+    ///
+    /// # Example
+    /// ```
+    /// let site = rtls_engine::site::Site::from_toml_str(
+    ///     include_str!("../../../../examples/mine-site.toml"),
+    ///     "examples/mine-site.toml",
+    /// )?;
+    /// let lifecycle = site.tracker.lifecycle();
+    /// assert!(lifecycle.validate().is_ok());
+    /// assert_eq!(lifecycle.coast_timeout_s, site.tracker.coast_timeout_s);
+    /// # Ok::<(), rtls_engine::EngineError>(())
+    /// ```
+    #[must_use]
+    pub fn lifecycle(&self) -> crate::lifecycle::LifecycleSettings {
+        crate::lifecycle::LifecycleSettings {
+            confirm_updates: self.initiation.confirm_updates,
+            confirm_window_s: self.initiation.within_s,
+            coast_timeout_s: self.coast_timeout_s,
+            delete_timeout_s: self.delete_timeout_s,
+        }
+    }
+}
+
+/// `[zone_events]`: anti-flap and dwell settings of the zone monitor.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZoneEventSettings {
+    /// Hysteresis half-width around zone borders, m (≥ 0).
+    pub tolerance_m: f64,
+    /// How long a change must persist before it is reported, s (≥ 0).
+    pub delay_s: f64,
+    /// Dwell report interval, s (> 0); none when absent.
+    #[serde(default)]
+    pub dwell_interval_s: Option<f64>,
+}
+
+impl Default for ZoneEventSettings {
+    fn default() -> Self {
+        Self {
+            tolerance_m: 0.0,
+            delay_s: 0.0,
+            dwell_interval_s: None,
+        }
+    }
+}
+
+impl Site {
+    /// Parses and validates a site file. `file_name` is only used in error messages.
+    ///
+    /// Checks: TOML syntax, types and unknown keys; unique, non-empty reader, floor and zone
+    /// ids; reader positions with 2 or 3 finite coordinates; radio parameters in range; zone
+    /// geometry ([`Zone::validate`]); reader and floor ids referenced by zones and the
+    /// fingerprint database exist; a polygon has at most one of `floor` and `z_range_m`;
+    /// tracker settings in range and consistent (a tightly coupled pipeline needs an EKF or
+    /// UKF; `delete_timeout_s ≥ coast_timeout_s`). Polygon floors are resolved into
+    /// `z_range_m`.
+    ///
+    /// # Errors
+    /// [`EngineError::Parse`] with the file, the 1-based line (0 when unknown, e.g. inside an
+    /// inline array of tables), the key path (`readers[3].position_m`) and the reason.
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::{site::Site, EngineError};
+    /// let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/site.toml")).unwrap();
+    /// let site = Site::from_toml_str(&text, "site.toml").unwrap();
+    /// assert!(!site.zones.is_empty());
+    /// let broken = text.replace("technology = \"uwb\"", "technology = \"carrier-pigeon\"");
+    /// assert!(matches!(Site::from_toml_str(&broken, "site.toml"), Err(EngineError::Parse { .. })));
+    /// ```
+    pub fn from_toml_str(text: &str, file_name: &str) -> Result<Self> {
+        load::load(text, file_name)
+    }
+
+    /// The reader with id `id`.
+    ///
+    /// # Examples
+    /// See [`Site`].
+    #[must_use]
+    pub fn reader(&self, id: &str) -> Option<&Reader> {
+        self.readers.iter().find(|r| r.id == id)
+    }
+
+    /// The floor with id `id`.
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::site::Site;
+    /// let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/site.toml")).unwrap();
+    /// let site = Site::from_toml_str(&text, "site.toml").unwrap();
+    /// assert!(site.floor("ground").is_some());
+    /// ```
+    #[must_use]
+    pub fn floor(&self, id: &str) -> Option<&Floor> {
+        self.floors.iter().find(|f| f.id == id)
+    }
+
+    /// The zone with id `id`.
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::site::Site;
+    /// let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/mine-site.toml")).unwrap();
+    /// let site = Site::from_toml_str(&text, "mine-site.toml").unwrap();
+    /// assert!(site.zone("collapse-r4").is_some());
+    /// ```
+    #[must_use]
+    pub fn zone(&self, id: &str) -> Option<&Zone> {
+        self.zones.iter().find(|z| z.id == id)
+    }
+
+    /// A [`ZoneMonitor`] of this site's zones with its `[zone_events]` settings.
+    ///
+    /// # Errors
+    /// None for a site loaded by [`Site::from_toml_str`] (everything was checked); otherwise
+    /// those of [`ZoneMonitor::new`] and [`ZoneMonitor::with_dwell_interval_s`].
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::site::Site;
+    /// let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/mine-site.toml")).unwrap();
+    /// let site = Site::from_toml_str(&text, "mine-site.toml").unwrap();
+    /// let monitor = site.zone_monitor().unwrap();
+    /// assert_eq!(monitor.zones().len(), site.zones.len());
+    /// ```
+    pub fn zone_monitor(&self) -> Result<ZoneMonitor> {
+        let settings = self.zone_events;
+        let monitor = ZoneMonitor::new(
+            self.zones.clone(),
+            AntiFlap {
+                tolerance_m: settings.tolerance_m,
+                delay_s: settings.delay_s,
+            },
+        )?;
+        match settings.dwell_interval_s {
+            Some(interval_s) => monitor.with_dwell_interval_s(interval_s),
+            None => Ok(monitor),
+        }
+    }
+}
+
+/// A validation error at a key path of the file.
+fn invalid(file: &str, text: &str, path: &str, reason: impl Into<String>) -> EngineError {
+    EngineError::Parse {
+        file: file.to_string(),
+        line: keys::line_of(text, path),
+        field: path.to_string(),
+        reason: reason.into(),
+    }
+}
+
+#[cfg(test)]
+mod tests;
