@@ -4,36 +4,18 @@
 use nalgebra::{DMatrix, SMatrix};
 
 use crate::error::{Result, SimError};
-use crate::metrics::{average_over_runs, empirical_cdf};
+use crate::metrics::{average_over_runs, empirical_cdf, euclidean_errors};
 use crate::report::{Series, SeriesStyle};
 
-/// Squared Euclidean errors `‖x̂_k − x_k‖²` per epoch.
+/// Squared Euclidean errors `‖x̂_k − x_k‖²` per epoch (from [`euclidean_errors`]).
 ///
 /// # Errors
-/// [`SimError::LengthMismatch`] for different lengths; [`SimError::NonFinite`] for NaN/∞.
+/// As [`euclidean_errors`].
 pub fn squared_errors(truth_m: &[[f64; 2]], estimates_m: &[[f64; 2]]) -> Result<Vec<f64>> {
-    if truth_m.len() != estimates_m.len() {
-        return Err(SimError::LengthMismatch {
-            what: "estimates vs truth",
-            expected: truth_m.len(),
-            found: estimates_m.len(),
-        });
-    }
-    truth_m
-        .iter()
-        .zip(estimates_m)
-        .map(|(t, e)| {
-            // e² = (x̂ − x)² + (ŷ − y)²
-            let squared = (e[0] - t[0]).powi(2) + (e[1] - t[1]).powi(2);
-            if squared.is_finite() {
-                Ok(squared)
-            } else {
-                Err(SimError::NonFinite {
-                    what: "position estimate",
-                })
-            }
-        })
-        .collect()
+    Ok(euclidean_errors(truth_m, estimates_m)?
+        .into_iter()
+        .map(|e| e * e)
+        .collect())
 }
 
 /// RMSE at each epoch over the runs: `√((1/M) Σ_m e²_{m,k})` (the papers' "RMSE over time").

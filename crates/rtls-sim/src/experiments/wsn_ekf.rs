@@ -123,7 +123,7 @@ pub fn reproduce(
         sweep_table(&sweep),
         counters_table(&totals),
     ];
-    report.figures = figures::all(&scenario, &intervals, &totals, &first);
+    report.figures = figures::all(&scenario, &intervals, &totals, &first)?;
     report.notes = notes::all(&scenario, &intervals, &totals, &sweep, options);
     Ok(report)
 }

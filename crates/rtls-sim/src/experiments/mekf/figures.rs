@@ -8,14 +8,12 @@ use super::evaluate::{MethodSummary, METHODS};
 use super::scenario::MineWalk;
 use super::table1::Table1Evaluation;
 use crate::error::Result;
+use crate::experiments::common::cdf_series;
 use crate::metrics::error_rate;
 use crate::pcrb::rmse_bound;
 use crate::report::{Figure, Series, SeriesStyle};
 use crate::reproduction::seed_000::{Seed000Run, POSITION_INDICES};
 use crate::sensors::readers::ReaderStatus;
-
-/// Points of each CDF curve (quantiles every 0.5 %).
-const CDF_POINTS: usize = 201;
 
 /// All figures of the mine walk; `run` is the run drawn in the per-run figures (run 0).
 pub(super) fn mine_walk_figures(
@@ -78,7 +76,7 @@ pub(super) fn mine_walk_figures(
         .map(|(t, _)| [*t, 0.0])
         .collect();
     figures.push(over_time.with(Series::new("walker in the danger zone", SeriesStyle::Points, hole)));
-    figures.push(cdf(summaries));
+    figures.push(cdf(summaries)?);
     Ok(figures)
 }
 
@@ -184,8 +182,8 @@ fn style_of(method: &str) -> SeriesStyle {
     }
 }
 
-/// Empirical CDF of the 3-D errors, thinned to quantiles every 0.5 %.
-fn cdf(summaries: &[MethodSummary]) -> Figure {
+/// Empirical CDF of the 3-D errors.
+fn cdf(summaries: &[MethodSummary]) -> Result<Figure> {
     let mut figure = Figure::new(
         "mekf-error-cdf",
         "CDF of the 3-D error over all runs (fix methods: epochs with a fix)",
@@ -193,20 +191,9 @@ fn cdf(summaries: &[MethodSummary]) -> Figure {
         "cumulative probability (fraction of errors ≤ x)",
     );
     for s in summaries {
-        let mut sorted = s.errors_m.clone();
-        sorted.sort_by(f64::total_cmp);
-        let points = (0..CDF_POINTS)
-            .filter_map(|i| {
-                let p = i as f64 / (CDF_POINTS - 1) as f64;
-                // type-7 quantile: h = (n − 1) p
-                let h = (sorted.len().checked_sub(1)?) as f64 * p;
-                let (lo, hi) = (h.floor() as usize, (h.ceil() as usize).min(sorted.len() - 1));
-                Some([sorted[lo] + (h - h.floor()) * (sorted[hi] - sorted[lo]), p])
-            })
-            .collect();
-        figure = figure.with(Series::new(s.name, SeriesStyle::Line, points));
+        figure = figure.with(cdf_series(s.name, &s.errors_m)?);
     }
-    figure
+    Ok(figure)
 }
 
 /// Table 1's x error rate per row (paper Fig. 4 is drawn from these data).

@@ -1,15 +1,13 @@
 //! The figures of the `wsn-ekf` report: the test-bed map (paper Fig. 5), a border crossing
 //! (Fig. 4), the shared-cell episode, error over time, RMSE per method and the error CDF.
 
-use crate::metrics::empirical_cdf;
+use crate::error::Result;
+use crate::experiments::common::cdf_series;
 use crate::report::{Figure, Series, SeriesStyle};
 use crate::reproduction::seed_003::{Method, Seed003Run};
 
 use super::scenario::Scenario;
 use super::summary::{MethodTotals, BIN_S};
-
-/// Most points per CDF series.
-const CDF_POINTS: usize = 1000;
 
 /// Every figure (the maps only when the first run is available).
 pub(super) fn all(
@@ -17,7 +15,7 @@ pub(super) fn all(
     intervals: &[(f64, f64)],
     totals: &[MethodTotals],
     first: &[Seed003Run],
-) -> Vec<Figure> {
+) -> Result<Vec<Figure>> {
     let mut figures = Vec::new();
     if first.len() == Method::ALL.len() {
         figures.push(map(scenario, first));
@@ -30,8 +28,8 @@ pub(super) fn all(
     }
     figures.push(error_over_time(totals));
     figures.push(rmse_comparison(totals));
-    figures.push(cdf(totals));
-    figures
+    figures.push(cdf(totals)?);
+    Ok(figures)
 }
 
 /// `(x, y)` of robot `i` over a run's epochs in `[from_s, to_s]`: truth or estimate.
@@ -220,7 +218,7 @@ fn rmse_comparison(totals: &[MethodTotals]) -> Figure {
 }
 
 /// Empirical CDF of the position errors of every run, robot and epoch.
-fn cdf(totals: &[MethodTotals]) -> Figure {
+fn cdf(totals: &[MethodTotals]) -> Result<Figure> {
     let mut figure = Figure::new(
         "wsn-ekf-cdf",
         "CDF of the position error (all runs, robots and epochs)",
@@ -228,15 +226,7 @@ fn cdf(totals: &[MethodTotals]) -> Figure {
         "fraction of epochs",
     );
     for (method, t) in Method::ALL.iter().zip(totals) {
-        let Ok(cdf) = empirical_cdf(&t.errors_m) else { continue };
-        let stride = cdf.len().div_ceil(CDF_POINTS).max(1);
-        let mut points: Vec<[f64; 2]> = cdf.iter().step_by(stride).map(|&(e, f)| [e, f]).collect();
-        if let (Some(last), Some(&(e, f))) = (points.last(), cdf.last()) {
-            if last[0] != e {
-                points.push([e, f]);
-            }
-        }
-        figure = figure.with(Series::new(method.label(), SeriesStyle::Line, points));
+        figure = figure.with(cdf_series(method.label(), &t.errors_m)?);
     }
-    figure
+    Ok(figure)
 }
