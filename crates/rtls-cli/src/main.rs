@@ -9,9 +9,12 @@
 //! "metric | paper | ours | PCRB" per experiment, and with `--out` writes a markdown report with
 //! SVG and PNG figures (`rtls repro all --out docs` regenerates `docs/REPRODUCTIONS.md`).
 
+mod eval;
+mod import;
 mod markdown;
 mod plot;
 mod repro;
+mod track;
 
 use clap::{Parser, Subcommand};
 
@@ -28,12 +31,24 @@ enum Command {
     /// Reproduce the seed papers' experiments: seeded Monte Carlo, the papers' metrics beside
     /// ours and the posterior Cramér–Rao bound, plots and a markdown report.
     Repro(repro::ReproArgs),
+    /// Track tags from a measurement file (JSON Lines or CSV) on a site model: one JSON line per
+    /// track update, zone / alarm / lifecycle events to an events file.
+    Track(track::TrackArgs),
+    /// Convert a recorded dataset (../shared/data) into a site file, a measurement file and a
+    /// ground-truth file per run.
+    Import(import::ImportArgs),
+    /// Compare a track file with ground truth: RMSE, mean error and percentiles, time-aligned by
+    /// interpolation.
+    Eval(eval::EvalArgs),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Repro(args) => repro::run(&args),
+        Command::Track(args) => track::run(&args),
+        Command::Import(args) => import::run(&args),
+        Command::Eval(args) => eval::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

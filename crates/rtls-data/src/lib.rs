@@ -22,6 +22,7 @@
 //! # Ok::<(), rtls_data::DataError>(())
 //! ```
 
+pub mod import;
 pub mod ujiindoorloc;
 
 use std::path::{Path, PathBuf};

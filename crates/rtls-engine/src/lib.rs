@@ -15,9 +15,12 @@
 //!   enter / exit / dwell events with anti-flap tolerance.
 
 mod error;
+pub mod evaluation;
 pub mod lifecycle;
+pub mod radio_map;
 pub mod record;
 pub mod site;
+pub mod tracker;
 pub mod zones;
 
 pub use error::{EngineError, Result};

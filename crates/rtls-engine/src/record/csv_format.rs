@@ -180,6 +180,14 @@ impl<R: BufRead> CsvRecords<R> {
     }
 }
 
+impl<R> CsvRecords<R> {
+    /// The 1-based line of the row returned last (the header's line before the first row).
+    #[must_use]
+    pub fn line(&self) -> usize {
+        self.line
+    }
+}
+
 impl<R: BufRead> Iterator for CsvRecords<R> {
     type Item = Result<Record>;
 

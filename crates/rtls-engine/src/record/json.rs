@@ -352,6 +352,12 @@ impl<R: BufRead> JsonLines<R> {
             buffer: Vec::new(),
         }
     }
+
+    /// The 1-based line of the record returned last (0 before the first).
+    #[must_use]
+    pub fn line(&self) -> usize {
+        self.line
+    }
 }
 
 impl<R: BufRead> Iterator for JsonLines<R> {

@@ -241,6 +241,55 @@ fn validate(site: &mut Site, text: &str, file: &str) -> Result<()> {
                 non_negative(t.reorder_window_s),
                 "must be a finite number ≥ 0, s",
             ),
+            (
+                at("dimensions"),
+                t.dimensions == 2 || t.dimensions == 3,
+                "must be 2 or 3",
+            ),
+            (at("epoch_s"), non_negative(t.epoch_s), "must be a finite number ≥ 0, s"),
+            (
+                at("tag_height_m"),
+                t.tag_height_m.is_none_or(f64::is_finite),
+                "must be a finite number, m",
+            ),
+            (
+                at("tag_height_m"),
+                t.tag_height_m.is_none() || t.dimensions == 2,
+                "only applies to 2-D tracking (dimensions = 2)",
+            ),
+            (
+                at("output_interval_s"),
+                positive(t.output_interval_s),
+                "must be a finite number > 0, s",
+            ),
+            (
+                at("initial_speed_std_mps"),
+                positive(t.initial_speed_std_mps),
+                "must be a finite number > 0, m/s",
+            ),
+        ],
+    )?;
+
+    let a = site.alarms;
+    check(
+        text,
+        file,
+        &[
+            (
+                "alarms.horizon_s".into(),
+                positive(a.horizon_s),
+                "must be a finite number > 0, s",
+            ),
+            (
+                "alarms.step_s".into(),
+                positive(a.step_s) && a.step_s <= a.horizon_s,
+                "must be a finite number > 0 and ≤ alarms.horizon_s, s",
+            ),
+            (
+                "alarms.entry_probability".into(),
+                a.entry_probability > 0.0 && a.entry_probability < 1.0,
+                "must lie strictly between 0 and 1",
+            ),
         ],
     )?;
 

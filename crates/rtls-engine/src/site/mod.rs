@@ -75,6 +75,9 @@ pub struct Site {
     pub fingerprints: Option<FingerprintDatabase>,
     /// How tags are tracked.
     pub tracker: TrackerSettings,
+    /// Predictive hazard alarms (defaults when the section is absent).
+    #[serde(default)]
+    pub alarms: AlarmSettings,
 }
 
 /// Radio technology of a reader.
@@ -285,6 +288,76 @@ pub struct TrackerSettings {
     /// Records up to this much older than the newest are re-ordered; older ones are reported
     /// late, s (≥ 0).
     pub reorder_window_s: f64,
+    /// Tracked dimensions: 2 (x, y) or 3 (x, y, z). Default 2.
+    #[serde(default = "default_dimensions")]
+    pub dimensions: u8,
+    /// Fix-then-filter: a tag's anchor measurements within this window from the first one are
+    /// solved together as one fix, s (≥ 0; 0 = equal time stamps only). Default 0.
+    #[serde(default)]
+    pub epoch_s: f64,
+    /// 2-D tracking with anchors at other heights: the tag's height, m. Slant ranges `r` to an
+    /// anchor at height `z_a` are projected to the plane, `√(r² − (z_a − h)²)`, and RSS laws use
+    /// the 3-D distance. Absent: anchors and tag are taken to be coplanar.
+    #[serde(default)]
+    pub tag_height_m: Option<f64>,
+    /// While a track coasts, its prediction is output this often, s (> 0). Default 1.
+    #[serde(default = "default_output_interval_s")]
+    pub output_interval_s: f64,
+    /// Velocity standard deviation of a new track, m/s (> 0). Default 2.
+    #[serde(default = "default_initial_speed_std_mps")]
+    pub initial_speed_std_mps: f64,
+}
+
+fn default_dimensions() -> u8 {
+    2
+}
+
+fn default_output_interval_s() -> f64 {
+    1.0
+}
+
+fn default_initial_speed_std_mps() -> f64 {
+    2.0
+}
+
+/// `[alarms]`: predictive hazard alarms (seed 000): a tag's predicted path, with its
+/// uncertainty, is checked against the hazard zones over a horizon.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AlarmSettings {
+    /// How far ahead the path is predicted, s (> 0). Default 10.
+    #[serde(default = "default_horizon_s")]
+    pub horizon_s: f64,
+    /// Prediction step, s (> 0, ≤ horizon). Default 0.5.
+    #[serde(default = "default_step_s")]
+    pub step_s: f64,
+    /// An alarm is raised when the predicted probability that the tag is inside the zone
+    /// reaches this value within the horizon, in (0, 1). Default 0.5 (the predicted mean path
+    /// enters); lower values warn earlier, counting the growing uncertainty.
+    #[serde(default = "default_entry_probability")]
+    pub entry_probability: f64,
+}
+
+fn default_horizon_s() -> f64 {
+    10.0
+}
+
+fn default_step_s() -> f64 {
+    0.5
+}
+
+fn default_entry_probability() -> f64 {
+    0.5
+}
+
+impl Default for AlarmSettings {
+    fn default() -> Self {
+        Self {
+            horizon_s: default_horizon_s(),
+            step_s: default_step_s(),
+            entry_probability: default_entry_probability(),
+        }
+    }
 }
 
 impl TrackerSettings {

@@ -1,0 +1,256 @@
+//! `rtls track`: a measurement file through the tracker of a site, file in, file out.
+//!
+//! ```text
+//! rtls track --site SITE --input FILE [--output FILE] [--events FILE] [--fixes FILE]
+//!            [--pipeline fix-then-filter|tightly-coupled] [--filter kf|ekf|ukf]
+//! ```
+//! One JSON line per track update to `--output` (standard output by default), one per event to
+//! `--events`, and the fix-then-filter pipeline's raw fixes to `--fixes`. Input is JSON Lines,
+//! or CSV when the file name ends in `.csv` (docs/FORMATS.md). Every input error names the
+//! file, the line and the field.
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use rtls_engine::radio_map::RadioMap;
+use rtls_engine::record::{CsvRecords, JsonLines, Record};
+use rtls_engine::site::{FilterKind, Pipeline, Site};
+use rtls_engine::tracker::{Event, Output, Tracker};
+
+/// A pipeline named on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum PipelineArg {
+    /// A positioning fix per epoch, then a Kalman filter.
+    FixThenFilter,
+    /// Raw measurements straight into an EKF or UKF.
+    TightlyCoupled,
+}
+
+/// A filter named on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum FilterArg {
+    /// Linear Kalman filter (fixes only).
+    Kf,
+    /// Extended Kalman filter.
+    Ekf,
+    /// Unscented Kalman filter.
+    Ukf,
+}
+
+/// Arguments of `rtls track`.
+#[derive(Debug, Args)]
+pub struct TrackArgs {
+    /// Site model (TOML; see examples/site.toml).
+    #[arg(long)]
+    pub site: PathBuf,
+    /// Measurement records: JSON Lines, or CSV if the name ends in `.csv`.
+    #[arg(long)]
+    pub input: PathBuf,
+    /// Track updates, one JSON line each (default: standard output).
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    /// Events (zones, alarms, lifecycle, late and rejected measurements), one JSON line each.
+    #[arg(long)]
+    pub events: Option<PathBuf>,
+    /// Raw fixes of the positioning stage (before the filter), in the track-file shape.
+    #[arg(long)]
+    pub fixes: Option<PathBuf>,
+    /// Override the site's `tracker.pipeline`.
+    #[arg(long, value_enum)]
+    pub pipeline: Option<PipelineArg>,
+    /// Override the site's `tracker.filter`.
+    #[arg(long, value_enum)]
+    pub filter: Option<FilterArg>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Counts bytes read, for the progress bar.
+struct Counting<R> {
+    inner: R,
+    bar: ProgressBar,
+}
+
+impl<R: Read> Read for Counting<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.bar.inc(n as u64);
+        Ok(n)
+    }
+}
+
+fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
+    Ok(BufWriter::new(
+        File::create(path).with_context(|| format!("creating {}", path.display()))?,
+    ))
+}
+
+/// Loads the site (with command-line overrides) and its radio map, if it names one.
+fn load_site(args: &TrackArgs) -> anyhow::Result<(Site, Option<RadioMap>)> {
+    let site_name = args.site.display().to_string();
+    let text = std::fs::read_to_string(&args.site).with_context(|| format!("reading {site_name}"))?;
+    let mut site = Site::from_toml_str(&text, &site_name)?;
+    if let Some(pipeline) = args.pipeline {
+        site.tracker.pipeline = match pipeline {
+            PipelineArg::FixThenFilter => Pipeline::FixThenFilter,
+            PipelineArg::TightlyCoupled => Pipeline::TightlyCoupled,
+        };
+    }
+    if let Some(filter) = args.filter {
+        site.tracker.filter = match filter {
+            FilterArg::Kf => FilterKind::Kf,
+            FilterArg::Ekf => FilterKind::Ekf,
+            FilterArg::Ukf => FilterKind::Ukf,
+        };
+    }
+    if site.tracker.pipeline == Pipeline::TightlyCoupled && site.tracker.filter == FilterKind::Kf {
+        bail!("the tightly coupled pipeline needs --filter ekf or ukf (raw measurements are nonlinear)");
+    }
+    let radio_map = match &site.fingerprints {
+        Some(database) => {
+            let path = args.site.parent().unwrap_or(Path::new(".")).join(&database.path);
+            let name = path.display().to_string();
+            let text = std::fs::read_to_string(&path)
+                .with_context(|| format!("reading the radio map {name} named by {site_name} [fingerprints]"))?;
+            Some(RadioMap::from_csv_str(&text, &name, &site)?)
+        }
+        None => None,
+    };
+    Ok((site, radio_map))
+}
+
+/// What a run produced, for the summary.
+#[derive(Debug, Default)]
+struct Counts {
+    records: usize,
+    updates: usize,
+    predicted: usize,
+    fixes: usize,
+    events: std::collections::BTreeMap<&'static str, usize>,
+}
+
+fn event_type(event: &Event) -> &'static str {
+    match event {
+        Event::Zone(_) => "zone",
+        Event::Lifecycle { .. } => "lifecycle",
+        Event::HazardPredicted { .. } => "hazard-predicted",
+        Event::HazardCleared { .. } => "hazard-cleared",
+        Event::NoCoverage { .. } => "no-coverage",
+        Event::Late { .. } => "late",
+        Event::Rejected { .. } => "rejected",
+    }
+}
+
+/// Runs `rtls track`.
+///
+/// # Errors
+/// Unreadable or invalid site, radio map or input (naming file, line and field), unwritable
+/// outputs.
+pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
+    let (site, radio_map) = load_site(args)?;
+    let mut tracker = Tracker::new(&site)?;
+    if let Some(map) = radio_map {
+        tracker = tracker.with_radio_map(map);
+    }
+    let input_name = args.input.display().to_string();
+    let file = File::open(&args.input).with_context(|| format!("opening {input_name}"))?;
+    let length = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(length)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {bytes}/{total_bytes} {bytes_per_sec} eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let reader = BufReader::with_capacity(
+        1 << 16,
+        Counting {
+            inner: file,
+            bar: bar.clone(),
+        },
+    );
+
+    let mut updates_out: Box<dyn Write> = match &args.output {
+        Some(path) => Box::new(create(path)?),
+        None => Box::new(BufWriter::new(std::io::stdout().lock())),
+    };
+    let mut events_out = args.events.as_deref().map(create).transpose()?;
+    let mut fixes_out = args.fixes.as_deref().map(create).transpose()?;
+
+    let mut counts = Counts::default();
+    let mut out = Output::default();
+    let mut write = |out: &mut Output, counts: &mut Counts| -> anyhow::Result<()> {
+        for update in &out.updates {
+            writeln!(updates_out, "{}", update.to_json_line()).context("writing track updates")?;
+            counts.updates += 1;
+            counts.predicted += usize::from(update.predicted);
+        }
+        for event in &out.events {
+            *counts.events.entry(event_type(event)).or_default() += 1;
+            if let Some(w) = events_out.as_mut() {
+                writeln!(w, "{}", event.to_json_line()).context("writing events")?;
+            }
+        }
+        for fix in &out.fixes {
+            counts.fixes += 1;
+            if let Some(w) = fixes_out.as_mut() {
+                writeln!(w, "{}", fix.to_json_line()).context("writing fixes")?;
+            }
+        }
+        out.clear();
+        Ok(())
+    };
+    let mut push = |record: Record, line: usize, counts: &mut Counts, out: &mut Output| -> anyhow::Result<()> {
+        tracker.check_record(&record, &input_name, line)?;
+        tracker.push(record, out)?;
+        counts.records += 1;
+        Ok(())
+    };
+    let is_csv = args.input.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+    if is_csv {
+        let mut records = CsvRecords::new(reader, &input_name)?;
+        while let Some(record) = records.next() {
+            let line = records.line();
+            push(record?, line, &mut counts, &mut out)?;
+            write(&mut out, &mut counts)?;
+        }
+    } else {
+        let mut records = JsonLines::new(reader, &input_name);
+        while let Some(record) = records.next() {
+            let line = records.line();
+            push(record?, line, &mut counts, &mut out)?;
+            write(&mut out, &mut counts)?;
+        }
+    }
+    tracker.finish(&mut out)?;
+    write(&mut out, &mut counts)?;
+    bar.finish_and_clear();
+    updates_out.flush().context("writing track updates")?;
+    if let Some(w) = events_out.as_mut() {
+        w.flush().context("writing events")?;
+    }
+    if let Some(w) = fixes_out.as_mut() {
+        w.flush().context("writing fixes")?;
+    }
+    let events: Vec<String> = counts.events.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    eprintln!(
+        "{} records, {} track updates ({} predicted), {} raw fixes; events: {}",
+        counts.records,
+        counts.updates,
+        counts.predicted,
+        counts.fixes,
+        if events.is_empty() {
+            "none".to_string()
+        } else {
+            events.join(", ")
+        }
+    );
+    Ok(())
+}

@@ -1,0 +1,193 @@
+//! The site's readers as the tracker uses them: id → position, state and radio parameters, and
+//! the conversion of a record's anchor measurement into a resolved [`AnchorReading`].
+
+use std::collections::HashMap;
+
+use crate::record::Measurement;
+use crate::site::{Reader, Site};
+
+/// Radio parameters of one anchor.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Anchor {
+    pub(crate) id: String,
+    pub(crate) position_m: [f64; 3],
+    pub(crate) working: bool,
+    /// `σ_r`, m (from `radio.range`).
+    pub(crate) range_std_m: Option<f64>,
+    /// Constant range bias removed from every range, m.
+    pub(crate) range_bias_m: f64,
+    /// `(ρ₀ dBm, d₀ m, n, σ_X dB)` of the log-distance law.
+    pub(crate) path_loss: Option<[f64; 4]>,
+}
+
+impl Anchor {
+    fn from_reader(reader: &Reader) -> Self {
+        let radio = reader.radio.as_ref();
+        let range = radio.and_then(|r| r.range.as_ref());
+        Self {
+            id: reader.id.clone(),
+            position_m: reader.position_xyz_m(),
+            working: reader.working,
+            range_std_m: range.map(|r| r.range_std_m),
+            range_bias_m: range.map_or(0.0, |r| r.bias_m),
+            path_loss: radio.and_then(|r| r.path_loss.as_ref()).map(|p| {
+                [
+                    p.reference_power_dbm,
+                    p.reference_distance_m,
+                    p.exponent,
+                    p.shadowing_std_db,
+                ]
+            }),
+        }
+    }
+}
+
+/// A resolved anchor measurement: anchor indices, bias-corrected value and its variance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum AnchorReading {
+    /// Bias-corrected range `r − b` (m), variance m².
+    Range {
+        anchor: usize,
+        range_m: f64,
+        variance_m2: f64,
+    },
+    /// RSSI (dBm), shadowing variance dB².
+    Rssi {
+        anchor: usize,
+        rssi_dbm: f64,
+        variance_db2: f64,
+    },
+    /// `‖p − anchor‖ − ‖p − reference‖` (m), variance m².
+    Tdoa {
+        anchor: usize,
+        reference: usize,
+        range_difference_m: f64,
+        variance_m2: f64,
+    },
+}
+
+/// All readers of a site, indexed by id.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Anchors {
+    by_id: HashMap<String, usize>,
+    list: Vec<Anchor>,
+}
+
+impl Anchors {
+    pub(crate) fn new(site: &Site) -> Self {
+        let list: Vec<Anchor> = site.readers.iter().map(Anchor::from_reader).collect();
+        let by_id = list.iter().enumerate().map(|(i, a)| (a.id.clone(), i)).collect();
+        Self { by_id, list }
+    }
+
+    pub(crate) fn get(&self, index: usize) -> &Anchor {
+        &self.list[index]
+    }
+
+    /// The index of a working anchor, or why it cannot be used.
+    fn working(&self, id: &str) -> Result<usize, String> {
+        let index = *self
+            .by_id
+            .get(id)
+            .ok_or_else(|| format!("anchor `{id}` is not a reader of the site"))?;
+        if self.list[index].working {
+            Ok(index)
+        } else {
+            Err(format!("reader `{id}` is marked broken (working = false)"))
+        }
+    }
+
+    /// Checks that every anchor id of `measurement` is a reader of the site; returns the field
+    /// and reason of the first unknown one.
+    pub(crate) fn check_ids(&self, measurement: &Measurement) -> Result<(), (String, String)> {
+        let known = |field: &str, id: &str| {
+            if self.by_id.contains_key(id) {
+                Ok(())
+            } else {
+                Err((field.to_string(), format!("`{id}` is not a reader of the site")))
+            }
+        };
+        match measurement {
+            Measurement::Range { anchor, .. } | Measurement::Rssi { anchor, .. } => known("anchor", anchor),
+            Measurement::Tdoa { anchor, reference, .. } => {
+                known("anchor", anchor)?;
+                known("reference", reference)
+            }
+            Measurement::RssiVector { readings } => {
+                for (i, reading) in readings.iter().enumerate() {
+                    known(&format!("readings[{i}].anchor"), &reading.anchor)?;
+                }
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Resolves a range / RSSI / TDOA measurement (anything else is `Ok(None)`).
+    ///
+    /// # Errors
+    /// A reason when an anchor is unknown or broken, or when no noise level is known (no
+    /// `std_m` in the record and no `radio.range` / `radio.path_loss` in the site).
+    pub(crate) fn resolve(&self, measurement: &Measurement) -> Result<Option<AnchorReading>, String> {
+        match measurement {
+            Measurement::Range { anchor, range_m, std_m } => {
+                let index = self.working(anchor)?;
+                let a = &self.list[index];
+                let std_m = std_m.or(a.range_std_m).ok_or_else(|| {
+                    format!("no range noise: give `std_m` in the record or `radio.range` for reader `{anchor}`")
+                })?;
+                Ok(Some(AnchorReading::Range {
+                    anchor: index,
+                    // r − b
+                    range_m: range_m - a.range_bias_m,
+                    variance_m2: floor_variance(std_m * std_m),
+                }))
+            }
+            Measurement::Rssi { anchor, rssi_dbm } => {
+                let index = self.working(anchor)?;
+                let law = self.list[index]
+                    .path_loss
+                    .ok_or_else(|| format!("RSSI needs `radio.path_loss` for reader `{anchor}` in the site"))?;
+                Ok(Some(AnchorReading::Rssi {
+                    anchor: index,
+                    rssi_dbm: *rssi_dbm,
+                    variance_db2: floor_variance(law[3] * law[3]),
+                }))
+            }
+            Measurement::Tdoa {
+                anchor,
+                reference,
+                range_difference_m,
+                std_m,
+            } => {
+                let a = self.working(anchor)?;
+                let b = self.working(reference)?;
+                let std_m = std_m
+                    .or_else(|| {
+                        // σ_Δr² = σ_a² + σ_b² from the readers' range noise
+                        let (sa, sb) = (self.list[a].range_std_m?, self.list[b].range_std_m?);
+                        Some((sa * sa + sb * sb).sqrt())
+                    })
+                    .ok_or_else(|| {
+                        format!(
+                            "no TDOA noise: give `std_m` in the record or `radio.range` for readers \
+                             `{anchor}` and `{reference}`"
+                        )
+                    })?;
+                Ok(Some(AnchorReading::Tdoa {
+                    anchor: a,
+                    reference: b,
+                    // range biases cancel only if equal: Δr − (b_a − b_b)
+                    range_difference_m: range_difference_m - (self.list[a].range_bias_m - self.list[b].range_bias_m),
+                    variance_m2: floor_variance(std_m * std_m),
+                }))
+            }
+            _ => Ok(None),
+        }
+    }
+}
+
+/// A zero standard deviation would make `S` singular: floor variances at (1 mm)² / (0.01 dB)².
+fn floor_variance(variance: f64) -> f64 {
+    variance.max(1e-6)
+}

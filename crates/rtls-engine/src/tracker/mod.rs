@@ -1,0 +1,357 @@
+//! The manager layer's tracker: records in, track updates and events out, for any number of
+//! tags, deterministic and synchronous (no threads, no clock: time comes from the records).
+//!
+//! # Pipelines (`tracker.pipeline` in the site file)
+//! - **fix-then-filter** (seed 000): a tag's range / RSSI / TDOA readings within `epoch_s` are
+//!   solved into a fix (weighted Gauss–Newton multilateration with covariance; Chan + Taylor
+//!   for TDOA) which a linear KF on a CV state smooths.
+//! - **tightly coupled** (seeds 001, 003, 004): each raw reading updates an EKF or UKF directly,
+//!   one scalar measurement at a time (seed 003's one-observation update), with the slant
+//!   distance to anchors at other heights. A new track starts from a fix of its first readings.
+//!
+//! In both, `fix` records and fingerprint scans (`rssi_vector`, located in the site's radio map)
+//! update the position, `velocity` and `odometry` (speed + heading) the velocity, and an
+//! `accelerometer` sample drives the prediction for up to 1 s (seed 002).
+//!
+//! # Time, order and output
+//! Records pass a re-ordering window (`reorder_window_s`); later ones are reported as
+//! [`Event::Late`], never applied silently out of order. A track's update is reported once all
+//! readings of its time stamp are in (when a later record of the tag arrives, or at the next
+//! tick). The tracker ticks every half `output_interval_s` of record time: a track whose update
+//! is overdue by more than `output_interval_s` coasts, outputting its prediction every
+//! `output_interval_s`, flagged `predicted`, with its growing covariance (seed 000's gap
+//! filling, so the position-equipment loss rate PEL is 0); after `coast_timeout_s` of silence
+//! it is lost and keeps reporting its last estimated position (status `lost`); after
+//! `delete_timeout_s` it is deleted.
+//!
+//! # Zones and alarms
+//! Confirmed and coasting positions feed the zone monitor (enter / exit / dwell with anti-flap).
+//! Each reported state is predicted over `alarms.horizon_s`; when the probability of being
+//! inside a hazard zone (or a zone whose readers are all broken) reaches
+//! `alarms.entry_probability`, [`Event::HazardPredicted`] carries the expected time to entry
+//! (seed 000's predictive alarm); entering a zone without a working reader gives
+//! [`Event::NoCoverage`].
+//!
+//! # Errors
+//! A measurement that cannot be used (unknown or broken reader, no noise level, outside the
+//! gate, an epoch without enough anchors, a failed update) is reported as [`Event::Rejected`]
+//! with the reason; [`Tracker::check_record`] lets a file reader turn unknown reader ids into
+//! errors naming the file, line and field first. `Err` is returned only for settings the
+//! tracker cannot run with and for time going backwards through the API.
+//!
+//! # Example
+//! ```
+//! use rtls_engine::record::{Measurement, Record};
+//! use rtls_engine::site::Site;
+//! use rtls_engine::tracker::{Output, Tracker};
+//! let site = Site::from_toml_str(r#"
+//!     readers = [
+//!       { id = "A", position_m = [0.0, 0.0], technology = "uwb", radio = { range = { range_std_m = 0.1, bias_m = 0.0 } } },
+//!       { id = "B", position_m = [20.0, 0.0], technology = "uwb", radio = { range = { range_std_m = 0.1, bias_m = 0.0 } } },
+//!       { id = "C", position_m = [0.0, 20.0], technology = "uwb", radio = { range = { range_std_m = 0.1, bias_m = 0.0 } } },
+//!     ]
+//!     [tracker]
+//!     pipeline = "tightly-coupled"
+//!     motion_model = "cv"
+//!     filter = "ekf"
+//!     acceleration_noise_std_mps2 = 0.5
+//!     gate_probability = 0.999
+//!     initiation = { confirm_updates = 3, within_s = 5.0 }
+//!     coast_timeout_s = 5.0
+//!     delete_timeout_s = 60.0
+//!     reorder_window_s = 0.0
+//! "#, "site.toml")?;
+//! let mut tracker = Tracker::new(&site)?;
+//! let mut out = Output::default();
+//! let truth = [5.0, 5.0];
+//! for k in 0..30 {
+//!     let t = k as f64 * 0.1;
+//!     let anchor = ["A", "B", "C"][k % 3];
+//!     let a = site.reader(anchor).unwrap().position_xyz_m();
+//!     let range_m = ((truth[0] - a[0]).powi(2) + (truth[1] - a[1]).powi(2)).sqrt();
+//!     let record = Record { time_s: t, tag: "w1".into(),
+//!                           measurement: Measurement::Range { anchor: anchor.into(), range_m, std_m: None } };
+//!     tracker.push(record, &mut out)?;
+//! }
+//! tracker.finish(&mut out)?;
+//! let last = out.updates.last().unwrap();
+//! assert!((last.position_m[0] - 5.0).abs() < 0.05 && (last.position_m[1] - 5.0).abs() < 0.05);
+//! # Ok::<(), rtls_engine::EngineError>(())
+//! ```
+//!
+//! # References
+//! Seed 000 (manager layer, ME-KF gap filling, predictive danger-zone alarms); seed 003
+//! (single-observation EKF); seed 001 (UKF on UWB ranges); Bar-Shalom, Li & Kirubarajan,
+//! *Estimation with Applications to Tracking and Navigation*, 2001, §5.4 (validation gates).
+
+mod alarms;
+mod anchors;
+mod core;
+mod models;
+mod output;
+mod solve;
+#[cfg(test)]
+mod tests;
+
+pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
+
+use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, SigmaPointParameters, UnscentedKalmanFilter};
+use rtls_estimation::motion::{ConstantVelocity, ProcessNoise};
+use rtls_estimation::stats::chi_square_quantile;
+
+use self::anchors::Anchors;
+use self::core::{Core, Shared};
+use crate::error::{EngineError, Result};
+use crate::lifecycle::TrackStatus;
+use crate::radio_map::RadioMap;
+use crate::record::{Emitted, Record, Reorderer};
+use crate::site::{MotionModelKind, Site};
+use crate::zones::ZoneKind;
+
+/// Ticks run to catch up after a silence of the whole input, at most.
+const MAX_CATCH_UP_TICKS: f64 = 100_000.0;
+
+/// The tracks of a 2-D or a 3-D site.
+#[derive(Debug, Clone)]
+enum Tracks {
+    Planar(Core<4>),
+    Spatial(Core<6>),
+}
+
+/// Tracks every tag of a site from its measurement records.
+///
+/// See the [module documentation](self) for the pipelines, timing and events.
+#[derive(Debug, Clone)]
+pub struct Tracker {
+    tracks: Tracks,
+    reorderer: Reorderer,
+    next_tick_s: Option<f64>,
+    output_interval_s: f64,
+    now_s: f64,
+}
+
+impl Tracker {
+    /// A tracker for `site` (its readers, zones, `[tracker]`, `[zone_events]` and `[alarms]`).
+    ///
+    /// # Errors
+    /// [`EngineError::InvalidParameter`] for a motion model other than `cv` (the tracker's
+    /// measurement models assume the CV state `[x, vx, y, vy(, z, vz)]`), or settings the
+    /// lifecycle or zone monitor reject.
+    pub fn new(site: &Site) -> Result<Self> {
+        let settings = site.tracker;
+        if settings.motion_model != MotionModelKind::Cv {
+            return Err(EngineError::InvalidParameter {
+                name: "tracker.motion_model",
+                reason: "the tracker runs the constant-velocity model (\"cv\"); \"ca\" and \"random-walk\" are \
+                         available in rtls-estimation but not wired into the tracker",
+            });
+        }
+        let lifecycle = settings.lifecycle();
+        lifecycle.validate()?;
+        // q = σ_a² (continuous white acceleration)
+        let noise = ProcessNoise::continuous(settings.acceleration_noise_std_mps2.powi(2));
+        let motion = ConstantVelocity::new(noise)?;
+        let mut gates = [0.0; 3];
+        for (dof, gate) in gates.iter_mut().enumerate() {
+            *gate = chi_square_quantile(settings.gate_probability, (dof + 1) as f64)?;
+        }
+        let no_coverage_zones: Vec<String> = site
+            .zones
+            .iter()
+            .filter(|z| !z.readers.is_empty() && z.readers.iter().all(|r| site.reader(r).is_some_and(|r| !r.working)))
+            .map(|z| z.id.clone())
+            .collect();
+        let alarm_zones = site
+            .zones
+            .iter()
+            .filter(|z| z.kind == ZoneKind::Hazard || no_coverage_zones.contains(&z.id))
+            .cloned()
+            .collect();
+        let shared = Shared {
+            settings,
+            alarms: site.alarms,
+            lifecycle,
+            anchors: Anchors::new(site),
+            radio_map: None,
+            motion,
+            aided_motion: motion.with_acceleration_input(),
+            kf: KalmanFilter::default(),
+            ekf: ExtendedKalmanFilter::default(),
+            ukf: UnscentedKalmanFilter::new(SigmaPointParameters::default()),
+            gates,
+            tag_height_m: settings.tag_height_m.unwrap_or(0.0),
+            alarm_zones,
+            no_coverage_zones,
+        };
+        let monitor = site.zone_monitor()?;
+        let tracks = if settings.dimensions == 3 {
+            Tracks::Spatial(Core::new(shared, monitor))
+        } else {
+            Tracks::Planar(Core::new(shared, monitor))
+        };
+        Ok(Self {
+            tracks,
+            reorderer: Reorderer::new(settings.reorder_window_s)?,
+            next_tick_s: None,
+            output_interval_s: settings.output_interval_s,
+            now_s: f64::NEG_INFINITY,
+        })
+    }
+
+    /// Adds the fingerprint radio map that `rssi_vector` records are located in.
+    #[must_use]
+    pub fn with_radio_map(mut self, radio_map: RadioMap) -> Self {
+        self.shared_mut().radio_map = Some(radio_map);
+        self
+    }
+
+    fn shared(&self) -> &Shared {
+        match &self.tracks {
+            Tracks::Planar(core) => &core.shared,
+            Tracks::Spatial(core) => &core.shared,
+        }
+    }
+
+    fn shared_mut(&mut self) -> &mut Shared {
+        match &mut self.tracks {
+            Tracks::Planar(core) => &mut core.shared,
+            Tracks::Spatial(core) => &mut core.shared,
+        }
+    }
+
+    /// Checks a record against the site before it is pushed: every reader id it names must be
+    /// a reader of the site.
+    ///
+    /// # Errors
+    /// [`EngineError::Parse`] naming `file`, `line` and the field (`anchor`, `reference`,
+    /// `readings[i].anchor`).
+    pub fn check_record(&self, record: &Record, file: &str, line: usize) -> Result<()> {
+        self.shared()
+            .anchors
+            .check_ids(&record.measurement)
+            .map_err(|(field, reason)| EngineError::Parse {
+                file: file.to_string(),
+                line,
+                field,
+                reason,
+            })
+    }
+
+    /// Pushes one record; what it (and the records it releases from the re-ordering window)
+    /// produced is appended to `out`.
+    ///
+    /// # Errors
+    /// A non-finite time ([`EngineError::InvalidParameter`]); numerical failures of the
+    /// lifecycle or zone monitor.
+    pub fn push(&mut self, record: Record, out: &mut Output) -> Result<()> {
+        for emitted in self.reorderer.push(record)? {
+            self.emitted(emitted, out)?;
+        }
+        Ok(())
+    }
+
+    fn emitted(&mut self, emitted: Emitted, out: &mut Output) -> Result<()> {
+        match emitted {
+            Emitted::InOrder(record) => self.apply(&record, out),
+            Emitted::Late { record, lateness_s } => {
+                out.events.push(Event::Late {
+                    tag: record.tag.as_str().into(),
+                    time_s: record.time_s,
+                    kind: record.measurement.kind(),
+                    lateness_s,
+                });
+                Ok(())
+            }
+        }
+    }
+
+    fn apply(&mut self, record: &Record, out: &mut Output) -> Result<()> {
+        match &mut self.tracks {
+            Tracks::Planar(core) => core.apply(record.time_s, &record.tag, &record.measurement, out)?,
+            Tracks::Spatial(core) => core.apply(record.time_s, &record.tag, &record.measurement, out)?,
+        }
+        self.now_s = self.now_s.max(record.time_s);
+        self.tick_if_due(self.now_s, out)
+    }
+
+    /// Runs the ticks due by `now_s`. Ticks lie on a grid of half the output interval from the
+    /// first record, so a coasting output is at most half an interval late; after a silence
+    /// longer than [`MAX_CATCH_UP_TICKS`] ticks the grid restarts at `now_s`.
+    fn tick_if_due(&mut self, now_s: f64, out: &mut Output) -> Result<()> {
+        let period_s = self.output_interval_s / 2.0;
+        let mut next_s = *self.next_tick_s.get_or_insert(now_s);
+        if (now_s - next_s) / period_s > MAX_CATCH_UP_TICKS {
+            next_s = now_s;
+        }
+        while next_s <= now_s {
+            match &mut self.tracks {
+                Tracks::Planar(core) => core.tick(next_s, out)?,
+                Tracks::Spatial(core) => core.tick(next_s, out)?,
+            }
+            next_s += period_s;
+        }
+        self.next_tick_s = Some(next_s);
+        Ok(())
+    }
+
+    /// Advances the tracker's clock to `time_s` without a record (a live server calls this
+    /// with its clock): due ticks run, so coasting tracks are predicted, lost and deleted.
+    ///
+    /// # Errors
+    /// A non-finite `time_s`.
+    pub fn advance_to(&mut self, time_s: f64, out: &mut Output) -> Result<()> {
+        if !time_s.is_finite() {
+            return Err(EngineError::InvalidParameter {
+                name: "time_s",
+                reason: "must be finite",
+            });
+        }
+        if time_s > self.now_s {
+            self.now_s = time_s;
+            self.tick_if_due(time_s, out)?;
+        }
+        Ok(())
+    }
+
+    /// End of input: releases the re-ordering window, closes open epochs and reports every
+    /// pending update.
+    ///
+    /// # Errors
+    /// As [`Tracker::push`].
+    pub fn finish(&mut self, out: &mut Output) -> Result<()> {
+        for emitted in self.reorderer.finish() {
+            self.emitted(emitted, out)?;
+        }
+        match &mut self.tracks {
+            Tracks::Planar(core) => core.flush(out),
+            Tracks::Spatial(core) => core.flush(out),
+        }
+    }
+
+    /// Number of live (not deleted) tracks.
+    #[must_use]
+    pub fn track_count(&self) -> usize {
+        match &self.tracks {
+            Tracks::Planar(core) => core.track_count(),
+            Tracks::Spatial(core) => core.track_count(),
+        }
+    }
+
+    /// The status of `tag`'s track, `None` when there is none (or it has no state yet).
+    #[must_use]
+    pub fn status(&self, tag: &str) -> Option<TrackStatus> {
+        match &self.tracks {
+            Tracks::Planar(core) => core.status(tag),
+            Tracks::Spatial(core) => core.status(tag),
+        }
+    }
+
+    /// Tags currently inside zone `zone_id` (confirmed entries).
+    #[must_use]
+    pub fn head_count(&self, zone_id: &str) -> usize {
+        match &self.tracks {
+            Tracks::Planar(core) => core.monitor.head_count(zone_id),
+            Tracks::Spatial(core) => core.monitor.head_count(zone_id),
+        }
+    }
+}

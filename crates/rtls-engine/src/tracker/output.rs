@@ -1,0 +1,326 @@
+//! What the tracker reports: track updates and events, and their JSON Lines form.
+
+use std::sync::Arc;
+
+use serde_json::{json, Map, Value};
+
+use crate::lifecycle::{LifecycleEvent, TrackStatus};
+use crate::zones::ZoneEvent;
+
+/// What produced a track update.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UpdateSource {
+    /// A position fix: solved from an epoch's anchor measurements (fix-then-filter), from a
+    /// fingerprint scan, or a `fix` record.
+    Fix,
+    /// Raw anchor measurements (ranges, RSSI, TDOA) in the tightly coupled filter.
+    Anchors,
+    /// A velocity or odometry measurement.
+    Velocity,
+    /// No measurement: the prediction while the track coasts (seed 000's gap filling).
+    Prediction,
+}
+
+impl UpdateSource {
+    /// The name written in the `source` field.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Fix => "fix",
+            Self::Anchors => "anchors",
+            Self::Velocity => "velocity",
+            Self::Prediction => "prediction",
+        }
+    }
+}
+
+/// One reported track state.
+///
+/// # Units
+/// Time in s, positions in m, velocities in m/s, the position covariance in m² (row-major
+/// `D × D`, `D` = [`TrackUpdate::dimensions`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackUpdate {
+    /// Time of the state, s.
+    pub time_s: f64,
+    /// Tag id.
+    pub tag: Arc<str>,
+    /// Tracked dimensions `D` (2 or 3).
+    pub dimensions: usize,
+    /// Position `[x, y, z]`, m (`z` is the configured tag height, or 0, in 2-D).
+    pub position_m: [f64; 3],
+    /// Velocity `[vx, vy, vz]`, m/s (`vz` = 0 in 2-D).
+    pub velocity_mps: [f64; 3],
+    /// Position covariance, `D × D` row-major in the first `D²` entries, m².
+    pub position_covariance_m2: [f64; 9],
+    /// `true` when no measurement supports this time: the prediction of a coasting track.
+    pub predicted: bool,
+    /// The track's status after this update.
+    pub status: TrackStatus,
+    /// What produced it.
+    pub source: UpdateSource,
+}
+
+/// The name of a track status as written in JSON.
+#[must_use]
+pub fn status_name(status: TrackStatus) -> &'static str {
+    match status {
+        TrackStatus::Tentative => "tentative",
+        TrackStatus::Confirmed => "confirmed",
+        TrackStatus::Coasting => "coasting",
+        TrackStatus::Lost => "lost",
+        TrackStatus::Deleted => "deleted",
+    }
+}
+
+fn lifecycle_name(event: LifecycleEvent) -> &'static str {
+    match event {
+        LifecycleEvent::Confirmed => "confirmed",
+        LifecycleEvent::StartedCoasting => "started-coasting",
+        LifecycleEvent::Resumed => "resumed",
+        LifecycleEvent::Lost => "lost",
+        LifecycleEvent::Recovered => "recovered",
+        LifecycleEvent::Deleted => "deleted",
+    }
+}
+
+impl TrackUpdate {
+    /// The update as one JSON object on one line:
+    /// `{"t","tag","x","y"[,"z"],"vx","vy"[,"vz"],"cov":[D² entries],"predicted","status","source"}`.
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::lifecycle::TrackStatus;
+    /// use rtls_engine::tracker::{TrackUpdate, UpdateSource};
+    /// let update = TrackUpdate {
+    ///     time_s: 2.0, tag: "w1".into(), dimensions: 2,
+    ///     position_m: [1.0, 2.0, 0.0], velocity_mps: [0.5, 0.0, 0.0],
+    ///     position_covariance_m2: [0.04, 0.0, 0.0, 0.04, 0.0, 0.0, 0.0, 0.0, 0.0],
+    ///     predicted: false, status: TrackStatus::Confirmed, source: UpdateSource::Fix,
+    /// };
+    /// let value: serde_json::Value = serde_json::from_str(&update.to_json_line()).unwrap();
+    /// assert_eq!(value["cov"].as_array().unwrap().len(), 4);
+    /// assert!(value.get("z").is_none());
+    /// ```
+    #[must_use]
+    pub fn to_json_line(&self) -> String {
+        let d = self.dimensions;
+        let mut object = Map::new();
+        object.insert("t".into(), json!(self.time_s));
+        object.insert("tag".into(), json!(&*self.tag));
+        object.insert("x".into(), json!(self.position_m[0]));
+        object.insert("y".into(), json!(self.position_m[1]));
+        if d == 3 {
+            object.insert("z".into(), json!(self.position_m[2]));
+        }
+        object.insert("vx".into(), json!(self.velocity_mps[0]));
+        object.insert("vy".into(), json!(self.velocity_mps[1]));
+        if d == 3 {
+            object.insert("vz".into(), json!(self.velocity_mps[2]));
+        }
+        object.insert("cov".into(), json!(&self.position_covariance_m2[..d * d]));
+        object.insert("predicted".into(), json!(self.predicted));
+        object.insert("status".into(), json!(status_name(self.status)));
+        object.insert("source".into(), json!(self.source.name()));
+        Value::Object(object).to_string()
+    }
+}
+
+/// A raw position fix of the fix-then-filter pipeline, before the filter (for evaluation).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawFix {
+    /// Time of the fix, s.
+    pub time_s: f64,
+    /// Tag id.
+    pub tag: Arc<str>,
+    /// Dimensions (2 or 3).
+    pub dimensions: usize,
+    /// Position, m (`z` = 0 in 2-D).
+    pub position_m: [f64; 3],
+    /// Covariance, `D × D` row-major in the first `D²` entries, m².
+    pub covariance_m2: [f64; 9],
+}
+
+impl RawFix {
+    /// The fix as a JSON line in the track-file shape (`t`, `tag`, `x`, `y`[, `z`], `cov`,
+    /// `predicted: false`, `source: "raw-fix"`), so `rtls eval` reads it like a track file.
+    #[must_use]
+    pub fn to_json_line(&self) -> String {
+        let d = self.dimensions;
+        let mut object = Map::new();
+        object.insert("t".into(), json!(self.time_s));
+        object.insert("tag".into(), json!(&*self.tag));
+        object.insert("x".into(), json!(self.position_m[0]));
+        object.insert("y".into(), json!(self.position_m[1]));
+        if d == 3 {
+            object.insert("z".into(), json!(self.position_m[2]));
+        }
+        object.insert("cov".into(), json!(&self.covariance_m2[..d * d]));
+        object.insert("predicted".into(), json!(false));
+        object.insert("source".into(), json!("raw-fix"));
+        Value::Object(object).to_string()
+    }
+}
+
+/// Something worth reporting besides a track update.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// Zone enter / exit / dwell.
+    Zone(ZoneEvent),
+    /// A track changed status (confirmed, coasting, lost with its last position, deleted, …).
+    Lifecycle {
+        /// Tag id.
+        tag: Arc<str>,
+        /// Time, s.
+        time_s: f64,
+        /// What happened.
+        event: LifecycleEvent,
+        /// The track's position at that moment (the last estimate when lost), m.
+        position_m: [f64; 3],
+    },
+    /// Seed 000's predictive alarm: the tag's predicted path enters a hazard zone (or an area
+    /// without a working reader) within the horizon.
+    HazardPredicted {
+        /// Tag id.
+        tag: Arc<str>,
+        /// Zone id.
+        zone: String,
+        /// Time the alarm was raised, s.
+        time_s: f64,
+        /// Predicted time until the entry probability first reaches the threshold, s.
+        time_to_entry_s: f64,
+        /// The entry probability at that time.
+        probability: f64,
+    },
+    /// A predictive alarm no longer holds (the prediction no longer enters the zone).
+    HazardCleared {
+        /// Tag id.
+        tag: Arc<str>,
+        /// Zone id.
+        zone: String,
+        /// Time, s.
+        time_s: f64,
+    },
+    /// A tag entered a zone in which no listed reader works: it is not covered there.
+    NoCoverage {
+        /// Tag id.
+        tag: Arc<str>,
+        /// Zone id.
+        zone: String,
+        /// Time, s.
+        time_s: f64,
+    },
+    /// A record arrived later than the re-ordering window allows; it was not applied.
+    Late {
+        /// Tag id.
+        tag: Arc<str>,
+        /// The record's time, s.
+        time_s: f64,
+        /// The record's kind.
+        kind: &'static str,
+        /// How far behind the newest record it was, s.
+        lateness_s: f64,
+    },
+    /// A measurement was not applied, and why (unknown or broken reader, outside the
+    /// validation gate, no radio map, an epoch that could not be solved, a failed update).
+    Rejected {
+        /// Tag id.
+        tag: Arc<str>,
+        /// The measurement's time, s.
+        time_s: f64,
+        /// The measurement's kind.
+        kind: &'static str,
+        /// Why.
+        reason: String,
+    },
+}
+
+impl Event {
+    /// The event as one JSON line with a `type` field: `zone-enter`, `zone-exit`, `zone-dwell`,
+    /// `lifecycle`, `hazard-predicted`, `hazard-cleared`, `no-coverage`, `late`, `rejected`.
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::tracker::Event;
+    /// let event = Event::NoCoverage { tag: "m7".into(), zone: "collapse".into(), time_s: 12.0 };
+    /// let value: serde_json::Value = serde_json::from_str(&event.to_json_line()).unwrap();
+    /// assert_eq!(value["type"], "no-coverage");
+    /// ```
+    #[must_use]
+    pub fn to_json_line(&self) -> String {
+        let value = match self {
+            Self::Zone(ZoneEvent::Enter { tag, zone, time_s }) => {
+                json!({"type": "zone-enter", "t": time_s, "tag": tag, "zone": zone})
+            }
+            Self::Zone(ZoneEvent::Exit { tag, zone, time_s }) => {
+                json!({"type": "zone-exit", "t": time_s, "tag": tag, "zone": zone})
+            }
+            Self::Zone(ZoneEvent::Dwell {
+                tag,
+                zone,
+                time_s,
+                dwell_s,
+            }) => json!({"type": "zone-dwell", "t": time_s, "tag": tag, "zone": zone, "dwell_s": dwell_s}),
+            Self::Lifecycle {
+                tag,
+                time_s,
+                event,
+                position_m,
+            } => json!({"type": "lifecycle", "t": time_s, "tag": &**tag, "event": lifecycle_name(*event),
+                        "x": position_m[0], "y": position_m[1], "z": position_m[2]}),
+            Self::HazardPredicted {
+                tag,
+                zone,
+                time_s,
+                time_to_entry_s,
+                probability,
+            } => json!({"type": "hazard-predicted", "t": time_s, "tag": &**tag, "zone": zone,
+                        "time_to_entry_s": time_to_entry_s, "probability": probability}),
+            Self::HazardCleared { tag, zone, time_s } => {
+                json!({"type": "hazard-cleared", "t": time_s, "tag": &**tag, "zone": zone})
+            }
+            Self::NoCoverage { tag, zone, time_s } => {
+                json!({"type": "no-coverage", "t": time_s, "tag": &**tag, "zone": zone})
+            }
+            Self::Late {
+                tag,
+                time_s,
+                kind,
+                lateness_s,
+            } => json!({"type": "late", "t": time_s, "tag": &**tag, "kind": kind, "lateness_s": lateness_s}),
+            Self::Rejected {
+                tag,
+                time_s,
+                kind,
+                reason,
+            } => json!({"type": "rejected", "t": time_s, "tag": &**tag, "kind": kind, "reason": reason}),
+        };
+        value.to_string()
+    }
+}
+
+/// What one call into the tracker produced, in time order of processing.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Output {
+    /// Track updates.
+    pub updates: Vec<TrackUpdate>,
+    /// Events.
+    pub events: Vec<Event>,
+    /// Raw fixes of the fix-then-filter pipeline (before filtering).
+    pub fixes: Vec<RawFix>,
+}
+
+impl Output {
+    /// Empties all three lists, keeping their capacity.
+    pub fn clear(&mut self) {
+        self.updates.clear();
+        self.events.clear();
+        self.fixes.clear();
+    }
+
+    /// `true` when nothing was produced.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.updates.is_empty() && self.events.is_empty() && self.fixes.is_empty()
+    }
+}
