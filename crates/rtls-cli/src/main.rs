@@ -3,7 +3,16 @@
 //! ```text
 //! rtls repro <mekf|ukf-uwb|lwknn|wsn-ekf|vdkf|all> [--runs N] [--seed S] [--out DIR] [--json]
 //!            [--scenarios DIR] [--threads N]
+//! rtls track --site SITE --input FILE [--output FILE] [--events FILE] [--fixes FILE]
+//!            [--pipeline fix-then-filter|tightly-coupled] [--filter kf|ekf|ukf] [--quiet]
+//! rtls import <DATASET_DIR> --out DIR
+//! rtls eval --truth FILE --tracks FILE [--dimensions 2|3] [--max-gap S] [--skip-initial S]
+//!           [--include-predicted] [--json]
 //! ```
+//!
+//! `track` runs a measurement file through the tracker of a site (docs/FORMATS.md), `import`
+//! converts a recorded dataset into site, measurement and ground-truth files, `eval` scores a
+//! track file against ground truth (docs/EVALUATION.md).
 //!
 //! `repro` reruns the seed papers' experiments (seeded Monte Carlo, in parallel), prints
 //! "metric | paper | ours | PCRB" per experiment, and with `--out` writes a markdown report with

@@ -18,7 +18,7 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use rtls_engine::radio_map::RadioMap;
 use rtls_engine::record::{CsvRecords, JsonLines, Record};
-use rtls_engine::site::{FilterKind, Pipeline, Site};
+use rtls_engine::site::{FilterKind, FingerprintFormat, Pipeline, Site};
 use rtls_engine::tracker::{Event, Output, Tracker};
 
 /// A pipeline named on the command line.
@@ -112,6 +112,11 @@ fn load_site(args: &TrackArgs) -> anyhow::Result<(Site, Option<RadioMap>)> {
         bail!("the tightly coupled pipeline needs --filter ekf or ukf (raw measurements are nonlinear)");
     }
     let radio_map = match &site.fingerprints {
+        Some(database) if database.format != FingerprintFormat::Csv => bail!(
+            "{site_name}: [fingerprints] format {:?}: rtls track loads radio maps in the \"csv\" format \
+             (docs/FORMATS.md; `rtls import` writes UJIIndoorLoc in it)",
+            database.format
+        ),
         Some(database) => {
             let path = args.site.parent().unwrap_or(Path::new(".")).join(&database.path);
             let name = path.display().to_string();

@@ -199,7 +199,9 @@ pub struct Floor {
 pub enum FingerprintFormat {
     /// The UJIIndoorLoc CSV layout (520 WAP columns, 100 = not heard).
     Ujiindoorloc,
-    /// CSV: `x_m,y_m,z_m` then one RSSI column per entry of `readers`, dBm.
+    /// CSV: `x_m,y_m[,floor]` then one RSSI column per reader, dBm, empty when not heard
+    /// ([`crate::radio_map::RadioMap::from_csv_str`], docs/FORMATS.md). The format `rtls track`
+    /// loads.
     Csv,
     /// JSON Lines: `{"position_m": [x, y, z], "rssi_dbm": [...]}` in `readers` order.
     JsonLines,

@@ -1,0 +1,158 @@
+//! `rtls track` as a user runs it: a site and a measurement file in, track updates, events and
+//! raw fixes out; bad input named by file, line and field; then `rtls eval` on the result.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn rtls(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_rtls"))
+        .args(args)
+        .output()
+        .expect("the rtls binary runs")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rtls-track-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+const SITE: &str = r#"
+readers = [
+  { id = "A1", position_m = [0.0, 0.0], technology = "uwb", radio = { range = { range_std_m = 0.05, bias_m = 0.0 } } },
+  { id = "A2", position_m = [20.0, 0.0], technology = "uwb", radio = { range = { range_std_m = 0.05, bias_m = 0.0 } } },
+  { id = "A3", position_m = [20.0, 20.0], technology = "uwb", radio = { range = { range_std_m = 0.05, bias_m = 0.0 } } },
+  { id = "A4", position_m = [0.0, 20.0], technology = "uwb", radio = { range = { range_std_m = 0.05, bias_m = 0.0 } } },
+]
+[[zones]]
+id = "pit"
+name = "Pit"
+kind = "hazard"
+shape = { type = "box", min_m = [15.0, -5.0, -1.0], max_m = [30.0, 25.0, 1.0] }
+
+[tracker]
+pipeline = "tightly-coupled"
+motion_model = "cv"
+filter = "ekf"
+acceleration_noise_std_mps2 = 0.3
+gate_probability = 0.999
+initiation = { confirm_updates = 3, within_s = 5.0 }
+coast_timeout_s = 5.0
+delete_timeout_s = 60.0
+reorder_window_s = 0.2
+"#;
+
+/// A walker at (2 + t, 10) m, noise-free ranges to one anchor per 0.1 s (round robin), 15 s;
+/// and the matching ground truth.
+fn inputs(dir: &std::path::Path) -> (String, String, String) {
+    let anchors = [
+        ("A1", [0.0, 0.0]),
+        ("A2", [20.0, 0.0]),
+        ("A3", [20.0, 20.0]),
+        ("A4", [0.0, 20.0]),
+    ];
+    let mut records = String::new();
+    let mut truth = String::from("t,tag,x,y,z\n");
+    for k in 0..150 {
+        let t = k as f64 * 0.1;
+        let p = [2.0 + t, 10.0];
+        let (id, a) = anchors[k % 4];
+        let range = ((p[0] - a[0]).powi(2) + (p[1] - a[1]).powi(2)).sqrt();
+        records.push_str(&format!(
+            "{{\"t\": {t}, \"tag\": \"w\", \"kind\": \"range\", \"anchor\": \"{id}\", \"range_m\": {range}}}\n"
+        ));
+        truth.push_str(&format!("{t},w,{},{},\n", p[0], p[1]));
+    }
+    let site = dir.join("site.toml");
+    let input = dir.join("in.jsonl");
+    let truth_path = dir.join("truth.csv");
+    std::fs::write(&site, SITE).unwrap();
+    std::fs::write(&input, records).unwrap();
+    std::fs::write(&truth_path, truth).unwrap();
+    (
+        site.display().to_string(),
+        input.display().to_string(),
+        truth_path.display().to_string(),
+    )
+}
+
+#[test]
+fn track_writes_updates_and_events_that_eval_scores() {
+    let dir = temp_dir("ok");
+    let (site, input, truth) = inputs(&dir);
+    let tracks = dir.join("tracks.jsonl").display().to_string();
+    let events = dir.join("events.jsonl").display().to_string();
+    let output = rtls(&[
+        "track", "--site", &site, "--input", &input, "--output", &tracks, "--events", &events, "--quiet",
+    ]);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let summary = String::from_utf8_lossy(&output.stderr);
+    assert!(summary.starts_with("150 records,"), "{summary}");
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&tracks)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    // the track starts after 3 anchors (t = 0.2 s), then one update per range
+    assert!(lines.len() >= 147, "{}", lines.len());
+    let last = lines.last().unwrap();
+    assert!((last["x"].as_f64().unwrap() - 16.9).abs() < 0.05, "{last}");
+    assert_eq!(last["cov"].as_array().unwrap().len(), 4);
+    assert_eq!(last["status"], "confirmed");
+    // the walker heads for the pit (x ≥ 15 at t = 13 s): alarmed ahead of the entry
+    let events: Vec<serde_json::Value> = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let alarm = events
+        .iter()
+        .find(|e| e["type"] == "hazard-predicted")
+        .expect("an alarm");
+    let entry = events.iter().find(|e| e["type"] == "zone-enter").expect("an entry");
+    assert!(
+        entry["t"].as_f64().unwrap() - alarm["t"].as_f64().unwrap() > 8.0,
+        "{alarm} {entry}"
+    );
+    // and rtls eval scores it against the truth
+    let scored = rtls(&[
+        "eval",
+        "--truth",
+        &truth,
+        "--tracks",
+        &tracks,
+        "--skip-initial",
+        "2",
+        "--json",
+    ]);
+    assert!(scored.status.success(), "{}", String::from_utf8_lossy(&scored.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&scored.stdout).unwrap();
+    assert!(report["overall"]["rmse_m"].as_f64().unwrap() < 0.02, "{report}");
+}
+
+#[test]
+fn track_errors_name_the_file_line_and_field() {
+    let dir = temp_dir("bad");
+    let (site, input, _) = inputs(&dir);
+    // an anchor the site does not have, on line 4
+    let text = std::fs::read_to_string(&input).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    lines[3] = lines[3].replace("\"A4\"", "\"A9\"");
+    std::fs::write(&input, lines.join("\n")).unwrap();
+    let output = rtls(&["track", "--site", &site, "--input", &input, "--quiet"]);
+    assert!(!output.status.success());
+    let error = String::from_utf8_lossy(&output.stderr);
+    assert!(error.contains(&format!("{input}:4: field `anchor`")), "{error}");
+    // a malformed value
+    lines[3] = lines[3]
+        .replace("\"A9\"", "\"A4\"")
+        .replace("\"range_m\": ", "\"range_m\": -");
+    std::fs::write(&input, lines.join("\n")).unwrap();
+    let error =
+        String::from_utf8_lossy(&rtls(&["track", "--site", &site, "--input", &input, "--quiet"]).stderr).to_string();
+    assert!(error.contains(&format!("{input}:4: field `range_m`")), "{error}");
+    // a tightly coupled KF is refused
+    let output = rtls(&["track", "--site", &site, "--input", &input, "--filter", "kf", "--quiet"]);
+    assert!(String::from_utf8_lossy(&output.stderr).contains("needs --filter ekf or ukf"));
+}

@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# Reproduces the tables of docs/EVALUATION.md: imports the recorded datasets of ../shared/data,
+# tracks them with `rtls track` in each configuration and scores the tracks with `rtls eval`.
+#
+#   scripts/evaluate.sh [OUT_DIR]      (default: target/evaluation)
+#
+# Prints one line per configuration: dataset, run, configuration, samples, RMSE, mean, median, p95 (m).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+OUT=${1:-target/evaluation}
+DATA=${RTLS_DATA_DIR:-../shared/data}
+cargo build --release -q -p rtls-cli
+RTLS=target/release/rtls
+mkdir -p "$OUT"
+
+import() { [ -d "$OUT/$2" ] || "$RTLS" import "$DATA/$1" --out "$OUT/$2" > "$OUT/$2.import.txt"; }
+import uwb_lias_cuhksz_planar_rbl lias
+import ble_rssi_tracking_danis_tetam ble
+import uwb_odometry_labyrinth_tuc labyrinth
+import ujiindoorloc uji
+
+# score DATASET RUN CONFIG TRUTH TRACKS [eval flags…]
+score() {
+  local dataset=$1 run=$2 config=$3 truth=$4 tracks=$5; shift 5
+  "$RTLS" eval --truth "$truth" --tracks "$tracks" --json "$@" | python3 -c '
+import json, sys
+o = json.load(sys.stdin)["overall"]
+row = sys.argv[1:4] + [o[k] for k in ("count", "rmse_m", "mean_m", "median_m", "p95_m")]
+print("%-10s %-32s %-44s %7d %7.3f %7.3f %7.3f %7.3f" % tuple(row))' "$dataset" "$run" "$config"
+}
+
+# track RUN_DIR NAME INPUT [track flags…] → $RUN_DIR/NAME.tracks.jsonl, NAME.fixes.jsonl, NAME.events.jsonl
+track() {
+  local dir=$1 name=$2 input=$3; shift 3
+  "$RTLS" track --site "$dir/site.toml" --input "$dir/$input" --output "$dir/$name.tracks.jsonl" \
+    --events "$dir/$name.events.jsonl" --fixes "$dir/$name.fixes.jsonl" --quiet "$@" 2> "$dir/$name.summary.txt"
+}
+
+printf '%-10s %-32s %-44s %7s %7s %7s %7s %7s\n' dataset run configuration samples RMSE mean median p95
+# UWB two-way ranging with motion capture: 3 tags on a trolley, 8 anchors (first 1 s skipped)
+for run in fast mid; do
+  d=$OUT/lias/$run
+  track "$d" tc-ekf measurements.jsonl --pipeline tightly-coupled --filter ekf
+  track "$d" tc-ukf measurements.jsonl --pipeline tightly-coupled --filter ukf
+  track "$d" ftf measurements.jsonl --pipeline fix-then-filter --filter kf
+  track "$d" raw-tc-ekf measurements-raw.jsonl --pipeline tightly-coupled --filter ekf
+  track "$d" raw-ftf measurements-raw.jsonl --pipeline fix-then-filter --filter kf
+  score uwb-lias "$run" "tightly coupled EKF, calibrated" "$d/truth.csv" "$d/tc-ekf.tracks.jsonl" --skip-initial 1
+  score uwb-lias "$run" "tightly coupled UKF, calibrated" "$d/truth.csv" "$d/tc-ukf.tracks.jsonl" --skip-initial 1
+  score uwb-lias "$run" "fix-then-filter KF, calibrated" "$d/truth.csv" "$d/ftf.tracks.jsonl" --skip-initial 1
+  score uwb-lias "$run" "raw fixes (Gauss-Newton), calibrated" "$d/truth.csv" "$d/ftf.fixes.jsonl" --skip-initial 1
+  score uwb-lias "$run" "tightly coupled EKF, raw ranges" "$d/truth.csv" "$d/raw-tc-ekf.tracks.jsonl" --skip-initial 1
+  score uwb-lias "$run" "fix-then-filter KF, raw ranges" "$d/truth.csv" "$d/raw-ftf.tracks.jsonl" --skip-initial 1
+  score uwb-lias "$run" "raw fixes, raw ranges" "$d/truth.csv" "$d/raw-ftf.fixes.jsonl" --skip-initial 1
+done
+
+# BLE RSSI, one beacon, 12 sensors; path loss and radio map fitted on the other 8 tracks
+for d in "$OUT"/ble/*/; do
+  d=${d%/}; run=$(basename "$d")
+  track "$d" pl-tc measurements.jsonl --pipeline tightly-coupled --filter ekf
+  track "$d" pl-ftf measurements.jsonl --pipeline fix-then-filter --filter kf
+  track "$d" fp-ftf measurements-vectors.jsonl --pipeline fix-then-filter --filter kf
+  score ble "$run" "path loss, tightly coupled EKF" "$d/truth.csv" "$d/pl-tc.tracks.jsonl" --skip-initial 2 --max-gap 1
+  score ble "$run" "path loss, fix-then-filter KF (1 s epochs)" "$d/truth.csv" "$d/pl-ftf.tracks.jsonl" --skip-initial 2 --max-gap 1
+  score ble "$run" "path loss, raw fixes" "$d/truth.csv" "$d/pl-ftf.fixes.jsonl" --skip-initial 2 --max-gap 1
+  score ble "$run" "fingerprint WKNN, fix-then-filter KF" "$d/truth.csv" "$d/fp-ftf.tracks.jsonl" --skip-initial 2 --max-gap 1
+  score ble "$run" "fingerprint WKNN, raw fixes" "$d/truth.csv" "$d/fp-ftf.fixes.jsonl" --skip-initial 2 --max-gap 1
+done
+
+# UWB + wheel odometry, labyrinth robot (4 anchors, one range per step)
+d=$OUT/labyrinth/labyrinth
+track "$d" uwb-odo measurements.jsonl --pipeline tightly-coupled --filter ekf
+track "$d" uwb measurements-uwb-only.jsonl --pipeline tightly-coupled --filter ekf
+score labyrinth labyrinth "UWB + odometry, tightly coupled EKF" "$d/truth.csv" "$d/uwb-odo.tracks.jsonl" --skip-initial 1
+score labyrinth labyrinth "UWB only, tightly coupled EKF" "$d/truth.csv" "$d/uwb.tracks.jsonl" --skip-initial 1
+
+# UJIIndoorLoc validation scans located in the training radio map
+d=$OUT/uji/validation
+track "$d" fp measurements.jsonl
+score uji validation "fingerprint WKNN, fix-then-filter KF" "$d/truth.csv" "$d/fp.tracks.jsonl" --max-gap 0
+score uji validation "fingerprint WKNN, raw fixes" "$d/truth.csv" "$d/fp.fixes.jsonl" --max-gap 0
