@@ -39,7 +39,7 @@ use std::path::Path;
 
 use rtls_engine::record::{Measurement, Record};
 
-use super::uwb_lias::util::{bracket, content_error, median, parse_error, parse_finite, read_text, weight};
+use super::util::{bracket, content_error, median, parse_error, parse_finite, read_text, weight};
 use super::{create_dir, write_records, write_text, write_truth, ImportedRun, TruthRow};
 use crate::Result;
 

@@ -13,7 +13,10 @@
 mod ble_tetam;
 mod labyrinth;
 mod tdoa_util;
+#[cfg(test)]
+mod test_support;
 mod ujiindoorloc;
+mod util;
 mod uwb_lias;
 
 use std::io::Write;

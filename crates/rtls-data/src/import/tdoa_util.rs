@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 
 use rtls_engine::record::{Measurement, Record};
 
-use super::uwb_lias::util::{content_error, mean_std, median, parse_error, parse_finite, read_text};
+use super::util::{content_error, mean_std, median, parse_error, parse_finite, read_text};
 use super::{create_dir, write_records, write_text, write_truth, ImportedRun, TruthRow};
 use crate::Result;
 

@@ -24,7 +24,6 @@
 mod calibration;
 mod parse;
 mod site;
-pub(super) mod util;
 
 #[cfg(test)]
 mod tests;
@@ -35,7 +34,7 @@ use rtls_engine::record::{Measurement, Record};
 
 use self::calibration::{Calibration, StaticRun};
 use self::parse::{pair_anchor, pair_tag, read_mocap, read_static_poses, read_uwb, MocapRow, UwbRow};
-use self::util::{bracket, content_error, mean_std, median, pearson, read_text, weight};
+use super::util::{bracket, content_error, mean_std, median, pearson, read_text, weight};
 use super::{create_dir, write_records, write_text, write_truth, ImportedRun, TruthRow};
 use crate::Result;
 
@@ -304,7 +303,7 @@ fn compare_reference(dataset_dir: &Path, calibration: &Calibration) -> Result<St
     let mut theirs = Vec::new();
     for (index, line) in text.lines().enumerate() {
         if !line.trim().is_empty() {
-            theirs.push(util::parse_finite(&path, index as u64 + 1, "bias", line)?);
+            theirs.push(super::util::parse_finite(&path, index as u64 + 1, "bias", line)?);
         }
     }
     if theirs.len() != PAIRS {
@@ -342,11 +341,6 @@ fn read_static_runs(dataset_dir: &Path) -> Result<Vec<StaticRun>> {
     Ok(runs)
 }
 
-/// How many rows before row `k` share its time stamp (1 for the second row of a pair).
-fn repeats_at(times_s: &[f64], k: usize) -> usize {
-    times_s[..k].iter().rev().take_while(|&&t| t == times_s[k]).count()
-}
-
 /// What every run of the dataset shares.
 struct Shared<'a> {
     dataset_dir: &'a Path,
@@ -379,34 +373,40 @@ fn import_dynamic(shared: &Shared<'_>, name: &str) -> Result<ImportedRun> {
     let duplicates = mocap_times.windows(2).filter(|w| w[1] == w[0]).count();
     if let Some(k) = mocap_times.windows(2).position(|w| w[1] < w[0]) {
         let line = mocap[k + 1].line;
-        return Err(util::parse_error(
+        return Err(super::util::parse_error(
             &mocap_path,
             line,
             "time",
             "time stamp earlier than the previous row",
         ));
     }
-    let mut truth: Vec<super::TruthRow> = Vec::with_capacity(mocap.len() * TAGS.len());
+    let mut truth: Vec<TruthRow> = Vec::with_capacity(mocap.len() * TAGS.len());
     // rows repeating a time stamp (the millisecond clock) are averaged into one sample per tag,
     // so that the truth is a function of time
-    let mut repeats = 0usize;
-    for (k, (row, &t)) in mocap.iter().zip(&mocap_times).enumerate() {
-        if k > 0 && mocap_times[k - 1] == t {
-            repeats += 1;
-            let mut extra = Vec::with_capacity(TAGS.len());
-            push_truth(&mut extra, t, row.centroid_m, row.yaw_rad());
-            let start = truth.len() - TAGS.len();
-            for (previous, new) in truth[start..].iter_mut().zip(extra) {
-                for (p, n) in previous.position_m.iter_mut().zip(&new.position_m) {
-                    // running mean over the rows of this time stamp
-                    *p += (n - *p) / (repeats_at(&mocap_times, k) as f64 + 1.0);
+    let mut start = 0;
+    while start < mocap.len() {
+        let t = mocap_times[start];
+        let end = start + mocap_times[start..].iter().take_while(|&&u| u == t).count();
+        let mut group = Vec::with_capacity((end - start) * TAGS.len());
+        for row in &mocap[start..end] {
+            push_truth(&mut group, t, row.centroid_m, row.yaw_rad());
+        }
+        // mean of each tag's positions over the group's rows
+        let rows = (end - start) as f64;
+        for (tag, sample) in group.iter().take(TAGS.len()).enumerate() {
+            let mut mean = vec![0.0; sample.position_m.len()];
+            for row in group.iter().skip(tag).step_by(TAGS.len()) {
+                for (m, p) in mean.iter_mut().zip(&row.position_m) {
+                    *m += p / rows;
                 }
             }
-        } else {
-            push_truth(&mut truth, t, row.centroid_m, row.yaw_rad());
+            truth.push(TruthRow {
+                position_m: mean,
+                ..sample.clone()
+            });
         }
+        start = end;
     }
-    debug_assert_eq!(repeats, duplicates);
     let records = build_records(&rows, &times_s, shared.calibration);
     let track = Track {
         times_s: mocap_times,

@@ -55,6 +55,8 @@ pub(crate) enum AnchorReading {
     Rssi {
         anchor: usize,
         rssi_dbm: f64,
+        /// The reader's law `[ρ₀ dBm, d₀ m, n, σ_X dB]`.
+        law: [f64; 4],
         variance_db2: f64,
     },
     /// `‖p − anchor‖ − ‖p − reference‖` (m), variance m².
@@ -151,6 +153,7 @@ impl Anchors {
                 Ok(Some(AnchorReading::Rssi {
                     anchor: index,
                     rssi_dbm: *rssi_dbm,
+                    law,
                     variance_db2: floor_variance(law[3] * law[3]),
                 }))
             }

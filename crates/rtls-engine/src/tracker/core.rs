@@ -358,13 +358,7 @@ fn anchor_reading<const N: usize>(
     if coupled {
         // (re-)initialising: a lost track's prior is too stale to linearise about, so like a
         // new one it waits for a fix; keep the readings of the confirmation window and try
-        let window_s = shared.settings.initiation.within_s;
-        let expired = track.epoch.iter().filter(|(t, _)| time_s - t > window_s).count();
-        if expired > 0 {
-            let reason = format!("{expired} reading(s) expired before enough anchors could initialise the track");
-            out.events.push(rejected(&track.tag, time_s, kind, reason));
-            track.epoch.drain(..expired);
-        }
+        expire_initial_readings(shared, track, time_s, kind, out);
         track.epoch.push((time_s, reading));
         let readings: Vec<AnchorReading> = track.epoch.iter().map(|(_, r)| *r).collect();
         if let Ok(fixes) = solve::<N>(shared, &readings, None) {
@@ -425,16 +419,29 @@ fn close_due_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>, now_s:
     {
         close_epoch(shared, track, out)?;
     }
-    if shared.settings.pipeline == Pipeline::TightlyCoupled && track.state.is_none() && !track.epoch.is_empty() {
-        let window_s = shared.settings.initiation.within_s;
-        let expired = track.epoch.iter().filter(|(t, _)| now_s - t > window_s).count();
-        if expired > 0 {
-            let reason = format!("{expired} reading(s) expired before enough anchors could initialise the track");
-            out.events.push(rejected(&track.tag, now_s, "epoch", reason));
-            track.epoch.drain(..expired);
-        }
+    if shared.settings.pipeline == Pipeline::TightlyCoupled {
+        expire_initial_readings(shared, track, now_s, "epoch", out);
     }
     Ok(())
+}
+
+/// Tightly coupled, a track (re)initialising: readings older than the confirmation window are
+/// dropped from its buffer and reported.
+fn expire_initial_readings<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    now_s: f64,
+    kind: &'static str,
+    out: &mut Output,
+) {
+    let window_s = shared.settings.initiation.within_s;
+    // the buffer is in time order
+    let expired = track.epoch.iter().take_while(|(t, _)| now_s - t > window_s).count();
+    if expired > 0 {
+        let reason = format!("{expired} reading(s) expired before enough anchors could initialise the track");
+        out.events.push(rejected(&track.tag, now_s, kind, reason));
+        track.epoch.drain(..expired);
+    }
 }
 
 /// Solves the epoch into fixes and applies them at the epoch's last time.
@@ -444,7 +451,9 @@ fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>, out: &mut 
         return Ok(());
     };
     let readings: Vec<AnchorReading> = epoch.iter().map(|(_, r)| *r).collect();
-    match solve::<N>(shared, &readings, track.state.as_ref()) {
+    // a lost track's state is too stale to start the solver from
+    let guess = track.state.as_ref().filter(|_| !track.is_lost());
+    match solve::<N>(shared, &readings, guess) {
         Ok(fixes) => {
             for (position, covariance) in fixes {
                 out.fixes.push(raw_fix(&track.tag, time_s, &position, &covariance));
@@ -538,69 +547,104 @@ fn fix_update<const N: usize>(
     out: &mut Output,
 ) -> Result<()> {
     let k = position.len();
-    let state = match track.state.as_ref() {
-        Some(state) if !track.is_lost() => state,
-        _ => {
-            // a new track, or a lost one whose prior is stale: x₀ = [p, 0], P₀ = diag(Σ_fix, σ_v² I)
-            let mut mean = Vector::<N>::zeros();
-            let mut p0 = Matrix::<N>::zeros();
-            let speed_variance = shared.settings.initial_speed_std_mps.powi(2);
-            for i in 0..dimensions::<N>() {
-                p0[(2 * i + 1, 2 * i + 1)] = speed_variance;
-                if i < k {
-                    mean[2 * i] = position[i];
-                    for j in 0..k {
-                        p0[(2 * i, 2 * j)] = covariance[i * k + j];
-                    }
-                } else {
-                    // an axis the fix does not give (a 2-D fingerprint fix in a 3-D track)
-                    mean[2 * i] = shared.tag_height_m;
-                    p0[(2 * i, 2 * i)] = 100.0;
-                }
-            }
-            match Gaussian::new(mean, p0, time_s) {
-                Ok(state) => {
-                    let position_m = position_of(&state, shared.tag_height_m).0;
-                    track.state = Some(state);
-                    track.lost_state = None;
-                    track.unreported = Some(UpdateSource::Fix);
-                    match track.lifecycle.as_mut() {
-                        // a lost track recovers
-                        Some(lifecycle) => {
-                            if let Some(event) = lifecycle.update(time_s)? {
-                                out.events.push(Event::Lifecycle {
-                                    tag: Arc::clone(&track.tag),
-                                    time_s,
-                                    event,
-                                    position_m,
-                                });
-                            }
-                        }
-                        None => track.lifecycle = Some(Lifecycle::start(shared.lifecycle, time_s)?),
-                    }
-                }
-                Err(error) => {
-                    let reason = format!("cannot start a track from this fix: {error}");
-                    out.events.push(rejected(&track.tag, time_s, kind, reason));
-                }
-            }
-            return Ok(());
-        }
+    let Some(state) = track.state.as_ref().filter(|_| !track.is_lost()) else {
+        // a new track, or a lost one whose prior is too stale to update
+        return start_from_fix(shared, track, time_s, position, covariance, kind, out);
     };
     let indices: Vec<usize> = (0..k).map(|i| 2 * i).collect();
     let prior = predict(shared, track, state, time_s)?;
-    let result = NoiseCovariance::full(DMatrix::from_row_slice(k, k, covariance))
-        .and_then(|noise| ComponentSelection::<N>::new(&indices, noise))
-        .and_then(|model| shared.kf.update(&prior, &model, &DVector::from_column_slice(position)));
-    match result {
-        Ok(updated) => accept(shared, track, updated, kind, UpdateSource::Fix, out),
+    component_update(
+        shared,
+        track,
+        prior,
+        &indices,
+        position,
+        covariance,
+        kind,
+        UpdateSource::Fix,
+        out,
+    )
+}
+
+/// (Re)starts a track at a fix: `x₀ = [p, 0]`, `P₀ = diag(Σ_fix, σ_v² I)`; a lost track
+/// recovers, a new one starts its lifecycle.
+fn start_from_fix<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let k = position.len();
+    let mut mean = Vector::<N>::zeros();
+    let mut p0 = Matrix::<N>::zeros();
+    let speed_variance = shared.settings.initial_speed_std_mps.powi(2);
+    for i in 0..dimensions::<N>() {
+        p0[(2 * i + 1, 2 * i + 1)] = speed_variance;
+        if i < k {
+            mean[2 * i] = position[i];
+            for j in 0..k {
+                p0[(2 * i, 2 * j)] = covariance[i * k + j];
+            }
+        } else {
+            // an axis the fix does not give (a 2-D fingerprint fix in a 3-D track)
+            mean[2 * i] = shared.tag_height_m;
+            p0[(2 * i, 2 * i)] = 100.0;
+        }
+    }
+    let state = match Gaussian::new(mean, p0, time_s) {
+        Ok(state) => state,
         Err(error) => {
-            out.events.push(rejected(
-                &track.tag,
-                time_s,
-                kind,
-                format!("fix update failed: {error}"),
-            ));
+            let reason = format!("cannot start a track from this fix: {error}");
+            out.events.push(rejected(&track.tag, time_s, kind, reason));
+            return Ok(());
+        }
+    };
+    let position_m = position_of(&state, shared.tag_height_m).0;
+    track.state = Some(state);
+    track.lost_state = None;
+    track.unreported = Some(UpdateSource::Fix);
+    match track.lifecycle.as_mut() {
+        None => track.lifecycle = Some(Lifecycle::start(shared.lifecycle, time_s)?),
+        Some(lifecycle) => {
+            if let Some(event) = lifecycle.update(time_s)? {
+                out.events.push(Event::Lifecycle {
+                    tag: Arc::clone(&track.tag),
+                    time_s,
+                    event,
+                    position_m,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A linear update of state components `indices` with `value` and its row-major covariance;
+/// a failed update is reported, not applied.
+#[allow(clippy::too_many_arguments)]
+fn component_update<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    prior: Gaussian<N>,
+    indices: &[usize],
+    value: &[f64],
+    covariance: &[f64],
+    kind: &'static str,
+    source: UpdateSource,
+    out: &mut Output,
+) -> Result<()> {
+    let k = indices.len();
+    let result = NoiseCovariance::full(DMatrix::from_row_slice(k, k, covariance))
+        .and_then(|noise| ComponentSelection::<N>::new(indices, noise))
+        .and_then(|model| shared.kf.update(&prior, &model, &DVector::from_column_slice(value)));
+    match result {
+        Ok(updated) => accept(shared, track, updated, kind, source, out),
+        Err(error) => {
+            let reason = format!("{} update failed: {error}", source.name());
+            out.events.push(rejected(&track.tag, prior.time_s(), kind, reason));
             Ok(())
         }
     }
@@ -622,24 +666,19 @@ fn velocity_update<const N: usize>(
         out.events.push(rejected(&track.tag, time_s, kind, reason));
         return Ok(());
     };
-    let k = velocity.len();
-    let indices: Vec<usize> = (0..k).map(|i| 2 * i + 1).collect();
+    let indices: Vec<usize> = (0..velocity.len()).map(|i| 2 * i + 1).collect();
     let prior = predict(shared, track, state, time_s)?;
-    let result = NoiseCovariance::full(DMatrix::from_row_slice(k, k, covariance))
-        .and_then(|noise| ComponentSelection::<N>::new(&indices, noise))
-        .and_then(|model| shared.kf.update(&prior, &model, &DVector::from_column_slice(velocity)));
-    match result {
-        Ok(updated) => accept(shared, track, updated, kind, UpdateSource::Velocity, out),
-        Err(error) => {
-            out.events.push(rejected(
-                &track.tag,
-                time_s,
-                kind,
-                format!("velocity update failed: {error}"),
-            ));
-            Ok(())
-        }
-    }
+    component_update(
+        shared,
+        track,
+        prior,
+        &indices,
+        velocity,
+        covariance,
+        kind,
+        UpdateSource::Velocity,
+        out,
+    )
 }
 
 /// Tightly coupled: one range / RSSI / TDOA straight into the EKF or UKF (seed 003's
@@ -672,17 +711,21 @@ fn coupled_update<const N: usize>(
         AnchorReading::Rssi {
             anchor,
             rssi_dbm,
+            law: [p0, d0, n, _],
             variance_db2,
         } => {
-            let a = shared.anchors.get(anchor);
-            let [p0, d0, n, _] = a.path_loss.unwrap_or([0.0, 1.0, 2.0, 1.0]);
             let law = AnchorLaw::LogDistance {
                 reference_power_dbm: p0,
                 reference_distance_m: d0,
                 exponent: n,
             };
             (
-                AnchorMeasurement::new(a.position_m, shared.tag_height_m, law, variance_db2),
+                AnchorMeasurement::new(
+                    shared.anchors.get(anchor).position_m,
+                    shared.tag_height_m,
+                    law,
+                    variance_db2,
+                ),
                 rssi_dbm,
             )
         }

@@ -83,11 +83,10 @@ fn range_fix<const D: usize>(
                 range_m,
                 variance_m2,
             } => (anchor, range_m, variance_m2),
-            AnchorReading::Rssi { anchor, rssi_dbm, .. } => {
-                let [p0, d0, n, sigma_db] = anchors
-                    .get(anchor)
-                    .path_loss
-                    .ok_or_else(|| format!("reader `{}` has no path-loss law", anchors.get(anchor).id))?;
+            AnchorReading::Rssi {
+                anchor, rssi_dbm, law, ..
+            } => {
+                let [p0, d0, n, sigma_db] = law;
                 let law = LogDistance::new(p0, n, d0, sigma_db).map_err(|e| e.to_string())?;
                 // d = μ⁻¹(ρ), σ_d = σ_X / |dμ/dd|
                 let d = law

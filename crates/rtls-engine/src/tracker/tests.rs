@@ -13,29 +13,19 @@ use crate::zones::ZoneEvent;
 /// Four UWB anchors on a 20 m × 20 m square at 2.5 m height, plus a broken one, a hazard box at
 /// x ≥ 30 and an area without a working reader around the broken one.
 fn site_text(pipeline: &str, filter: &str, extra_tracker: &str) -> String {
+    let radio = "radio = { range = { range_std_m = 0.1, bias_m = 0.2 }, path_loss = { reference_power_dbm = -40.0, \
+                 exponent = 2.5, shadowing_std_db = 2.0, reference_distance_m = 1.0 } }";
+    let readers: String = ANCHORS
+        .iter()
+        .map(|(id, [x, y, z])| {
+            format!(
+                "[[readers]]\nid = \"{id}\"\nposition_m = [{x:.1}, {y:.1}, {z:.1}]\ntechnology = \"uwb\"\n{radio}\n"
+            )
+        })
+        .collect();
     format!(
         r#"
-[[readers]]
-id = "A1"
-position_m = [0.0, 0.0, 2.5]
-technology = "uwb"
-radio = {{ range = {{ range_std_m = 0.1, bias_m = 0.2 }}, path_loss = {{ reference_power_dbm = -40.0, exponent = 2.5, shadowing_std_db = 2.0, reference_distance_m = 1.0 }} }}
-[[readers]]
-id = "A2"
-position_m = [20.0, 0.0, 2.5]
-technology = "uwb"
-radio = {{ range = {{ range_std_m = 0.1, bias_m = 0.2 }}, path_loss = {{ reference_power_dbm = -40.0, exponent = 2.5, shadowing_std_db = 2.0, reference_distance_m = 1.0 }} }}
-[[readers]]
-id = "A3"
-position_m = [20.0, 20.0, 2.5]
-technology = "uwb"
-radio = {{ range = {{ range_std_m = 0.1, bias_m = 0.2 }}, path_loss = {{ reference_power_dbm = -40.0, exponent = 2.5, shadowing_std_db = 2.0, reference_distance_m = 1.0 }} }}
-[[readers]]
-id = "A4"
-position_m = [0.0, 20.0, 2.5]
-technology = "uwb"
-radio = {{ range = {{ range_std_m = 0.1, bias_m = 0.2 }}, path_loss = {{ reference_power_dbm = -40.0, exponent = 2.5, shadowing_std_db = 2.0, reference_distance_m = 1.0 }} }}
-[[readers]]
+{readers}[[readers]]
 id = "X"
 position_m = [45.0, 10.0, 2.5]
 technology = "uwb"

@@ -296,11 +296,20 @@ impl ZoneMonitor {
                 reason: "coordinates must be finite",
             });
         }
-        let n_zones = self.zones.len();
-        let state = self.tags.entry(tag.to_string()).or_insert_with(|| TagState {
-            last_time_s: time_s,
-            zones: vec![Membership::default(); n_zones],
-        });
+        if self.zones.is_empty() {
+            return Ok(Vec::new());
+        }
+        // look up before inserting: no key allocation for a known tag (the per-update path)
+        if !self.tags.contains_key(tag) {
+            let state = TagState {
+                last_time_s: time_s,
+                zones: vec![Membership::default(); self.zones.len()],
+            };
+            self.tags.insert(tag.to_string(), state);
+        }
+        let Some(state) = self.tags.get_mut(tag) else {
+            return Ok(Vec::new());
+        };
         if time_s < state.last_time_s {
             return Err(EngineError::InvalidParameter {
                 name: "time_s",

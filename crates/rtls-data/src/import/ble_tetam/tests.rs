@@ -2,12 +2,13 @@ use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
 use rtls_engine::radio_map::{radio_map_csv, RadioMap};
-use rtls_engine::record::{parse_json_line, Measurement, Record};
+use rtls_engine::record::Measurement;
 use rtls_engine::site::Site;
 
 use super::model::{self, CELL_M, MIN_CELL_SAMPLES};
 use super::tracks::{parse_sensors, parse_track, Sample, Sensor, Track};
 use super::*;
+use crate::import::test_support::{read_records, TempDir};
 
 const DEV: &str = r#"Dongles:{"aa01": [[1.0, 2.0, 3.0], 16711680, "sensor2"], "aa02": [[4.5, -1, 2.30], 65280, "sensor1"] }
 Beacons:{"bb": [[], 1328790, "beacon1"] }
@@ -15,13 +16,6 @@ Beacons:{"bb": [[], 1328790, "beacon1"] }
 
 fn sensors() -> Vec<Sensor> {
     parse_sensors(DEV, Path::new("tetam.dev")).unwrap()
-}
-
-/// A scratch directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rtls-import-ble-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
 }
 
 #[test]
@@ -185,18 +179,6 @@ fn raw_counts(file: &Path) -> (usize, usize) {
     (valid.len(), stamps.len())
 }
 
-fn read_records(path: &Path) -> Vec<Record> {
-    let text = std::fs::read_to_string(path).unwrap();
-    text.lines()
-        .enumerate()
-        .map(|(k, line)| {
-            let record = parse_json_line(line, "measurements.jsonl", k + 1).unwrap();
-            record.validate("measurements.jsonl", k + 1).unwrap();
-            record
-        })
-        .collect()
-}
-
 #[test]
 fn real_dataset_imports_every_track_with_leave_one_track_out_calibration() {
     let dataset = crate::data_dir().join("ble_rssi_tracking_danis_tetam");
@@ -204,8 +186,9 @@ fn real_dataset_imports_every_track_with_leave_one_track_out_calibration() {
         println!("skipped: {} not found", dataset.display());
         return;
     }
-    let out = scratch("real");
-    let runs = import(&dataset, &out).unwrap();
+    let temp = TempDir::new("ble", "real");
+    let out = &temp.0;
+    let runs = import(&dataset, out).unwrap();
     let names: Vec<&str> = runs.iter().map(|r| r.name.as_str()).collect();
     assert_eq!(names.len(), 9);
     assert!(names.contains(&"straight_05") && names.contains(&"zigzagging_with_rotation"));
@@ -315,7 +298,4 @@ fn real_dataset_imports_every_track_with_leave_one_track_out_calibration() {
     // a numpy prototype of the same leave-one-out map gave 1.9 m (k = 3, powed/Sørensen);
     // the room is 18 m × 18 m, so 3 m is far from a trivial "room centre" answer (~5 m)
     assert!(mean_m < 3.0, "{mean_m}");
-    if std::env::var_os("RTLS_KEEP_IMPORT").is_none() {
-        let _ = std::fs::remove_dir_all(&out);
-    }
 }

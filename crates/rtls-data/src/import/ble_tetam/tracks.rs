@@ -96,10 +96,7 @@ pub(super) fn track_names(dataset_dir: &Path) -> Result<Vec<String>> {
 /// [`DataError::Io`]; [`DataError::Parse`] naming the line and the entry (`Dongles.<mac>`) of
 /// a malformed entry, a missing `Dongles:` line, repeated MACs or aliases.
 pub(super) fn read_sensors(path: &Path) -> Result<Vec<Sensor>> {
-    let text = std::fs::read_to_string(path).map_err(|source| DataError::Io {
-        file: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::import::util::read_text(path)?;
     parse_sensors(&text, path)
 }
 
@@ -180,10 +177,7 @@ pub(super) fn parse_sensors(text: &str, path: &Path) -> Result<Vec<Sensor>> {
 /// [`DataError::Content`] for a file without valid rows.
 pub(super) fn read_track(dataset_dir: &Path, name: &str, sensors: &[Sensor]) -> Result<Track> {
     let file = dataset_dir.join("trk").join(format!("{name}_all_sensors.mbd"));
-    let text = std::fs::read_to_string(&file).map_err(|source| DataError::Io {
-        file: file.clone(),
-        source,
-    })?;
+    let text = crate::import::util::read_text(&file)?;
     parse_track(&text, name, &file, sensors)
 }
 

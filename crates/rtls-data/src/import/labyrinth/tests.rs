@@ -3,51 +3,14 @@
 
 use std::path::{Path, PathBuf};
 
-use rtls_engine::record::{parse_json_line, Measurement, Record};
+use rtls_engine::record::Measurement;
 use rtls_engine::site::Site;
 
 use super::*;
+use crate::import::test_support::{dataset as dataset_in, read_records, TempDir};
 
 fn dataset() -> Option<PathBuf> {
-    let dir = crate::data_dir().join("uwb_odometry_labyrinth_tuc");
-    if dir.exists() {
-        Some(dir)
-    } else {
-        eprintln!("skipped: {} not found", dir.display());
-        None
-    }
-}
-
-/// A temporary directory removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("rtls-data-labyrinth-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn read_records(path: &Path) -> Vec<Record> {
-    let name = path.display().to_string();
-    std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .enumerate()
-        .map(|(i, line)| {
-            let record = parse_json_line(line, &name, i + 1).unwrap();
-            record.validate(&name, i + 1).unwrap();
-            record
-        })
-        .collect()
+    dataset_in("uwb_odometry_labyrinth_tuc")
 }
 
 /// `(t, x, y)` rows of the written truth file.
@@ -67,7 +30,7 @@ fn read_written_truth(path: &Path) -> Vec<(f64, f64, f64)> {
 #[test]
 fn real_dataset_imports_with_valid_files_and_plausible_odometry() {
     let Some(dataset) = dataset() else { return };
-    let temp = TempDir::new("import");
+    let temp = TempDir::new("labyrinth", "import");
     let out = &temp.0;
     let runs = import(&dataset, out).unwrap();
     assert_eq!(runs.len(), 1);
@@ -191,7 +154,7 @@ fn integration_follows_the_formulas_on_a_hand_made_track() {
 
 #[test]
 fn malformed_lines_name_file_line_and_field() {
-    let temp = TempDir::new("bad");
+    let temp = TempDir::new("labyrinth", "bad");
     let dir = &temp.0;
     let range = "range2 0.127943992614746 2.95522014829822 0.01 -0.02 -0.01 105 0";
     let odom = "odom2diff 0.127943992614746 0 0 0 0.0785 0.0001 0.0001 0.0001";

@@ -7,36 +7,12 @@ use rtls_engine::record::{parse_json_line, Measurement};
 use rtls_engine::site::Site;
 
 use super::*;
+use crate::import::test_support::{dataset as dataset_in, TempDir};
 
 fn dataset() -> Option<PathBuf> {
-    let dir = crate::data_dir().join("tdoa_util_static_prerelease");
-    if dir.exists() {
-        Some(dir)
-    } else {
-        eprintln!("skipped: {} not found", dir.display());
-        None
-    }
+    dataset_in("tdoa_util_static_prerelease")
 }
 
-/// A temporary directory removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("rtls-data-tdoa-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-/// Position of `key` in a pose file, parsed here independently.
 fn pose(path: &Path, key: &str) -> [f64; 3] {
     let text = std::fs::read_to_string(path).unwrap();
     let line = text.lines().find(|l| l.starts_with(&format!("{key},"))).unwrap();
@@ -47,7 +23,7 @@ fn pose(path: &Path, key: &str) -> [f64; 3] {
 #[test]
 fn real_dataset_imports_every_run_with_the_verified_sign() {
     let Some(dataset) = dataset() else { return };
-    let temp = TempDir::new("import");
+    let temp = TempDir::new("tdoa", "import");
     let out = &temp.0;
     let runs = import(&dataset, out).unwrap();
     assert_eq!(runs.len(), 31);
@@ -139,7 +115,7 @@ fn real_dataset_imports_every_run_with_the_verified_sign() {
 
 #[test]
 fn malformed_files_name_file_line_and_field() {
-    let temp = TempDir::new("bad");
+    let temp = TempDir::new("tdoa", "bad");
     let dir = &temp.0;
     let data = dir.join("run_data.csv");
     std::fs::write(&data, "tdoa12,tdoa21\n-3.43,3.49\n-3.4x,3.5\n").unwrap();

@@ -1,16 +1,9 @@
-use std::path::{Path, PathBuf};
-
 use rtls_engine::radio_map::RadioMap;
-use rtls_engine::record::{parse_json_line, Measurement, Record};
+use rtls_engine::record::Measurement;
 use rtls_engine::site::Site;
 
 use super::*;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rtls-import-uji-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
+use crate::import::test_support::{read_records, TempDir};
 
 fn fingerprint(
     readings_dbm: Vec<(usize, f64)>,
@@ -99,18 +92,6 @@ fn converts_a_small_survey() {
     );
 }
 
-fn read_records(path: &Path) -> Vec<Record> {
-    let text = std::fs::read_to_string(path).unwrap();
-    text.lines()
-        .enumerate()
-        .map(|(k, line)| {
-            let record = parse_json_line(line, "measurements.jsonl", k + 1).unwrap();
-            record.validate("measurements.jsonl", k + 1).unwrap();
-            record
-        })
-        .collect()
-}
-
 #[test]
 fn real_dataset_imports_and_wknn_on_the_radio_map_matches_the_documented_error() {
     let dataset = crate::data_dir().join("ujiindoorloc");
@@ -118,8 +99,9 @@ fn real_dataset_imports_and_wknn_on_the_radio_map_matches_the_documented_error()
         println!("skipped: {} not found", dataset.display());
         return;
     }
-    let out = scratch("real");
-    let runs = import(&dataset, &out).unwrap();
+    let temp = TempDir::new("uji", "real");
+    let out = &temp.0;
+    let runs = import(&dataset, out).unwrap();
     assert_eq!(runs.len(), 1);
     let run = &runs[0];
     let dir = out.join("validation");
@@ -192,5 +174,4 @@ fn real_dataset_imports_and_wknn_on_the_radio_map_matches_the_documented_error()
     // details (averaging of partly heard access points, k); a wrong frame or averaging is off by
     // metres.
     assert!((7.5..=8.6).contains(&mean_m), "{mean_m}");
-    let _ = std::fs::remove_dir_all(&out);
 }

@@ -21,8 +21,8 @@
 //! sees. The per-anchor figure pools the anchor's three tags.
 
 use super::parse::{pair_anchor, pair_tag, StaticPose, UwbRow};
-use super::util::{mean_std, median, rms};
 use super::{distance_m, tag_position_m, ANCHORS, PAIRS};
+use crate::import::util::{mean_std, median, rms};
 
 /// Fraction by which a slope model must cut the leave-one-run-out RMS to be adopted (10 %).
 pub(super) const SLOPE_ADOPTION_GAIN: f64 = 0.10;

@@ -4,8 +4,8 @@
 
 use std::path::Path;
 
-use super::util::{parse_error, parse_finite, read_text};
 use super::{ANCHORS, PAIRS, TAGS};
+use crate::import::util::{parse_error, parse_finite, read_text};
 use crate::Result;
 
 /// Seconds per day.
@@ -343,7 +343,10 @@ pub(super) fn read_static_poses(path: &Path, poses: usize) -> Result<Vec<StaticP
     (1..=poses)
         .map(|pose| {
             found.iter().find(|p| p.pose == pose).copied().ok_or_else(|| {
-                super::util::content_error(path, format!("no deg_0 pose for Pose {pose} in the 2022/8/14 table"))
+                crate::import::util::content_error(
+                    path,
+                    format!("no deg_0 pose for Pose {pose} in the 2022/8/14 table"),
+                )
             })
         })
         .collect()

@@ -4,51 +4,15 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use rtls_engine::record::{parse_json_line, Measurement, Record};
+use rtls_engine::record::Measurement;
 use rtls_engine::site::Site;
 
 use super::parse::{parse_clock, read_mocap, read_static_poses, read_uwb};
 use super::*;
+use crate::import::test_support::{dataset as dataset_in, read_records, TempDir};
 
 fn dataset() -> Option<PathBuf> {
-    let dir = crate::data_dir().join("uwb_lias_cuhksz_planar_rbl");
-    if dir.exists() {
-        Some(dir)
-    } else {
-        eprintln!("skipped: {} not found", dir.display());
-        None
-    }
-}
-
-/// A temporary directory removed when dropped (the import writes ≈ 300 MB).
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("rtls-data-lias-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn read_records(path: &Path) -> Vec<Record> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let name = path.display().to_string();
-    text.lines()
-        .enumerate()
-        .map(|(i, line)| {
-            let record = parse_json_line(line, &name, i + 1).unwrap();
-            record.validate(&name, i + 1).unwrap();
-            record
-        })
-        .collect()
+    dataset_in("uwb_lias_cuhksz_planar_rbl")
 }
 
 /// Truth rows per tag: `(t, x, y)`, in file order.
@@ -111,7 +75,7 @@ fn clock_is_seconds_since_midnight_to_the_millisecond() {
 
 #[test]
 fn malformed_uwb_rows_name_file_line_and_column() {
-    let temp = TempDir::new("bad-uwb");
+    let temp = TempDir::new("lias", "bad-uwb");
     let dir = &temp.0;
     let good = "2022-08-15 9:42:24.766,3.98,3.67,4.06,1.31,0.97,0.94,3.85,3.79,3.44,4.05,4.1,4.02,6.09,6.27,6.23,4.98,5.38,5.23,6.22,6.58,6.55,4.32,4.47,4.7";
     let cases = [
@@ -151,7 +115,7 @@ fn malformed_uwb_rows_name_file_line_and_column() {
 
 #[test]
 fn malformed_mocap_and_readme_name_file_line_and_field() {
-    let temp = TempDir::new("bad-mocap");
+    let temp = TempDir::new("lias", "bad-mocap");
     let dir = &temp.0;
     let path = dir.join("mocap.csv");
     std::fs::write(
@@ -181,7 +145,7 @@ fn malformed_mocap_and_readme_name_file_line_and_field() {
 #[test]
 fn import_of_a_malformed_static_file_names_it() {
     let Some(real) = dataset() else { return };
-    let temp = TempDir::new("fake-dataset");
+    let temp = TempDir::new("lias", "fake-dataset");
     let fake = &temp.0;
     std::fs::create_dir_all(fake.join("Static")).unwrap();
     std::fs::copy(real.join("Static/README.md"), fake.join("Static/README.md")).unwrap();
@@ -216,7 +180,7 @@ fn static_readme_poses_are_the_deg_0_rows() {
 #[test]
 fn real_dataset_import() {
     let Some(dataset) = dataset() else { return };
-    let temp = TempDir::new("import");
+    let temp = TempDir::new("lias", "import");
     let runs = import(&dataset, &temp.0).unwrap();
     every_file_is_written_and_parses_back(&dataset, &temp.0, &runs);
     static_calibration_transfers_to_the_dynamic_runs(&temp.0);

@@ -1,8 +1,5 @@
-//! Small helpers shared by the UWB importers (LIAS, labyrinth, TDOA UTIL): reading a text file,
-//! parse errors naming file / line / field, and robust statistics.
-//!
-//! Kept under `uwb_lias` because `import/mod.rs` is not ours to edit; it can move to
-//! `import/util.rs` with one `mod` line.
+//! Small helpers shared by the importers: reading a text file, parse errors naming file /
+//! line / field, and robust statistics.
 
 use std::path::Path;
 
