@@ -87,11 +87,14 @@
 mod alarms;
 mod anchors;
 mod core;
+mod epoch;
 mod models;
 mod output;
+mod report;
 mod solve;
 #[cfg(test)]
 mod tests;
+mod update;
 
 pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
 

@@ -1,0 +1,158 @@
+//! Anchor readings in epochs: buffering, solving an epoch into fixes (fix-then-filter), and
+//! initialising a tightly coupled track from its first readings.
+
+use std::sync::Arc;
+
+use nalgebra::SVector;
+use rtls_estimation::Gaussian;
+
+use super::anchors::AnchorReading;
+use super::core::{dimensions, rejected, Shared, Track};
+use super::output::{Output, RawFix};
+use super::solve::solve_epoch;
+use super::update::{coupled_update, fix_update};
+use crate::error::Result;
+use crate::site::Pipeline;
+
+/// A range / RSSI / TDOA reading: into the open epoch (fix-then-filter, or a track still
+/// initialising) or straight into the filter (tightly coupled).
+pub(super) fn anchor_reading<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    reading: AnchorReading,
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let coupled = shared.settings.pipeline == Pipeline::TightlyCoupled;
+    if coupled && track.state.is_some() && !track.is_lost() {
+        return coupled_update(shared, track, time_s, reading, kind, out);
+    }
+    if coupled {
+        // (re-)initialising: a lost track's prior is too stale to linearise about, so like a
+        // new one it waits for a fix; keep the readings of the confirmation window and try
+        expire_initial_readings(shared, track, time_s, kind, out);
+        track.epoch.push((time_s, reading));
+        let readings: Vec<AnchorReading> = track.epoch.iter().map(|(_, r)| *r).collect();
+        if let Ok(fixes) = solve::<N>(shared, &readings, None) {
+            track.epoch.clear();
+            for (position, covariance) in fixes {
+                out.fixes.push(raw_fix(&track.tag, time_s, &position, &covariance));
+                fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
+            }
+        }
+        return Ok(());
+    }
+    if !track.epoch.is_empty() && time_s - track.epoch_start_s > shared.settings.epoch_s {
+        close_epoch(shared, track, out)?;
+    }
+    if track.epoch.is_empty() {
+        track.epoch_start_s = time_s;
+    }
+    track.epoch.push((time_s, reading));
+    Ok(())
+}
+
+/// A fix as `(position, row-major covariance)` on the tracked axes.
+pub(super) type FlatFix = (Vec<f64>, Vec<f64>);
+
+/// Solves readings into fixes `(position, row-major covariance)` on the tracked axes.
+pub(super) fn solve<const N: usize>(
+    shared: &Shared,
+    readings: &[AnchorReading],
+    guess: Option<&Gaussian<N>>,
+) -> std::result::Result<Vec<FlatFix>, String> {
+    fn flatten<const D: usize>(fix: &rtls_positioning::Fix<D>) -> (Vec<f64>, Vec<f64>) {
+        (
+            fix.position.iter().copied().collect(),
+            fix.covariance.transpose().iter().copied().collect(),
+        )
+    }
+    let tag_height_m = shared.tag_height_m;
+    if dimensions::<N>() == 3 {
+        let guess = guess.map(|g| SVector::<f64, 3>::new(g.mean()[0], g.mean()[2], g.mean()[4]));
+        Ok(solve_epoch::<3>(&shared.anchors, readings, tag_height_m, guess)?
+            .iter()
+            .map(flatten)
+            .collect())
+    } else {
+        let guess = guess.map(|g| SVector::<f64, 2>::new(g.mean()[0], g.mean()[2]));
+        Ok(solve_epoch::<2>(&shared.anchors, readings, tag_height_m, guess)?
+            .iter()
+            .map(flatten)
+            .collect())
+    }
+}
+
+/// Closes the open epoch if `now_s` is past its window (fix-then-filter only).
+pub(super) fn close_due_epoch<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    now_s: f64,
+    out: &mut Output,
+) -> Result<()> {
+    if shared.settings.pipeline == Pipeline::FixThenFilter
+        && !track.epoch.is_empty()
+        && now_s - track.epoch_start_s > shared.settings.epoch_s
+    {
+        close_epoch(shared, track, out)?;
+    }
+    if shared.settings.pipeline == Pipeline::TightlyCoupled {
+        expire_initial_readings(shared, track, now_s, "epoch", out);
+    }
+    Ok(())
+}
+
+/// Tightly coupled, a track (re)initialising: readings older than the confirmation window are
+/// dropped from its buffer and reported.
+pub(super) fn expire_initial_readings<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    now_s: f64,
+    kind: &'static str,
+    out: &mut Output,
+) {
+    let window_s = shared.settings.initiation.within_s;
+    // the buffer is in time order
+    let expired = track.epoch.iter().take_while(|(t, _)| now_s - t > window_s).count();
+    if expired > 0 {
+        let reason = format!("{expired} reading(s) expired before enough anchors could initialise the track");
+        out.events.push(rejected(&track.tag, now_s, kind, reason));
+        track.epoch.drain(..expired);
+    }
+}
+
+/// Solves the epoch into fixes and applies them at the epoch's last time.
+pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>, out: &mut Output) -> Result<()> {
+    let epoch = std::mem::take(&mut track.epoch);
+    let Some(&(time_s, _)) = epoch.last() else {
+        return Ok(());
+    };
+    let readings: Vec<AnchorReading> = epoch.iter().map(|(_, r)| *r).collect();
+    // a lost track's state is too stale to start the solver from
+    let guess = track.state.as_ref().filter(|_| !track.is_lost());
+    match solve::<N>(shared, &readings, guess) {
+        Ok(fixes) => {
+            for (position, covariance) in fixes {
+                out.fixes.push(raw_fix(&track.tag, time_s, &position, &covariance));
+                fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
+            }
+        }
+        Err(reason) => out.events.push(rejected(&track.tag, time_s, "epoch", reason)),
+    }
+    Ok(())
+}
+
+pub(super) fn raw_fix(tag: &Arc<str>, time_s: f64, position: &[f64], covariance: &[f64]) -> RawFix {
+    let mut position_m = [0.0; 3];
+    position_m[..position.len()].copy_from_slice(position);
+    let mut covariance_m2 = [0.0; 9];
+    covariance_m2[..covariance.len()].copy_from_slice(covariance);
+    RawFix {
+        time_s,
+        tag: Arc::clone(tag),
+        dimensions: position.len(),
+        position_m,
+        covariance_m2,
+    }
+}

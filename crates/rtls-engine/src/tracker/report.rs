@@ -1,0 +1,160 @@
+//! Reporting a track: its updates, coasting predictions, zone events and predictive alarms.
+
+use std::sync::Arc;
+
+use rtls_estimation::Gaussian;
+
+use super::alarms::{position_of, predict_entries};
+use super::core::{dimensions, Shared, Track};
+use super::output::{Event, Output, TrackUpdate, UpdateSource};
+use super::update::predict;
+use crate::error::Result;
+use crate::lifecycle::TrackStatus;
+use crate::zones::{ZoneEvent, ZoneMonitor};
+
+pub(super) fn track_update<const N: usize>(
+    shared: &Shared,
+    tag: &Arc<str>,
+    state: &Gaussian<N>,
+    predicted: bool,
+    status: TrackStatus,
+    source: UpdateSource,
+) -> TrackUpdate {
+    let d = dimensions::<N>();
+    let (position_m, covariance) = position_of(state, shared.tag_height_m);
+    let mut velocity_mps = [0.0; 3];
+    for (axis, v) in velocity_mps.iter_mut().enumerate().take(d) {
+        *v = state.mean()[2 * axis + 1];
+    }
+    let mut position_covariance_m2 = [0.0; 9];
+    position_covariance_m2[..d * d].copy_from_slice(&covariance);
+    TrackUpdate {
+        time_s: state.time_s(),
+        tag: Arc::clone(tag),
+        dimensions: d,
+        position_m,
+        velocity_mps,
+        position_covariance_m2,
+        predicted,
+        status,
+        source,
+    }
+}
+
+/// Reports the track's latest update, then its zones and alarms.
+pub(super) fn report<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    monitor: &mut ZoneMonitor,
+    out: &mut Output,
+) -> Result<()> {
+    let (Some(source), Some(state), Some(status)) = (track.unreported.take(), track.state, track.status()) else {
+        return Ok(());
+    };
+    out.updates
+        .push(track_update(shared, &track.tag, &state, false, status, source));
+    track.last_output_s = state.time_s();
+    if matches!(status, TrackStatus::Confirmed | TrackStatus::Coasting) {
+        zones_and_alarms(shared, track, &state, monitor, out)?;
+    }
+    Ok(())
+}
+
+/// A coasting track's prediction at `now_s`, flagged as predicted (seed 000's gap filling).
+pub(super) fn coast<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    now_s: f64,
+    monitor: &mut ZoneMonitor,
+    out: &mut Output,
+) -> Result<()> {
+    let Some(state) = track.state.as_ref() else {
+        return Ok(());
+    };
+    let predicted = predict(shared, track, state, now_s)?;
+    out.updates.push(track_update(
+        shared,
+        &track.tag,
+        &predicted,
+        true,
+        TrackStatus::Coasting,
+        UpdateSource::Prediction,
+    ));
+    track.last_output_s = now_s;
+    zones_and_alarms(shared, track, &predicted, monitor, out)
+}
+
+/// Zone events for the state's position, then the predictive alarms.
+pub(super) fn zones_and_alarms<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    state: &Gaussian<N>,
+    monitor: &mut ZoneMonitor,
+    out: &mut Output,
+) -> Result<()> {
+    let (position_m, _) = position_of(state, shared.tag_height_m);
+    for zone_event in monitor.update(&track.tag, state.time_s(), position_m)? {
+        if let ZoneEvent::Enter { zone, time_s, .. } = &zone_event {
+            if shared.no_coverage_zones.iter().any(|z| z == zone) {
+                out.events.push(Event::NoCoverage {
+                    tag: Arc::clone(&track.tag),
+                    zone: zone.clone(),
+                    time_s: *time_s,
+                });
+            }
+        }
+        out.events.push(Event::Zone(zone_event));
+    }
+    if shared.alarm_zones.is_empty() {
+        return Ok(());
+    }
+    let inside: Vec<bool> = shared.alarm_zones.iter().map(|z| z.contains(position_m)).collect();
+    let entries = predict_entries(
+        state,
+        &shared.motion,
+        &shared.alarm_zones,
+        &inside,
+        &shared.alarms,
+        shared.tag_height_m,
+    )?;
+    for (index, zone) in shared.alarm_zones.iter().enumerate() {
+        let entry = entries.iter().find(|e| e.zone == index);
+        match (entry, track.alarmed[index], inside[index]) {
+            (Some(entry), false, _) => {
+                track.alarmed[index] = true;
+                out.events.push(Event::HazardPredicted {
+                    tag: Arc::clone(&track.tag),
+                    zone: zone.id.clone(),
+                    time_s: state.time_s(),
+                    time_to_entry_s: entry.time_to_entry_s,
+                    probability: entry.probability,
+                });
+            }
+            // inside: the zone-enter event takes over; the alarm stays raised until the tag
+            // is out and no longer heading in
+            (None, true, false) => {
+                track.alarmed[index] = false;
+                out.events.push(Event::HazardCleared {
+                    tag: Arc::clone(&track.tag),
+                    zone: zone.id.clone(),
+                    time_s: state.time_s(),
+                });
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Clears every raised alarm of a deleted track.
+pub(super) fn clear_alarms<const N: usize>(shared: &Shared, track: &mut Track<N>, now_s: f64, out: &mut Output) {
+    for (index, zone) in shared.alarm_zones.iter().enumerate() {
+        if std::mem::take(&mut track.alarmed[index]) {
+            out.events.push(Event::HazardCleared {
+                tag: Arc::clone(&track.tag),
+                zone: zone.id.clone(),
+                time_s: now_s,
+            });
+        }
+    }
+}

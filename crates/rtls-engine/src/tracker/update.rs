@@ -1,0 +1,313 @@
+//! Measurement updates of a track: prediction, gating and acceptance, position fixes,
+//! velocities and single anchor readings (tightly coupled).
+
+use std::sync::Arc;
+
+use nalgebra::{DMatrix, DVector};
+use rtls_estimation::filter::Updated;
+use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
+use rtls_estimation::{Gaussian, Matrix, Vector};
+
+use super::alarms::position_of;
+use super::anchors::AnchorReading;
+use super::core::{dimensions, rejected, Shared, Track, ACCELERATION_HOLD_S};
+use super::models::{AnchorLaw, AnchorMeasurement};
+use super::output::{Event, Output, UpdateSource};
+use crate::error::Result;
+use crate::lifecycle::{Lifecycle, TrackStatus};
+use crate::site::FilterKind;
+
+/// `x⁻ = F x̂ (+ B a)`, `P⁻ = F P Fᵀ + Q` to `time_s`, with a recent accelerometer sample as
+/// the control input (seed 002's acceleration-driven prediction).
+pub(super) fn predict<const N: usize>(
+    shared: &Shared,
+    track: &Track<N>,
+    state: &Gaussian<N>,
+    time_s: f64,
+) -> Result<Gaussian<N>> {
+    match track.acceleration {
+        Some((t, a)) if time_s - t <= ACCELERATION_HOLD_S => {
+            let u = DVector::from_iterator(dimensions::<N>(), a.iter().copied().take(dimensions::<N>()));
+            Ok(shared
+                .kf
+                .predict_with_control(state, &shared.aided_motion, &u, time_s)?)
+        }
+        _ => Ok(shared.kf.predict(state, &shared.motion, time_s)?),
+    }
+}
+
+/// Accepts an update unless the track is confirmed and the NIS is outside the χ² gate; then
+/// advances the lifecycle.
+pub(super) fn accept<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    updated: Updated<N>,
+    kind: &'static str,
+    source: UpdateSource,
+    out: &mut Output,
+) -> Result<()> {
+    let time_s = updated.state.time_s();
+    let dof = updated.measurement_dim().clamp(1, 3);
+    let gated = matches!(track.status(), Some(TrackStatus::Confirmed | TrackStatus::Coasting));
+    if gated && updated.nis > shared.gates[dof - 1] {
+        let reason = format!(
+            "outside the χ²({dof}) validation gate: NIS {:.2} > {:.2}",
+            updated.nis,
+            shared.gates[dof - 1]
+        );
+        out.events.push(rejected(&track.tag, time_s, kind, reason));
+        return Ok(());
+    }
+    let position_m = position_of(&updated.state, shared.tag_height_m).0;
+    track.state = Some(updated.state);
+    track.lost_state = None;
+    if let Some(event) = track
+        .lifecycle
+        .as_mut()
+        .map(|l| l.update(time_s))
+        .transpose()?
+        .flatten()
+    {
+        out.events.push(Event::Lifecycle {
+            tag: Arc::clone(&track.tag),
+            time_s,
+            event,
+            position_m,
+        });
+    }
+    track.unreported = Some(source);
+    Ok(())
+}
+
+/// A position fix: starts the track, or updates it (`H` selects the position components).
+pub(super) fn fix_update<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let k = position.len();
+    let Some(state) = track.state.as_ref().filter(|_| !track.is_lost()) else {
+        // a new track, or a lost one whose prior is too stale to update
+        return start_from_fix(shared, track, time_s, position, covariance, kind, out);
+    };
+    let indices: Vec<usize> = (0..k).map(|i| 2 * i).collect();
+    let prior = predict(shared, track, state, time_s)?;
+    component_update(
+        shared,
+        track,
+        prior,
+        &indices,
+        position,
+        covariance,
+        kind,
+        UpdateSource::Fix,
+        out,
+    )
+}
+
+/// (Re)starts a track at a fix: `x₀ = [p, 0]`, `P₀ = diag(Σ_fix, σ_v² I)`; a lost track
+/// recovers, a new one starts its lifecycle.
+pub(super) fn start_from_fix<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let k = position.len();
+    let mut mean = Vector::<N>::zeros();
+    let mut p0 = Matrix::<N>::zeros();
+    let speed_variance = shared.settings.initial_speed_std_mps.powi(2);
+    for i in 0..dimensions::<N>() {
+        p0[(2 * i + 1, 2 * i + 1)] = speed_variance;
+        if i < k {
+            mean[2 * i] = position[i];
+            for j in 0..k {
+                p0[(2 * i, 2 * j)] = covariance[i * k + j];
+            }
+        } else {
+            // an axis the fix does not give (a 2-D fingerprint fix in a 3-D track)
+            mean[2 * i] = shared.tag_height_m;
+            p0[(2 * i, 2 * i)] = 100.0;
+        }
+    }
+    let state = match Gaussian::new(mean, p0, time_s) {
+        Ok(state) => state,
+        Err(error) => {
+            let reason = format!("cannot start a track from this fix: {error}");
+            out.events.push(rejected(&track.tag, time_s, kind, reason));
+            return Ok(());
+        }
+    };
+    let position_m = position_of(&state, shared.tag_height_m).0;
+    track.state = Some(state);
+    track.lost_state = None;
+    track.unreported = Some(UpdateSource::Fix);
+    match track.lifecycle.as_mut() {
+        None => track.lifecycle = Some(Lifecycle::start(shared.lifecycle, time_s)?),
+        Some(lifecycle) => {
+            if let Some(event) = lifecycle.update(time_s)? {
+                out.events.push(Event::Lifecycle {
+                    tag: Arc::clone(&track.tag),
+                    time_s,
+                    event,
+                    position_m,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A linear update of state components `indices` with `value` and its row-major covariance;
+/// a failed update is reported, not applied.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn component_update<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    prior: Gaussian<N>,
+    indices: &[usize],
+    value: &[f64],
+    covariance: &[f64],
+    kind: &'static str,
+    source: UpdateSource,
+    out: &mut Output,
+) -> Result<()> {
+    let k = indices.len();
+    let result = NoiseCovariance::full(DMatrix::from_row_slice(k, k, covariance))
+        .and_then(|noise| ComponentSelection::<N>::new(indices, noise))
+        .and_then(|model| shared.kf.update(&prior, &model, &DVector::from_column_slice(value)));
+    match result {
+        Ok(updated) => accept(shared, track, updated, kind, source, out),
+        Err(error) => {
+            let reason = format!("{} update failed: {error}", source.name());
+            out.events.push(rejected(&track.tag, prior.time_s(), kind, reason));
+            Ok(())
+        }
+    }
+}
+
+/// A velocity measurement of the first `k` axes.
+pub(super) fn velocity_update<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    velocity: &[f64],
+    covariance: &[f64],
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let Some(state) = track.state.as_ref().filter(|_| !track.is_lost()) else {
+        let reason =
+            "no track (or a lost one): a velocity cannot start or recover it (it needs a position)".to_string();
+        out.events.push(rejected(&track.tag, time_s, kind, reason));
+        return Ok(());
+    };
+    let indices: Vec<usize> = (0..velocity.len()).map(|i| 2 * i + 1).collect();
+    let prior = predict(shared, track, state, time_s)?;
+    component_update(
+        shared,
+        track,
+        prior,
+        &indices,
+        velocity,
+        covariance,
+        kind,
+        UpdateSource::Velocity,
+        out,
+    )
+}
+
+/// Tightly coupled: one range / RSSI / TDOA straight into the EKF or UKF (seed 003's
+/// one-observation update).
+pub(super) fn coupled_update<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    reading: AnchorReading,
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let Some(state) = track.state.as_ref() else {
+        return Ok(());
+    };
+    let (model, z) = match reading {
+        AnchorReading::Range {
+            anchor,
+            range_m,
+            variance_m2,
+        } => (
+            AnchorMeasurement::new(
+                shared.anchors.get(anchor).position_m,
+                shared.tag_height_m,
+                AnchorLaw::Range,
+                variance_m2,
+            ),
+            range_m,
+        ),
+        AnchorReading::Rssi {
+            anchor,
+            rssi_dbm,
+            law: [p0, d0, n, _],
+            variance_db2,
+        } => {
+            let law = AnchorLaw::LogDistance {
+                reference_power_dbm: p0,
+                reference_distance_m: d0,
+                exponent: n,
+            };
+            (
+                AnchorMeasurement::new(
+                    shared.anchors.get(anchor).position_m,
+                    shared.tag_height_m,
+                    law,
+                    variance_db2,
+                ),
+                rssi_dbm,
+            )
+        }
+        AnchorReading::Tdoa {
+            anchor,
+            reference,
+            range_difference_m,
+            variance_m2,
+        } => {
+            let law = AnchorLaw::RangeDifference {
+                reference_m: shared.anchors.get(reference).position_m,
+            };
+            (
+                AnchorMeasurement::new(
+                    shared.anchors.get(anchor).position_m,
+                    shared.tag_height_m,
+                    law,
+                    variance_m2,
+                ),
+                range_difference_m,
+            )
+        }
+    };
+    let prior = predict(shared, track, state, time_s)?;
+    let z = DVector::from_element(1, z);
+    let result = match shared.settings.filter {
+        FilterKind::Ukf => shared.ukf.update(&prior, &model, &z),
+        FilterKind::Ekf | FilterKind::Kf => shared.ekf.update(&prior, &model, &z),
+    };
+    match result {
+        Ok(updated) => accept(shared, track, updated, kind, UpdateSource::Anchors, out),
+        Err(error) => {
+            out.events.push(rejected(
+                &track.tag,
+                time_s,
+                kind,
+                format!("filter update failed: {error}"),
+            ));
+            Ok(())
+        }
+    }
+}
