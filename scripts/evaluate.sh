@@ -42,11 +42,13 @@ for run in fast mid; do
   d=$OUT/lias/$run
   track "$d" tc-ekf measurements.jsonl --pipeline tightly-coupled --filter ekf
   track "$d" tc-ukf measurements.jsonl --pipeline tightly-coupled --filter ukf
+  track "$d" tc-imm measurements.jsonl --pipeline tightly-coupled --filter ekf --motion-model imm
   track "$d" ftf measurements.jsonl --pipeline fix-then-filter --filter kf
   track "$d" raw-tc-ekf measurements-raw.jsonl --pipeline tightly-coupled --filter ekf
   track "$d" raw-ftf measurements-raw.jsonl --pipeline fix-then-filter --filter kf
   score uwb-lias "$run" "tightly coupled EKF, calibrated" "$d/truth.csv" "$d/tc-ekf.tracks.jsonl" --skip-initial 1
   score uwb-lias "$run" "tightly coupled UKF, calibrated" "$d/truth.csv" "$d/tc-ukf.tracks.jsonl" --skip-initial 1
+  score uwb-lias "$run" "tightly coupled EKF IMM, calibrated" "$d/truth.csv" "$d/tc-imm.tracks.jsonl" --skip-initial 1
   score uwb-lias "$run" "fix-then-filter KF, calibrated" "$d/truth.csv" "$d/ftf.tracks.jsonl" --skip-initial 1
   score uwb-lias "$run" "raw fixes (Gauss-Newton), calibrated" "$d/truth.csv" "$d/ftf.fixes.jsonl" --skip-initial 1
   score uwb-lias "$run" "tightly coupled EKF, raw ranges" "$d/truth.csv" "$d/raw-tc-ekf.tracks.jsonl" --skip-initial 1

@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! rtls track --site SITE --input FILE [--output FILE] [--events FILE] [--fixes FILE]
-//!            [--pipeline fix-then-filter|tightly-coupled] [--filter kf|ekf|ukf]
+//!            [--pipeline fix-then-filter|tightly-coupled] [--filter kf|ekf|ukf] [--motion-model cv|imm]
 //! ```
 //! One JSON line per track update to `--output` (standard output by default), one per event to
 //! `--events`, and the fix-then-filter pipeline's raw fixes to `--fixes`. Input is JSON Lines,
@@ -18,7 +18,7 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use rtls_engine::radio_map::RadioMap;
 use rtls_engine::record::{CsvRecords, JsonLines, Record};
-use rtls_engine::site::{FilterKind, FingerprintFormat, Pipeline, Site};
+use rtls_engine::site::{FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site};
 use rtls_engine::tracker::{Event, Output, Tracker};
 
 /// A pipeline named on the command line.
@@ -39,6 +39,15 @@ pub enum FilterArg {
     Ekf,
     /// Unscented Kalman filter.
     Ukf,
+}
+
+/// A motion model named on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum MotionModelArg {
+    /// Constant velocity.
+    Cv,
+    /// Interacting multiple models (CV / CA / coordinated turn), with model-switch events.
+    Imm,
 }
 
 /// Arguments of `rtls track`.
@@ -65,6 +74,9 @@ pub struct TrackArgs {
     /// Override the site's `tracker.filter`.
     #[arg(long, value_enum)]
     pub filter: Option<FilterArg>,
+    /// Override the site's `tracker.motion_model`.
+    #[arg(long, value_enum)]
+    pub motion_model: Option<MotionModelArg>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -108,6 +120,12 @@ fn load_site(args: &TrackArgs) -> anyhow::Result<(Site, Option<RadioMap>)> {
             FilterArg::Ukf => FilterKind::Ukf,
         };
     }
+    if let Some(model) = args.motion_model {
+        site.tracker.motion_model = match model {
+            MotionModelArg::Cv => MotionModelKind::Cv,
+            MotionModelArg::Imm => MotionModelKind::Imm,
+        };
+    }
     if site.tracker.pipeline == Pipeline::TightlyCoupled && site.tracker.filter == FilterKind::Kf {
         bail!("the tightly coupled pipeline needs --filter ekf or ukf (raw measurements are nonlinear)");
     }
@@ -146,6 +164,7 @@ fn event_type(event: &Event) -> &'static str {
         Event::HazardPredicted { .. } => "hazard-predicted",
         Event::HazardCleared { .. } => "hazard-cleared",
         Event::NoCoverage { .. } => "no-coverage",
+        Event::ModelSwitch { .. } => "model-switch",
         Event::Late { .. } => "late",
         Event::Rejected { .. } => "rejected",
     }

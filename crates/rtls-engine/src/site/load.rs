@@ -267,6 +267,36 @@ fn validate(site: &mut Site, text: &str, file: &str) -> Result<()> {
                 positive(t.initial_speed_std_mps),
                 "must be a finite number > 0, m/s",
             ),
+            (
+                at("imm.cv_sojourn_s"),
+                positive(t.imm.cv_sojourn_s),
+                "must be a finite number > 0, s",
+            ),
+            (
+                at("imm.ca_sojourn_s"),
+                positive(t.imm.ca_sojourn_s),
+                "must be a finite number > 0, s",
+            ),
+            (
+                at("imm.ct_sojourn_s"),
+                positive(t.imm.ct_sojourn_s),
+                "must be a finite number > 0, s",
+            ),
+            (
+                at("imm.ca_jerk_noise_std_mps3"),
+                positive(t.imm.ca_jerk_noise_std_mps3),
+                "must be a finite number > 0, m/s³",
+            ),
+            (
+                at("imm.ct_turn_rate_noise_std_radps2"),
+                positive(t.imm.ct_turn_rate_noise_std_radps2),
+                "must be a finite number > 0, rad/s²",
+            ),
+            (
+                at("imm.switch_probability"),
+                t.imm.switch_probability > 0.0 && t.imm.switch_probability < 1.0,
+                "must lie strictly between 0 and 1",
+            ),
         ],
     )?;
 

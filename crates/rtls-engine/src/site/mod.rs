@@ -241,6 +241,11 @@ pub enum MotionModelKind {
     Ca,
     /// Random walk (position only).
     RandomWalk,
+    /// Interacting multiple models switching between a quiet constant velocity, a constant
+    /// acceleration and (in 2-D) a coordinated turn with the turn rate as a state; settings in
+    /// `[tracker.imm]`. The tracker reports the most probable model and a `model-switch` event
+    /// when it changes.
+    Imm,
 }
 
 /// Filter kind.
@@ -308,6 +313,44 @@ pub struct TrackerSettings {
     /// Velocity standard deviation of a new track, m/s (> 0). Default 2.
     #[serde(default = "default_initial_speed_std_mps")]
     pub initial_speed_std_mps: f64,
+    /// The interacting multiple models of `motion_model = "imm"`.
+    #[serde(default)]
+    pub imm: ImmSettings,
+}
+
+/// `[tracker.imm]`: the modes of `motion_model = "imm"` (Blom & Bar-Shalom 1988; seed 004's
+/// manoeuvre problem). The CV mode uses `tracker.acceleration_noise_std_mps2`; the CA mode a
+/// white jerk; the coordinated turn (2-D only) the CV noise plus a white turn acceleration.
+/// Modes switch as a continuous-time Markov chain with the given mean sojourn times.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ImmSettings {
+    /// Mean time in the constant-velocity mode, s (> 0). Default 20.
+    pub cv_sojourn_s: f64,
+    /// Mean time in the constant-acceleration mode, s (> 0). Default 4.
+    pub ca_sojourn_s: f64,
+    /// Mean time in the coordinated-turn mode, s (> 0; 2-D only). Default 4.
+    pub ct_sojourn_s: f64,
+    /// CA mode: white-jerk spectral density `q = σ_j²`, σ_j in m/s³ (> 0). Default 1.
+    pub ca_jerk_noise_std_mps3: f64,
+    /// CT mode: white turn-acceleration spectral density, σ in rad/s² (> 0). Default 0.2.
+    pub ct_turn_rate_noise_std_radps2: f64,
+    /// A `model-switch` is reported when another mode becomes the most probable one with at
+    /// least this probability (anti-flap), in (0, 1). Default 0.6.
+    pub switch_probability: f64,
+}
+
+impl Default for ImmSettings {
+    fn default() -> Self {
+        Self {
+            cv_sojourn_s: 20.0,
+            ca_sojourn_s: 4.0,
+            ct_sojourn_s: 4.0,
+            ca_jerk_noise_std_mps3: 1.0,
+            ct_turn_rate_noise_std_radps2: 0.2,
+            switch_probability: 0.6,
+        }
+    }
 }
 
 fn default_dimensions() -> u8 {

@@ -17,8 +17,11 @@ use crate::record::Measurement;
 use crate::site::{AlarmSettings, TrackerSettings};
 use crate::zones::{Zone, ZoneMonitor};
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter};
+use rtls_estimation::imm::ImmState;
 use rtls_estimation::motion::ConstantVelocity;
 use rtls_estimation::Gaussian;
+
+use super::modes::Manoeuvres;
 
 /// An accelerometer sample drives the prediction (zero-order hold) for at most this long, s.
 pub(super) const ACCELERATION_HOLD_S: f64 = 1.0;
@@ -45,6 +48,8 @@ pub(crate) struct Shared {
     pub(crate) alarm_zones: Vec<Zone>,
     /// Ids of the zones whose listed readers are all broken.
     pub(crate) no_coverage_zones: Vec<String>,
+    /// The interacting multiple models of `motion_model = "imm"`.
+    pub(crate) manoeuvres: Option<Arc<Manoeuvres>>,
 }
 
 /// One tag's track: its state (a value it owns), lifecycle and pending work.
@@ -67,6 +72,10 @@ pub(crate) struct Track<const N: usize> {
     pub(super) alarmed: Vec<bool>,
     /// The state frozen when the track was lost (its last position is kept and reported).
     pub(super) lost_state: Option<Gaussian<N>>,
+    /// Under the IMM: the modes the state combines.
+    pub(super) modes: Option<ImmState>,
+    /// Under the IMM: the reported (most probable) mode's index.
+    pub(super) mode: usize,
 }
 
 impl<const N: usize> Track<N> {
@@ -82,6 +91,8 @@ impl<const N: usize> Track<N> {
             last_output_s: f64::NEG_INFINITY,
             alarmed: vec![false; alarm_zones],
             lost_state: None,
+            modes: None,
+            mode: 0,
         }
     }
 
@@ -236,6 +247,12 @@ impl<const N: usize> Core<N> {
                 let covariance = [cxx.max(1e-9), cxy, cxy, cyy.max(1e-9)];
                 velocity_update(shared, track, time_s, &[s * cos, s * sin], &covariance, "odometry", out)?;
             }
+            Measurement::Accelerometer { .. } if shared.manoeuvres.is_some() => {
+                let reason = "accelerometer control input is not used with motion_model = \"imm\" (the CA and CT \
+                              modes estimate the acceleration)"
+                    .to_string();
+                out.events.push(rejected(&track.tag, time_s, "accelerometer", reason));
+            }
             Measurement::Accelerometer { acceleration_mps2, .. } => {
                 let mut a = [0.0; 3];
                 for (axis, value) in acceleration_mps2.iter().enumerate().take(3) {
@@ -298,14 +315,8 @@ impl<const N: usize> Core<N> {
                     Some(TrackStatus::Lost) => {
                         // the last position, frozen, reported as lost
                         if let Some(frozen) = &track.lost_state {
-                            let mut update = track_update(
-                                shared,
-                                &track.tag,
-                                frozen,
-                                true,
-                                TrackStatus::Lost,
-                                UpdateSource::Prediction,
-                            );
+                            let mut update =
+                                track_update(shared, track, frozen, true, TrackStatus::Lost, UpdateSource::Prediction);
                             update.time_s = now_s;
                             out.updates.push(update);
                             track.last_output_s = now_s;

@@ -13,6 +13,16 @@
 //! update the position, `velocity` and `odometry` (speed + heading) the velocity, and an
 //! `accelerometer` sample drives the prediction for up to 1 s (seed 002).
 //!
+//! # Motion models (`tracker.motion_model`)
+//! - **cv**: constant velocity with white acceleration `σ_a` (seed 000).
+//! - **imm**: interacting multiple models (`[tracker.imm]`): a quiet CV, a constant
+//!   acceleration and, in 2-D, a coordinated turn with the rate as a state, switching as a
+//!   Markov chain. The track's reported state is the modes' moment-matched combination; every
+//!   update names the most probable mode (`mode`), and [`Event::ModelSwitch`] reports when it
+//!   changes (anti-flap: the new mode needs `switch_probability`). Anchor readings update each
+//!   mode by an EKF step in its own layout; accelerometer samples are refused (the manoeuvre
+//!   modes estimate the acceleration).
+//!
 //! # Time, order and output
 //! Records pass a re-ordering window (`reorder_window_s`); later ones are reported as
 //! [`Event::Late`], never applied silently out of order. A track's update is reported once all
@@ -81,7 +91,8 @@
 //!
 //! # References
 //! Seed 000 (manager layer, ME-KF gap filling, predictive danger-zone alarms); seed 003
-//! (single-observation EKF); seed 001 (UKF on UWB ranges); Bar-Shalom, Li & Kirubarajan,
+//! (single-observation EKF); seed 001 (UKF on UWB ranges); seed 004 and Blom & Bar-Shalom
+//! (1988) (manoeuvres, IMM); Bar-Shalom, Li & Kirubarajan,
 //! *Estimation with Applications to Tracking and Navigation*, 2001, §5.4 (validation gates).
 
 mod alarms;
@@ -89,11 +100,14 @@ mod anchors;
 mod core;
 mod epoch;
 mod models;
+mod modes;
 mod output;
 mod report;
 mod solve;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_imm;
 mod update;
 
 pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
@@ -103,7 +117,10 @@ use rtls_estimation::motion::{ConstantVelocity, ProcessNoise};
 use rtls_estimation::stats::chi_square_quantile;
 
 use self::anchors::Anchors;
+use std::sync::Arc;
+
 use self::core::{Core, Shared};
+use self::modes::Manoeuvres;
 use crate::error::{EngineError, Result};
 use crate::lifecycle::TrackStatus;
 use crate::radio_map::RadioMap;
@@ -142,13 +159,18 @@ impl Tracker {
     /// lifecycle or zone monitor reject.
     pub fn new(site: &Site) -> Result<Self> {
         let settings = site.tracker;
-        if settings.motion_model != MotionModelKind::Cv {
-            return Err(EngineError::InvalidParameter {
-                name: "tracker.motion_model",
-                reason: "the tracker runs the constant-velocity model (\"cv\"); \"ca\" and \"random-walk\" are \
-                         available in rtls-estimation but not wired into the tracker",
-            });
-        }
+        let manoeuvres = match settings.motion_model {
+            MotionModelKind::Cv => None,
+            MotionModelKind::Imm => Some(Arc::new(Manoeuvres::new(&settings)?)),
+            MotionModelKind::Ca | MotionModelKind::RandomWalk => {
+                return Err(EngineError::InvalidParameter {
+                    name: "tracker.motion_model",
+                    reason: "the tracker runs the constant-velocity model (\"cv\") or the interacting multiple \
+                             models (\"imm\", which include a constant acceleration); a lone \"ca\" or \
+                             \"random-walk\" is available in rtls-estimation but not wired into the tracker",
+                });
+            }
+        };
         let lifecycle = settings.lifecycle();
         lifecycle.validate()?;
         // q = σ_a² (continuous white acceleration)
@@ -185,6 +207,7 @@ impl Tracker {
             tag_height_m: settings.tag_height_m.unwrap_or(0.0),
             alarm_zones,
             no_coverage_zones,
+            manoeuvres,
         };
         let monitor = site.zone_monitor()?;
         let tracks = if settings.dimensions == 3 {

@@ -98,15 +98,21 @@ impl AnchorMeasurement {
     }
 }
 
-impl<const N: usize> MeasurementModel<N> for AnchorMeasurement {
-    fn dim(&self) -> usize {
-        1
+impl AnchorMeasurement {
+    /// The tag height used for a planar state, m.
+    pub(crate) fn tag_height_m(&self) -> f64 {
+        self.tag_height_m
     }
 
-    fn predict(&self, x: &Vector<N>) -> rtls_estimation::Result<DVector<f64>> {
-        let p = tag_position(x, self.tag_height_m);
-        let (_, d) = offset(&p, &self.anchor_m);
-        let value = match self.law {
+    /// The measurement variance `R`, unit².
+    pub(crate) fn variance(&self) -> f64 {
+        self.variance[(0, 0)]
+    }
+
+    /// `h(p)` at the tag position `p = [x, y, z]`, m.
+    pub(crate) fn value(&self, p: &[f64; 3]) -> f64 {
+        let (_, d) = offset(p, &self.anchor_m);
+        match self.law {
             // h = d
             AnchorLaw::Range => d,
             // h = ρ₀ − 10 n log₁₀(max(d, d_min) / d₀)
@@ -116,16 +122,18 @@ impl<const N: usize> MeasurementModel<N> for AnchorMeasurement {
                 exponent,
             } => reference_power_dbm - 10.0 * exponent * (d.max(MIN_DISTANCE_M) / reference_distance_m).log10(),
             // h = ‖p − a‖ − ‖p − b‖
-            AnchorLaw::RangeDifference { reference_m } => d - offset(&p, &reference_m).1,
-        };
-        Ok(DVector::from_element(1, value))
+            AnchorLaw::RangeDifference { reference_m } => d - offset(p, &reference_m).1,
+        }
     }
 
-    fn jacobian(&self, x: &Vector<N>) -> rtls_estimation::Result<MeasurementJacobian<N>> {
-        let p = tag_position(x, self.tag_height_m);
-        let (delta, d) = offset(&p, &self.anchor_m);
+    /// `∂h/∂p` at the tag position `p = [x, y, z]`.
+    ///
+    /// # Errors
+    /// [`EstimationError::SingularMeasurement`] at an anchor, where the direction is undefined.
+    pub(crate) fn gradient(&self, p: &[f64; 3]) -> rtls_estimation::Result<[f64; 3]> {
+        let (delta, d) = offset(p, &self.anchor_m);
         let u = unit(&delta, d, "anchor measurement")?;
-        let gradient = match self.law {
+        Ok(match self.law {
             // ∂d/∂p = (p − a)ᵀ / d
             AnchorLaw::Range => u,
             // ∂ρ/∂p = −10 n / (ln 10 · d) · (p − a)ᵀ / d
@@ -135,12 +143,27 @@ impl<const N: usize> MeasurementModel<N> for AnchorMeasurement {
             }
             // ∂Δr/∂p = (p − a)ᵀ/‖p − a‖ − (p − b)ᵀ/‖p − b‖
             AnchorLaw::RangeDifference { reference_m } => {
-                let (delta_b, d_b) = offset(&p, &reference_m);
+                let (delta_b, d_b) = offset(p, &reference_m);
                 let w = unit(&delta_b, d_b, "anchor measurement")?;
                 [u[0] - w[0], u[1] - w[1], u[2] - w[2]]
             }
-        };
-        Ok(position_row::<N>(&gradient))
+        })
+    }
+}
+
+impl<const N: usize> MeasurementModel<N> for AnchorMeasurement {
+    fn dim(&self) -> usize {
+        1
+    }
+
+    fn predict(&self, x: &Vector<N>) -> rtls_estimation::Result<DVector<f64>> {
+        let p = tag_position(x, self.tag_height_m);
+        Ok(DVector::from_element(1, self.value(&p)))
+    }
+
+    fn jacobian(&self, x: &Vector<N>) -> rtls_estimation::Result<MeasurementJacobian<N>> {
+        let p = tag_position(x, self.tag_height_m);
+        Ok(position_row::<N>(&self.gradient(&p)?))
     }
 
     fn noise_covariance(&self) -> &DMatrix<f64> {

@@ -59,6 +59,8 @@ pub struct TrackUpdate {
     pub status: TrackStatus,
     /// What produced it.
     pub source: UpdateSource,
+    /// Under `motion_model = "imm"`: the most probable motion mode ("CV", "CA", "CT").
+    pub mode: Option<&'static str>,
 }
 
 /// The name of a track status as written in JSON.
@@ -86,7 +88,7 @@ fn lifecycle_name(event: LifecycleEvent) -> &'static str {
 
 impl TrackUpdate {
     /// The update as one JSON object on one line:
-    /// `{"t","tag","x","y"[,"z"],"vx","vy"[,"vz"],"cov":[D² entries],"predicted","status","source"}`.
+    /// `{"t","tag","x","y"[,"z"],"vx","vy"[,"vz"],"cov":[D² entries],"predicted","status","source"[,"mode"]}`.
     ///
     /// # Examples
     /// ```
@@ -97,6 +99,7 @@ impl TrackUpdate {
     ///     position_m: [1.0, 2.0, 0.0], velocity_mps: [0.5, 0.0, 0.0],
     ///     position_covariance_m2: [0.04, 0.0, 0.0, 0.04, 0.0, 0.0, 0.0, 0.0, 0.0],
     ///     predicted: false, status: TrackStatus::Confirmed, source: UpdateSource::Fix,
+    ///     mode: None,
     /// };
     /// let value: serde_json::Value = serde_json::from_str(&update.to_json_line()).unwrap();
     /// assert_eq!(value["cov"].as_array().unwrap().len(), 4);
@@ -122,6 +125,9 @@ impl TrackUpdate {
         object.insert("predicted".into(), json!(self.predicted));
         object.insert("status".into(), json!(status_name(self.status)));
         object.insert("source".into(), json!(self.source.name()));
+        if let Some(mode) = self.mode {
+            object.insert("mode".into(), json!(mode));
+        }
         Value::Object(object).to_string()
     }
 }
@@ -210,6 +216,20 @@ pub enum Event {
         /// Time, s.
         time_s: f64,
     },
+    /// Under `motion_model = "imm"`: another motion mode became the most probable one (a
+    /// manoeuvre began or ended).
+    ModelSwitch {
+        /// Tag id.
+        tag: Arc<str>,
+        /// Time, s.
+        time_s: f64,
+        /// The mode reported until now.
+        from: &'static str,
+        /// The mode reported from now on.
+        to: &'static str,
+        /// Its probability `μ`.
+        probability: f64,
+    },
     /// A record arrived later than the re-ordering window allows; it was not applied.
     Late {
         /// Tag id.
@@ -236,8 +256,31 @@ pub enum Event {
 }
 
 impl Event {
+    /// The event's time, s.
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::tracker::Event;
+    /// let event = Event::NoCoverage { tag: "m7".into(), zone: "collapse".into(), time_s: 12.0 };
+    /// assert_eq!(event.time_s(), 12.0);
+    /// ```
+    #[must_use]
+    pub fn time_s(&self) -> f64 {
+        match self {
+            Self::Zone(zone_event) => zone_event.time_s(),
+            Self::Lifecycle { time_s, .. }
+            | Self::HazardPredicted { time_s, .. }
+            | Self::HazardCleared { time_s, .. }
+            | Self::NoCoverage { time_s, .. }
+            | Self::ModelSwitch { time_s, .. }
+            | Self::Late { time_s, .. }
+            | Self::Rejected { time_s, .. } => *time_s,
+        }
+    }
+
     /// The event as one JSON line with a `type` field: `zone-enter`, `zone-exit`, `zone-dwell`,
-    /// `lifecycle`, `hazard-predicted`, `hazard-cleared`, `no-coverage`, `late`, `rejected`.
+    /// `lifecycle`, `hazard-predicted`, `hazard-cleared`, `no-coverage`, `model-switch`, `late`,
+    /// `rejected`.
     ///
     /// # Examples
     /// ```
@@ -281,6 +324,16 @@ impl Event {
             }
             Self::NoCoverage { tag, zone, time_s } => {
                 json!({"type": "no-coverage", "t": time_s, "tag": &**tag, "zone": zone})
+            }
+            Self::ModelSwitch {
+                tag,
+                time_s,
+                from,
+                to,
+                probability,
+            } => {
+                json!({"type": "model-switch", "t": time_s, "tag": &**tag, "from": from, "to": to,
+                       "probability": probability})
             }
             Self::Late {
                 tag,

@@ -14,7 +14,7 @@ use crate::zones::{ZoneEvent, ZoneMonitor};
 
 pub(super) fn track_update<const N: usize>(
     shared: &Shared,
-    tag: &Arc<str>,
+    track: &Track<N>,
     state: &Gaussian<N>,
     predicted: bool,
     status: TrackStatus,
@@ -30,7 +30,7 @@ pub(super) fn track_update<const N: usize>(
     position_covariance_m2[..d * d].copy_from_slice(&covariance);
     TrackUpdate {
         time_s: state.time_s(),
-        tag: Arc::clone(tag),
+        tag: Arc::clone(&track.tag),
         dimensions: d,
         position_m,
         velocity_mps,
@@ -38,6 +38,7 @@ pub(super) fn track_update<const N: usize>(
         predicted,
         status,
         source,
+        mode: shared.manoeuvres.as_ref().map(|m| m.name(track.mode)),
     }
 }
 
@@ -52,7 +53,7 @@ pub(super) fn report<const N: usize>(
         return Ok(());
     };
     out.updates
-        .push(track_update(shared, &track.tag, &state, false, status, source));
+        .push(track_update(shared, track, &state, false, status, source));
     track.last_output_s = state.time_s();
     if matches!(status, TrackStatus::Confirmed | TrackStatus::Coasting) {
         zones_and_alarms(shared, track, &state, monitor, out)?;
@@ -71,10 +72,10 @@ pub(super) fn coast<const N: usize>(
     let Some(state) = track.state.as_ref() else {
         return Ok(());
     };
-    let predicted = predict(shared, track, state, now_s)?;
+    let predicted = predict(shared, track, state, now_s)?.state;
     out.updates.push(track_update(
         shared,
-        &track.tag,
+        track,
         &predicted,
         true,
         TrackStatus::Coasting,

@@ -12,7 +12,7 @@ use crate::zones::ZoneEvent;
 
 /// Four UWB anchors on a 20 m × 20 m square at 2.5 m height, plus a broken one, a hazard box at
 /// x ≥ 30 and an area without a working reader around the broken one.
-fn site_text(pipeline: &str, filter: &str, extra_tracker: &str) -> String {
+pub(super) fn site_text(pipeline: &str, filter: &str, extra_tracker: &str) -> String {
     let radio = "radio = { range = { range_std_m = 0.1, bias_m = 0.2 }, path_loss = { reference_power_dbm = -40.0, \
                  exponent = 2.5, shadowing_std_db = 2.0, reference_distance_m = 1.0 } }";
     let readers: String = ANCHORS
@@ -66,7 +66,7 @@ tag_height_m = 1.0
     )
 }
 
-fn site(pipeline: &str, filter: &str, extra: &str) -> Site {
+pub(super) fn site(pipeline: &str, filter: &str, extra: &str) -> Site {
     Site::from_toml_str(&site_text(pipeline, filter, extra), "test-site.toml").unwrap()
 }
 
@@ -75,20 +75,20 @@ fn walker(t: f64) -> [f64; 2] {
     [2.0 + 0.8 * t, 3.0 + 0.5 * t]
 }
 
-const ANCHORS: [(&str, [f64; 3]); 4] = [
+pub(super) const ANCHORS: [(&str, [f64; 3]); 4] = [
     ("A1", [0.0, 0.0, 2.5]),
     ("A2", [20.0, 0.0, 2.5]),
     ("A3", [20.0, 20.0, 2.5]),
     ("A4", [0.0, 20.0, 2.5]),
 ];
 
-fn slant(p: [f64; 2], a: [f64; 3]) -> f64 {
+pub(super) fn slant(p: [f64; 2], a: [f64; 3]) -> f64 {
     ((p[0] - a[0]).powi(2) + (p[1] - a[1]).powi(2) + (1.0 - a[2]).powi(2)).sqrt()
 }
 
 /// Ranges at 10 Hz, all four anchors per epoch (equal time stamps), biased by +0.2 m and with
 /// σ = 0.1 m noise, for `seconds`.
-fn range_records(seconds: f64, seed: u64, path: fn(f64) -> [f64; 2]) -> Vec<Record> {
+pub(super) fn range_records(seconds: f64, seed: u64, path: fn(f64) -> [f64; 2]) -> Vec<Record> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, 0.1).unwrap();
     let mut records = Vec::new();
@@ -110,7 +110,7 @@ fn range_records(seconds: f64, seed: u64, path: fn(f64) -> [f64; 2]) -> Vec<Reco
     records
 }
 
-fn run(tracker: &mut Tracker, records: Vec<Record>) -> Output {
+pub(super) fn run(tracker: &mut Tracker, records: Vec<Record>) -> Output {
     let mut out = Output::default();
     for record in records {
         tracker.push(record, &mut out).unwrap();
@@ -119,7 +119,7 @@ fn run(tracker: &mut Tracker, records: Vec<Record>) -> Output {
     out
 }
 
-fn rmse(updates: &[(f64, [f64; 3])], path: fn(f64) -> [f64; 2], after_s: f64) -> f64 {
+pub(super) fn rmse(updates: &[(f64, [f64; 3])], path: fn(f64) -> [f64; 2], after_s: f64) -> f64 {
     let errors: Vec<f64> = updates
         .iter()
         .filter(|(t, _)| *t >= after_s)
@@ -521,7 +521,7 @@ fn zone_events_and_predictive_alarms_with_lead_time() {
     tracker.finish(&mut out).unwrap();
     assert_eq!(office_count_inside, 1);
     assert_eq!(tracker.head_count("office"), 0);
-    let time_of = |f: &dyn Fn(&Event) -> bool| out.events.iter().find(|e| f(e)).map(event_time);
+    let time_of = |f: &dyn Fn(&Event) -> bool| out.events.iter().find(|e| f(e)).map(Event::time_s);
     let pit_alarm = out
         .events
         .iter()
@@ -553,18 +553,6 @@ fn zone_events_and_predictive_alarms_with_lead_time() {
         .events
         .iter()
         .all(|e| !matches!(e, Event::HazardPredicted { zone, .. } if zone == "office")));
-}
-
-fn event_time(event: &Event) -> f64 {
-    match event {
-        Event::Zone(z) => z.time_s(),
-        Event::Lifecycle { time_s, .. }
-        | Event::HazardPredicted { time_s, .. }
-        | Event::HazardCleared { time_s, .. }
-        | Event::NoCoverage { time_s, .. }
-        | Event::Late { time_s, .. }
-        | Event::Rejected { time_s, .. } => *time_s,
-    }
 }
 
 #[test]

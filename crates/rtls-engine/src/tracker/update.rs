@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use nalgebra::{DMatrix, DVector};
 use rtls_estimation::filter::Updated;
+use rtls_estimation::imm::ImmState;
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
 use rtls_estimation::{Gaussian, Matrix, Vector};
 
@@ -17,23 +18,40 @@ use crate::error::Result;
 use crate::lifecycle::{Lifecycle, TrackStatus};
 use crate::site::FilterKind;
 
+/// A predicted state, and under `motion_model = "imm"` the predicted modes it combines.
+pub(super) struct Prior<const N: usize> {
+    /// The (combined) CV-layout prediction.
+    pub(super) state: Gaussian<N>,
+    /// The modes after mixing and mode-matched prediction (IMM only).
+    pub(super) modes: Option<ImmState>,
+}
+
 /// `x⁻ = F x̂ (+ B a)`, `P⁻ = F P Fᵀ + Q` to `time_s`, with a recent accelerometer sample as
-/// the control input (seed 002's acceleration-driven prediction).
+/// the control input (seed 002's acceleration-driven prediction); under the IMM, the modes'
+/// mixing and prediction and their moment-matched combination.
 pub(super) fn predict<const N: usize>(
     shared: &Shared,
     track: &Track<N>,
     state: &Gaussian<N>,
     time_s: f64,
-) -> Result<Gaussian<N>> {
-    match track.acceleration {
+) -> Result<Prior<N>> {
+    if let (Some(manoeuvres), Some(modes)) = (&shared.manoeuvres, &track.modes) {
+        let modes = manoeuvres.predict(modes, time_s)?;
+        return Ok(Prior {
+            state: manoeuvres.combined(&modes)?,
+            modes: Some(modes),
+        });
+    }
+    let state = match track.acceleration {
         Some((t, a)) if time_s - t <= ACCELERATION_HOLD_S => {
             let u = DVector::from_iterator(dimensions::<N>(), a.iter().copied().take(dimensions::<N>()));
-            Ok(shared
+            shared
                 .kf
-                .predict_with_control(state, &shared.aided_motion, &u, time_s)?)
+                .predict_with_control(state, &shared.aided_motion, &u, time_s)?
         }
-        _ => Ok(shared.kf.predict(state, &shared.motion, time_s)?),
-    }
+        _ => shared.kf.predict(state, &shared.motion, time_s)?,
+    };
+    Ok(Prior { state, modes: None })
 }
 
 /// Accepts an update unless the track is confirmed and the NIS is outside the χ² gate; then
@@ -42,6 +60,7 @@ pub(super) fn accept<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
     updated: Updated<N>,
+    modes: Option<ImmState>,
     kind: &'static str,
     source: UpdateSource,
     out: &mut Output,
@@ -61,6 +80,10 @@ pub(super) fn accept<const N: usize>(
     let position_m = position_of(&updated.state, shared.tag_height_m).0;
     track.state = Some(updated.state);
     track.lost_state = None;
+    if let Some(modes) = modes {
+        switch_mode(shared, track, &modes, out);
+        track.modes = Some(modes);
+    }
     if let Some(event) = track
         .lifecycle
         .as_mut()
@@ -77,6 +100,38 @@ pub(super) fn accept<const N: usize>(
     }
     track.unreported = Some(source);
     Ok(())
+}
+
+/// Under the IMM: reports a `model-switch` when the mode to report changes (see
+/// [`Manoeuvres::reported_mode`](super::modes::Manoeuvres::reported_mode)).
+fn switch_mode<const N: usize>(shared: &Shared, track: &mut Track<N>, modes: &ImmState, out: &mut Output) {
+    if let Some(manoeuvres) = &shared.manoeuvres {
+        let mode = manoeuvres.reported_mode(modes, track.mode);
+        if mode != track.mode {
+            push_switch(shared, track, modes.time_s(), mode, modes.probabilities()[mode], out);
+        }
+    }
+}
+
+/// Reports the switch of `track` to `mode` and records it.
+fn push_switch<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    mode: usize,
+    probability: f64,
+    out: &mut Output,
+) {
+    if let Some(manoeuvres) = &shared.manoeuvres {
+        out.events.push(Event::ModelSwitch {
+            tag: Arc::clone(&track.tag),
+            time_s,
+            from: manoeuvres.name(track.mode),
+            to: manoeuvres.name(mode),
+            probability,
+        });
+    }
+    track.mode = mode;
 }
 
 /// A position fix: starts the track, or updates it (`H` selects the position components).
@@ -145,6 +200,22 @@ pub(super) fn start_from_fix<const N: usize>(
             return Ok(());
         }
     };
+    if let Some(manoeuvres) = &shared.manoeuvres {
+        match manoeuvres.start(&state) {
+            Ok(modes) => {
+                // a (re)started track is in the quiet mode
+                if track.mode != 0 {
+                    push_switch(shared, track, time_s, 0, modes.probabilities()[0], out);
+                }
+                track.modes = Some(modes);
+            }
+            Err(error) => {
+                let reason = format!("cannot start the motion modes from this fix: {error}");
+                out.events.push(rejected(&track.tag, time_s, kind, reason));
+                return Ok(());
+            }
+        }
+    }
     let position_m = position_of(&state, shared.tag_height_m).0;
     track.state = Some(state);
     track.lost_state = None;
@@ -171,7 +242,7 @@ pub(super) fn start_from_fix<const N: usize>(
 pub(super) fn component_update<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
-    prior: Gaussian<N>,
+    prior: Prior<N>,
     indices: &[usize],
     value: &[f64],
     covariance: &[f64],
@@ -180,14 +251,29 @@ pub(super) fn component_update<const N: usize>(
     out: &mut Output,
 ) -> Result<()> {
     let k = indices.len();
+    // the single-model update of the (combined) prior gives the gate's NIS; under the IMM the
+    // state is the modes' combined posterior
     let result = NoiseCovariance::full(DMatrix::from_row_slice(k, k, covariance))
         .and_then(|noise| ComponentSelection::<N>::new(indices, noise))
-        .and_then(|model| shared.kf.update(&prior, &model, &DVector::from_column_slice(value)));
+        .and_then(|model| {
+            shared
+                .kf
+                .update(&prior.state, &model, &DVector::from_column_slice(value))
+        })
+        .and_then(|updated| match (&shared.manoeuvres, &prior.modes) {
+            (Some(manoeuvres), Some(modes)) => {
+                let posterior = manoeuvres.update_components(modes, indices, value, covariance)?;
+                let state = manoeuvres.combined(&posterior)?;
+                Ok((Updated { state, ..updated }, Some(posterior)))
+            }
+            _ => Ok((updated, None)),
+        });
     match result {
-        Ok(updated) => accept(shared, track, updated, kind, source, out),
+        Ok((updated, modes)) => accept(shared, track, updated, modes, kind, source, out),
         Err(error) => {
             let reason = format!("{} update failed: {error}", source.name());
-            out.events.push(rejected(&track.tag, prior.time_s(), kind, reason));
+            out.events
+                .push(rejected(&track.tag, prior.state.time_s(), kind, reason));
             Ok(())
         }
     }
@@ -293,13 +379,23 @@ pub(super) fn coupled_update<const N: usize>(
         }
     };
     let prior = predict(shared, track, state, time_s)?;
+    let measured = z;
     let z = DVector::from_element(1, z);
     let result = match shared.settings.filter {
-        FilterKind::Ukf => shared.ukf.update(&prior, &model, &z),
-        FilterKind::Ekf | FilterKind::Kf => shared.ekf.update(&prior, &model, &z),
-    };
+        FilterKind::Ukf => shared.ukf.update(&prior.state, &model, &z),
+        FilterKind::Ekf | FilterKind::Kf => shared.ekf.update(&prior.state, &model, &z),
+    }
+    .and_then(|updated| match (&shared.manoeuvres, &prior.modes) {
+        // every mode updated by an EKF step in its own layout
+        (Some(manoeuvres), Some(modes)) => {
+            let posterior = manoeuvres.update_anchor(modes, &model, measured)?;
+            let state = manoeuvres.combined(&posterior)?;
+            Ok((Updated { state, ..updated }, Some(posterior)))
+        }
+        _ => Ok((updated, None)),
+    });
     match result {
-        Ok(updated) => accept(shared, track, updated, kind, UpdateSource::Anchors, out),
+        Ok((updated, modes)) => accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out),
         Err(error) => {
             out.events.push(rejected(
                 &track.tag,

@@ -357,7 +357,16 @@ impl InteractingMultipleModel {
         })
     }
 
-    fn update_with(
+    /// As [`InteractingMultipleModel::update`], with the mode-matched update supplied by the
+    /// caller: `update_mode(mode, prior estimate)` returns the mode's posterior, `ln Λⱼ` and
+    /// NIS. For measurements whose model changes with every call (one range to whichever
+    /// anchor answered, in the mode's own layout), where [`ImmMode::update`]'s fixed model
+    /// does not fit.
+    ///
+    /// # Errors
+    /// The errors `update_mode` returns; [`EstimationError::NonFinite`] if every mode gives the
+    /// measurement zero likelihood.
+    pub fn update_with(
         &self,
         prior: &ImmState,
         update_mode: impl Fn(&dyn ImmMode, &ModeEstimate) -> Result<ModeUpdate>,
