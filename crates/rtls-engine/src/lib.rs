@@ -14,6 +14,7 @@
 //! - [`zones`] — zone geometry (2-D polygons with floor or height range, 3-D boxes), and
 //!   enter / exit / dwell events with anti-flap tolerance.
 
+pub mod association;
 mod error;
 pub mod evaluation;
 pub mod lifecycle;

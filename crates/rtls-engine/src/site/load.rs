@@ -300,6 +300,16 @@ fn validate(site: &mut Site, text: &str, file: &str) -> Result<()> {
         ],
     )?;
 
+    if let Some(anonymous) = &site.anonymous {
+        match anonymous.validate() {
+            Ok(()) => {}
+            Err(EngineError::InvalidParameter { name, reason }) => {
+                check(text, file, &[(format!("anonymous.{name}"), false, reason)])?;
+            }
+            Err(other) => return Err(other),
+        }
+    }
+
     let a = site.alarms;
     check(
         text,

@@ -75,6 +75,11 @@ pub struct Site {
     pub fingerprints: Option<FingerprintDatabase>,
     /// How tags are tracked.
     pub tracker: TrackerSettings,
+    /// Anonymous detections (records with tag `"*"`: ranges or fixes that carry no identity,
+    /// like seed 003's ultrasonic echoes) are tracked by the multi-target association of
+    /// [`crate::association`] with these settings; without the section they are rejected.
+    #[serde(default)]
+    pub anonymous: Option<crate::association::AnonymousTrackerSettings>,
     /// Predictive hazard alarms (defaults when the section is absent).
     #[serde(default)]
     pub alarms: AlarmSettings,

@@ -97,6 +97,7 @@
 
 mod alarms;
 mod anchors;
+mod anonymous;
 mod core;
 mod epoch;
 mod models;
@@ -107,9 +108,12 @@ mod solve;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
+mod tests_anonymous;
+#[cfg(test)]
 mod tests_imm;
 mod update;
 
+pub use anonymous::ANONYMOUS_TAG;
 pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
 
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, SigmaPointParameters, UnscentedKalmanFilter};
@@ -119,6 +123,7 @@ use rtls_estimation::stats::chi_square_quantile;
 use self::anchors::Anchors;
 use std::sync::Arc;
 
+use self::anonymous::AnonymousFront;
 use self::core::{Core, Shared};
 use self::modes::Manoeuvres;
 use crate::error::{EngineError, Result};
@@ -144,6 +149,8 @@ enum Tracks {
 #[derive(Debug, Clone)]
 pub struct Tracker {
     tracks: Tracks,
+    /// Records with tag [`ANONYMOUS_TAG`], when the site has an `[anonymous]` section.
+    anonymous: Option<AnonymousFront>,
     reorderer: Reorderer,
     next_tick_s: Option<f64>,
     output_interval_s: f64,
@@ -215,8 +222,13 @@ impl Tracker {
         } else {
             Tracks::Planar(Core::new(shared, monitor))
         };
+        let anonymous = match site.anonymous {
+            Some(anonymous) => Some(AnonymousFront::new(anonymous, settings.tag_height_m.unwrap_or(0.0))?),
+            None => None,
+        };
         Ok(Self {
             tracks,
+            anonymous,
             reorderer: Reorderer::new(settings.reorder_window_s)?,
             next_tick_s: None,
             output_interval_s: settings.output_interval_s,
@@ -292,6 +304,29 @@ impl Tracker {
     }
 
     fn apply(&mut self, record: &Record, out: &mut Output) -> Result<()> {
+        if record.tag == ANONYMOUS_TAG {
+            let shared = match &self.tracks {
+                Tracks::Planar(core) => &core.shared,
+                Tracks::Spatial(core) => &core.shared,
+            };
+            match (&mut self.anonymous, &self.tracks) {
+                (Some(front), Tracks::Planar(_)) => {
+                    front.push(&shared.anchors, record.time_s, &record.measurement, out)?;
+                }
+                (front, _) => out.events.push(Event::Rejected {
+                    tag: ANONYMOUS_TAG.into(),
+                    time_s: record.time_s,
+                    kind: record.measurement.kind(),
+                    reason: if front.is_some() {
+                        "anonymous detections are tracked in 2-D only (tracker.dimensions = 2)".into()
+                    } else {
+                        "an anonymous (tag \"*\") record needs an [anonymous] section in the site".into()
+                    },
+                }),
+            }
+            self.now_s = self.now_s.max(record.time_s);
+            return self.tick_if_due(self.now_s, out);
+        }
         match &mut self.tracks {
             Tracks::Planar(core) => core.apply(record.time_s, &record.tag, &record.measurement, out)?,
             Tracks::Spatial(core) => core.apply(record.time_s, &record.tag, &record.measurement, out)?,
@@ -313,6 +348,9 @@ impl Tracker {
             match &mut self.tracks {
                 Tracks::Planar(core) => core.tick(next_s, out)?,
                 Tracks::Spatial(core) => core.tick(next_s, out)?,
+            }
+            if let Some(front) = &mut self.anonymous {
+                front.tick(next_s, self.output_interval_s, out)?;
             }
             next_s += period_s;
         }
@@ -347,6 +385,9 @@ impl Tracker {
     pub fn finish(&mut self, out: &mut Output) -> Result<()> {
         for emitted in self.reorderer.finish() {
             self.emitted(emitted, out)?;
+        }
+        if let Some(front) = &mut self.anonymous {
+            front.flush(out)?;
         }
         match &mut self.tracks {
             Tracks::Planar(core) => core.flush(out),
