@@ -4,15 +4,19 @@
 //! rtls repro <mekf|ukf-uwb|lwknn|wsn-ekf|vdkf|all> [--runs N] [--seed S] [--out DIR] [--json]
 //!            [--scenarios DIR] [--threads N]
 //! rtls track --site SITE --input FILE [--output FILE] [--events FILE] [--fixes FILE]
-//!            [--pipeline fix-then-filter|tightly-coupled] [--filter kf|ekf|ukf] [--quiet]
+//!            [--pipeline fix-then-filter|tightly-coupled] [--filter kf|ekf|ukf] [--motion-model cv|imm]
+//!            [--quiet]
 //! rtls import <DATASET_DIR> --out DIR
 //! rtls eval --truth FILE --tracks FILE [--dimensions 2|3] [--max-gap S] [--skip-initial S]
 //!           [--include-predicted] [--json]
+//! rtls survey --site SITE --input RECORDS --tracks TRACKS --out CELLS.csv [--readers-out CSV]
+//!             [--png PNG] [--cell-m M] …
 //! ```
 //!
 //! `track` runs a measurement file through the tracker of a site (docs/FORMATS.md), `import`
 //! converts a recorded dataset into site, measurement and ground-truth files, `eval` scores a
-//! track file against ground truth (docs/EVALUATION.md).
+//! track file against ground truth (docs/EVALUATION.md), `survey` maps where the radio
+//! environment is degraded (seed 000's obstacle map: residual bias per area cell and reader).
 //!
 //! `repro` reruns the seed papers' experiments (seeded Monte Carlo, in parallel), prints
 //! "metric | paper | ours | PCRB" per experiment, and with `--out` writes a markdown report with
@@ -23,6 +27,7 @@ mod import;
 mod markdown;
 mod plot;
 mod repro;
+mod survey;
 mod track;
 
 use clap::{Parser, Subcommand};
@@ -49,6 +54,9 @@ enum Command {
     /// Compare a track file with ground truth: RMSE, mean error and percentiles, time-aligned by
     /// interpolation.
     Eval(eval::EvalArgs),
+    /// Map the radio environment from measurements and their tracks: per area cell and reader,
+    /// the bias and spread of the residuals; flags degraded readers and cells (CSV and PNG).
+    Survey(survey::SurveyArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -58,6 +66,7 @@ fn main() -> std::process::ExitCode {
         Command::Track(args) => track::run(&args),
         Command::Import(args) => import::run(&args),
         Command::Eval(args) => eval::run(&args),
+        Command::Survey(args) => survey::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -21,6 +21,7 @@ pub mod lifecycle;
 pub mod radio_map;
 pub mod record;
 pub mod site;
+pub mod survey;
 pub mod tracker;
 pub mod zones;
 
