@@ -3,12 +3,15 @@
 //! ```text
 //! rtls track --site SITE --input FILE [--output FILE] [--events FILE] [--fixes FILE]
 //!            [--pipeline fix-then-filter|tightly-coupled] [--filter kf|ekf|ukf] [--motion-model cv|imm]
+//!            [--correct CELLS.csv --correct-readers READERS.csv]
 //! ```
 //! One JSON line per track update to `--output` (standard output by default), one per event to
 //! `--events`, and the fix-then-filter pipeline's raw fixes to `--fixes`. Input is JSON Lines,
 //! or CSV when the file name ends in `.csv` (docs/FORMATS.md). Every input error names the
 //! file, the line and the field.
 
+use std::cell::RefCell;
+use std::collections::HashMap;
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -19,6 +22,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rtls_engine::radio_map::RadioMap;
 use rtls_engine::record::{CsvRecords, JsonLines, Record};
 use rtls_engine::site::{FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site};
+use rtls_engine::survey::{SurveyMap, SurveySettings};
 use rtls_engine::tracker::{Event, Output, Tracker};
 
 /// A pipeline named on the command line.
@@ -74,6 +78,13 @@ pub struct TrackArgs {
     /// Override the site's `tracker.filter`.
     #[arg(long, value_enum)]
     pub filter: Option<FilterArg>,
+    /// Correct ranges and RSSI with the bias learned by `rtls survey` (its cells CSV) at the
+    /// tag's last tracked position before tracking them; needs `--correct-readers`.
+    #[arg(long, requires = "correct_readers")]
+    pub correct: Option<PathBuf>,
+    /// The readers CSV of the same survey (`rtls survey --readers-out`).
+    #[arg(long, requires = "correct")]
+    pub correct_readers: Option<PathBuf>,
     /// Override the site's `tracker.motion_model`.
     #[arg(long, value_enum)]
     pub motion_model: Option<MotionModelArg>,
@@ -208,9 +219,32 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     let mut events_out = args.events.as_deref().map(create).transpose()?;
     let mut fixes_out = args.fixes.as_deref().map(create).transpose()?;
 
+    let correction = match (&args.correct, &args.correct_readers) {
+        (Some(cells), Some(readers)) => {
+            let read =
+                |path: &Path| std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()));
+            Some(SurveyMap::from_csv(
+                &read(cells)?,
+                &cells.display().to_string(),
+                &read(readers)?,
+                &readers.display().to_string(),
+                &SurveySettings::default(),
+            )?)
+        }
+        _ => None,
+    };
+    // the last tracked position of each tag, where its next readings are corrected
+    let positions: RefCell<HashMap<String, [f64; 2]>> = RefCell::new(HashMap::new());
+
     let mut counts = Counts::default();
     let mut out = Output::default();
     let mut write = |out: &mut Output, counts: &mut Counts| -> anyhow::Result<()> {
+        if correction.is_some() {
+            let mut positions = positions.borrow_mut();
+            for update in out.updates.iter().filter(|u| !u.predicted) {
+                positions.insert(update.tag.to_string(), [update.position_m[0], update.position_m[1]]);
+            }
+        }
         for update in &out.updates {
             writeln!(updates_out, "{}", update.to_json_line()).context("writing track updates")?;
             counts.updates += 1;
@@ -233,6 +267,10 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     };
     let mut push = |record: Record, line: usize, counts: &mut Counts, out: &mut Output| -> anyhow::Result<()> {
         tracker.check_record(&record, &input_name, line)?;
+        let record = match (&correction, positions.borrow().get(&record.tag)) {
+            (Some(map), Some(position_m)) => map.correct_record(&record, *position_m),
+            _ => record,
+        };
         tracker.push(record, out)?;
         counts.records += 1;
         Ok(())
