@@ -20,6 +20,7 @@ pub mod evaluation;
 pub mod lifecycle;
 pub mod radio_map;
 pub mod record;
+pub mod scheduling;
 pub mod site;
 pub mod survey;
 pub mod tracker;

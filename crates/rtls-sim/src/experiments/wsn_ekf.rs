@@ -2,24 +2,83 @@
 //! paper's single-observation EKF and adaptive node scheduling, against the paper's
 //! least-squares baseline and against our EKF with data association.
 //!
-//! Every method runs in closed loop (its own estimates drive the node scheduling) on the same
-//! seeds; see [`crate::reproduction::seed_003`] for one run and `scenarios/003-test-bed.toml`
-//! for every parameter.
+//! Every method runs in closed loop (its own estimates drive the node scheduling, done by
+//! [`rtls_engine::scheduling`]) on the same seeds; the report adds the energy the schedules cost
+//! against all nodes on, and the tracking with the nodes' clocks re-synced every cycle or
+//! free-running. See [`crate::reproduction::seed_003`] for one run and
+//! `scenarios/003-test-bed.toml` for every parameter.
 
 mod figures;
 mod notes;
 mod scenario;
 mod summary;
+mod tables;
 
 use super::{find_source, ReproOptions, ScenarioSource};
 use crate::error::Result;
 use crate::montecarlo::{monte_carlo, run_seed, Progress};
-use crate::report::{ExperimentReport, Metric, Table};
+use crate::report::{ExperimentReport, Metric};
 use crate::reproduction::seed_003::{run_seed_003, Method, Seed003Config, Seed003Run};
 use crate::scenarios::seed_003::shared_cell_intervals;
 
 use self::scenario::Scenario;
 use self::summary::{Context, MethodTotals, BIN_S};
+
+/// A clock configuration run on the same seeds as the scenario's, for the clock table.
+#[derive(Debug, Clone)]
+struct ClockVariant {
+    /// The scenario's configuration with other clocks.
+    config: Seed003Config,
+    /// The methods to run.
+    methods: Vec<Method>,
+}
+
+/// The totals of a clock variant.
+#[derive(Debug, Clone)]
+pub(crate) struct ClockResult {
+    /// Clock drift σ (ppm).
+    pub drift_std_ppm: f64,
+    /// Whether every cycle re-synced the clocks.
+    pub resync_every_cycle: bool,
+    /// Totals per method run.
+    pub totals: Vec<(Method, MethodTotals)>,
+}
+
+/// What [`simulate`] returns: the totals per method (in [`Method::ALL`] order), per clock
+/// variant, and the full runs of the first seed (for the figures).
+struct Simulation {
+    totals: Vec<MethodTotals>,
+    clock: Vec<ClockResult>,
+    first: Vec<Seed003Run>,
+}
+
+/// The clock variants of the report: the other sync mode at the configured drift (every
+/// method), and both sync modes at the stress drift (ours).
+fn clock_variants(scenario: &Scenario) -> Vec<ClockVariant> {
+    let config = &scenario.config;
+    let with = |drift_std_ppm: f64, resync_every_cycle: bool| {
+        let mut c = config.clone();
+        c.clock.drift_std_ppm = drift_std_ppm;
+        c.clock.resync_every_cycle = resync_every_cycle;
+        c
+    };
+    let (drift, resync) = (config.clock.drift_std_ppm, config.clock.resync_every_cycle);
+    let stress = scenario.evaluation.clock_stress_drift_ppm;
+    vec![
+        ClockVariant {
+            config: with(drift, !resync),
+            methods: Method::ALL.to_vec(),
+        },
+        ClockVariant {
+            config: with(stress, true),
+            methods: vec![Method::AssociatedEkf],
+        },
+        ClockVariant {
+            config: with(stress, false),
+            methods: vec![Method::AssociatedEkf],
+        },
+    ]
+}
 
 /// The experiment's scenario file.
 const FILE: &str = "003-test-bed.toml";
@@ -51,14 +110,15 @@ fn extra_sweep_values(scenario: &Scenario) -> Vec<usize> {
     values
 }
 
-/// Totals per method (in [`Method::ALL`] order) over `runs` seeded runs of `config`, and the
-/// full runs of the first seed (for the figures).
+/// Runs every method on `config` and every clock variant's methods on its configuration, for
+/// `runs` seeds (one progress unit per seed), and adds up the totals in run order.
 fn simulate(
     config: &Seed003Config,
+    variants: &[ClockVariant],
     context: &Context<'_>,
     options: &ReproOptions,
     progress: Progress<'_>,
-) -> Result<(Vec<MethodTotals>, Vec<Seed003Run>)> {
+) -> Result<Simulation> {
     let first_seed = run_seed(options.seed, 0);
     let per_run = monte_carlo(options.runs, options.seed, progress, |seed| {
         let runs = Method::ALL
@@ -66,20 +126,42 @@ fn simulate(
             .map(|&method| run_seed_003(config, method, seed))
             .collect::<Result<Vec<_>>>()?;
         let totals: Vec<MethodTotals> = runs.iter().map(|run| MethodTotals::from_run(run, context)).collect();
-        Ok((totals, (seed == first_seed).then_some(runs)))
+        let clock = variants
+            .iter()
+            .map(|v| {
+                v.methods
+                    .iter()
+                    .map(|&m| Ok(MethodTotals::from_run(&run_seed_003(&v.config, m, seed)?, context)))
+                    .collect::<Result<Vec<_>>>()
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok((totals, clock, (seed == first_seed).then_some(runs)))
     })?;
     // sum in run order: identical for any thread count
     let mut totals = vec![MethodTotals::default(); Method::ALL.len()];
+    let mut clock: Vec<ClockResult> = variants
+        .iter()
+        .map(|v| ClockResult {
+            drift_std_ppm: v.config.clock.drift_std_ppm,
+            resync_every_cycle: v.config.clock.resync_every_cycle,
+            totals: v.methods.iter().map(|&m| (m, MethodTotals::default())).collect(),
+        })
+        .collect();
     let mut first = Vec::new();
-    for (run_totals, runs) in per_run {
+    for (run_totals, run_clock, runs) in per_run {
         for (sum, t) in totals.iter_mut().zip(&run_totals) {
-            sum.merge(t);
+            sum.merge(t)?;
+        }
+        for (result, variant_totals) in clock.iter_mut().zip(&run_clock) {
+            for ((_, sum), t) in result.totals.iter_mut().zip(variant_totals) {
+                sum.merge(t)?;
+            }
         }
         if let Some(runs) = runs {
             first = runs;
         }
     }
-    Ok((totals, first))
+    Ok(Simulation { totals, clock, first })
 }
 
 /// Runs the reproduction (see the module docs) and returns its report.
@@ -100,13 +182,15 @@ pub fn reproduce(
         evaluation: &scenario.evaluation,
         shared_intervals: &intervals,
         bins: (config.duration_s / BIN_S).ceil() as usize,
+        routes: &config.robots,
     };
-    let (totals, first) = simulate(config, &context, options, progress)?;
+    let Simulation { totals, clock, first } =
+        simulate(config, &clock_variants(&scenario), &context, options, progress)?;
     let mut sweep = vec![(config.scheduling.task_nodes, totals.clone())];
     for k in extra_sweep_values(&scenario) {
         let mut variant = config.clone();
         variant.scheduling.task_nodes = k;
-        sweep.push((k, simulate(&variant, &context, options, progress)?.0));
+        sweep.push((k, simulate(&variant, &[], &context, options, progress)?.totals));
     }
     sweep.sort_by_key(|(k, _)| *k);
 
@@ -116,20 +200,30 @@ pub fn reproduce(
         options.runs,
         options.seed,
     );
-    report.metrics = metrics(&scenario, &intervals, &totals);
+    report.metrics = metrics(&scenario, &intervals, &totals, &clock);
     report.tables = vec![
-        per_robot_table(&scenario, &totals),
-        bounds_table(&totals),
-        sweep_table(&sweep),
-        counters_table(&totals),
+        tables::per_robot_table(&scenario, &totals),
+        tables::bounds_table(&totals),
+        tables::sweep_table(&sweep),
+        tables::counters_table(&totals),
+        tables::energy_table(&scenario, &totals),
     ];
+    report
+        .tables
+        .extend(tables::energy_per_node_table(&scenario, &totals, Method::AssociatedEkf));
+    report.tables.push(tables::clock_table(&scenario, &totals, &clock));
     report.figures = figures::all(&scenario, &intervals, &totals, &first)?;
-    report.notes = notes::all(&scenario, &intervals, &totals, &sweep, options);
+    report.notes = notes::all(&scenario, &intervals, &totals, &sweep, &clock, options);
     Ok(report)
 }
 
 /// The metric rows.
-fn metrics(scenario: &Scenario, intervals: &[(f64, f64)], totals: &[MethodTotals]) -> Vec<Metric> {
+fn metrics(
+    scenario: &Scenario,
+    intervals: &[(f64, f64)],
+    totals: &[MethodTotals],
+    clock: &[ClockResult],
+) -> Vec<Metric> {
     let e = &scenario.evaluation;
     let band = e.border_band_m;
     let episode_s = intervals.first().map_or(scenario.config.duration_s, |i| i.0);
@@ -245,6 +339,26 @@ fn metrics(scenario: &Scenario, intervals: &[(f64, f64)], totals: &[MethodTotals
         "%",
         100.0 - MethodTotals::percent(paper.counters.awake_node_cycles, nodes * paper.counters.cycles),
     ));
+    for (method, t) in Method::ALL.iter().zip(totals).skip(1) {
+        let Some(ledger) = &t.energy else { continue };
+        let sum = ledger.totals();
+        let power = ledger.model().power;
+        metrics.push(Metric::new(
+            format!("{}: energy per run with scheduling (radio + sonar)", method.label()),
+            "J",
+            t.per_run_f64(sum.scheduled.total_j(&power)),
+        ));
+        metrics.push(Metric::new(
+            format!("{}: energy per run with all nodes on (radio + sonar)", method.label()),
+            "J",
+            t.per_run_f64(sum.all_on.total_j(&power)),
+        ));
+        metrics.push(Metric::new(
+            format!("{}: energy saved by scheduling (radio + sonar)", method.label()),
+            "%",
+            sum.energy_saving_percent(),
+        ));
+    }
     metrics.push(Metric::new(
         "paper EKF: sonar firings per second",
         "1/s",
@@ -269,147 +383,23 @@ fn metrics(scenario: &Scenario, intervals: &[(f64, f64)], totals: &[MethodTotals
             t.mean_latency_s(),
         ));
     }
-    metrics
-}
-
-/// RMSE per robot and method, with the bound.
-fn per_robot_table(scenario: &Scenario, totals: &[MethodTotals]) -> Table {
-    let mut header = vec!["robot".to_string()];
-    header.extend(Method::ALL.iter().map(|m| format!("{} RMSE (m)", m.label())));
-    header.extend(Method::ALL.iter().map(|m| format!("{} √PCRB (m)", m.label())));
-    let rows = scenario
-        .names
-        .iter()
-        .enumerate()
-        .map(|(i, name)| {
-            let mut row = vec![name.clone()];
-            row.extend(
-                totals
-                    .iter()
-                    .map(|t| format!("{:.3}", t.per_robot.get(i).map_or(0.0, |s| s.rmse_m()))),
-            );
-            row.extend(
-                totals
-                    .iter()
-                    .map(|t| format!("{:.3}", t.per_robot.get(i).map_or(0.0, |s| s.bound_m()))),
-            );
-            row
-        })
-        .collect();
-    Table {
-        title: "Position RMSE per robot (all runs and epochs)".to_string(),
-        header,
-        rows,
-    }
-}
-
-/// RMSE against the two PCRBs: conditional on the true manoeuvres (the reported bound) and
-/// under the trackers' CV model.
-fn bounds_table(totals: &[MethodTotals]) -> Table {
-    let header = [
-        "method",
-        "epochs",
-        "RMSE (m)",
-        "√PCRB, true manoeuvres (m)",
-        "√PCRB, trackers' CV model (m)",
-    ]
-    .map(str::to_string)
-    .to_vec();
-    let mut rows = Vec::new();
-    for (label, pick) in [
-        (
-            "one robot per cell",
-            (|t: &MethodTotals| t.before) as fn(&MethodTotals) -> summary::SquareSums,
-        ),
-        ("near borders, one robot per cell", |t: &MethodTotals| t.border),
-        ("robots sharing a cell", |t: &MethodTotals| t.shared),
-        ("whole run", |t: &MethodTotals| t.all),
-    ] {
-        for (method, t) in Method::ALL.iter().zip(totals) {
-            let sums = pick(t);
-            rows.push(vec![
-                method.label().to_string(),
-                label.to_string(),
-                format!("{:.4}", sums.rmse_m()),
-                format!("{:.4}", sums.bound_m()),
-                format!("{:.4}", sums.model_bound_m()),
-            ]);
+    for variant in clock {
+        for (method, t) in &variant.totals {
+            let drift = if variant.drift_std_ppm == scenario.config.clock.drift_std_ppm {
+                String::new()
+            } else {
+                format!("{:.0} ppm ", variant.drift_std_ppm)
+            };
+            metrics.push(Metric::new(
+                format!(
+                    "{}: position RMSE, {drift}clocks {}",
+                    method.label(),
+                    tables::sync_label(variant.resync_every_cycle)
+                ),
+                "m",
+                t.all.rmse_m(),
+            ));
         }
     }
-    Table {
-        title: "bounds: RMSE against the PCRB conditional on the true manoeuvres (reported) and under the trackers' CV model"
-            .to_string(),
-        header,
-        rows,
-    }
-}
-
-/// Two or three task nodes (the paper's "two or three nearest nodes").
-fn sweep_table(sweep: &[(usize, Vec<MethodTotals>)]) -> Table {
-    let mut header = vec!["task nodes".to_string(), "paper EKF cycle (s)".to_string()];
-    header.extend(Method::ALL.iter().map(|m| format!("{} RMSE (m)", m.label())));
-    header.push("paper EKF wake-ups (1/s)".to_string());
-    header.push("paper EKF task-node changes per run".to_string());
-    header.push("LS fixes from 2 ranges (%)".to_string());
-    let rows = sweep
-        .iter()
-        .map(|(k, totals)| {
-            let paper = &totals[1];
-            let ls = &totals[0].counters.ls_fixes;
-            let mut row = vec![k.to_string(), format!("{:.3}", paper.mean_cycle_s())];
-            row.extend(totals.iter().map(|t| format!("{:.3}", t.all.rmse_m())));
-            row.push(format!("{:.1}", paper.rate_per_s(paper.counters.awake_node_cycles)));
-            row.push(format!("{:.1}", paper.per_run(paper.counters.schedule_changes)));
-            row.push(format!("{:.1}", MethodTotals::percent(ls[1], ls.iter().sum())));
-            row
-        })
-        .collect();
-    Table {
-        title: "Task nodes per robot and cycle: measurement period and accuracy".to_string(),
-        header,
-        rows,
-    }
-}
-
-/// What happened to the echoes.
-fn counters_table(totals: &[MethodTotals]) -> Table {
-    let header = [
-        "method",
-        "firings per run",
-        "echoes (% of firings)",
-        "foreign echoes (% of echoes)",
-        "echoes used (% of echoes)",
-        "wrong-robot ranges (% of used)",
-        "gated out (% of echoes)",
-        "schedule accepted (%)",
-        "task-node changes per run",
-    ]
-    .map(str::to_string)
-    .to_vec();
-    let rows = Method::ALL
-        .iter()
-        .zip(totals)
-        .map(|(m, t)| {
-            let c = &t.counters;
-            vec![
-                m.label().to_string(),
-                format!("{:.0}", t.per_run(c.firings)),
-                format!("{:.1}", MethodTotals::percent(c.echoes, c.firings)),
-                format!("{:.1}", MethodTotals::percent(c.foreign_echoes, c.echoes)),
-                format!("{:.1}", MethodTotals::percent(c.used, c.echoes)),
-                format!("{:.2}", MethodTotals::percent(c.wrong_associations, c.used)),
-                format!("{:.1}", MethodTotals::percent(c.gated_out, c.echoes)),
-                format!(
-                    "{:.1}",
-                    MethodTotals::percent(c.schedule_accepted, c.schedule_decisions)
-                ),
-                format!("{:.1}", t.per_run(c.schedule_changes)),
-            ]
-        })
-        .collect();
-    Table {
-        title: "Echoes and scheduling per method (all runs)".to_string(),
-        header,
-        rows,
-    }
+    metrics
 }

@@ -4,16 +4,21 @@
 //! paper's adaptive node scheduling, edge monitoring and dual-token timing.
 //!
 //! One call of [`run_seed_003`] simulates one method for one seed, cycle by cycle:
-//! 1. the base station broadcasts the tokens (one communication slot);
-//! 2. each robot's task nodes are scheduled from the tracker's predicted position (acceptance
-//!    rule and edge monitoring, see `schedule`);
+//! 1. the base station broadcasts the tokens (one communication slot); the broadcast also
+//!    re-syncs the nodes' clocks (or, as in the paper, only the first one does);
+//! 2. each robot's task nodes are scheduled from the tracker's predicted position by the
+//!    engine's [`rtls_engine::scheduling::TaskScheduler`] (acceptance rule and edge
+//!    monitoring), each firing node aiming its sonar(s) at the prediction;
 //! 3. the work tokens order the firings (one sonar per cell and per node at a time, each
 //!    firing a ranging slot) and each sonar hears the nearest reflecting robot in its sector;
-//! 4. the communication token brings the reports to the base one at a time (TDMA);
-//! 5. the tracker processes the echoes in firing order; the estimates are evaluated at the
-//!    cycle's last firing; the next cycle starts when the last report is in.
+//!    the node stamps the range with its own clock and counts the time of flight on it;
+//! 4. the communication token brings the reports to the base one at a time (TDMA); the engine's
+//!    [`rtls_engine::scheduling::EnergyLedger`] books every node's radio and sonar on-time;
+//! 5. the tracker processes the echoes in firing order at their time stamps; the estimates are
+//!    evaluated at the cycle's last firing; the next cycle starts when the last report is in.
 
 mod bound;
+mod clock;
 mod config;
 mod schedule;
 mod trackers;
@@ -21,17 +26,35 @@ mod trackers;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+use rtls_engine::scheduling::{CycleTimetable, EnergyLedger};
+use rtls_engine::EngineError;
 use rtls_estimation::motion::ConstantVelocity;
 use rtls_estimation::stats::ChiSquareGate;
 use rtls_estimation::{Gaussian, Matrix, Vector};
 
-pub use self::config::{SchedulingConfig, Seed003Config, TokenTiming, TrackerConfig};
+pub use self::clock::ClockConfig;
+pub use self::config::{EnergyConfig, SchedulingConfig, Seed003Config, TrackerConfig};
+pub use rtls_engine::scheduling::TokenTiming;
 
 use self::bound::{position_bound_m2, BoundDynamics, RangeEvent};
+use self::clock::NodeClocks;
 use self::schedule::{timetable, Scheduler};
 use self::trackers::{Observation, Tracker, TrackerSettings};
 use crate::error::{Result, SimError};
 use crate::sensors::ultrasonic::{Aim, Echo};
+
+/// The simulation's error for an engine error (the scheduling library reports bad parameters
+/// only; any other kind is passed on with its message).
+pub(crate) fn engine_error(error: EngineError) -> SimError {
+    match error {
+        EngineError::InvalidParameter { name, reason } => SimError::InvalidParameter { name, reason },
+        EngineError::Positioning(e) => SimError::Positioning(e),
+        other => SimError::Scenario {
+            file: "(rtls-engine)".to_string(),
+            reason: other.to_string(),
+        },
+    }
+}
 
 /// The position estimator under test.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -90,6 +113,8 @@ pub struct Epoch {
 pub struct FiringRecord {
     /// Firing time (s).
     pub time_s: f64,
+    /// The firing's time stamp by the firing node's clock (s).
+    pub stamp_s: f64,
     /// Arrival of the node's report at the base station (s).
     pub arrival_s: f64,
     /// The robot the firing was scheduled for.
@@ -131,10 +156,46 @@ pub struct RunCounters {
     pub gated_out: usize,
     /// Echoes outside every gate given to the only track in the beam (ours).
     pub sole_candidate: usize,
+    /// Echoes outside every gate that several tracks could have made after a manoeuvre,
+    /// dropped because which one manoeuvred is unknown (ours).
+    pub ambiguous: usize,
     /// LS fixes from ≥ 3 ranges, from 2 ranges, and robot-cycles without a fix.
     pub ls_fixes: [usize; 3],
     /// EKF updates skipped because a track sat on the firing node.
     pub singular_updates: usize,
+}
+
+/// The clock errors a run's measurements carried.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ClockStats {
+    /// Σ squared time-stamp errors over the firings (s²).
+    pub stamp_error_sum_sq_s2: f64,
+    /// Largest |time-stamp error| (s).
+    pub stamp_error_max_s: f64,
+    /// Firings stamped.
+    pub stamps: usize,
+    /// Largest |range error| from counting the time of flight on the node's clock, `|δ| r` (m).
+    pub range_bias_max_m: f64,
+}
+
+impl ClockStats {
+    /// RMS time-stamp error (s), 0 without stamps.
+    #[must_use]
+    pub fn rms_stamp_error_s(&self) -> f64 {
+        if self.stamps == 0 {
+            0.0
+        } else {
+            (self.stamp_error_sum_sq_s2 / self.stamps as f64).sqrt()
+        }
+    }
+
+    /// Adds another run's statistics.
+    pub fn merge(&mut self, other: &Self) {
+        self.stamp_error_sum_sq_s2 += other.stamp_error_sum_sq_s2;
+        self.stamp_error_max_s = self.stamp_error_max_s.max(other.stamp_error_max_s);
+        self.stamps += other.stamps;
+        self.range_bias_max_m = self.range_bias_max_m.max(other.range_bias_max_m);
+    }
 }
 
 /// One seeded run of one method.
@@ -156,6 +217,11 @@ pub struct Seed003Run {
     pub cycle_starts_s: Vec<f64>,
     /// End of the last completed cycle (s): the time span the counters cover.
     pub end_s: f64,
+    /// Every node's radio and sonar on-time, scheduled and with all nodes on, over the
+    /// completed cycles.
+    pub energy: EnergyLedger,
+    /// The clock errors of the time stamps and ranges.
+    pub clock: ClockStats,
 }
 
 /// Runs `method` on `config` with all randomness drawn from `seed` (initial estimates first, so
@@ -233,10 +299,13 @@ pub fn run_seed_003(config: &Seed003Config, method: Method, seed: u64) -> Result
     let mut scheduler = Scheduler::new(
         bed,
         &initial_m,
-        config.scheduling.task_nodes,
-        config.scheduling.edge_margin_m,
+        config.task_scheduler()?,
         config.scheduling.dual_sonar_margin_deg.to_radians(),
-    );
+    )?;
+    // the clocks draw from their own stream, so that they leave the measurement noise alone
+    let mut clock_rng = ChaCha8Rng::seed_from_u64(seed);
+    clock_rng.set_stream(1);
+    let mut clocks = NodeClocks::new(bed.nodes_m().len(), &config.clock, &mut clock_rng)?;
     let mut run = Seed003Run {
         seed,
         method,
@@ -246,39 +315,59 @@ pub fn run_seed_003(config: &Seed003Config, method: Method, seed: u64) -> Result
         latencies_s: Vec::new(),
         cycle_starts_s: Vec::new(),
         end_s: 0.0,
+        energy: EnergyLedger::new(bed.nodes_m().len(), config.energy.model(&config.sonar)).map_err(engine_error)?,
+        clock: ClockStats::default(),
     };
-    let TokenTiming {
-        ranging_slot_s,
-        comm_slot_s,
-    } = config.timing;
     let mut cycle_start_s = 0.0;
     loop {
         // 1. token broadcast; the firings start when it has been sent
-        let fire_start_s = cycle_start_s + comm_slot_s;
+        let fire_start_s = cycle_start_s + config.timing.comm_slot_s;
         // 2. scheduling from the predicted positions
         let predicted = tracker.positions_at(&settings, fire_start_s)?;
-        let plan = scheduler.plan(bed, &config.sonar, &predicted);
+        let plan = scheduler.plan(bed, &config.sonar, &predicted)?;
         // 3.–4. work tokens and communication token
-        let timed = timetable(&plan.requests, fire_start_s, ranging_slot_s, comm_slot_s);
-        let (Some(last), Some(first)) = (timed.last(), timed.first()) else {
+        let (cycle, timed) = timetable(&config.timing, cycle_start_s, &plan.requests)?;
+        let Some(last) = timed.last() else {
             return Err(SimError::EmptyInput {
                 what: "firings of a cycle",
             });
         };
-        let (last_fire_s, cycle_end_s) = (
-            last.time_s,
-            timed.iter().map(|t| t.arrival_s).fold(first.arrival_s, f64::max),
-        );
+        let last_fire_s = last.time_s;
         if last_fire_s > config.duration_s {
             break;
+        }
+        // the broadcast syncs the clocks: every cycle, or only the first (the paper)
+        if run.counters.cycles == 0 || config.clock.resync_every_cycle {
+            clocks.sync(cycle.broadcast_end_s, &mut clock_rng);
         }
         run.cycle_starts_s.push(cycle_start_s);
         let mut observations = Vec::with_capacity(timed.len());
         for t in timed {
             let targets = truth_at(t.time_s)?;
-            let node_m = bed.nodes_m()[t.request.node];
-            let echo = config.sonar.fire(node_m, t.request.aim, &targets, &mut rng)?;
-            observations.push(Observation { timed: t, echo });
+            let node = t.request.node;
+            let echo = config
+                .sonar
+                .fire(bed.nodes_m()[node], t.request.aim, &targets, &mut rng)?;
+            // the node's clock: the stamp is off by e(t), the time of flight is scaled by 1 + δ
+            let error_s = clocks.error_s(node, t.time_s);
+            let rate = clocks.rate(node);
+            let echo = echo.map(|e| Echo {
+                range_m: e.range_m * rate,
+                time_of_flight_s: e.time_of_flight_s * rate,
+                source: e.source,
+            });
+            let c = &mut run.clock;
+            c.stamp_error_sum_sq_s2 += error_s * error_s;
+            c.stamp_error_max_s = c.stamp_error_max_s.max(error_s.abs());
+            c.stamps += 1;
+            if let Some(e) = echo {
+                c.range_bias_max_m = c.range_bias_max_m.max((e.range_m - e.range_m / rate).abs());
+            }
+            observations.push(Observation {
+                timed: t,
+                stamp_s: t.time_s + error_s,
+                echo,
+            });
         }
         // 5. the tracker, then the evaluation at the last firing
         let outcome = tracker.process(&settings, &config.sonar, bed.nodes_m(), &observations)?;
@@ -290,22 +379,26 @@ pub fn run_seed_003(config: &Seed003Config, method: Method, seed: u64) -> Result
             bound_m2: Vec::new(),
             model_bound_m2: Vec::new(),
         });
-        count_cycle(&mut run, config.robots.len(), &plan, &observations, &outcome);
-        cycle_start_s = cycle_end_s;
-        run.end_s = cycle_end_s;
+        count_cycle(&mut run, config.robots.len(), &plan, &cycle, &observations, &outcome)?;
+        cycle_start_s = cycle.end_s;
+        run.end_s = cycle.end_s;
     }
     attach_bounds(&mut run, config, &motion, &p0)?;
     Ok(run)
 }
 
-/// Adds one cycle's firings and counters to the run.
+/// Adds one cycle's firings, counters and energy to the run.
 fn count_cycle(
     run: &mut Seed003Run,
     robots: usize,
     plan: &schedule::Plan,
+    cycle: &CycleTimetable,
     observations: &[Observation],
     outcome: &trackers::CycleOutcome,
-) {
+) -> Result<()> {
+    // the observations are in the cycle's firing order
+    let sonars: Vec<usize> = observations.iter().map(|o| o.timed.request.aim.count).collect();
+    run.energy.record_cycle(cycle, &sonars).map_err(engine_error)?;
     let c = &mut run.counters;
     c.cycles += 1;
     c.schedule_decisions += robots;
@@ -317,6 +410,7 @@ fn count_cycle(
     c.awake_node_cycles += awake.len();
     c.gated_out += outcome.gated_out;
     c.sole_candidate += outcome.sole_candidate;
+    c.ambiguous += outcome.ambiguous;
     c.singular_updates += outcome.singular;
     for k in 0..3 {
         c.ls_fixes[k] += outcome.ls_fixes[k];
@@ -333,6 +427,7 @@ fn count_cycle(
         }
         run.firings.push(FiringRecord {
             time_s: o.timed.time_s,
+            stamp_s: o.stamp_s,
             arrival_s: o.timed.arrival_s,
             robot: o.timed.request.robot,
             node: o.timed.request.node,
@@ -342,6 +437,7 @@ fn count_cycle(
         });
     }
     run.latencies_s.extend_from_slice(&outcome.latencies_s);
+    Ok(())
 }
 
 /// Fills every epoch's PCRB. Robot `i` gets the information `Hᵀ R⁻¹ H` at its true position of
@@ -382,87 +478,4 @@ fn attach_bounds(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::scenarios::seed_003::planar_route;
-
-    fn two_robots_meeting() -> Seed003Config {
-        // robot 0 crosses cell 0 → 1; robot 1 waits in cell 1 near the path, then leaves
-        let a = planar_route(&[[0.6, 0.8], [3.4, 0.8], [3.4, 1.6]], 0.5, 0.0, &[]).unwrap();
-        let b = planar_route(&[[3.0, 1.4], [3.0, 3.4]], 0.5, 4.0, &[]).unwrap();
-        Seed003Config::paper(vec![a, b], 7.0).unwrap()
-    }
-
-    #[test]
-    fn a_run_is_reproducible_and_its_timing_follows_the_tokens() {
-        let config = two_robots_meeting();
-        let run = run_seed_003(&config, Method::PaperEkf, 11).unwrap();
-        assert_eq!(run, run_seed_003(&config, Method::PaperEkf, 11).unwrap());
-        assert!(run.counters.cycles > 15, "{:?}", run.counters);
-        // firings in time order, reports after their ranging slot, cycles back to back
-        assert!(run.firings.windows(2).all(|w| w[0].time_s <= w[1].time_s));
-        assert!(run.firings.iter().all(|f| f.arrival_s >= f.time_s + 0.075 - 1e-12));
-        assert!(run.cycle_starts_s.windows(2).all(|w| w[1] > w[0] + 0.2));
-        // bounds are positive and finite, one per robot and epoch
-        for e in &run.epochs {
-            assert_eq!(
-                (e.bound_m2.len(), e.model_bound_m2.len(), e.estimate_m.len()),
-                (2, 2, 2)
-            );
-            assert!(e
-                .bound_m2
-                .iter()
-                .chain(&e.model_bound_m2)
-                .all(|b| b.is_finite() && *b > 0.0));
-        }
-        let c = run.counters;
-        assert_eq!(c.schedule_decisions, 2 * c.cycles);
-        assert!(c.awake_node_cycles <= 12 * c.cycles && c.awake_node_cycles >= 3 * c.cycles);
-    }
-
-    #[test]
-    fn every_method_tracks_a_lone_robot_within_centimetres() {
-        let route = planar_route(&[[0.6, 0.8], [3.4, 0.8], [3.4, 3.2]], 0.5, 0.0, &[]).unwrap();
-        let config = Seed003Config::paper(vec![route], 10.0).unwrap();
-        for method in Method::ALL {
-            let run = run_seed_003(&config, method, 5).unwrap();
-            let errors: Vec<f64> = run
-                .epochs
-                .iter()
-                .skip(5)
-                .map(|e| (e.estimate_m[0][0] - e.truth_m[0][0]).hypot(e.estimate_m[0][1] - e.truth_m[0][1]))
-                .collect();
-            let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
-            if rmse >= 0.15 {
-                for (e, f) in run.epochs.iter().zip(0..) {
-                    eprintln!(
-                        "{f} t={:.2} truth={:?} est={:?}",
-                        e.time_s, e.truth_m[0], e.estimate_m[0]
-                    );
-                }
-                for f in run.firings.iter().take(40) {
-                    eprintln!("{f:?}");
-                }
-            }
-            assert!(rmse < 0.15, "{method:?}: {rmse}");
-            assert_eq!(run.counters.wrong_associations, 0, "{method:?}");
-        }
-    }
-
-    #[test]
-    fn bad_configurations_are_errors() {
-        let config = two_robots_meeting();
-        let mut bad = config.clone();
-        bad.scheduling.task_nodes = 5;
-        assert!(run_seed_003(&bad, Method::LeastSquares, 0).is_err());
-        let mut bad = config.clone();
-        bad.duration_s = 100.0;
-        assert!(matches!(
-            bad.validate(),
-            Err(SimError::InvalidParameter { name: "duration_s", .. })
-        ));
-        let mut bad = config;
-        bad.robots.clear();
-        assert!(bad.validate().is_err());
-    }
-}
+mod tests;

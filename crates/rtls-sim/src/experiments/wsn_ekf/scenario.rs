@@ -5,10 +5,13 @@ use serde::Deserialize;
 
 use crate::error::{Result, SimError};
 use crate::experiments::ScenarioSource;
-use crate::reproduction::seed_003::{SchedulingConfig, Seed003Config, TokenTiming, TrackerConfig};
+use crate::reproduction::seed_003::{
+    ClockConfig, EnergyConfig, SchedulingConfig, Seed003Config, TokenTiming, TrackerConfig,
+};
 use crate::scenarios::seed_003::{planar_route, TestBed};
 use crate::sensors::ultrasonic::SonarRing;
 use crate::trajectory::WaypointPath;
+use rtls_engine::scheduling::PowerModel;
 
 /// The scenario file as written.
 #[derive(Debug, Clone, Deserialize)]
@@ -20,6 +23,8 @@ pub(crate) struct TestBedFile {
     tokens: TokenSection,
     scheduling: SchedulingSection,
     tracker: TrackerSection,
+    clock: ClockSection,
+    energy: EnergySection,
     evaluation: EvaluationSection,
     robots: Vec<RobotSection>,
 }
@@ -71,6 +76,24 @@ struct TrackerSection {
     manoeuvre_velocity_std_mps: f64,
 }
 
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ClockSection {
+    drift_std_ppm: f64,
+    sync_jitter_std_s: f64,
+    resync_every_cycle: bool,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EnergySection {
+    radio_rx_w: f64,
+    radio_tx_w: f64,
+    sonar_w: f64,
+    sonar_ping_s: f64,
+    all_on_sonars_per_node: usize,
+}
+
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct EvaluationSection {
@@ -79,6 +102,7 @@ struct EvaluationSection {
     tracked_fraction: f64,
     swap_window_s: f64,
     task_node_sweep: Vec<usize>,
+    clock_stress_drift_ppm: f64,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -106,6 +130,8 @@ pub(crate) struct Evaluation {
     pub swap_window_s: f64,
     /// Task-node counts compared in the sweep table.
     pub task_node_sweep: Vec<usize>,
+    /// A clock drift σ (ppm) far above the configured one, to show when the sync matters.
+    pub clock_stress_drift_ppm: f64,
 }
 
 /// The parsed, validated scenario.
@@ -260,6 +286,27 @@ pub(crate) fn parse(source: &ScenarioSource) -> Result<Scenario> {
             t.manoeuvre_velocity_std_mps,
         )?,
     };
+    let clock = clock_config(source, file.clock)?;
+    let en = file.energy;
+    if en.all_on_sonars_per_node == 0 || en.all_on_sonars_per_node > sonar.sonars {
+        return Err(field_error(
+            source,
+            "energy.all_on_sonars_per_node",
+            format_args!(
+                "must be 1 to sonar.sonars_per_node = {}, got {}",
+                sonar.sonars, en.all_on_sonars_per_node
+            ),
+        ));
+    }
+    let energy = EnergyConfig {
+        power: PowerModel {
+            radio_rx_w: non_negative(source, "energy.radio_rx_w", en.radio_rx_w)?,
+            radio_tx_w: non_negative(source, "energy.radio_tx_w", en.radio_tx_w)?,
+            sonar_w: non_negative(source, "energy.sonar_w", en.sonar_w)?,
+        },
+        sonar_ping_s: non_negative(source, "energy.sonar_ping_s", en.sonar_ping_s)?,
+        all_on_sonars_per_node: en.all_on_sonars_per_node,
+    };
     let e = file.evaluation;
     if e.task_node_sweep.is_empty() {
         return Err(field_error(
@@ -284,6 +331,14 @@ pub(crate) fn parse(source: &ScenarioSource) -> Result<Scenario> {
         )?,
         swap_window_s: non_negative(source, "evaluation.swap_window_s", e.swap_window_s)?,
         task_node_sweep: e.task_node_sweep,
+        clock_stress_drift_ppm: in_interval(
+            source,
+            "evaluation.clock_stress_drift_ppm",
+            e.clock_stress_drift_ppm,
+            0.0,
+            1e5,
+            false,
+        )?,
     };
     let (robots, names) = routes(source, &file.robots, &bed, duration_s)?;
     let config = Seed003Config {
@@ -292,6 +347,8 @@ pub(crate) fn parse(source: &ScenarioSource) -> Result<Scenario> {
         timing,
         scheduling,
         tracker,
+        clock,
+        energy,
         robots,
         duration_s,
     };
@@ -302,6 +359,31 @@ pub(crate) fn parse(source: &ScenarioSource) -> Result<Scenario> {
         config,
         names,
         evaluation,
+    })
+}
+
+/// The `[clock]` section, checked: drift in [0, 10⁵) ppm, jitter in [0, 1) s.
+fn clock_config(source: &ScenarioSource, c: ClockSection) -> Result<ClockConfig> {
+    let drift_std_ppm = non_negative(source, "clock.drift_std_ppm", c.drift_std_ppm)?;
+    if drift_std_ppm >= 1e5 {
+        return Err(field_error(
+            source,
+            "clock.drift_std_ppm",
+            format_args!("must be below 10⁵ ppm (10 %), got {drift_std_ppm}"),
+        ));
+    }
+    let sync_jitter_std_s = non_negative(source, "clock.sync_jitter_std_s", c.sync_jitter_std_s)?;
+    if sync_jitter_std_s >= 1.0 {
+        return Err(field_error(
+            source,
+            "clock.sync_jitter_std_s",
+            format_args!("must be below 1 s, got {sync_jitter_std_s}"),
+        ));
+    }
+    Ok(ClockConfig {
+        drift_std_ppm,
+        sync_jitter_std_s,
+        resync_every_cycle: c.resync_every_cycle,
     })
 }
 
@@ -382,7 +464,7 @@ mod tests {
     #[test]
     fn the_shipped_scenario_parses_with_the_paper_values() {
         let s = parse(&shipped()).unwrap();
-        assert_eq!(s.config.bed, TestBed::paper());
+        assert_eq!(s.config.bed, TestBed::paper().unwrap());
         assert_eq!((s.config.sonar.sonars, s.config.sonar.sector_width_deg), (6, 60.0));
         assert_eq!(s.names, vec!["A", "B", "C"]);
         assert_eq!(s.evaluation.task_node_sweep, vec![2, 3]);
@@ -415,6 +497,24 @@ mod tests {
                 "task_node_sweep = [2, 3]",
                 "task_node_sweep = []",
                 "evaluation.task_node_sweep",
+            ),
+            ("drift_std_ppm = 20.0", "drift_std_ppm = -20.0", "clock.drift_std_ppm"),
+            ("drift_std_ppm = 20.0", "drift_std_ppm = 2e5", "clock.drift_std_ppm"),
+            (
+                "sync_jitter_std_s = 0.0001",
+                "sync_jitter_std_s = 3.0",
+                "clock.sync_jitter_std_s",
+            ),
+            ("radio_rx_w = 0.0564", "radio_rx_w = -1.0", "energy.radio_rx_w"),
+            (
+                "all_on_sonars_per_node = 6",
+                "all_on_sonars_per_node = 7",
+                "energy.all_on_sonars_per_node",
+            ),
+            (
+                "clock_stress_drift_ppm = 10000.0",
+                "clock_stress_drift_ppm = 0.0",
+                "evaluation.clock_stress_drift_ppm",
             ),
         ];
         for (from, to, field) in cases {

@@ -1,8 +1,12 @@
 //! Reduces each seed 003 run to the sums the report needs, and adds them up over runs in run
 //! order (so the totals do not depend on the thread count).
 
-use crate::reproduction::seed_003::{RunCounters, Seed003Run};
+use rtls_engine::scheduling::EnergyLedger;
+
+use crate::error::Result;
+use crate::reproduction::seed_003::{engine_error, ClockStats, RunCounters, Seed003Run};
 use crate::scenarios::seed_003::TestBed;
+use crate::trajectory::WaypointPath;
 
 use super::scenario::Evaluation;
 
@@ -66,6 +70,26 @@ impl SquareSums {
     }
 }
 
+/// A robot whose track was nearer another robot's truth in the swap window: where and when
+/// it first was.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct SwapEvent {
+    /// The run's seed.
+    pub seed: u64,
+    /// The robot.
+    pub robot: usize,
+    /// Time of the first such epoch (s).
+    pub time_s: f64,
+    /// The robot's true position then (m).
+    pub truth_m: [f64; 2],
+    /// Its error then (m).
+    pub error_m: f64,
+    /// Whether the robot stood still then (its true speed below 1 mm/s).
+    pub standing: bool,
+    /// Whether the track was back within the tracked error at the end of the run.
+    pub recovered: bool,
+}
+
 /// What the report needs from runs of one method (one run, or the sum over runs).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub(crate) struct MethodTotals {
@@ -90,6 +114,8 @@ pub(crate) struct MethodTotals {
     /// Robots whose track was nearer another robot's truth (and off by more than the tracked
     /// error) at some epoch of the swap window.
     pub swaps: usize,
+    /// Each of those swaps.
+    pub swap_events: Vec<SwapEvent>,
     /// Robots tracked (fraction of errors below the tracked error ≥ the tracked fraction).
     pub tracked: usize,
     /// Echoes used for the wrong robot during the shared-cell episodes.
@@ -102,6 +128,10 @@ pub(crate) struct MethodTotals {
     pub simulated_s: f64,
     /// Σ sonars fired (a dual-sonar firing counts 2).
     pub sonar_firings: usize,
+    /// Every node's radio and sonar on-time, scheduled and all on (`None` before any run).
+    pub energy: Option<EnergyLedger>,
+    /// Time-stamp and range errors from the nodes' clocks.
+    pub clock: ClockStats,
     /// Runs added.
     pub runs: usize,
 }
@@ -117,6 +147,8 @@ pub(crate) struct Context<'a> {
     pub shared_intervals: &'a [(f64, f64)],
     /// Time bins of the error-over-time figure.
     pub bins: usize,
+    /// The robots' routes (true motion).
+    pub routes: &'a [WaypointPath],
 }
 
 impl MethodTotals {
@@ -132,6 +164,8 @@ impl MethodTotals {
             simulated_s: run.end_s,
             latency: (run.latencies_s.iter().sum(), run.latencies_s.len()),
             sonar_firings: run.firings.iter().map(|f| f.aim.count).sum(),
+            energy: Some(run.energy.clone()),
+            clock: run.clock,
             ..Self::default()
         };
         let swap_window = match (context.shared_intervals.first(), context.shared_intervals.last()) {
@@ -174,8 +208,30 @@ impl MethodTotals {
                     totals.shared.add(e2, bound);
                 }
                 let in_window = swap_window.is_some_and(|(from, to)| (from..=to).contains(&epoch.time_s));
-                if in_window && error_m > evaluation.tracked_error_m {
-                    swapped[i] |= (0..robots).any(|j| j != i && distance(epoch.truth_m[j], estimate) < error_m);
+                if in_window
+                    && error_m > evaluation.tracked_error_m
+                    && !swapped[i]
+                    && (0..robots).any(|j| j != i && distance(epoch.truth_m[j], estimate) < error_m)
+                {
+                    swapped[i] = true;
+                    let standing = context
+                        .routes
+                        .get(i)
+                        .and_then(|r| r.state_at(epoch.time_s).ok())
+                        .is_some_and(|s| s.velocity_mps[0].hypot(s.velocity_mps[1]) < 1e-3);
+                    let recovered = run
+                        .epochs
+                        .last()
+                        .is_some_and(|e| distance(e.truth_m[i], e.estimate_m[i]) < evaluation.tracked_error_m);
+                    totals.swap_events.push(SwapEvent {
+                        seed: run.seed,
+                        robot: i,
+                        time_s: epoch.time_s,
+                        truth_m: truth,
+                        error_m,
+                        standing,
+                        recovered,
+                    });
                 }
             }
         }
@@ -200,7 +256,17 @@ impl MethodTotals {
     }
 
     /// Adds another run's (or total's) sums.
-    pub fn merge(&mut self, other: &Self) {
+    ///
+    /// # Errors
+    /// [`crate::SimError::InvalidParameter`] (`other`) when the energy ledgers cover different
+    /// nodes or energy models (runs of different configurations).
+    pub fn merge(&mut self, other: &Self) -> Result<()> {
+        match (&mut self.energy, &other.energy) {
+            (Some(mine), Some(theirs)) => mine.merge(theirs).map_err(engine_error)?,
+            (None, Some(theirs)) => self.energy = Some(theirs.clone()),
+            (_, None) => {}
+        }
+        self.clock.merge(&other.clock);
         self.all.merge(&other.all);
         self.before.merge(&other.before);
         self.border.merge(&other.border);
@@ -221,6 +287,7 @@ impl MethodTotals {
         self.border_path_m[0] += other.border_path_m[0];
         self.border_path_m[1] += other.border_path_m[1];
         self.swaps += other.swaps;
+        self.swap_events.extend_from_slice(&other.swap_events);
         self.tracked += other.tracked;
         self.shared_wrong += other.shared_wrong;
         let (c, o) = (&mut self.counters, &other.counters);
@@ -236,6 +303,7 @@ impl MethodTotals {
         c.wrong_associations += o.wrong_associations;
         c.gated_out += o.gated_out;
         c.sole_candidate += o.sole_candidate;
+        c.ambiguous += o.ambiguous;
         for k in 0..3 {
             c.ls_fixes[k] += o.ls_fixes[k];
         }
@@ -245,6 +313,12 @@ impl MethodTotals {
         self.simulated_s += other.simulated_s;
         self.sonar_firings += other.sonar_firings;
         self.runs += other.runs;
+        Ok(())
+    }
+
+    /// Per-run mean of a sum.
+    pub fn per_run_f64(&self, sum: f64) -> f64 {
+        sum / self.runs.max(1) as f64
     }
 
     /// Per-run mean of a count.

@@ -1,24 +1,43 @@
-//! The configuration of a seed 003 run: token timing, scheduling, tracker tuning, and the
-//! whole run's [`Seed003Config`].
+//! The configuration of a seed 003 run: token timing, scheduling, tracker tuning, clocks,
+//! energy, and the whole run's [`Seed003Config`].
 
+use rtls_engine::scheduling::{EnergyModel, PowerModel, TaskScheduler, TokenTiming};
 use rtls_estimation::motion::{ConstantVelocity, ProcessNoise};
 use rtls_estimation::{Matrix, Vector};
 
+use super::clock::ClockConfig;
+use super::engine_error;
 use crate::error::{positive, Result, SimError};
 use crate::scenarios::seed_003::TestBed;
 use crate::sensors::ultrasonic::SonarRing;
 use crate::trajectory::WaypointPath;
 
-/// Token timing (seed 003 §3.1).
+/// What the energy accounting assumes beyond the sonar's echo window.
 ///
-/// # Units
-/// Seconds.
+/// # References
+/// See [`PowerModel`] (CC2420 and SRF08 datasheet figures).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TokenTiming {
-    /// Time one firing holds its cell's work token: ranging plus echo decay (SRF08: 65 ms).
-    pub ranging_slot_s: f64,
-    /// One message on the shared channel: the token broadcast or one node's report.
-    pub comm_slot_s: f64,
+pub struct EnergyConfig {
+    /// Power draws of the radio and of a ranging sonar (W).
+    pub power: PowerModel,
+    /// Length of one ping (s): SRF08, 8 cycles at 40 kHz = 0.2 ms.
+    pub sonar_ping_s: f64,
+    /// Sonars every node fires per cycle in the all-nodes-on reference.
+    pub all_on_sonars_per_node: usize,
+}
+
+impl EnergyConfig {
+    /// The engine's energy model with `sonar`'s echo window: a fired sonar is on for the ping
+    /// plus the window.
+    #[must_use]
+    pub fn model(&self, sonar: &SonarRing) -> EnergyModel {
+        EnergyModel {
+            power: self.power,
+            sonar_ping_s: self.sonar_ping_s,
+            echo_window_s: sonar.echo_window_s,
+            all_on_sonars_per_node: self.all_on_sonars_per_node,
+        }
+    }
 }
 
 /// Node scheduling (seed 003 §3.2 and §3.4).
@@ -69,6 +88,10 @@ pub struct Seed003Config {
     pub scheduling: SchedulingConfig,
     /// EKF tuning.
     pub tracker: TrackerConfig,
+    /// The nodes' clocks and their sync.
+    pub clock: ClockConfig,
+    /// Energy accounting.
+    pub energy: EnergyConfig,
     /// One route per robot (z ignored), each at least `duration_s` long.
     pub robots: Vec<WaypointPath>,
     /// Simulated time (s).
@@ -83,16 +106,7 @@ impl Seed003Config {
     /// without robots; [`SimError::NonFinite`] for NaN/∞.
     pub fn validate(&self) -> Result<()> {
         self.sonar.validate()?;
-        positive(
-            self.timing.ranging_slot_s,
-            "ranging_slot_s",
-            "the ranging slot must be positive",
-        )?;
-        positive(
-            self.timing.comm_slot_s,
-            "comm_slot_s",
-            "the communication slot must be positive",
-        )?;
+        self.timing.validate().map_err(engine_error)?;
         if !(1..=4).contains(&self.scheduling.task_nodes) {
             return Err(SimError::InvalidParameter {
                 name: "task_nodes",
@@ -104,6 +118,8 @@ impl Seed003Config {
             "edge_margin_m",
             "the edge margin must not be negative",
         )?;
+        self.clock.validate()?;
+        self.energy.model(&self.sonar).validate().map_err(engine_error)?;
         crate::error::non_negative(
             self.scheduling.dual_sonar_margin_deg,
             "dual_sonar_margin_deg",
@@ -160,6 +176,14 @@ impl Seed003Config {
         Ok(())
     }
 
+    /// The engine's task scheduler for this configuration.
+    ///
+    /// # Errors
+    /// As [`TaskScheduler::new`] (a zero task-node count or a bad edge margin).
+    pub fn task_scheduler(&self) -> Result<TaskScheduler> {
+        TaskScheduler::new(self.scheduling.task_nodes, self.scheduling.edge_margin_m).map_err(engine_error)
+    }
+
     /// The trackers' motion model (CV, continuous white acceleration of PSD `q`).
     ///
     /// # Errors
@@ -186,7 +210,9 @@ impl Seed003Config {
     /// justified: SRF08 sonars ([`SonarRing::srf08`]), 65 ms ranging slot, 10 ms
     /// communication slot, 3 task nodes, 0.3 m edge margin, both sonars within 10° of a sector
     /// edge, `q` = 0.02 m²/s³, `P₀` = diag(0.1², 0.2², 0.1², 0.2²), 99 % gate, 10° sector
-    /// margin, 0.75 m manoeuvre margin, 0.5 m/s re-opened velocity.
+    /// margin, 0.75 m manoeuvre margin, 0.5 m/s re-opened velocity; clocks drifting by
+    /// σ = 20 ppm with a 0.1 ms sync jitter, re-synced every cycle; a CC2420 radio and SRF08
+    /// sonars ([`PowerModel::cc2420_srf08`]), 0.2 ms pings, 6 sonars per node when all are on.
     ///
     /// # Errors
     /// As [`Seed003Config::validate`].
@@ -195,7 +221,7 @@ impl Seed003Config {
     /// Seed 003 §1 (bed, nodes, sonars), §3.1–§3.4 (tokens, edge monitoring, EKF, scheduling).
     pub fn paper(robots: Vec<WaypointPath>, duration_s: f64) -> Result<Self> {
         let config = Self {
-            bed: TestBed::paper(),
+            bed: TestBed::paper()?,
             sonar: SonarRing::srf08(),
             timing: TokenTiming {
                 ranging_slot_s: 0.065,
@@ -214,6 +240,16 @@ impl Seed003Config {
                 sector_margin_deg: 10.0,
                 manoeuvre_margin_m: 0.75,
                 manoeuvre_velocity_std_mps: 0.5,
+            },
+            clock: ClockConfig {
+                drift_std_ppm: 20.0,
+                sync_jitter_std_s: 1e-4,
+                resync_every_cycle: true,
+            },
+            energy: EnergyConfig {
+                power: PowerModel::cc2420_srf08(),
+                sonar_ping_s: 0.0002,
+                all_on_sonars_per_node: 6,
             },
             robots,
             duration_s,

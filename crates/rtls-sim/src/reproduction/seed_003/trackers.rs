@@ -26,9 +26,11 @@ use crate::sensors::ultrasonic::{Echo, SonarRing};
 /// truth about who reflected it, in `echo.source`, used only for counting).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Observation {
-    /// The timed firing.
+    /// The timed firing (true firing time; its slot identifies the firing instant).
     pub timed: Timed,
-    /// The accepted echo, if any.
+    /// The firing's time stamp by the node's clock (s): the time the EKFs use.
+    pub stamp_s: f64,
+    /// The accepted echo, if any (its range counted on the node's clock).
     pub echo: Option<Echo>,
 }
 
@@ -47,6 +49,9 @@ pub(crate) struct CycleOutcome {
     pub gated_out: usize,
     /// Echoes outside every gate given to the only track in the beam (ours).
     pub sole_candidate: usize,
+    /// Echoes outside every gate that several tracks could have made after a manoeuvre
+    /// (dropped: which one manoeuvred is unknown), ours.
+    pub ambiguous: usize,
     /// EKF updates skipped because a track sat on the firing node (undefined direction).
     pub singular: usize,
 }
@@ -178,10 +183,10 @@ fn paper_update(
     i: usize,
     outcome: &mut CycleOutcome,
 ) -> Result<()> {
-    let Observation { timed, echo } = observations[i];
+    let Observation { timed, stamp_s, echo } = observations[i];
     let Some(echo) = echo else { return Ok(()) };
     let robot = timed.request.robot;
-    let prior = predict(&tracks[robot], settings, timed.time_s)?;
+    let prior = predict(&tracks[robot], settings, stamp_s)?;
     match range_update(&prior, settings, nodes_m[timed.request.node], echo.range_m)? {
         Some(updated) => {
             tracks[robot] = updated.state;
@@ -207,7 +212,9 @@ fn paper_update(
 /// at 0.5 m/s leaves the CV prediction 10–20 cm off within a cycle); its velocity is then
 /// re-opened before the update, `P⁻ += diag(0, σ_m², 0, σ_m²)`, so that the range can correct a
 /// velocity the CV model still holds from before the turn. The assignment maximises the number
-/// of assigned echoes, then minimises the total cost. Unassigned echoes are dropped.
+/// of assigned echoes, then minimises the total cost. Unassigned echoes are dropped, among them
+/// the echoes outside every gate for which several tracks are within the manoeuvre margin
+/// (counted as ambiguous: one of them manoeuvred, but which one is unknown).
 fn associate_group(
     tracks: &mut [Gaussian<4>],
     settings: &TrackerSettings,
@@ -222,18 +229,22 @@ fn associate_group(
     let Some(first) = observations.get(group.start) else {
         return Ok(());
     };
-    let time_s = first.timed.time_s;
-    let priors = tracks
-        .iter()
-        .map(|track| predict(track, settings, time_s))
-        .collect::<Result<Vec<_>>>()?;
-    let threshold = settings.gate.threshold(1).map_err(SimError::estimation(time_s))?;
+    let threshold = settings
+        .gate
+        .threshold(1)
+        .map_err(SimError::estimation(first.stamp_s))?;
     // candidates[e] = (track, cost, updated) for the tracks that may take echo e
     let mut echoes: Vec<usize> = Vec::new();
     let mut candidates: Vec<Vec<(usize, f64, Updated<4>)>> = Vec::new();
     for i in group {
-        let Observation { timed, echo } = observations[i];
+        let Observation { timed, stamp_s, echo } = observations[i];
         let Some(echo) = echo else { continue };
+        // every track predicted to the echo's time stamp (the nodes' clocks differ slightly)
+        let time_s = stamp_s;
+        let priors = tracks
+            .iter()
+            .map(|track| predict(track, settings, time_s))
+            .collect::<Result<Vec<_>>>()?;
         let node_m = nodes_m[timed.request.node];
         // the tracks that can be in the beam: inside the aimed sector(s) (widened by the margin)
         // and not beyond the echo window's range by more than 3 σ of the predicted range
@@ -253,24 +264,33 @@ fn associate_group(
                 in_beam.push((track, updated));
             }
         }
-        let plausible = in_beam
+        let plausible: Vec<usize> = in_beam
             .iter()
             .filter(|(_, u)| u.innovation[0].abs() <= settings.manoeuvre_margin_m)
-            .count();
+            .map(|(track, _)| *track)
+            .collect();
+        let any_gated = in_beam.iter().any(|(_, u)| u.nis <= threshold);
+        // the track that may take the echo as a manoeuvre: the only plausible one; with several
+        // plausible and none gated, one of them has manoeuvred but which is unknown: dropped
+        let manoeuvring = match plausible.as_slice() {
+            [only] => Some(*only),
+            _ => None,
+        };
+        outcome.ambiguous += usize::from(plausible.len() > 1 && !any_gated);
         let mut gated = Vec::new();
         for (track, updated) in in_beam {
             // gate: νᵀ S⁻¹ ν ≤ γ; cost = νᵀ S⁻¹ ν + ln |S|
             let cost = updated.nis + updated.log_det_innovation_covariance;
             if updated.nis <= threshold {
                 gated.push((track, cost, updated));
-            } else if plausible == 1 && updated.innovation[0].abs() <= settings.manoeuvre_margin_m {
+            } else if manoeuvring == Some(track) {
                 // manoeuvre: P⁻ += diag(0, σ_m², 0, σ_m²), then the range update
                 let mut covariance = *priors[track].covariance();
                 let opened = settings.manoeuvre_velocity_std_mps.powi(2);
                 covariance[(1, 1)] += opened;
                 covariance[(3, 3)] += opened;
-                let prior =
-                    Gaussian::new(*priors[track].mean(), covariance, time_s).map_err(SimError::estimation(time_s))?;
+                let prior = Gaussian::new(*priors[track].mean(), covariance, priors[track].time_s())
+                    .map_err(SimError::estimation(time_s))?;
                 if let Some(updated) = range_update(&prior, settings, node_m, echo.range_m)? {
                     gated.push((track, UNGATED_COST + cost, updated));
                 }
@@ -443,6 +463,7 @@ mod tests {
                 time_s,
                 arrival_s: time_s + 0.1,
             },
+            stamp_s: time_s,
             echo: echo.map(|(range_m, source)| Echo {
                 range_m,
                 time_of_flight_s: 2.0 * range_m / 343.0,
