@@ -105,6 +105,31 @@ fn scheduling_saves_energy_and_two_task_nodes_never_change() {
 }
 
 #[test]
+fn scheduling_saves_radio_and_sonar_energy_and_clock_sync_matters_only_for_bad_clocks() {
+    // energy (radio + sonar on-time at CC2420 / SRF08 powers) against all nodes on
+    for method in [PAPER, OURS] {
+        let saved = metric(method, "energy saved by scheduling (radio + sonar)");
+        assert!((40.0..95.0).contains(&saved), "{method} {saved}");
+        let (scheduled, all_on) = (
+            metric(method, "energy per run with scheduling"),
+            metric(method, "energy per run with all nodes on"),
+        );
+        assert!((100.0 * (1.0 - scheduled / all_on) - saved).abs() < 1e-6, "{method}");
+    }
+    // 20 ppm crystals: a free-running clock changes nothing at this scale; a 10⁴ ppm RC
+    // oscillator needs the per-cycle re-sync
+    assert!(
+        (metric(OURS, "clocks free-running after the first sync") - metric(OURS, "position RMSE, whole run")).abs()
+            < 0.01
+    );
+    let (synced, free) = (
+        metric(OURS, "10000 ppm clocks re-synced every cycle"),
+        metric(OURS, "10000 ppm clocks free-running after the first sync"),
+    );
+    assert!(synced < 0.1 && free > 5.0 * synced, "{synced} {free}");
+}
+
+#[test]
 fn every_rmse_is_at_least_its_bound() {
     let mut bounded = 0;
     for m in &report().metrics {
