@@ -176,6 +176,7 @@ fn event_type(event: &Event) -> &'static str {
         Event::HazardCleared { .. } => "hazard-cleared",
         Event::NoCoverage { .. } => "no-coverage",
         Event::ModelSwitch { .. } => "model-switch",
+        Event::Schedule { .. } => "schedule",
         Event::Late { .. } => "late",
         Event::Rejected { .. } => "rejected",
     }

@@ -300,6 +300,36 @@ fn validate(site: &mut Site, text: &str, file: &str) -> Result<()> {
         ],
     )?;
 
+    if let Some(scheduling) = &site.scheduling {
+        check(
+            text,
+            file,
+            &[
+                (
+                    "scheduling.cycle_s".into(),
+                    scheduling.cycle_s.is_finite() && scheduling.cycle_s > 0.0,
+                    "must be a finite number > 0, s",
+                ),
+                (
+                    "scheduling.task_nodes".into(),
+                    scheduling.task_nodes >= 1,
+                    "must be at least 1",
+                ),
+            ],
+        )?;
+        for (i, cell) in scheduling.cells.iter().enumerate() {
+            for (j, id) in cell.readers.iter().enumerate() {
+                known_reader(format!("scheduling.cells[{i}].readers[{j}]"), id)?;
+            }
+        }
+        match crate::tracker::scheduling_layout(site) {
+            Ok(_) => {}
+            Err(EngineError::InvalidParameter { name, reason }) => {
+                check(text, file, &[(format!("scheduling.{name}"), false, reason)])?;
+            }
+            Err(other) => return Err(other),
+        }
+    }
     if let Some(anonymous) = &site.anonymous {
         match anonymous.validate() {
             Ok(()) => {}

@@ -80,6 +80,10 @@ pub struct Site {
     /// [`crate::association`] with these settings; without the section they are rejected.
     #[serde(default)]
     pub anonymous: Option<crate::association::AnonymousTrackerSettings>,
+    /// Seed 003's adaptive node scheduling: the cells of the sensor network and how many task
+    /// nodes measure each track; the tracker then reports every track's next-cycle nodes.
+    #[serde(default)]
+    pub scheduling: Option<SchedulingSettings>,
     /// Predictive hazard alarms (defaults when the section is absent).
     #[serde(default)]
     pub alarms: AlarmSettings,
@@ -321,6 +325,37 @@ pub struct TrackerSettings {
     /// The interacting multiple models of `motion_model = "imm"`.
     #[serde(default)]
     pub imm: ImmSettings,
+}
+
+/// `[scheduling]`: seed 003's adaptive node scheduling. From each confirmed track's prediction
+/// one cycle ahead, the tracker picks the nearest `task_nodes` readers of the predicted cell
+/// (kept unless most of them change: seed 003's acceptance rule) plus, within `edge_margin_m`
+/// of a cell border, the neighbouring cell's monitors; a `schedule` event reports a track's
+/// nodes whenever they change, for the readers to wake.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SchedulingSettings {
+    /// The measurement cycle: how far ahead the prediction looks, s (> 0).
+    pub cycle_s: f64,
+    /// Task nodes per track and cycle (≥ 1; seed 003: 2 or 3).
+    pub task_nodes: usize,
+    /// Edge zone: within this distance of an inner cell border the neighbouring cell's nodes
+    /// monitor too, m (≥ 0).
+    pub edge_margin_m: f64,
+    /// The cells, rectangles that do not overlap, each with its readers.
+    pub cells: Vec<SchedulingCell>,
+}
+
+/// One cell of `[scheduling]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SchedulingCell {
+    /// Lower-left corner `[x, y]`, m.
+    pub min_m: [f64; 2],
+    /// Upper-right corner `[x, y]`, m.
+    pub max_m: [f64; 2],
+    /// Ids of the readers that belong to the cell.
+    pub readers: Vec<String>,
 }
 
 /// `[tracker.imm]`: the modes of `motion_model = "imm"` (Blom & Bar-Shalom 1988; seed 004's

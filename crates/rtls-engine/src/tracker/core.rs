@@ -22,6 +22,7 @@ use rtls_estimation::motion::ConstantVelocity;
 use rtls_estimation::Gaussian;
 
 use super::modes::Manoeuvres;
+use super::schedule::{Scheduling, TrackSchedule};
 
 /// An accelerometer sample drives the prediction (zero-order hold) for at most this long, s.
 pub(super) const ACCELERATION_HOLD_S: f64 = 1.0;
@@ -50,6 +51,8 @@ pub(crate) struct Shared {
     pub(crate) no_coverage_zones: Vec<String>,
     /// The interacting multiple models of `motion_model = "imm"`.
     pub(crate) manoeuvres: Option<Arc<Manoeuvres>>,
+    /// Seed 003's adaptive node scheduling (`[scheduling]`).
+    pub(crate) scheduling: Option<Arc<Scheduling>>,
 }
 
 /// One tag's track: its state (a value it owns), lifecycle and pending work.
@@ -76,6 +79,8 @@ pub(crate) struct Track<const N: usize> {
     pub(super) modes: Option<ImmState>,
     /// Under the IMM: the reported (most probable) mode's index.
     pub(super) mode: usize,
+    /// Under `[scheduling]`: the track's task nodes and last reported firing set.
+    pub(super) schedule: TrackSchedule,
 }
 
 impl<const N: usize> Track<N> {
@@ -93,6 +98,7 @@ impl<const N: usize> Track<N> {
             lost_state: None,
             modes: None,
             mode: 0,
+            schedule: TrackSchedule::default(),
         }
     }
 

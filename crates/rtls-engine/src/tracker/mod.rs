@@ -104,6 +104,7 @@ mod models;
 mod modes;
 mod output;
 mod report;
+mod schedule;
 mod solve;
 #[cfg(test)]
 mod tests;
@@ -111,10 +112,13 @@ mod tests;
 mod tests_anonymous;
 #[cfg(test)]
 mod tests_imm;
+#[cfg(test)]
+mod tests_schedule;
 mod update;
 
 pub use anonymous::ANONYMOUS_TAG;
 pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
+pub(crate) use schedule::scheduling_layout;
 
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, SigmaPointParameters, UnscentedKalmanFilter};
 use rtls_estimation::motion::{ConstantVelocity, ProcessNoise};
@@ -126,6 +130,7 @@ use std::sync::Arc;
 use self::anonymous::AnonymousFront;
 use self::core::{Core, Shared};
 use self::modes::Manoeuvres;
+use self::schedule::Scheduling;
 use crate::error::{EngineError, Result};
 use crate::lifecycle::TrackStatus;
 use crate::radio_map::RadioMap;
@@ -215,6 +220,7 @@ impl Tracker {
             alarm_zones,
             no_coverage_zones,
             manoeuvres,
+            scheduling: Scheduling::new(site)?.map(Arc::new),
         };
         let monitor = site.zone_monitor()?;
         let tracks = if settings.dimensions == 3 {

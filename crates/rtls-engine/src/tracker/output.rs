@@ -230,6 +230,18 @@ pub enum Event {
         /// Its probability `μ`.
         probability: f64,
     },
+    /// `[scheduling]` (seed 003): a track's readers for the next cycle changed — its task
+    /// nodes and, near a cell border, the neighbouring cell's monitors. Only these need wake.
+    Schedule {
+        /// Tag id.
+        tag: Arc<str>,
+        /// Time, s.
+        time_s: f64,
+        /// Task nodes (reader ids), nearest first.
+        task_nodes: Vec<Arc<str>>,
+        /// Edge monitors (reader ids) that are not task nodes.
+        monitors: Vec<Arc<str>>,
+    },
     /// A record arrived later than the re-ordering window allows; it was not applied.
     Late {
         /// Tag id.
@@ -273,14 +285,15 @@ impl Event {
             | Self::HazardCleared { time_s, .. }
             | Self::NoCoverage { time_s, .. }
             | Self::ModelSwitch { time_s, .. }
+            | Self::Schedule { time_s, .. }
             | Self::Late { time_s, .. }
             | Self::Rejected { time_s, .. } => *time_s,
         }
     }
 
     /// The event as one JSON line with a `type` field: `zone-enter`, `zone-exit`, `zone-dwell`,
-    /// `lifecycle`, `hazard-predicted`, `hazard-cleared`, `no-coverage`, `model-switch`, `late`,
-    /// `rejected`.
+    /// `lifecycle`, `hazard-predicted`, `hazard-cleared`, `no-coverage`, `model-switch`,
+    /// `schedule`, `late`, `rejected`.
     ///
     /// # Examples
     /// ```
@@ -324,6 +337,17 @@ impl Event {
             }
             Self::NoCoverage { tag, zone, time_s } => {
                 json!({"type": "no-coverage", "t": time_s, "tag": &**tag, "zone": zone})
+            }
+            Self::Schedule {
+                tag,
+                time_s,
+                task_nodes,
+                monitors,
+            } => {
+                let task_nodes: Vec<&str> = task_nodes.iter().map(|n| &**n).collect();
+                let monitors: Vec<&str> = monitors.iter().map(|n| &**n).collect();
+                json!({"type": "schedule", "t": time_s, "tag": &**tag, "task_nodes": task_nodes,
+                       "monitors": monitors})
             }
             Self::ModelSwitch {
                 tag,

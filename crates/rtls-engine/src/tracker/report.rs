@@ -106,6 +106,17 @@ pub(super) fn zones_and_alarms<const N: usize>(
         }
         out.events.push(Event::Zone(zone_event));
     }
+    if let Some(scheduling) = &shared.scheduling {
+        let x = state.mean();
+        scheduling.update(
+            &track.tag,
+            &mut track.schedule,
+            state.time_s(),
+            [x[0], x[2]],
+            [x[1], x[3]],
+            out,
+        )?;
+    }
     if shared.alarm_zones.is_empty() {
         return Ok(());
     }
