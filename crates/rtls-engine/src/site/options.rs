@@ -1,0 +1,69 @@
+//! Optional tracker sections of the site model: `[tracker.imm]` and `[scheduling]`.
+
+use serde::Deserialize;
+
+/// `[scheduling]`: seed 003's adaptive node scheduling. From each confirmed track's prediction
+/// one cycle ahead, the tracker picks the nearest `task_nodes` readers of the predicted cell
+/// (kept unless most of them change: seed 003's acceptance rule) plus, within `edge_margin_m`
+/// of a cell border, the neighbouring cell's monitors; a `schedule` event reports a track's
+/// nodes whenever they change, for the readers to wake.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SchedulingSettings {
+    /// The measurement cycle: how far ahead the prediction looks, s (> 0).
+    pub cycle_s: f64,
+    /// Task nodes per track and cycle (≥ 1; seed 003: 2 or 3).
+    pub task_nodes: usize,
+    /// Edge zone: within this distance of an inner cell border the neighbouring cell's nodes
+    /// monitor too, m (≥ 0).
+    pub edge_margin_m: f64,
+    /// The cells, rectangles that do not overlap, each with its readers.
+    pub cells: Vec<SchedulingCell>,
+}
+
+/// One cell of `[scheduling]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SchedulingCell {
+    /// Lower-left corner `[x, y]`, m.
+    pub min_m: [f64; 2],
+    /// Upper-right corner `[x, y]`, m.
+    pub max_m: [f64; 2],
+    /// Ids of the readers that belong to the cell.
+    pub readers: Vec<String>,
+}
+
+/// `[tracker.imm]`: the modes of `motion_model = "imm"` (Blom & Bar-Shalom 1988; seed 004's
+/// manoeuvre problem). The CV mode uses `tracker.acceleration_noise_std_mps2`; the CA mode a
+/// white jerk; the coordinated turn (2-D only) the CV noise plus a white turn acceleration.
+/// Modes switch as a continuous-time Markov chain with the given mean sojourn times.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ImmSettings {
+    /// Mean time in the constant-velocity mode, s (> 0). Default 20.
+    pub cv_sojourn_s: f64,
+    /// Mean time in the constant-acceleration mode, s (> 0). Default 4.
+    pub ca_sojourn_s: f64,
+    /// Mean time in the coordinated-turn mode, s (> 0; 2-D only). Default 4.
+    pub ct_sojourn_s: f64,
+    /// CA mode: white-jerk spectral density `q = σ_j²`, σ_j in m/s³ (> 0). Default 1.
+    pub ca_jerk_noise_std_mps3: f64,
+    /// CT mode: white turn-acceleration spectral density, σ in rad/s² (> 0). Default 0.2.
+    pub ct_turn_rate_noise_std_radps2: f64,
+    /// A `model-switch` is reported when another mode becomes the most probable one with at
+    /// least this probability (anti-flap), in (0, 1). Default 0.6.
+    pub switch_probability: f64,
+}
+
+impl Default for ImmSettings {
+    fn default() -> Self {
+        Self {
+            cv_sojourn_s: 20.0,
+            ca_sojourn_s: 4.0,
+            ct_sojourn_s: 4.0,
+            ca_jerk_noise_std_mps3: 1.0,
+            ct_turn_rate_noise_std_radps2: 0.2,
+            switch_probability: 0.6,
+        }
+    }
+}
