@@ -10,6 +10,7 @@
 //!   manoeuvre margin of it, if there is exactly one (a manoeuvre, not another robot).
 
 use nalgebra::{DVector, Matrix2, Vector2};
+use rtls_engine::association::{solve_assignment, CostMatrix};
 use rtls_estimation::filter::{ExtendedKalmanFilter, Updated};
 use rtls_estimation::measurement::{NoiseCovariance, Ranges};
 use rtls_estimation::motion::ConstantVelocity;
@@ -18,6 +19,7 @@ use rtls_estimation::{EstimationError, Gaussian};
 use rtls_positioning::multilateration::{gauss_newton, two_range, GaussNewtonOptions, Initial};
 use rtls_positioning::Fix2;
 
+use super::engine_error;
 use super::schedule::Timed;
 use crate::error::{Result, SimError};
 use crate::sensors::ultrasonic::{Echo, SonarRing};
@@ -299,7 +301,11 @@ fn associate_group(
         echoes.push(i);
         candidates.push(gated);
     }
-    let assignment = best_assignment(&candidates, tracks.len());
+    let costs: Vec<Vec<(usize, f64)>> = candidates
+        .iter()
+        .map(|echo| echo.iter().map(|(track, cost, _)| (*track, *cost)).collect())
+        .collect();
+    let assignment = best_assignment(&costs, tracks.len())?;
     for (k, (&i, choice)) in echoes.iter().zip(&assignment).enumerate() {
         match choice {
             Some(c) => {
@@ -316,49 +322,32 @@ fn associate_group(
     Ok(())
 }
 
-/// The assignment of echoes to distinct tracks (index into each echo's candidate list, or
-/// `None`) with the most assigned echoes and, among those, the least total cost. Exhaustive
-/// search: an instant has at most one echo per cell, a handful in practice.
-fn best_assignment(candidates: &[Vec<(usize, f64, Updated<4>)>], tracks: usize) -> Vec<Option<usize>> {
-    struct Search<'a> {
-        candidates: &'a [Vec<(usize, f64, Updated<4>)>],
-        used: Vec<bool>,
-        current: Vec<Option<usize>>,
-        best: Vec<Option<usize>>,
-        best_score: (usize, f64),
-    }
-    impl Search<'_> {
-        fn visit(&mut self, e: usize, assigned: usize, cost: f64) {
-            if e == self.candidates.len() {
-                let (best_assigned, best_cost) = self.best_score;
-                if assigned > best_assigned || (assigned == best_assigned && cost < best_cost) {
-                    self.best_score = (assigned, cost);
-                    self.best.clone_from(&self.current);
-                }
-                return;
-            }
-            for c in 0..self.candidates[e].len() {
-                let (track, c_cost, _) = &self.candidates[e][c];
-                if !self.used[*track] {
-                    self.used[*track] = true;
-                    self.current[e] = Some(c);
-                    self.visit(e + 1, assigned + 1, cost + c_cost);
-                    self.used[*track] = false;
-                }
-            }
-            self.current[e] = None;
-            self.visit(e + 1, assigned, cost);
+/// The assignment of echoes to distinct tracks (index into each echo's `(track, cost)`
+/// candidate list, or `None`) with the most assigned echoes and, among those, the least total cost: the engine's
+/// [`solve_assignment`] with echo rows, track columns (pairs without a candidate forbidden) and
+/// one non-assignment cost `c₀` for every echo, larger than any difference between the costs of
+/// two assignments, `c₀ = 1 + 2 Σₑ maxₜ |cₑₜ|`, so that assigning one more echo always pays.
+/// Ties are broken by the echoes' order (firing order), i.e. by the data alone.
+fn best_assignment(candidates: &[Vec<(usize, f64)>], tracks: usize) -> Result<Vec<Option<usize>>> {
+    let mut costs = CostMatrix::forbidden(candidates.len(), tracks).map_err(engine_error)?;
+    let mut largest_sum = 0.0;
+    for (e, echo) in candidates.iter().enumerate() {
+        let mut largest: f64 = 0.0;
+        for &(track, cost) in echo {
+            costs.set(e, track, cost).map_err(engine_error)?;
+            largest = largest.max(cost.abs());
         }
+        largest_sum += largest;
     }
-    let mut search = Search {
-        candidates,
-        used: vec![false; tracks],
-        current: vec![None; candidates.len()],
-        best: vec![None; candidates.len()],
-        best_score: (0, f64::INFINITY),
-    };
-    search.visit(0, 0, 0.0);
-    search.best
+    // c₀ > Σ cost(assignment with k + 1 echoes) − Σ cost(assignment with k echoes)
+    let non_assignment = vec![1.0 + 2.0 * largest_sum; candidates.len()];
+    let assignment = solve_assignment(&costs, &non_assignment).map_err(engine_error)?;
+    Ok(assignment
+        .row_to_column
+        .iter()
+        .zip(candidates)
+        .map(|(column, echo)| column.and_then(|track| echo.iter().position(|&(t, _)| t == track)))
+        .collect())
 }
 
 /// The paper's baseline: per robot, the ranges of the firings aimed at it this cycle give a
@@ -433,120 +422,4 @@ fn least_squares_cycle(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::super::schedule::Request;
-    use super::*;
-    use crate::sensors::ultrasonic::Aim;
-    use rtls_estimation::motion::ProcessNoise;
-    use rtls_estimation::{Matrix, Vector};
-
-    fn settings() -> TrackerSettings {
-        TrackerSettings {
-            motion: ConstantVelocity::new(ProcessNoise::continuous(0.05)).unwrap(),
-            range_variance_m2: 0.03 * 0.03,
-            gate: ChiSquareGate::new(0.99).unwrap(),
-            sector_margin_rad: 10f64.to_radians(),
-            manoeuvre_margin_m: 0.5,
-            manoeuvre_velocity_std_mps: 0.5,
-        }
-    }
-
-    fn observation(robot: usize, node: usize, sector: usize, time_s: f64, echo: Option<(f64, usize)>) -> Observation {
-        Observation {
-            timed: Timed {
-                request: Request {
-                    robot,
-                    node,
-                    aim: Aim::single(sector),
-                    cell: 0,
-                },
-                time_s,
-                arrival_s: time_s + 0.1,
-            },
-            stamp_s: time_s,
-            echo: echo.map(|(range_m, source)| Echo {
-                range_m,
-                time_of_flight_s: 2.0 * range_m / 343.0,
-                source,
-            }),
-        }
-    }
-
-    fn track(x: f64, y: f64) -> Gaussian<4> {
-        let p = Matrix::<4>::from_diagonal(&Vector::<4>::new(0.01, 0.01, 0.01, 0.01));
-        Gaussian::new(Vector::<4>::new(x, 0.0, y, 0.0), p, 0.0).unwrap()
-    }
-
-    const NODES: [[f64; 2]; 4] = [[0.0, 0.0], [2.0, 0.0], [0.0, 2.0], [2.0, 2.0]];
-
-    #[test]
-    fn least_squares_uses_every_range_of_its_robot() {
-        let truth = [1.2, 0.7];
-        let range = |n: usize| (NODES[n][0] - truth[0]).hypot(NODES[n][1] - truth[1]);
-        let obs: Vec<Observation> = (0..3)
-            .map(|n| observation(0, n, 0, 0.1 * n as f64, Some((range(n), 0))))
-            .collect();
-        let mut ls = Tracker::LeastSquares(vec![[1.0, 1.0]]);
-        let outcome = ls.process(&settings(), &SonarRing::srf08(), &NODES, &obs).unwrap();
-        let Tracker::LeastSquares(fixes) = &ls else {
-            unreachable!()
-        };
-        assert!((fixes[0][0] - 1.2).abs() < 1e-9 && (fixes[0][1] - 0.7).abs() < 1e-9);
-        assert_eq!(outcome.ls_fixes, [1, 0, 0]);
-        assert!((outcome.latencies_s[0] - 0.3).abs() < 1e-12);
-        // two ranges: the mirror candidate nearer the previous fix
-        let mut ls = Tracker::LeastSquares(vec![[1.0, 0.9]]);
-        ls.process(&settings(), &SonarRing::srf08(), &NODES, &obs[..2]).unwrap();
-        let Tracker::LeastSquares(fixes) = &ls else {
-            unreachable!()
-        };
-        assert!((fixes[0][1] - 0.7).abs() < 1e-9, "{fixes:?}");
-    }
-
-    #[test]
-    fn the_paper_ekf_takes_a_foreign_echo_and_ours_gives_it_to_its_owner() {
-        // robot 0 at (1.5, 0.5), robot 1 at (0.6, 0.3): from node 0 both lie in sector 0 and
-        // robot 1 is nearer, so the sonar aimed at robot 0 hears robot 1
-        let tracks = vec![track(1.5, 0.5), track(0.6, 0.3)];
-        let foreign = 0.6f64.hypot(0.3);
-        let obs = [observation(0, 0, 0, 0.1, Some((foreign, 1)))];
-        let mut paper = Tracker::Ekf {
-            tracks: tracks.clone(),
-            associate: false,
-        };
-        let outcome = paper.process(&settings(), &SonarRing::srf08(), &NODES, &obs).unwrap();
-        assert_eq!(outcome.used_by, vec![Some(0)]);
-        let mut ours = Tracker::Ekf {
-            tracks,
-            associate: true,
-        };
-        let outcome = ours.process(&settings(), &SonarRing::srf08(), &NODES, &obs).unwrap();
-        assert_eq!(outcome.used_by, vec![Some(1)]);
-        let p = ours.positions_at(&settings(), 0.1).unwrap();
-        assert!((p[0][0] - 1.5).abs() < 1e-12, "robot 0 is untouched");
-        // an echo matching no track is dropped
-        let stray = [observation(0, 0, 0, 0.2, Some((2.9, 5)))];
-        let outcome = ours.process(&settings(), &SonarRing::srf08(), &NODES, &stray).unwrap();
-        assert_eq!((outcome.used_by[0], outcome.gated_out), (None, 1));
-    }
-
-    #[test]
-    fn simultaneous_echoes_are_assigned_jointly() {
-        // two echoes at one instant from nodes 0 and 3, both within the gates of both tracks:
-        // each track takes at most one of them
-        let tracks = vec![track(1.0, 1.0), track(1.0, 1.04)];
-        let a = 1.0f64.hypot(1.02);
-        let b = 1.0f64.hypot(1.0);
-        let obs = [
-            observation(0, 0, 0, 0.1, Some((a, 1))),
-            observation(1, 3, 3, 0.1, Some((b, 0))),
-        ];
-        let mut ours = Tracker::Ekf {
-            tracks,
-            associate: true,
-        };
-        let outcome = ours.process(&settings(), &SonarRing::srf08(), &NODES, &obs).unwrap();
-        assert!(outcome.used_by.iter().all(Option::is_some));
-        assert_ne!(outcome.used_by[0], outcome.used_by[1]);
-    }
-}
+mod tests;
