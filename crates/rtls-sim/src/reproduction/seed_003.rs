@@ -268,6 +268,7 @@ pub fn run_seed_003(config: &Seed003Config, method: Method, seed: u64) -> Result
         sector_margin_rad: config.tracker.sector_margin_deg.to_radians(),
         manoeuvre_margin_m: config.tracker.manoeuvre_margin_m,
         manoeuvre_velocity_std_mps: config.tracker.manoeuvre_velocity_std_mps,
+        manoeuvre_speed_change_mps: config.tracker.manoeuvre_speed_change_mps,
     };
     let truth_at = |t: f64| -> Result<Vec<[f64; 2]>> {
         config

@@ -27,7 +27,7 @@ pub(super) fn all(
         energy(scenario, paper, ours),
         crossings(scenario, intervals, ls, paper, ours),
         shared_cell(scenario, intervals, paper, ours),
-        association(ours),
+        association(ours, scenario.config.tracker.manoeuvre_speed_change_mps),
         swaps(scenario, ours),
         bounds(ls, paper, ours),
         latency(ls, paper, scenario),
@@ -258,7 +258,7 @@ fn shared_cell(scenario: &Scenario, intervals: &[(f64, f64)], paper: &MethodTota
     )
 }
 
-fn association(ours: &MethodTotals) -> String {
+fn association(ours: &MethodTotals, speed_change_mps: f64) -> String {
     let k = &ours.counters;
     format!(
         "**Our association.** For each echo the candidates are the tracks predicted inside the fired beam (the sector(s), widened \
@@ -266,9 +266,13 @@ fn association(ours: &MethodTotals) -> String {
          the echoes of one firing instant are assigned jointly (global nearest neighbour). A robot that turns leaves its CV \
          prediction outside the gate within a cycle or two; if exactly one candidate's predicted range is within the manoeuvre \
          margin of the echo, it takes the echo anyway with its velocity uncertainty re-opened (only robots reflect inside the \
-         echo window); if several are, the echo is dropped as ambiguous. Per run {:.1} echoes were taken that way, {:.1} \
-         dropped ({:.2} % of echoes), {:.1} of them ambiguous; {:.2} % of the used echoes came from another robot than the \
-         one they were given to.",
+         echo window); if several are, it goes to the only one whose CV prediction can have drifted that far since its last \
+         update (|ν| ≤ 3 √S + {:.1} m/s × the time since, the largest velocity change of a robot), and is dropped as \
+         ambiguous if that is not one track either (a robot stopping next to a passing one: the passing robot's track, \
+         updated a cycle ago, cannot be that far off). Per run {:.1} echoes were taken that way, {:.1} dropped ({:.2} % of \
+         echoes), {:.1} of them ambiguous; {:.2} % of the used echoes came from another robot than the one they were given \
+         to.",
+        speed_change_mps,
         ours.per_run(k.sole_candidate),
         ours.per_run(k.gated_out),
         MethodTotals::percent(k.gated_out, k.echoes),
@@ -312,10 +316,8 @@ fn swaps(scenario: &Scenario, ours: &MethodTotals) -> String {
     let cause = if standing == events.len() {
         " Every one happened while the robot stood still. In the runs we traced, its CV track carried the velocity it had \
          before the stop; the echoes that would have stopped it came from nodes that also saw the other robot, whose track \
-         was then within the manoeuvre margin of the echo too, so they were dropped as ambiguous, and the track coasted on \
-         past the stop toward the other robot's path. None of the alternatives tried on the tuning seeds reduced such \
-         failures (the scenario file lists them with their counts); a stationary mode (an IMM of CV and stop) is the likely \
-         remedy, not tried yet."
+         was then within the manoeuvre margin and could have drifted that far since its last update too, so they were \
+         dropped as ambiguous, and the track coasted on past the stop toward the other robot's path."
     } else {
         ""
     };

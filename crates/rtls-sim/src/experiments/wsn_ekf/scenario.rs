@@ -74,6 +74,7 @@ struct TrackerSection {
     sector_margin_deg: f64,
     manoeuvre_margin_m: f64,
     manoeuvre_velocity_std_mps: f64,
+    manoeuvre_speed_change_mps: f64,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -284,6 +285,11 @@ pub(crate) fn parse(source: &ScenarioSource) -> Result<Scenario> {
             source,
             "tracker.manoeuvre_velocity_std_mps",
             t.manoeuvre_velocity_std_mps,
+        )?,
+        manoeuvre_speed_change_mps: non_negative(
+            source,
+            "tracker.manoeuvre_speed_change_mps",
+            t.manoeuvre_speed_change_mps,
         )?,
     };
     let clock = clock_config(source, file.clock)?;

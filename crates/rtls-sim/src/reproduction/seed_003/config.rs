@@ -73,6 +73,11 @@ pub struct TrackerConfig {
     /// Association: the velocity uncertainty per axis re-opened on a track found manoeuvring
     /// (m/s).
     pub manoeuvre_velocity_std_mps: f64,
+    /// Association: the largest velocity change `|Δv|` a robot makes (m/s; a reversal at speed
+    /// `v` is `2 v`). When an echo outside every gate is within the manoeuvre margin of several
+    /// tracks, a track can only have made it if its range innovation is within
+    /// `3 √S + |Δv| · (t − t_last update)`; if exactly one can, it takes the echo.
+    pub manoeuvre_speed_change_mps: f64,
 }
 
 /// Everything one seed 003 run needs.
@@ -163,6 +168,11 @@ impl Seed003Config {
             "manoeuvre_velocity_std_mps",
             "the re-opened velocity uncertainty must not be negative",
         )?;
+        crate::error::non_negative(
+            t.manoeuvre_speed_change_mps,
+            "manoeuvre_speed_change_mps",
+            "the largest velocity change must not be negative",
+        )?;
         positive(self.duration_s, "duration_s", "the simulated time must be positive")?;
         if self.robots.is_empty() {
             return Err(SimError::EmptyInput { what: "robots" });
@@ -240,6 +250,7 @@ impl Seed003Config {
                 sector_margin_deg: 10.0,
                 manoeuvre_margin_m: 0.75,
                 manoeuvre_velocity_std_mps: 0.5,
+                manoeuvre_speed_change_mps: 1.0,
             },
             clock: ClockConfig {
                 drift_std_ppm: 20.0,

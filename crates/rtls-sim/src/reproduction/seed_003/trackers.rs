@@ -73,6 +73,9 @@ pub(crate) struct TrackerSettings {
     pub manoeuvre_margin_m: f64,
     /// Velocity uncertainty per axis re-opened on a track found manoeuvring (m/s).
     pub manoeuvre_velocity_std_mps: f64,
+    /// Largest velocity change a robot makes (m/s): bounds how far a track updated `Δt` ago
+    /// can have drifted, `|Δv| Δt`.
+    pub manoeuvre_speed_change_mps: f64,
 }
 
 /// One of the three estimators, holding every robot's estimate.
@@ -272,13 +275,27 @@ fn associate_group(
             .map(|(track, _)| *track)
             .collect();
         let any_gated = in_beam.iter().any(|(_, u)| u.nis <= threshold);
-        // the track that may take the echo as a manoeuvre: the only plausible one; with several
-        // plausible and none gated, one of them has manoeuvred but which is unknown: dropped
-        let manoeuvring = match plausible.as_slice() {
-            [only] => Some(*only),
+        // of several plausible tracks, those that can have drifted that far since their last
+        // update: |ν| ≤ 3 √S + |Δv|max (t − t_last), the CV prediction's drift after any
+        // velocity change since then
+        let reachable: Vec<usize> = in_beam
+            .iter()
+            .filter(|(track, u)| {
+                let since_update_s = (time_s - tracks[*track].time_s()).max(0.0);
+                let sigma_m = u.innovation_covariance[(0, 0)].max(0.0).sqrt();
+                let drift_m = 3.0 * sigma_m + settings.manoeuvre_speed_change_mps * since_update_s;
+                plausible.contains(track) && u.innovation[0].abs() <= drift_m
+            })
+            .map(|(track, _)| *track)
+            .collect();
+        // the track that may take the echo as a manoeuvre: the only plausible one, or else the
+        // only one that can have drifted that far; otherwise one of them has manoeuvred but
+        // which is unknown: dropped
+        let manoeuvring = match (plausible.as_slice(), reachable.as_slice()) {
+            ([only], _) | (_, [only]) => Some(*only),
             _ => None,
         };
-        outcome.ambiguous += usize::from(plausible.len() > 1 && !any_gated);
+        outcome.ambiguous += usize::from(manoeuvring.is_none() && plausible.len() > 1 && !any_gated);
         let mut gated = Vec::new();
         for (track, updated) in in_beam {
             // gate: νᵀ S⁻¹ ν ≤ γ; cost = νᵀ S⁻¹ ν + ln |S|

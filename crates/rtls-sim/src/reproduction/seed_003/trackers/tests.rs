@@ -14,6 +14,7 @@ fn settings() -> TrackerSettings {
         sector_margin_rad: 10f64.to_radians(),
         manoeuvre_margin_m: 0.5,
         manoeuvre_velocity_std_mps: 0.5,
+        manoeuvre_speed_change_mps: 1.0,
     }
 }
 
@@ -196,4 +197,34 @@ fn the_assignment_matches_exhaustive_search() {
         assert_eq!(n, best_n, "{candidates:?}");
         assert!((cost - best_cost).abs() < 1e-6, "{cost} vs {best_cost}: {candidates:?}");
     }
+}
+
+#[test]
+fn an_echo_two_tracks_could_explain_goes_to_the_one_that_can_have_drifted_that_far() {
+    // both tracks predict 1.044 m from node 0 and the echo says 1.494 m: outside both gates
+    // (√S ≈ 0.06 m for the fresh track, 0.14 m a second later), within the 0.5 m manoeuvre
+    // margin of both. Track 0 was updated 0.05 s ago (it can be 3 √S + 1 m/s × 0.05 s ≈ 0.22 m
+    // off), track 1 a second ago: track 1 takes it.
+    let p = Matrix::<4>::from_diagonal(&Vector::<4>::new(0.0025, 1e-4, 0.0025, 1e-4));
+    let at = |x: f64, y: f64, time_s: f64| Gaussian::new(Vector::<4>::new(x, 0.0, y, 0.0), p, time_s).unwrap();
+    let r = 1.0f64.hypot(0.3);
+    let y1 = 0.53;
+    let x1 = (r * r - y1 * y1).sqrt();
+    let echo = [observation(0, 0, 0, 1.0, Some((r + 0.45, 1)))];
+    let mut ours = Tracker::Ekf {
+        tracks: vec![at(1.0, 0.3, 0.95), at(x1, y1, 0.0)],
+        associate: true,
+    };
+    let outcome = ours.process(&settings(), &SonarRing::srf08(), &NODES, &echo).unwrap();
+    assert_eq!(
+        (outcome.used_by[0], outcome.sole_candidate, outcome.ambiguous),
+        (Some(1), 1, 0)
+    );
+    // both updated long ago: either may have manoeuvred, the echo is dropped as ambiguous
+    let mut ours = Tracker::Ekf {
+        tracks: vec![at(1.0, 0.3, 0.0), at(x1, y1, 0.0)],
+        associate: true,
+    };
+    let outcome = ours.process(&settings(), &SonarRing::srf08(), &NODES, &echo).unwrap();
+    assert_eq!((outcome.used_by[0], outcome.ambiguous, outcome.gated_out), (None, 1, 1));
 }
