@@ -2,7 +2,8 @@
 //! from a reader or position fixes that carry no identity, like seed 003's ultrasonic echoes —
 //! go to the multi-target [`AnonymousTracker`] (gating, GNN or JPDA, M-of-N initiation,
 //! deletion) instead of a per-tag track. Its tracks are reported as track updates whose tag is
-//! the track id (`anon-1`, `anon-2`, …).
+//! the track id (`anon-1`, `anon-2`, …); confirmed and coasting ones feed the zone monitor
+//! (zone events, head counts) like named tags, but not the predictive alarms.
 //!
 //! Scans: the detections of one time stamp form one scan per reader (one sonar hears each
 //! target at most once), and the fixes of one time stamp one scan. A scan is processed when a

@@ -132,7 +132,7 @@ use self::core::{Core, Shared};
 use self::modes::Manoeuvres;
 use self::schedule::Scheduling;
 use crate::error::{EngineError, Result};
-use crate::lifecycle::TrackStatus;
+use crate::lifecycle::{LifecycleEvent, TrackStatus};
 use crate::radio_map::RadioMap;
 use crate::record::{Emitted, Record, Reorderer};
 use crate::site::{MotionModelKind, Site};
@@ -317,7 +317,9 @@ impl Tracker {
             };
             match (&mut self.anonymous, &self.tracks) {
                 (Some(front), Tracks::Planar(_)) => {
+                    let mark = (out.updates.len(), out.events.len());
                     front.push(&shared.anchors, record.time_s, &record.measurement, out)?;
+                    anonymous_zones(&mut self.tracks, out, mark)?;
                 }
                 (front, _) => out.events.push(Event::Rejected {
                     tag: ANONYMOUS_TAG.into(),
@@ -356,7 +358,9 @@ impl Tracker {
                 Tracks::Spatial(core) => core.tick(next_s, out)?,
             }
             if let Some(front) = &mut self.anonymous {
+                let mark = (out.updates.len(), out.events.len());
                 front.tick(next_s, self.output_interval_s, out)?;
+                anonymous_zones(&mut self.tracks, out, mark)?;
             }
             next_s += period_s;
         }
@@ -393,7 +397,9 @@ impl Tracker {
             self.emitted(emitted, out)?;
         }
         if let Some(front) = &mut self.anonymous {
+            let mark = (out.updates.len(), out.events.len());
             front.flush(out)?;
+            anonymous_zones(&mut self.tracks, out, mark)?;
         }
         match &mut self.tracks {
             Tracks::Planar(core) => core.flush(out),
@@ -427,4 +433,36 @@ impl Tracker {
             Tracks::Spatial(core) => core.monitor.head_count(zone_id),
         }
     }
+}
+
+/// Zone events and head counts for the anonymous tracks' updates appended to `out` since
+/// `mark` (updates, events): confirmed and coasting positions enter the zone monitor like a
+/// named tag's, and a deleted anonymous track leaves its zones.
+fn anonymous_zones(tracks: &mut Tracks, out: &mut Output, mark: (usize, usize)) -> Result<()> {
+    let Tracks::Planar(core) = tracks else {
+        return Ok(());
+    };
+    let mut zone_events = Vec::new();
+    for update in &out.updates[mark.0..] {
+        if matches!(update.status, TrackStatus::Confirmed | TrackStatus::Coasting) {
+            for event in core.monitor.update(&update.tag, update.time_s, update.position_m)? {
+                zone_events.push(Event::Zone(event));
+            }
+        }
+    }
+    for event in &out.events[mark.1..] {
+        if let Event::Lifecycle {
+            tag,
+            time_s,
+            event: LifecycleEvent::Deleted,
+            ..
+        } = event
+        {
+            for zone_event in core.monitor.remove_tag(tag, *time_s)? {
+                zone_events.push(Event::Zone(zone_event));
+            }
+        }
+    }
+    out.events.extend(zone_events);
+    Ok(())
 }

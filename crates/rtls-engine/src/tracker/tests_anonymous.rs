@@ -157,3 +157,37 @@ fn anonymous_records_without_the_section_or_of_other_kinds_are_rejected_with_the
     let error = Site::from_toml_str(&text, "anonymous.toml").unwrap_err().to_string();
     assert!(error.contains("anonymous.gate_probability"), "{error}");
 }
+
+#[test]
+fn anonymous_tracks_enter_and_leave_zones_and_are_counted() {
+    // both targets start inside the 4 m × 4 m "office" ([8, 12]²) and leave it at 7.5 s
+    let mut tracker = Tracker::new(&anonymous_site("gnn")).unwrap();
+    let mut out = Output::default();
+    let records = anonymous_records(10.0, 7);
+    let (early, late): (Vec<Record>, Vec<Record>) = records.into_iter().partition(|r| r.time_s < 5.0);
+    for record in early {
+        tracker.push(record, &mut out).unwrap();
+    }
+    assert_eq!(tracker.head_count("office"), 2);
+    for record in late {
+        tracker.push(record, &mut out).unwrap();
+    }
+    tracker.finish(&mut out).unwrap();
+    assert_eq!(tracker.head_count("office"), 0);
+    for id in ["anon-1", "anon-2"] {
+        let entered = out.events.iter().any(
+            |e| matches!(e, Event::Zone(crate::zones::ZoneEvent::Enter { tag, zone, .. }) if &**tag == id && zone == "office"),
+        );
+        let exit_s = out.events.iter().find_map(|e| match e {
+            Event::Zone(crate::zones::ZoneEvent::Exit { tag, zone, time_s, .. })
+                if &**tag == id && zone == "office" =>
+            {
+                Some(*time_s)
+            }
+            _ => None,
+        });
+        assert!(entered, "{id}");
+        let exit_s = exit_s.unwrap_or_else(|| panic!("{id} never left"));
+        assert!((7.0..8.5).contains(&exit_s), "{id} left at {exit_s}");
+    }
+}
