@@ -1,0 +1,325 @@
+//! The engine's outputs in omlox terms, and ingested omlox locations as engine records.
+//!
+//! Choices, documented once:
+//! - **Time**: the engine's `time_s` is taken as Unix seconds (the site clock) and written as
+//!   ISO 8601 UTC with millisecond precision.
+//! - **Ids**: omlox ids are UUIDs; ours are names. [`uuid_for`] derives a stable UUID (version 8,
+//!   RFC 9562 "custom") from a namespace and a name with FNV-1a-128, so the same zone or tag
+//!   always gets the same id; the name goes in `foreign_id` / `provider_id`.
+//! - **Frame**: everything is `crs: "local"` (site metres); +y is taken as north and +x as east
+//!   for `course` until the site has ground control points (issue 8).
+//! - **Accuracy**: the 1-σ radius of the horizontal position covariance's major axis,
+//!   `√λ_max` of the x–y block — conservative in every direction, and exactly σ for a circular
+//!   error. Back on ingest, `accuracy = a` becomes the covariance `a² I`.
+
+use rtls_engine::record::{Measurement, Record};
+use rtls_engine::tracker::{status_name, Event, TrackUpdate};
+use rtls_engine::zones::{Shape, Zone as SiteZone, ZoneEvent, ZoneKind};
+use serde_json::{json, Value};
+
+use crate::omlox::time::{format_timestamp, parse_timestamp};
+use crate::omlox::ws::Topic;
+use crate::omlox::{Fence, FenceEvent, FenceEventType, Location, Point, Properties, ProviderType, Region};
+use crate::{Result, ServerError};
+
+/// A stable UUID (version 8) for `name` within `namespace` (e.g. `"fence"`, `"tag"`).
+///
+/// # Examples
+/// ```
+/// use rtls_server::convert::uuid_for;
+/// let id = uuid_for("fence", "stope-7");
+/// assert_eq!(id, uuid_for("fence", "stope-7"));
+/// assert_ne!(id, uuid_for("tag", "stope-7"));
+/// assert_eq!((id.len(), &id[14..15]), (36, "8"));
+/// ```
+#[must_use]
+pub fn uuid_for(namespace: &str, name: &str) -> String {
+    // FNV-1a, 128 bit.
+    let mut hash: u128 = 0x6c62_272e_07bb_0142_62b8_2175_6295_c58d;
+    for byte in namespace.bytes().chain([0]).chain(name.bytes()) {
+        hash ^= u128::from(byte);
+        hash = hash.wrapping_mul(0x0000_0000_0100_0000_0000_0000_0000_013b);
+    }
+    // Version 8 in bits 76..80, variant 0b10 in bits 62..64.
+    hash = (hash & !(0xf << 76)) | (0x8 << 76);
+    hash = (hash & !(0x3 << 62)) | (0x2 << 62);
+    let h = format!("{hash:032x}");
+    format!(
+        "{}-{}-{}-{}-{}",
+        &h[0..8],
+        &h[8..12],
+        &h[12..16],
+        &h[16..20],
+        &h[20..32]
+    )
+}
+
+/// The horizontal accuracy, m: `√λ_max` of the x–y block of a row-major `D × D` covariance.
+///
+/// # Examples
+/// ```
+/// use rtls_server::convert::accuracy_m;
+/// // diag(4, 1): the major axis has σ = 2 m.
+/// assert_eq!(accuracy_m(&[4.0, 0.0, 0.0, 1.0], 2), 2.0);
+/// ```
+#[must_use]
+pub fn accuracy_m(covariance_m2: &[f64], dimensions: usize) -> f64 {
+    let (a, b, d) = (covariance_m2[0], covariance_m2[1], covariance_m2[dimensions + 1]);
+    // λ_max = (a + d)/2 + √(((a − d)/2)² + b²)
+    let lambda_max = 0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    lambda_max.max(0.0).sqrt()
+}
+
+/// Course, degrees clockwise from north (+y), in `[0, 360)`; `None` when not moving.
+#[must_use]
+pub fn course_deg(vx_mps: f64, vy_mps: f64) -> Option<f64> {
+    if vx_mps == 0.0 && vy_mps == 0.0 {
+        return None;
+    }
+    Some(vx_mps.atan2(vy_mps).to_degrees().rem_euclid(360.0))
+}
+
+/// A track update as an omlox Location: `crs: "local"`, `provider_id` the tag, `source` the
+/// omlox zone id of the site, accuracy and course as in the module docs, speed the horizontal
+/// speed, and `properties` `rtls:predicted`, `rtls:status`, `rtls:source`, `rtls:covariance_m2`
+/// (and `rtls:mode` under IMM).
+///
+/// # Errors
+/// [`ServerError::Unrepresentable`] when the time cannot be written as a timestamp.
+pub fn location_from_update(update: &TrackUpdate, source: &str, provider_type: ProviderType) -> Result<Location> {
+    let d = update.dimensions.clamp(2, 3);
+    let [vx, vy, _] = update.velocity_mps;
+    let mut properties = Properties::new();
+    properties.insert("rtls:predicted".into(), json!(update.predicted));
+    properties.insert("rtls:status".into(), json!(status_name(update.status)));
+    properties.insert("rtls:source".into(), json!(update.source.name()));
+    properties.insert(
+        "rtls:covariance_m2".into(),
+        json!(&update.position_covariance_m2[..d * d]),
+    );
+    if let Some(mode) = update.mode {
+        properties.insert("rtls:mode".into(), json!(mode));
+    }
+    Ok(Location {
+        position: Point {
+            coordinates: update.position_m[..d].to_vec(),
+        },
+        source: source.into(),
+        provider_type,
+        provider_id: update.tag.to_string(),
+        timestamp_generated: Some(format_timestamp(update.time_s, "timestamp_generated")?),
+        timestamp_sent: None,
+        crs: Some("local".into()),
+        associated: None,
+        accuracy: Some(accuracy_m(&update.position_covariance_m2, d)),
+        floor: None,
+        true_heading: None,
+        magnetic_heading: None,
+        heading_accuracy: None,
+        elevation_ref: None,
+        speed: Some(vx.hypot(vy)),
+        course: course_deg(vx, vy),
+        trackables: None,
+        properties: Some(properties),
+    })
+}
+
+fn kind_name(kind: ZoneKind) -> &'static str {
+    match kind {
+        ZoneKind::Hazard => "hazard",
+        ZoneKind::Restricted => "restricted",
+        ZoneKind::AreaOfInterest => "area-of-interest",
+    }
+}
+
+/// A site zone as an omlox Fence in local coordinates: a polygon becomes a closed GeoJSON
+/// Polygon ring, a box its x–y rectangle; the height range becomes `extrusion` (and
+/// `rtls:z_range_m`), the kind `rtls:kind`, the floor id `rtls:floor`.
+#[must_use]
+pub fn fence_from_zone(zone: &SiteZone) -> Fence {
+    let mut properties = Properties::new();
+    properties.insert("rtls:kind".into(), json!(kind_name(zone.kind)));
+    let (ring, z_range) = match &zone.shape {
+        Shape::Polygon {
+            vertices_m,
+            floor,
+            z_range_m,
+        } => {
+            if let Some(floor) = floor {
+                properties.insert("rtls:floor".into(), json!(floor));
+            }
+            let ring: Vec<Vec<f64>> = vertices_m.iter().map(|v| v.to_vec()).collect();
+            (ring, *z_range_m)
+        }
+        Shape::Box { min_m, max_m } => (
+            vec![
+                vec![min_m[0], min_m[1]],
+                vec![max_m[0], min_m[1]],
+                vec![max_m[0], max_m[1]],
+                vec![min_m[0], max_m[1]],
+            ],
+            Some([min_m[2], max_m[2]]),
+        ),
+    };
+    let mut closed = ring;
+    if let Some(first) = closed.first().cloned() {
+        closed.push(first);
+    }
+    if let Some(range) = z_range {
+        properties.insert("rtls:z_range_m".into(), json!(range));
+    }
+    Fence {
+        id: uuid_for("fence", &zone.id),
+        region: Region::Polygon {
+            coordinates: vec![closed],
+        },
+        radius: None,
+        extrusion: z_range.map(|[lo, hi]| hi - lo),
+        floor: None,
+        foreign_id: Some(zone.id.clone()),
+        name: Some(zone.name.clone()),
+        timeout: None,
+        exit_tolerance: None,
+        tolerance_timeout: None,
+        exit_delay: None,
+        crs: Some("local".into()),
+        zone_id: None,
+        elevation_ref: None,
+        properties: Some(properties),
+    }
+}
+
+/// A zone event in omlox terms: enter / exit are fence events; dwell has no omlox counterpart
+/// and goes to the `rtls:events` extension topic.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ZoneEventOut {
+    /// `region_entry` / `region_exit` on `fence_events`.
+    Fence(FenceEvent),
+    /// Anything else: the topic and its payload.
+    Extension(Topic, Value),
+}
+
+/// Converts a zone event. The fence id is [`uuid_for`]`("fence", zone)`, the provider the tag;
+/// the event id is derived from tag, zone, kind and time. An exit carries `entry_time` when
+/// `entry_time_s` (the matching entry's time, s) is known.
+///
+/// # Errors
+/// [`ServerError::Unrepresentable`] when a time cannot be written as a timestamp.
+pub fn fence_event_from_zone_event(event: &ZoneEvent, entry_time_s: Option<f64>) -> Result<ZoneEventOut> {
+    let (event_type, tag, zone, time_s) = match event {
+        ZoneEvent::Enter { tag, zone, time_s } => (FenceEventType::RegionEntry, tag, zone, *time_s),
+        ZoneEvent::Exit { tag, zone, time_s } => (FenceEventType::RegionExit, tag, zone, *time_s),
+        ZoneEvent::Dwell { .. } => {
+            return extension_message(&Event::Zone(event.clone()))
+                .map(|(topic, payload)| ZoneEventOut::Extension(topic, payload))
+        }
+    };
+    let (entry, exit) = match event_type {
+        FenceEventType::RegionEntry => (Some(format_timestamp(time_s, "entry_time")?), None),
+        FenceEventType::RegionExit => (
+            entry_time_s.map(|t| format_timestamp(t, "entry_time")).transpose()?,
+            Some(format_timestamp(time_s, "exit_time")?),
+        ),
+    };
+    Ok(ZoneEventOut::Fence(FenceEvent {
+        id: uuid_for("fence-event", &format!("{tag}\0{zone}\0{event_type:?}\0{time_s}")),
+        fence_id: uuid_for("fence", zone),
+        event_type,
+        provider_id: Some(tag.clone()),
+        trackable_id: None,
+        trackables: None,
+        foreign_id: Some(zone.clone()),
+        entry_time: entry,
+        exit_time: exit,
+        properties: None,
+    }))
+}
+
+/// An engine event as an extension-topic payload: the event's JSON line (its `type`, `t`,
+/// `tag`, …) plus `timestamp` (ISO 8601). Alarms — `hazard-predicted`, `hazard-cleared`,
+/// `no-coverage`, `model-switch` and lifecycle `lost` / `recovered` — go to `rtls:alarms`,
+/// everything else to `rtls:events`.
+///
+/// # Errors
+/// [`ServerError::Unrepresentable`] when the time cannot be written as a timestamp.
+pub fn extension_message(event: &Event) -> Result<(Topic, Value)> {
+    let mut value: Value = serde_json::from_str(&event.to_json_line()).map_err(|e| ServerError::Unrepresentable {
+        field: "event".into(),
+        reason: format!("engine event is not JSON ({e})"),
+    })?;
+    let timestamp = format_timestamp(event.time_s(), "timestamp")?;
+    let is_alarm = match &value["type"] {
+        Value::String(t)
+            if matches!(
+                t.as_str(),
+                "hazard-predicted" | "hazard-cleared" | "no-coverage" | "model-switch"
+            ) =>
+        {
+            true
+        }
+        Value::String(t) if t == "lifecycle" => {
+            matches!(value["event"].as_str(), Some("lost" | "recovered"))
+        }
+        _ => false,
+    };
+    if let Value::Object(object) = &mut value {
+        object.insert("timestamp".into(), json!(timestamp));
+    }
+    let topic = if is_alarm { Topic::RtlsAlarms } else { Topic::RtlsEvents };
+    Ok((topic, value))
+}
+
+/// An ingested Location as an engine record: `Measurement::Fix` with the position and the
+/// covariance `accuracy² I` (`default_accuracy_m` when the location has none), the tag
+/// `provider_id`, the time `timestamp_generated` (else `timestamp_sent`, else `received_s`).
+///
+/// # Errors
+/// [`ServerError::InvalidField`] (with `index`) for a non-local `crs` (geographic coordinates
+/// need the zone's ground control points, issue 8) or a non-positive accuracy.
+pub fn record_from_location(
+    location: &Location,
+    index: usize,
+    default_accuracy_m: f64,
+    received_s: f64,
+) -> Result<Record> {
+    let err = |field: &str, reason: String| ServerError::InvalidField {
+        index,
+        field: field.into(),
+        reason,
+    };
+    if let Some(crs) = location.crs.as_deref().filter(|c| *c != "local") {
+        return Err(err(
+            "crs",
+            format!("`{crs}` is not supported yet: send site coordinates with crs \"local\""),
+        ));
+    }
+    let accuracy = location.accuracy.unwrap_or(default_accuracy_m);
+    if !(accuracy.is_finite() && accuracy > 0.0) {
+        return Err(err(
+            "accuracy",
+            format!("must be > 0 m to weigh the fix, got {accuracy}"),
+        ));
+    }
+    let time_s = match (&location.timestamp_generated, &location.timestamp_sent) {
+        (Some(t), _) => parse_timestamp(t, "timestamp_generated"),
+        (None, Some(t)) => parse_timestamp(t, "timestamp_sent"),
+        (None, None) => Ok(received_s),
+    }
+    .map_err(|e| match e {
+        ServerError::Unrepresentable { field, reason } => err(&field, reason),
+        other => other,
+    })?;
+    let d = location.position.coordinates.len();
+    let mut covariance_m2 = vec![0.0; d * d];
+    for i in 0..d {
+        covariance_m2[i * d + i] = accuracy * accuracy;
+    }
+    Ok(Record {
+        time_s,
+        tag: location.provider_id.clone(),
+        measurement: Measurement::Fix {
+            position_m: location.position.coordinates.clone(),
+            covariance_m2,
+        },
+    })
+}

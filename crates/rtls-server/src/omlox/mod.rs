@@ -1,0 +1,404 @@
+//! Serde types for the omlox™ hub API 2.0.0 objects, named and shaped as in the OpenAPI
+//! components (`#/components/schemas/…`): required fields are plain, optional ones are
+//! `Option` and left out when `None`.
+//!
+//! - [`Location`], [`Point`], [`Polygon`], [`Region`] — positions and geometries (GeoJSON).
+//! - [`Trackable`], [`LocationProvider`], [`Zone`], [`Fence`], [`FenceEvent`].
+//! - [`ws`] — WebSocket messages, topics and error codes.
+//! - [`time`] — ISO 8601 UTC timestamps ↔ seconds since the Unix epoch.
+//! - [`ingest`] — field-level validation of the `PUT /v2/providers/locations` body.
+
+pub mod ingest;
+pub mod time;
+pub mod ws;
+
+use serde::{Deserialize, Serialize};
+use serde_json::{Map, Value};
+
+/// Free-form application properties (`properties` in every omlox object): the spec requires
+/// them to be preserved, not interpreted. Our own keys start with `rtls:`.
+pub type Properties = Map<String, Value>;
+
+/// A GeoJSON Point: `{"type": "Point", "coordinates": [x, y(, z)]}`, interpreted in the owning
+/// object's `crs` (`local`: metres in the site frame).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename = "Point")]
+pub struct Point {
+    /// `[x, y]` or `[x, y, z]` (or longitude, latitude, elevation under EPSG:4326).
+    pub coordinates: Vec<f64>,
+}
+
+/// A GeoJSON Polygon: `{"type": "Polygon", "coordinates": [ring, …]}`, each ring closed (its
+/// first position repeated at the end), the first ring the outer boundary.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename = "Polygon")]
+pub struct Polygon {
+    /// Rings of positions `[x, y(, z)]`.
+    pub coordinates: Vec<Vec<Vec<f64>>>,
+}
+
+/// A fence's region: a Point (with the fence's `radius`) or a Polygon.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", deny_unknown_fields)]
+pub enum Region {
+    /// A circle around a point (radius in [`Fence::radius`], m).
+    Point {
+        /// `[x, y(, z)]`.
+        coordinates: Vec<f64>,
+    },
+    /// A polygon.
+    Polygon {
+        /// Closed rings.
+        coordinates: Vec<Vec<Vec<f64>>>,
+    },
+}
+
+/// The technology behind a location (`provider_type` of a Location, `type` of a
+/// LocationProvider).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ProviderType {
+    /// Ultra-wideband.
+    Uwb,
+    /// Satellite positioning.
+    Gps,
+    /// Wi-Fi.
+    Wifi,
+    /// RFID.
+    Rfid,
+    /// iBeacon / BLE.
+    Ibeacon,
+    /// A virtual provider (e.g. an application-made id, or a fused track).
+    Virtual,
+    /// Unknown.
+    Unknown,
+}
+
+impl ProviderType {
+    /// All values, in the order of the spec's enum.
+    pub const ALL: [Self; 7] = [
+        Self::Uwb,
+        Self::Gps,
+        Self::Wifi,
+        Self::Rfid,
+        Self::Ibeacon,
+        Self::Virtual,
+        Self::Unknown,
+    ];
+
+    /// The name in JSON (`"uwb"`, …).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Uwb => "uwb",
+            Self::Gps => "gps",
+            Self::Wifi => "wifi",
+            Self::Rfid => "rfid",
+            Self::Ibeacon => "ibeacon",
+            Self::Virtual => "virtual",
+            Self::Unknown => "unknown",
+        }
+    }
+}
+
+/// A location update (`#/components/schemas/Location`).
+///
+/// # Units
+/// Coordinates in the `crs` (absent = `local`, metres), `accuracy` m (horizontal), `speed` m/s,
+/// `course` degrees clockwise from north, timestamps ISO 8601 UTC.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Location {
+    /// The position.
+    pub position: Point,
+    /// The RTLS (zone id or foreign id) that produced the location, or a self-localising
+    /// device's id.
+    pub source: String,
+    /// The provider technology.
+    pub provider_type: ProviderType,
+    /// The location provider's id (e.g. a tag's MAC address).
+    pub provider_id: String,
+    /// When the location was computed (ISO 8601 UTC).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timestamp_generated: Option<String>,
+    /// When the location was sent (ISO 8601 UTC).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timestamp_sent: Option<String>,
+    /// `local` or an EPSG id such as `EPSG:4326`; absent means `local`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crs: Option<String>,
+    /// Whether a Wi-Fi client is associated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub associated: Option<bool>,
+    /// Horizontal accuracy, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accuracy: Option<f64>,
+    /// Logical floor (0 = ground; fractional for mezzanines).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor: Option<f64>,
+    /// True heading, degrees (negative = unavailable).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub true_heading: Option<f64>,
+    /// Magnetic heading, degrees (negative = unavailable).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub magnetic_heading: Option<f64>,
+    /// Heading accuracy, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heading_accuracy: Option<f64>,
+    /// `floor` (default) or `wgs84`: what the z coordinate is relative to.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elevation_ref: Option<String>,
+    /// Speed, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed: Option<f64>,
+    /// Course, degrees clockwise from north (0 = north, 90 = east).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub course: Option<f64>,
+    /// Ids of the trackables the provider is assigned to.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trackables: Option<Vec<String>>,
+    /// Application properties.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub properties: Option<Properties>,
+}
+
+/// Whether a trackable knows its providers (`omlox`) or is a logical asset (`virtual`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TrackableType {
+    /// Self-assigns its location providers.
+    Omlox,
+    /// A logical asset to which providers are assigned.
+    Virtual,
+}
+
+/// A tracked object (`#/components/schemas/Trackable`); `locating_rules` is not modelled yet.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Trackable {
+    /// UUID.
+    pub id: String,
+    /// Kind of trackable.
+    #[serde(rename = "type")]
+    pub kind: TrackableType,
+    /// Name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Outline (local to the trackable).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geometry: Option<Polygon>,
+    /// Extrusion of the geometry, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub extrusion: Option<f64>,
+    /// Assigned location provider ids.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub location_providers: Option<Vec<String>>,
+    /// Location expiry before a fence exit, ms (-1 = infinite).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fence_timeout: Option<f64>,
+    /// Collision release distance, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exit_tolerance: Option<f64>,
+    /// Collision release timeout, ms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance_timeout: Option<f64>,
+    /// Exit delay, ms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exit_delay: Option<f64>,
+    /// Radius around the trackable, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    /// Application properties.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub properties: Option<Properties>,
+}
+
+/// A location provider (`#/components/schemas/LocationProvider`): a tag, a phone, a GPS unit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LocationProvider {
+    /// Provider id (EUI-64 upper-case hex where applicable).
+    pub id: String,
+    /// Technology.
+    #[serde(rename = "type")]
+    pub kind: ProviderType,
+    /// Name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Application-defined sensor data.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensors: Option<Value>,
+    /// Location expiry before a fence exit, ms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fence_timeout: Option<f64>,
+    /// Release distance, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exit_tolerance: Option<f64>,
+    /// Release timeout, ms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance_timeout: Option<f64>,
+    /// Exit delay, ms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exit_delay: Option<f64>,
+    /// Application properties.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub properties: Option<Properties>,
+}
+
+/// The positioning technology of an omlox [`Zone`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ZoneType {
+    /// Ultra-wideband.
+    Uwb,
+    /// Wi-Fi.
+    Wifi,
+    /// RFID.
+    Rfid,
+    /// iBeacon.
+    Ibeacon,
+}
+
+/// An omlox zone (`#/components/schemas/Zone`): the area and local frame of one positioning
+/// system — not a geofence (that is a [`Fence`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Zone {
+    /// UUID.
+    pub id: String,
+    /// Positioning technology.
+    #[serde(rename = "type")]
+    pub kind: ZoneType,
+    /// Foreign id (e.g. our site name).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub foreign_id: Option<String>,
+    /// Position in EPSG:4326.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<Point>,
+    /// Proximity radius, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    /// Pairs of `[longitude, latitude]`, `[x, y]` mapping the local frame to WGS84.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground_control_points: Option<Vec<Vec<f64>>>,
+    /// `true` while the configuration (e.g. ground control points) is incomplete.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub incomplete_configuration: Option<bool>,
+    /// When the geographic coordinates were measured (ISO 8601).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub measurement_timestamp: Option<String>,
+    /// Site.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub site: Option<String>,
+    /// Building.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub building: Option<String>,
+    /// Floor (0 = ground).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor: Option<f64>,
+    /// Name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Address.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub address: Option<String>,
+    /// Application properties.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub properties: Option<Properties>,
+    /// WGS84 height, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wgs84_height: Option<f64>,
+}
+
+/// A geofence (`#/components/schemas/Fence`). Without `crs` the spec assumes EPSG:4326, so
+/// fences in site coordinates must carry `crs: "local"`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fence {
+    /// UUID.
+    pub id: String,
+    /// The region.
+    pub region: Region,
+    /// Radius around a Point region, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    /// Extrusion (height) of the region, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub extrusion: Option<f64>,
+    /// Floor (0 = ground).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor: Option<f64>,
+    /// Foreign id (our zone id).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub foreign_id: Option<String>,
+    /// Name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Location expiry, ms (-1 = infinite).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timeout: Option<f64>,
+    /// Exit distance tolerance, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exit_tolerance: Option<f64>,
+    /// Tolerance timeout, ms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance_timeout: Option<f64>,
+    /// Exit delay, ms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exit_delay: Option<f64>,
+    /// `local` or an EPSG id; absent means EPSG:4326.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crs: Option<String>,
+    /// The omlox zone whose local frame a `local` fence uses.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zone_id: Option<String>,
+    /// `floor` or `wgs84`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elevation_ref: Option<String>,
+    /// Application properties.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub properties: Option<Properties>,
+}
+
+/// The two fence event kinds of the spec (predictive alarms go to the `rtls:alarms` topic).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FenceEventType {
+    /// The provider or trackable entered the fence.
+    RegionEntry,
+    /// It left the fence.
+    RegionExit,
+}
+
+/// A fence entry or exit (`#/components/schemas/FenceEvent`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FenceEvent {
+    /// UUID of this event.
+    pub id: String,
+    /// UUID of the fence.
+    pub fence_id: String,
+    /// Entry or exit.
+    pub event_type: FenceEventType,
+    /// The provider that triggered it (absent when a trackable did).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub provider_id: Option<String>,
+    /// The trackable that triggered it (absent when a provider did).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trackable_id: Option<String>,
+    /// Trackables the provider is assigned to.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trackables: Option<Vec<String>>,
+    /// Foreign id.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub foreign_id: Option<String>,
+    /// When the location was first inside the fence (ISO 8601 UTC).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub entry_time: Option<String>,
+    /// When the exit was triggered (ISO 8601 UTC).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exit_time: Option<String>,
+    /// Properties copied from the fence.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub properties: Option<Properties>,
+}
