@@ -3,8 +3,8 @@
 //! Choices, documented once:
 //! - **Time**: the engine's `time_s` is taken as Unix seconds (the site clock) and written as
 //!   ISO 8601 UTC with millisecond precision.
-//! - **Ids**: omlox ids are UUIDs; ours are names. [`uuid_for`] derives a stable UUID (version 8,
-//!   RFC 9562 "custom") from a namespace and a name with FNV-1a-128, so the same zone or tag
+//! - **Ids**: omlox ids are UUIDs; ours are names. [`uuid_for`] derives a stable name-based UUID
+//!   (RFC 4122 version 5, the `uuid` crate) from a namespace and a name, so the same zone or tag
 //!   always gets the same id; the name goes in `foreign_id` / `provider_id`.
 //! - **Frame**: everything is `crs: "local"` (site metres); +y is taken as north and +x as east
 //!   for `course` until the site has ground control points (issue 8).
@@ -21,8 +21,10 @@ use crate::omlox::time::{format_timestamp, parse_timestamp};
 use crate::omlox::ws::Topic;
 use crate::omlox::{Fence, FenceEvent, FenceEventType, Location, Point, Properties, ProviderType, Region};
 use crate::{Result, ServerError};
+use uuid::Uuid;
 
-/// A stable UUID (version 8) for `name` within `namespace` (e.g. `"fence"`, `"tag"`).
+/// A stable name-based UUID (RFC 4122 version 5, SHA-1) for `name` within `namespace` (e.g.
+/// `"fence"`, `"tag"`): omlox ids are UUIDs, ours are names.
 ///
 /// # Examples
 /// ```
@@ -30,28 +32,13 @@ use crate::{Result, ServerError};
 /// let id = uuid_for("fence", "stope-7");
 /// assert_eq!(id, uuid_for("fence", "stope-7"));
 /// assert_ne!(id, uuid_for("tag", "stope-7"));
-/// assert_eq!((id.len(), &id[14..15]), (36, "8"));
+/// assert_eq!((id.len(), &id[14..15]), (36, "5"));
 /// ```
 #[must_use]
 pub fn uuid_for(namespace: &str, name: &str) -> String {
-    // FNV-1a, 128 bit.
-    let mut hash: u128 = 0x6c62_272e_07bb_0142_62b8_2175_6295_c58d;
-    for byte in namespace.bytes().chain([0]).chain(name.bytes()) {
-        hash ^= u128::from(byte);
-        hash = hash.wrapping_mul(0x0000_0000_0100_0000_0000_0000_0000_013b);
-    }
-    // Version 8 in bits 76..80, variant 0b10 in bits 62..64.
-    hash = (hash & !(0xf << 76)) | (0x8 << 76);
-    hash = (hash & !(0x3 << 62)) | (0x2 << 62);
-    let h = format!("{hash:032x}");
-    format!(
-        "{}-{}-{}-{}-{}",
-        &h[0..8],
-        &h[8..12],
-        &h[12..16],
-        &h[16..20],
-        &h[20..32]
-    )
+    // RFC 4122 name-based (SHA-1) UUIDs: the namespace's own UUID from "urn:rtls:<namespace>"
+    let namespace = Uuid::new_v5(&Uuid::NAMESPACE_URL, format!("urn:rtls:{namespace}").as_bytes());
+    Uuid::new_v5(&namespace, name.as_bytes()).to_string()
 }
 
 /// The horizontal accuracy, m: `√λ_max` of the x–y block of a row-major `D × D` covariance.

@@ -22,17 +22,25 @@ const SPEC: &str = concat!(
     "/../../../shared/reference/omlox_Hub_API_2.0.0.json"
 );
 
-fn spec() -> Value {
-    let text = std::fs::read_to_string(SPEC).unwrap_or_else(|e| {
-        panic!("the omlox OpenAPI file is missing at {SPEC} ({e}): put shared/reference beside the workspace")
-    });
-    serde_json::from_str(&text).unwrap()
+/// The omlox OpenAPI document, kept beside the checkout (not in the repository, by its
+/// licence); like the recorded datasets, the schema checks are skipped, with a notice, on a
+/// machine without it — the tests' own assertions still run.
+fn spec() -> Option<Value> {
+    match std::fs::read_to_string(SPEC) {
+        Ok(text) => Some(serde_json::from_str(&text).unwrap()),
+        Err(e) => {
+            eprintln!("omlox schema checks skipped: {SPEC} is missing ({e})");
+            None
+        }
+    }
 }
 
 /// Validates `instance` against `#/components/schemas/{name}` (draft 4, refs resolved in the
 /// whole OpenAPI document); `patch` may edit the component first (spec defects, see callers).
 fn assert_valid(name: &str, instance: &Value, patch: impl FnOnce(&mut Value)) {
-    let mut document = spec();
+    let Some(mut document) = spec() else {
+        return;
+    };
     patch(&mut document["components"]["schemas"][name]);
     document["$ref"] = json!(format!("#/components/schemas/{name}"));
     let validator = jsonschema::draft4::new(&document).unwrap();
@@ -74,7 +82,9 @@ fn site_zone() -> SiteZone {
 #[test]
 fn a_schema_that_is_violated_is_reported() {
     // The validator harness itself can fail: a Location without provider_id.
-    let mut document = spec();
+    let Some(mut document) = spec() else {
+        return;
+    };
     document["$ref"] = json!("#/components/schemas/Location");
     let validator = jsonschema::draft4::new(&document).unwrap();
     let bad = json!({"position": {"type": "Point", "coordinates": [1, 2]}, "source": "s", "provider_type": "uwb"});
