@@ -34,7 +34,8 @@ const PALETTE: [RGBColor; 14] = [
 
 static FONT: Once = Once::new();
 
-fn register_font() {
+/// Registers the embedded DejaVu Sans as "sans-serif" for every figure (once).
+pub(crate) fn register_font() {
     FONT.call_once(|| {
         // the only failure is a malformed font, which the embedded one is not
         let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
@@ -56,25 +57,37 @@ pub fn render(figure: &Figure, dir: &Path) -> Result<()> {
 
 /// The data range of the figure, padded by 5 %, squared up for equal-aspect figures.
 fn ranges(figure: &Figure) -> Result<((f64, f64), (f64, f64))> {
+    let points = || figure.series.iter().flat_map(|s| &s.points);
+    if points().any(|p| !p[0].is_finite() || !p[1].is_finite()) {
+        return Err(anyhow!("figure `{}` has a non-finite point", figure.id));
+    }
+    padded_ranges(points().copied(), 1e-9, figure.equal_aspect)
+        .ok_or_else(|| anyhow!("figure `{}` has no points", figure.id))
+}
+
+/// The range of the finite `points`, each axis padded by 5 % of its span (at least
+/// `min_span`); with `equal_aspect` the narrower axis is widened so that one unit is as long
+/// on both (plot area ≈ 3:2). `None` without a finite point.
+pub(crate) fn padded_ranges(
+    points: impl Iterator<Item = [f64; 2]>,
+    min_span: f64,
+    equal_aspect: bool,
+) -> Option<((f64, f64), (f64, f64))> {
     let mut x = (f64::INFINITY, f64::NEG_INFINITY);
     let mut y = (f64::INFINITY, f64::NEG_INFINITY);
-    for point in figure.series.iter().flat_map(|s| &s.points) {
-        if !point[0].is_finite() || !point[1].is_finite() {
-            return Err(anyhow!("figure `{}` has a non-finite point", figure.id));
-        }
+    for point in points.filter(|p| p[0].is_finite() && p[1].is_finite()) {
         x = (x.0.min(point[0]), x.1.max(point[0]));
         y = (y.0.min(point[1]), y.1.max(point[1]));
     }
     if !x.0.is_finite() {
-        return Err(anyhow!("figure `{}` has no points", figure.id));
+        return None;
     }
     let pad = |(lo, hi): (f64, f64)| {
-        let span = (hi - lo).max(1e-9);
+        let span = (hi - lo).max(min_span);
         (lo - 0.05 * span, hi + 0.05 * span)
     };
     let (mut x, mut y) = (pad(x), pad(y));
-    if figure.equal_aspect {
-        // widen the narrower axis so that one metre is as long on both (plot area ≈ 3:2)
+    if equal_aspect {
         let (width, height) = (x.1 - x.0, y.1 - y.0);
         let aspect = 1.5;
         if width / height < aspect {
@@ -85,7 +98,7 @@ fn ranges(figure: &Figure) -> Result<((f64, f64), (f64, f64))> {
             y = (y.0 - grow, y.1 + grow);
         }
     }
-    Ok((x, y))
+    Some((x, y))
 }
 
 fn draw<DB: DrawingBackend>(figure: &Figure, root: DrawingArea<DB, Shift>) -> Result<()>

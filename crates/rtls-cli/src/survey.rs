@@ -17,11 +17,12 @@
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::Once;
 
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
 use plotters::prelude::*;
+
+use crate::plot::{padded_ranges, register_font};
 use rtls_engine::evaluation::{parse_track_lines, TRACKS_SOURCE};
 use rtls_engine::record::{CsvRecords, JsonLines, Record};
 use rtls_engine::site::Site;
@@ -294,15 +295,6 @@ fn print_top(map: &SurveyMap, top: usize) {
 
 const SIZE_PX: (u32, u32) = (1200, 800);
 
-static FONT: Once = Once::new();
-
-fn register_font() {
-    FONT.call_once(|| {
-        // the only failure is a malformed font, which the embedded one is not
-        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
-    });
-}
-
 /// Cells without a scored entry.
 const UNSCORED: RGBColor = RGBColor(225, 225, 225);
 
@@ -366,8 +358,8 @@ fn draw_map(site: &Site, map: &SurveyMap, path: &Path) -> Result<()> {
         let [x0, x1, y0, y1] = map.settings().cell_bounds_m(*cell);
         points.extend([[x0, y0], [x1, y1]]);
     }
-    let ((x0, x1), (y0, y1)) =
-        equal_aspect_ranges(&points).ok_or_else(|| anyhow!("nothing to draw: no readers, no cells"))?;
+    let ((x0, x1), (y0, y1)) = padded_ranges(points.iter().copied(), 1.0, true)
+        .ok_or_else(|| anyhow!("nothing to draw: no readers, no cells"))?;
 
     let root = BitMapBackend::new(path, SIZE_PX).into_drawing_area();
     let error = |e: DrawingAreaErrorKind<_>| anyhow!("{e:?}");
@@ -473,32 +465,4 @@ fn draw_map(site: &Site, map: &SurveyMap, path: &Path) -> Result<()> {
         .map_err(error)?;
     root.present().map_err(error)?;
     Ok(())
-}
-
-/// The range of `points`, padded by 5 % and widened so that one metre is as long on both axes
-/// (plot area ≈ 3:2); `None` without finite points.
-fn equal_aspect_ranges(points: &[[f64; 2]]) -> Option<((f64, f64), (f64, f64))> {
-    let mut x = (f64::INFINITY, f64::NEG_INFINITY);
-    let mut y = (f64::INFINITY, f64::NEG_INFINITY);
-    for p in points.iter().filter(|p| p[0].is_finite() && p[1].is_finite()) {
-        x = (x.0.min(p[0]), x.1.max(p[0]));
-        y = (y.0.min(p[1]), y.1.max(p[1]));
-    }
-    if !x.0.is_finite() {
-        return None;
-    }
-    let pad = |(lo, hi): (f64, f64)| {
-        let span = (hi - lo).max(1.0);
-        (lo - 0.05 * span, hi + 0.05 * span)
-    };
-    let (mut x, mut y) = (pad(x), pad(y));
-    let (width, height) = (x.1 - x.0, y.1 - y.0);
-    if width / height < 1.5 {
-        let grow = (height * 1.5 - width) / 2.0;
-        x = (x.0 - grow, x.1 + grow);
-    } else {
-        let grow = (width / 1.5 - height) / 2.0;
-        y = (y.0 - grow, y.1 + grow);
-    }
-    Some((x, y))
 }

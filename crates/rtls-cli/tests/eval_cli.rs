@@ -1,22 +1,13 @@
 //! `rtls eval` and `rtls import` as a user runs them: hand-checkable numbers in the table and
 //! the JSON, and errors that name the file, line and field.
 
+mod common;
+
+use common::rtls;
 use std::path::PathBuf;
-use std::process::Command;
 
-fn rtls(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rtls"))
-        .args(args)
-        .output()
-        .expect("the rtls binary runs")
-}
-
-/// A fresh directory for one test.
 fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rtls-eval-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::temp_dir("eval-cli", name)
 }
 
 /// Truth: `a` moves along x at 10 m/s, sampled every 0.5 s; `b` stands at (5, 5).

@@ -1,14 +1,9 @@
 //! The `rtls repro` command as a user runs it: JSON lines, thread-count independence, the
 //! markdown report with its figures, and clear errors for bad input.
 
-use std::process::Command;
+mod common;
 
-fn rtls(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rtls"))
-        .args(args)
-        .output()
-        .expect("the rtls binary runs")
-}
+use common::rtls;
 
 #[test]
 fn json_lines_follow_the_schema_and_do_not_depend_on_threads() {

@@ -2,21 +2,13 @@
 //! reader tables and the map out; a summary naming the attenuated reader; bad input named by
 //! file, line and field.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn rtls(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rtls"))
-        .args(args)
-        .output()
-        .expect("the rtls binary runs")
-}
+use common::rtls;
+use std::path::{Path, PathBuf};
 
 fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rtls-survey-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::temp_dir("survey-cli", name)
 }
 
 /// Ten BLE readers every 10 m along y = ±3 m, law `−40 − 20 log₁₀ d`.

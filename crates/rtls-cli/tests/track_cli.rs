@@ -1,21 +1,13 @@
 //! `rtls track` as a user runs it: a site and a measurement file in, track updates, events and
 //! raw fixes out; bad input named by file, line and field; then `rtls eval` on the result.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
 
-fn rtls(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rtls"))
-        .args(args)
-        .output()
-        .expect("the rtls binary runs")
-}
+use common::rtls;
+use std::path::PathBuf;
 
 fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rtls-track-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::temp_dir("track-cli", name)
 }
 
 const SITE: &str = r#"
