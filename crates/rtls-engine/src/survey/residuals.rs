@@ -8,11 +8,8 @@ use crate::error::{EngineError, Result};
 use crate::evaluation::{TrackSample, TRACKS_SOURCE};
 use crate::record::{Measurement, Record};
 use crate::site::{Reader, Site};
+use crate::tracker::models::{AnchorLaw, AnchorMeasurement};
 use crate::tracker::TrackUpdate;
-
-/// Below this distance the log-distance law is evaluated at this distance, m (as the tracker's
-/// RSS model does).
-const MIN_DISTANCE_M: f64 = 1e-6;
 
 /// A tag's non-predicted track positions, sorted by time: `(t, [x, y, z])`.
 type Track = Vec<(f64, [f64; 3])>;
@@ -59,12 +56,13 @@ fn locate(track: &[(f64, [f64; 3])], time_s: f64, settings: &SurveySettings) -> 
 /// Why a measurement has no residual: the counter of [`Unmatched`] it goes to.
 type Reason = fn(&mut Unmatched) -> &mut usize;
 
-/// What the site expects a reader to measure.
-enum Model {
-    /// A range from `a` (m), after removing the configured bias `bias_m`.
-    Range { a: [f64; 3], bias_m: f64 },
-    /// RSSI from `a` by the log-distance law `[P₀ dBm, n, d₀ m]`.
-    Rssi { a: [f64; 3], law: [f64; 3] },
+/// What the site expects a reader to measure: the tracker's own measurement model (range, or
+/// RSSI by the reader's log-distance law) at the tag position, less a configured range bias.
+struct Model {
+    expected: AnchorMeasurement,
+    /// `‖p − a‖`, the slant distance the residual is filed under.
+    distance: AnchorMeasurement,
+    bias: f64,
 }
 
 impl Model {
@@ -78,35 +76,36 @@ impl Model {
         }
         let a = reader.position_xyz_m();
         let radio = reader.radio.as_ref();
-        match kind {
-            ResidualKind::Range => Ok(Self::Range {
-                a,
-                bias_m: radio.and_then(|r| r.range.as_ref()).map_or(0.0, |r| r.bias_m),
-            }),
+        // the variance is not used: only h(p) is evaluated (3-D positions, so no tag height)
+        let model = |law| AnchorMeasurement::new(a, 0.0, law, 1.0);
+        let (law, bias) = match kind {
+            ResidualKind::Range => (
+                AnchorLaw::Range,
+                radio.and_then(|r| r.range.as_ref()).map_or(0.0, |r| r.bias_m),
+            ),
             ResidualKind::Rssi => {
                 let Some(law) = radio.and_then(|r| r.path_loss.as_ref()) else {
                     return Err(|u| &mut u.no_path_loss);
                 };
-                Ok(Self::Rssi {
-                    a,
-                    law: [law.reference_power_dbm, law.exponent, law.reference_distance_m],
-                })
+                let law = AnchorLaw::LogDistance {
+                    reference_power_dbm: law.reference_power_dbm,
+                    reference_distance_m: law.reference_distance_m,
+                    exponent: law.exponent,
+                };
+                (law, 0.0)
             }
-        }
+        };
+        Ok(Self {
+            expected: model(law),
+            distance: model(AnchorLaw::Range),
+            bias,
+        })
     }
 
-    /// Measured minus expected at tag position `p`, and the slant distance `d = ‖p − a‖` (m).
+    /// Measured minus expected at tag position `p` — `e = (r − b) − d` for a range,
+    /// `e = ρ − (P₀ − 10 n log₁₀(d / d₀))` for RSSI — and the slant distance `d = ‖p − a‖`, m.
     fn residual(&self, measured: f64, p: [f64; 3]) -> (f64, f64) {
-        let (Self::Range { a, .. } | Self::Rssi { a, .. }) = self;
-        // d = ‖p − a‖ (slant distance)
-        let d = ((p[0] - a[0]).powi(2) + (p[1] - a[1]).powi(2) + (p[2] - a[2]).powi(2)).sqrt();
-        let value = match self {
-            // e = (r − b) − d
-            Self::Range { bias_m, .. } => measured - bias_m - d,
-            // e = ρ − (P₀ − 10 n log₁₀(d / d₀))
-            Self::Rssi { law: [p0, n, d0], .. } => measured - (p0 - 10.0 * n * (d.max(MIN_DISTANCE_M) / d0).log10()),
-        };
-        (value, d)
+        (measured - self.bias - self.expected.value(&p), self.distance.value(&p))
     }
 }
 

@@ -100,7 +100,7 @@ mod anchors;
 mod anonymous;
 mod core;
 mod epoch;
-mod models;
+pub(crate) mod models;
 mod modes;
 mod output;
 mod report;

@@ -108,14 +108,7 @@ impl TrackUpdate {
     #[must_use]
     pub fn to_json_line(&self) -> String {
         let d = self.dimensions;
-        let mut object = Map::new();
-        object.insert("t".into(), json!(self.time_s));
-        object.insert("tag".into(), json!(&*self.tag));
-        object.insert("x".into(), json!(self.position_m[0]));
-        object.insert("y".into(), json!(self.position_m[1]));
-        if d == 3 {
-            object.insert("z".into(), json!(self.position_m[2]));
-        }
+        let mut object = located(self.time_s, &self.tag, d, &self.position_m);
         object.insert("vx".into(), json!(self.velocity_mps[0]));
         object.insert("vy".into(), json!(self.velocity_mps[1]));
         if d == 3 {
@@ -130,6 +123,19 @@ impl TrackUpdate {
         }
         Value::Object(object).to_string()
     }
+}
+
+/// The keys every track-file line starts with: `t`, `tag`, `x`, `y` and, in 3-D, `z`.
+fn located(time_s: f64, tag: &str, dimensions: usize, position_m: &[f64; 3]) -> Map<String, Value> {
+    let mut object = Map::new();
+    object.insert("t".into(), json!(time_s));
+    object.insert("tag".into(), json!(tag));
+    object.insert("x".into(), json!(position_m[0]));
+    object.insert("y".into(), json!(position_m[1]));
+    if dimensions == 3 {
+        object.insert("z".into(), json!(position_m[2]));
+    }
+    object
 }
 
 /// A raw position fix of the fix-then-filter pipeline, before the filter (for evaluation).
@@ -153,14 +159,7 @@ impl RawFix {
     #[must_use]
     pub fn to_json_line(&self) -> String {
         let d = self.dimensions;
-        let mut object = Map::new();
-        object.insert("t".into(), json!(self.time_s));
-        object.insert("tag".into(), json!(&*self.tag));
-        object.insert("x".into(), json!(self.position_m[0]));
-        object.insert("y".into(), json!(self.position_m[1]));
-        if d == 3 {
-            object.insert("z".into(), json!(self.position_m[2]));
-        }
+        let mut object = located(self.time_s, &self.tag, d, &self.position_m);
         object.insert("cov".into(), json!(&self.covariance_m2[..d * d]));
         object.insert("predicted".into(), json!(false));
         object.insert("source".into(), json!("raw-fix"));
