@@ -33,6 +33,9 @@ use crate::{EngineError, Result};
 pub struct TaskScheduler {
     task_nodes: usize,
     edge_margin_m: f64,
+    /// Hand a track over to a neighbouring cell that shares none of its nodes (see
+    /// [`TaskScheduler::with_neighbour_handover`]); off: seed 003's rule as printed.
+    neighbour_handover: bool,
 }
 
 /// One track's scheduling decision for the next cycle.
@@ -81,7 +84,21 @@ impl TaskScheduler {
         Ok(Self {
             task_nodes,
             edge_margin_m,
+            neighbour_handover: false,
         })
+    }
+
+    /// The same scheduler with a handover for layouts whose neighbouring cells share no node:
+    /// a prediction in a neighbour of the current nodes' cell that holds none of them is
+    /// accepted (those nodes cannot measure the track there, and seed 003's rule alone would
+    /// keep them for ever); a jump further away is still refused. Seed 003's bed shares its
+    /// border nodes, so its reproduction keeps the rule as printed.
+    #[must_use]
+    pub fn with_neighbour_handover(self) -> Self {
+        Self {
+            neighbour_handover: true,
+            ..self
+        }
     }
 
     /// Task nodes per track.
@@ -110,8 +127,11 @@ impl TaskScheduler {
     ///
     /// The proposal is the `task_nodes` nodes of the predicted cell nearest to the prediction;
     /// with `same = |proposal ∩ current|` and `different = |proposal \ current|` it is accepted
-    /// iff `same > different`. Edge monitoring adds the monitors of every neighbouring cell
-    /// within the margin ([`Layout::near_cells`]) to the firing nodes.
+    /// iff `same > different`, so a jump of the estimate is not followed (and, with
+    /// [`TaskScheduler::with_neighbour_handover`], also on a move into a neighbouring cell that
+    /// shares none of the current nodes). Edge monitoring
+    /// adds the monitors of every neighbouring cell within the margin ([`Layout::near_cells`])
+    /// to the firing nodes.
     ///
     /// # Errors
     /// [`EngineError::InvalidParameter`] (`position_m`) for a non-finite prediction.
@@ -121,7 +141,16 @@ impl TaskScheduler {
         // same = |proposal ∩ current|, different = |proposal \ current|
         let same = proposal.iter().filter(|n| current.contains(n)).count();
         let different = proposal.len() - same;
-        let accepted = same > different;
+        // a move from the current nodes' cell into a neighbour that shares none of them
+        let nodes_of = |c: usize| &layout.cells()[c].nodes;
+        let unreachable_neighbour = self.neighbour_handover
+            && !current.is_empty()
+            && !current.iter().any(|n| nodes_of(cell).contains(n))
+            && layout
+                .neighbours(cell)
+                .iter()
+                .any(|&c| current.iter().all(|n| nodes_of(c).contains(n)));
+        let accepted = same > different || unreachable_neighbour;
         let changed = accepted && same < current.len().max(proposal.len());
         let task_nodes = if accepted { proposal.clone() } else { current.to_vec() };
         let mut monitors: Vec<usize> = layout

@@ -375,3 +375,36 @@ fn ledgers_merge_and_reject_bad_input() {
     bad.all_on_sonars_per_node = 0;
     assert_eq!(invalid_name(bad.validate().unwrap_err()), "all_on_sonars_per_node");
 }
+
+#[test]
+fn a_neighbour_sharing_no_node_takes_over_but_a_jump_does_not() {
+    // three 2 m cells in a row, each with its own two nodes
+    let nodes = (0..6)
+        .map(|i| Node {
+            id: format!("n{i}"),
+            position_m: [0.2 + 2.0 * (i / 2) as f64 + 1.6 * (i % 2) as f64, 1.0],
+        })
+        .collect();
+    let cells = (0..3)
+        .map(|c| Cell {
+            min_m: [2.0 * c as f64, 0.0],
+            max_m: [2.0 * c as f64 + 2.0, 2.0],
+            nodes: vec![2 * c, 2 * c + 1],
+        })
+        .collect();
+    let row = Layout::new(nodes, cells).unwrap();
+    // seed 003's rule as printed: the track keeps its old cell's nodes
+    let paper = TaskScheduler::new(2, 0.0).unwrap();
+    let d = paper.decide(&row, &[0, 1], [2.5, 1.0]).unwrap();
+    assert_eq!((d.accepted, d.task_nodes), (false, vec![0, 1]));
+    let scheduler = paper.with_neighbour_handover();
+    // into the neighbouring cell: the old nodes cannot measure there, the proposal is taken
+    let d = scheduler.decide(&row, &[0, 1], [2.5, 1.0]).unwrap();
+    assert_eq!(
+        (d.cell, d.accepted, d.changed, d.task_nodes),
+        (1, true, true, vec![2, 3])
+    );
+    // a jump two cells away is still refused (seed 003's rule)
+    let d = scheduler.decide(&row, &[0, 1], [4.5, 1.0]).unwrap();
+    assert_eq!((d.cell, d.accepted, d.task_nodes), (2, false, vec![0, 1]));
+}

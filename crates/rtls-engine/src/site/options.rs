@@ -4,7 +4,8 @@ use serde::Deserialize;
 
 /// `[scheduling]`: seed 003's adaptive node scheduling. From each confirmed track's prediction
 /// one cycle ahead, the tracker picks the nearest `task_nodes` readers of the predicted cell
-/// (kept unless most of them change: seed 003's acceptance rule) plus, within `edge_margin_m`
+/// (kept unless most of them change: seed 003's acceptance rule, with a handover into a
+/// neighbouring cell that shares none of them) plus, within `edge_margin_m`
 /// of a cell border, the neighbouring cell's monitors; a `schedule` event reports a track's
 /// nodes whenever they change, for the readers to wake.
 #[derive(Debug, Clone, PartialEq, Deserialize)]

@@ -82,7 +82,7 @@ impl Scheduling {
         };
         Ok(Some(Self {
             layout,
-            scheduler: TaskScheduler::new(settings.task_nodes, settings.edge_margin_m)?,
+            scheduler: TaskScheduler::new(settings.task_nodes, settings.edge_margin_m)?.with_neighbour_handover(),
             reader_ids: ids.iter().map(|id| Arc::from(id.as_str())).collect(),
             cycle_s: settings.cycle_s,
         }))
@@ -112,14 +112,7 @@ impl Scheduling {
         if schedule.task_nodes.is_empty() {
             schedule.task_nodes = self.scheduler.initial(&self.layout, position_m)?;
         }
-        let mut decision = self.scheduler.decide(&self.layout, &schedule.task_nodes, predicted_m)?;
-        // seed 003's rule assumes neighbouring cells share their border nodes; where the
-        // predicted cell has none of the current task nodes, they cannot measure the track
-        // there, so the proposal is taken (and the monitors are recomputed for it)
-        let cell_nodes = &self.layout.cells()[decision.cell].nodes;
-        if !decision.accepted && !schedule.task_nodes.iter().any(|n| cell_nodes.contains(n)) {
-            decision = self.scheduler.decide(&self.layout, &decision.proposal, predicted_m)?;
-        }
+        let decision = self.scheduler.decide(&self.layout, &schedule.task_nodes, predicted_m)?;
         schedule.task_nodes.clone_from(&decision.task_nodes);
         // reported when the sets change (not their nearest-first order)
         let sorted = |nodes: &[usize]| {
