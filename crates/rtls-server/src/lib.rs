@@ -18,6 +18,7 @@
 pub mod convert;
 mod error;
 pub mod omlox;
+pub mod sink;
 
 pub use error::{Result, ServerError};
 
