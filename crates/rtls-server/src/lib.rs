@@ -15,10 +15,12 @@
 //! # References
 //! - omlox™ hub API 2.0.0, OpenAPI 3.0.2 description (PROFIBUS & PROFINET International).
 
+pub mod auth;
 pub mod convert;
 mod error;
 pub mod omlox;
 pub mod sink;
+pub mod store;
 
 pub use error::{Result, ServerError};
 

@@ -1,0 +1,235 @@
+//! Persistent storage: the ingest log, track history, events and alarms, and the hub's
+//! configuration (trackables, providers, zones, fences, the site).
+//!
+//! [`Store`] is synchronous: the server runs it on a storage thread of its own, so no async
+//! task ever waits on a disk. Two back ends implement it: SQLite (embedded, the default, WAL
+//! journal) and PostgreSQL (`--db postgres://…`). Both apply the same versioned schema
+//! migrations when opened.
+
+use thiserror::Error;
+
+/// A measurement record as stored in the ingest log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StoredRecord {
+    /// The log's id, increasing in the order records were accepted.
+    pub id: i64,
+    /// Server wall-clock time of acceptance (ms since the Unix epoch).
+    pub received_ms: i64,
+    /// Who sent it (`http`, `mqtt:rtls/v1/measurements/reader-7`, `omlox`).
+    pub source: String,
+    /// The record's own time stamp (s).
+    pub time_s: f64,
+    /// The record's tag (`*` for anonymous records).
+    pub tag: String,
+    /// The record as one JSON line of the measurement format (docs/FORMATS.md).
+    pub json: String,
+}
+
+/// A record to append to the ingest log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NewRecord {
+    /// Server wall-clock time of acceptance (ms since the Unix epoch).
+    pub received_ms: i64,
+    /// Who sent it.
+    pub source: String,
+    /// The record's own time stamp (s).
+    pub time_s: f64,
+    /// The record's tag.
+    pub tag: String,
+    /// The record as one JSON line.
+    pub json: String,
+}
+
+/// One reported track state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocationRow {
+    /// Server wall-clock time it was stored (ms since the Unix epoch); retention uses this.
+    pub received_ms: i64,
+    /// The state's time (s).
+    pub time_s: f64,
+    /// The tag.
+    pub tag: String,
+    /// Position (m).
+    pub x_m: f64,
+    /// Position (m).
+    pub y_m: f64,
+    /// Height (m); `None` for 2-D tracks.
+    pub z_m: Option<f64>,
+    /// √(largest eigenvalue of the position covariance) (m).
+    pub accuracy_m: Option<f64>,
+    /// Whether the state is a prediction without a measurement (coasting).
+    pub predicted: bool,
+    /// The full `TrackUpdate` JSON line.
+    pub json: String,
+}
+
+/// One event (zone entry/exit/dwell, lifecycle, hazard alarms, model switches, …).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EventRow {
+    /// Server wall-clock time it was stored (ms since the Unix epoch); retention uses this.
+    pub received_ms: i64,
+    /// The event's time (s).
+    pub time_s: f64,
+    /// The event's `type` (`zone-enter`, `hazard-predicted`, …, docs/FORMATS.md).
+    pub kind: String,
+    /// The tag it concerns, if any.
+    pub tag: Option<String>,
+    /// The zone it concerns, if any.
+    pub zone: Option<String>,
+    /// Whether it is an alarm (hazard predicted, no coverage, a lost tag).
+    pub alarm: bool,
+    /// The event's JSON line.
+    pub json: String,
+}
+
+/// A history query: one tag's states in `[from_s, to_s]`, oldest first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HistoryQuery {
+    /// The tag.
+    pub tag: String,
+    /// Start of the range (s, inclusive).
+    pub from_s: f64,
+    /// End of the range (s, inclusive).
+    pub to_s: f64,
+    /// At most this many rows.
+    pub limit: usize,
+}
+
+/// An event query: events in `[from_s, to_s]`, oldest first.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct EventQuery {
+    /// Start of the range (s, inclusive).
+    pub from_s: f64,
+    /// End of the range (s, inclusive).
+    pub to_s: f64,
+    /// Only this tag's events.
+    pub tag: Option<String>,
+    /// Only these kinds (empty: all).
+    pub kinds: Vec<String>,
+    /// Only alarms.
+    pub alarms_only: bool,
+    /// At most this many rows.
+    pub limit: usize,
+}
+
+/// What [`Store::prune`] deleted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Pruned {
+    /// Ingest-log records.
+    pub records: u64,
+    /// Track states.
+    pub locations: u64,
+    /// Events.
+    pub events: u64,
+}
+
+/// A storage failure, naming the back end and what failed.
+#[derive(Debug, Error)]
+pub enum StoreError {
+    /// The database URL is not understood.
+    #[error("database URL {url:?}: {reason}")]
+    Url {
+        /// The URL given.
+        url: String,
+        /// What is wrong and what is accepted.
+        reason: String,
+    },
+    /// A schema migration failed.
+    #[error("schema migration {version} ({name}): {reason}")]
+    Migration {
+        /// The migration's version.
+        version: u32,
+        /// Its name.
+        name: String,
+        /// The database's error.
+        reason: String,
+    },
+    /// The database refused an operation.
+    #[error("{backend} {operation}: {reason}")]
+    Database {
+        /// `sqlite` or `postgres`.
+        backend: &'static str,
+        /// What was being done (`append records`, `history query`, …).
+        operation: &'static str,
+        /// The database's error.
+        reason: String,
+    },
+}
+
+/// The storage interface (synchronous; the server calls it from its storage thread).
+pub trait Store: Send {
+    /// `sqlite` or `postgres`.
+    fn backend(&self) -> &'static str;
+    /// Appends records to the ingest log in one transaction; when this returns `Ok` they are
+    /// durable (committed). Returns their ids, in order.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`]; then none of the records is stored.
+    fn append_records(&mut self, records: &[NewRecord]) -> Result<Vec<i64>, StoreError>;
+    /// Up to `limit` records with id > `after_id`, in id order (replay after a restart).
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn records_after(&mut self, after_id: i64, limit: usize) -> Result<Vec<StoredRecord>, StoreError>;
+    /// The number of records in the ingest log.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn record_count(&mut self) -> Result<u64, StoreError>;
+    /// Appends track states in one transaction.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn append_locations(&mut self, rows: &[LocationRow]) -> Result<(), StoreError>;
+    /// Appends events in one transaction.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn append_events(&mut self, rows: &[EventRow]) -> Result<(), StoreError>;
+    /// One tag's track states in a time range, oldest first.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn history(&mut self, query: &HistoryQuery) -> Result<Vec<LocationRow>, StoreError>;
+    /// Events in a time range, oldest first.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn events(&mut self, query: &EventQuery) -> Result<Vec<EventRow>, StoreError>;
+    /// Creates or replaces a configuration object (`kind`: `trackable`, `provider`, `zone`,
+    /// `fence`, `site`); returns whether it was created.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn put_config(&mut self, kind: &str, id: &str, json: &str) -> Result<bool, StoreError>;
+    /// A configuration object.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn get_config(&mut self, kind: &str, id: &str) -> Result<Option<String>, StoreError>;
+    /// All objects of a kind as `(id, json)`, ordered by id.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn list_config(&mut self, kind: &str) -> Result<Vec<(String, String)>, StoreError>;
+    /// Deletes one object; returns whether it existed.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn delete_config(&mut self, kind: &str, id: &str) -> Result<bool, StoreError>;
+    /// A named counter (e.g. the last ingest-log id the tracker has processed).
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn checkpoint(&mut self, name: &str) -> Result<Option<i64>, StoreError>;
+    /// Sets a named counter.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn set_checkpoint(&mut self, name: &str, value: i64) -> Result<(), StoreError>;
+    /// Deletes records, states and events stored before `before_ms` (retention).
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn prune(&mut self, before_ms: i64) -> Result<Pruned, StoreError>;
+}
