@@ -18,7 +18,10 @@
 pub mod auth;
 pub mod convert;
 mod error;
+pub mod http;
+pub mod metrics;
 pub mod omlox;
+pub mod pipeline;
 pub mod sink;
 pub mod store;
 

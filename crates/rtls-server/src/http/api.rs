@@ -1,0 +1,277 @@
+//! Our own API under `/api/v1`: measurement ingest, live tags, history and events with CSV and
+//! GeoJSON export, head counts, zones as GeoJSON.
+
+use std::fmt::Write as _;
+
+use axum::body::Bytes;
+use axum::extract::{Query, State};
+use axum::http::{header, HeaderMap};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde::Deserialize;
+use serde_json::{json, Value};
+
+use super::{metrics, ApiError, ApiResult, AppState};
+use crate::auth::Access;
+use crate::convert::fence_from_zone;
+use crate::omlox::time::{format_timestamp, parse_timestamp};
+use crate::store::{EventQuery, HistoryQuery, LocationRow};
+
+/// Rows a history or event query returns at most (and by default).
+pub const MAX_ROWS: usize = 100_000;
+
+/// `POST /api/v1/measurements`: JSON lines of the measurement format (docs/FORMATS.md);
+/// 200 `{"accepted": n}` once stored, 400 naming the line and field of the first bad record.
+pub(super) async fn ingest_measurements(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<Json<Value>> {
+    state.authorize(&headers, Access::Write)?;
+    match state.pipeline.submit_lines("request body", &body).await {
+        Ok(accepted) => Ok(Json(json!({ "accepted": accepted }))),
+        Err(error) => {
+            if matches!(error, crate::sink::IngestError::Invalid(_)) {
+                metrics(&state)
+                    .ingest_rejected
+                    .get_or_create(&vec![("transport".into(), "http".into())])
+                    .inc();
+            }
+            Err(error.into())
+        }
+    }
+}
+
+/// `GET /api/v1/tags`: every tag's latest state.
+pub(super) async fn tags(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Value>> {
+    state.authorize(&headers, Access::Read)?;
+    let tags: Vec<Value> = state
+        .pipeline
+        .live()
+        .tags()
+        .into_iter()
+        .map(|(tag, s)| json!({ "tag": tag, "t": s.time_s, "position_m": s.position_m, "status": s.status }))
+        .collect();
+    Ok(Json(Value::Array(tags)))
+}
+
+/// `GET /api/v1/tracks.geojson`: every tag's latest position as a GeoJSON FeatureCollection of
+/// Points (site coordinates, m).
+pub(super) async fn tracks_geojson(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Response> {
+    state.authorize(&headers, Access::Read)?;
+    let features: Vec<Value> = state
+        .pipeline
+        .live()
+        .tags()
+        .into_iter()
+        .map(|(tag, s)| {
+            json!({
+                "type": "Feature",
+                "geometry": { "type": "Point", "coordinates": s.position_m },
+                "properties": { "tag": tag, "t": s.time_s, "status": s.status },
+            })
+        })
+        .collect();
+    Ok(geojson(json!({ "type": "FeatureCollection", "features": features })))
+}
+
+/// `GET /api/v1/zones.geojson`: the site's zones as a FeatureCollection of Polygons.
+pub(super) async fn zones_geojson(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Response> {
+    state.authorize(&headers, Access::Read)?;
+    let counts = state.pipeline.live().head_counts();
+    let features: Vec<Value> = state
+        .site
+        .zones
+        .iter()
+        .map(|zone| {
+            let fence = fence_from_zone(zone);
+            let mut properties = json!({ "id": zone.id, "name": zone.name, "head_count": counts.get(&zone.id) });
+            if let (Value::Object(target), Some(extra)) = (&mut properties, fence.properties) {
+                target.extend(extra);
+            }
+            json!({ "type": "Feature", "geometry": fence.region, "properties": properties })
+        })
+        .collect();
+    Ok(geojson(json!({ "type": "FeatureCollection", "features": features })))
+}
+
+/// `GET /api/v1/zones/head-counts`: tags inside each zone now.
+pub(super) async fn head_counts(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Value>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(json!(state.pipeline.live().head_counts())))
+}
+
+fn geojson(body: Value) -> Response {
+    ([(header::CONTENT_TYPE, "application/geo+json")], body.to_string()).into_response()
+}
+
+/// Query of `GET /api/v1/history`.
+#[derive(Debug, Deserialize)]
+pub(super) struct HistoryParams {
+    tag: Option<String>,
+    from: Option<String>,
+    to: Option<String>,
+    format: Option<String>,
+    limit: Option<usize>,
+}
+
+/// A time parameter: Unix seconds or an RFC 3339 time stamp.
+fn parse_time(value: Option<&str>, field: &str, default: f64) -> ApiResult<f64> {
+    let Some(text) = value else { return Ok(default) };
+    if let Ok(seconds) = text.parse::<f64>() {
+        if seconds.is_finite() {
+            return Ok(seconds);
+        }
+    }
+    parse_timestamp(text, field).map_err(|_| {
+        ApiError::field(
+            field,
+            format!("`{text}` is neither Unix seconds nor an RFC 3339 time stamp"),
+        )
+    })
+}
+
+fn parse_limit(limit: Option<usize>) -> ApiResult<usize> {
+    match limit {
+        None => Ok(MAX_ROWS),
+        Some(0) => Err(ApiError::field("limit", "must be at least 1")),
+        Some(n) if n > MAX_ROWS => Err(ApiError::field("limit", format!("at most {MAX_ROWS}"))),
+        Some(n) => Ok(n),
+    }
+}
+
+/// `GET /api/v1/history?tag=…&from=…&to=…&format=json|csv|geojson&limit=…`: one tag's track
+/// states in a time range, oldest first. `from`/`to` are Unix seconds or RFC 3339.
+pub(super) async fn history(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(params): Query<HistoryParams>,
+) -> ApiResult<Response> {
+    state.authorize(&headers, Access::Read)?;
+    let tag = params
+        .tag
+        .filter(|t| !t.is_empty())
+        .ok_or_else(|| ApiError::field("tag", "required: the tag whose history to read"))?;
+    let from_s = parse_time(params.from.as_deref(), "from", f64::MIN)?;
+    let to_s = parse_time(params.to.as_deref(), "to", f64::MAX)?;
+    if from_s > to_s {
+        return Err(ApiError::field("to", "must not be before `from`"));
+    }
+    let limit = parse_limit(params.limit)?;
+    let format = params.format.unwrap_or_else(|| "json".into());
+    if !matches!(format.as_str(), "json" | "csv" | "geojson") {
+        return Err(ApiError::field(
+            "format",
+            format!("`{format}` is not one of json, csv, geojson"),
+        ));
+    }
+    let query = HistoryQuery {
+        tag: tag.clone(),
+        from_s,
+        to_s,
+        limit,
+    };
+    let rows = state.query(move |store| store.history(&query)).await?;
+    Ok(match format.as_str() {
+        "csv" => ([(header::CONTENT_TYPE, "text/csv")], history_csv(&rows)).into_response(),
+        "geojson" => geojson(history_geojson(&tag, &rows)),
+        _ => {
+            let states: Vec<Value> = rows.iter().filter_map(|r| serde_json::from_str(&r.json).ok()).collect();
+            Json(Value::Array(states)).into_response()
+        }
+    })
+}
+
+/// History as CSV: `t,timestamp,tag,x_m,y_m,z_m,accuracy_m,predicted`.
+fn history_csv(rows: &[LocationRow]) -> String {
+    let mut text = String::from("t,timestamp,tag,x_m,y_m,z_m,accuracy_m,predicted\n");
+    for row in rows {
+        let timestamp = format_timestamp(row.time_s, "t").unwrap_or_default();
+        let optional = |v: Option<f64>| v.map_or_else(String::new, |v| v.to_string());
+        let _ = writeln!(
+            text,
+            "{},{},{},{},{},{},{},{}",
+            row.time_s,
+            timestamp,
+            csv_field(&row.tag),
+            row.x_m,
+            row.y_m,
+            optional(row.z_m),
+            optional(row.accuracy_m),
+            row.predicted
+        );
+    }
+    text
+}
+
+/// A CSV field, quoted when it holds a comma, quote or line break (RFC 4180).
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}
+
+/// History as GeoJSON: a LineString of the path plus one Point per state.
+fn history_geojson(tag: &str, rows: &[LocationRow]) -> Value {
+    let coordinates = |r: &LocationRow| match r.z_m {
+        Some(z) => json!([r.x_m, r.y_m, z]),
+        None => json!([r.x_m, r.y_m]),
+    };
+    let mut features = vec![json!({
+        "type": "Feature",
+        "geometry": { "type": "LineString", "coordinates": rows.iter().map(coordinates).collect::<Vec<_>>() },
+        "properties": { "tag": tag, "from": rows.first().map(|r| r.time_s), "to": rows.last().map(|r| r.time_s) },
+    })];
+    features.extend(rows.iter().map(|r| {
+        json!({
+            "type": "Feature",
+            "geometry": { "type": "Point", "coordinates": coordinates(r) },
+            "properties": { "tag": tag, "t": r.time_s, "accuracy_m": r.accuracy_m, "predicted": r.predicted },
+        })
+    }));
+    json!({ "type": "FeatureCollection", "features": features })
+}
+
+/// Query of `GET /api/v1/events`.
+#[derive(Debug, Deserialize)]
+pub(super) struct EventParams {
+    from: Option<String>,
+    to: Option<String>,
+    tag: Option<String>,
+    #[serde(rename = "type")]
+    kinds: Option<String>,
+    alarms: Option<bool>,
+    limit: Option<usize>,
+}
+
+/// `GET /api/v1/events?from=…&to=…&tag=…&type=a,b&alarms=true&limit=…`: stored events and
+/// alarms, oldest first.
+pub(super) async fn events(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(params): Query<EventParams>,
+) -> ApiResult<Json<Value>> {
+    state.authorize(&headers, Access::Read)?;
+    let query = EventQuery {
+        from_s: parse_time(params.from.as_deref(), "from", f64::MIN)?,
+        to_s: parse_time(params.to.as_deref(), "to", f64::MAX)?,
+        tag: params.tag.filter(|t| !t.is_empty()),
+        kinds: params
+            .kinds
+            .map(|k| {
+                k.split(',')
+                    .map(str::trim)
+                    .filter(|k| !k.is_empty())
+                    .map(String::from)
+                    .collect()
+            })
+            .unwrap_or_default(),
+        alarms_only: params.alarms.unwrap_or(false),
+        limit: parse_limit(params.limit)?,
+    };
+    let rows = state.query(move |store| store.events(&query)).await?;
+    let events: Vec<Value> = rows.iter().filter_map(|r| serde_json::from_str(&r.json).ok()).collect();
+    Ok(Json(Value::Array(events)))
+}

@@ -1,0 +1,467 @@
+//! The omlox hub API under `/v2`: trackables and providers (stored configuration), zones and
+//! fences (from the site), location ingest and latest locations.
+
+use axum::body::Bytes;
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+use serde_json::Value;
+
+use super::{parse_json, ApiError, ApiResult, AppState};
+use crate::auth::Access;
+use crate::convert::{fence_from_zone, record_from_location, uuid_for};
+use crate::omlox::ingest::parse_locations;
+use crate::omlox::{Fence, Location, LocationProvider, Trackable, Zone, ZoneType};
+use crate::pipeline::unix_s;
+use crate::ServerError;
+
+/// Stored configuration kinds.
+const TRACKABLE: &str = "trackable";
+const PROVIDER: &str = "provider";
+
+// ---- location ingest (PUT /v2/providers/locations, PUT /v2/providers/{id}/location) ----
+
+/// `PUT /v2/providers/locations`: an array of omlox `Location`s, stored and tracked as fixes;
+/// 204 when durable.
+pub(super) async fn put_locations(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<StatusCode> {
+    state.authorize(&headers, Access::Write)?;
+    let text =
+        std::str::from_utf8(&body).map_err(|_| ApiError::new(StatusCode::BAD_REQUEST, "request body: not UTF-8"))?;
+    let locations = parse_locations(text).map_err(server_error)?;
+    ingest_locations(&state, &locations).await
+}
+
+/// `PUT /v2/providers/{provider_id}/location`: one `Location` whose `provider_id` must match
+/// the path.
+pub(super) async fn put_provider_location(
+    State(state): State<AppState>,
+    Path(provider_id): Path<String>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<StatusCode> {
+    state.authorize(&headers, Access::Write)?;
+    let text =
+        std::str::from_utf8(&body).map_err(|_| ApiError::new(StatusCode::BAD_REQUEST, "request body: not UTF-8"))?;
+    let locations = parse_locations(&format!("[{text}]")).map_err(server_error)?;
+    if let Some(location) = locations.iter().find(|l| l.provider_id != provider_id) {
+        return Err(ApiError::field(
+            "provider_id",
+            format!(
+                "`{}` does not match the path's provider `{provider_id}`",
+                location.provider_id
+            ),
+        ));
+    }
+    ingest_locations(&state, &locations).await
+}
+
+async fn ingest_locations(state: &AppState, locations: &[Location]) -> ApiResult<StatusCode> {
+    let received_s = unix_s();
+    let records = locations
+        .iter()
+        .enumerate()
+        .map(|(index, location)| record_from_location(location, index, state.default_accuracy_m, received_s))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(server_error)?;
+    state.pipeline.submit_records("omlox locations", records).await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// A conversion error as a 400, with its field path when it has one.
+fn server_error(error: ServerError) -> ApiError {
+    match error {
+        ServerError::InvalidField { index, field, reason } => ApiError::field(format!("[{index}].{field}"), reason),
+        other => ApiError::new(StatusCode::BAD_REQUEST, other.to_string()),
+    }
+}
+
+/// `GET /v2/providers/locations`: every tag's latest location.
+pub(super) async fn get_locations(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Value>>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(
+        state.pipeline.live().tags().into_values().map(|t| t.location).collect(),
+    ))
+}
+
+/// `GET /v2/providers/{provider_id}/location`: a tag's latest location.
+pub(super) async fn get_provider_location(
+    State(state): State<AppState>,
+    Path(provider_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Value>> {
+    state.authorize(&headers, Access::Read)?;
+    state
+        .pipeline
+        .live()
+        .tag(&provider_id)
+        .map(|t| Json(t.location))
+        .ok_or_else(|| ApiError::not_found(format!("provider `{provider_id}` has no location")))
+}
+
+// ---- providers (stored; every tracked tag is also listed) ----
+
+/// `GET /v2/providers`: ids of the stored providers and of every tracked tag.
+pub(super) async fn list_providers(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<String>>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(providers(&state).await?.into_iter().map(|p| p.id).collect()))
+}
+
+/// `GET /v2/providers/summary`.
+pub(super) async fn provider_summary(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<LocationProvider>>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(providers(&state).await?))
+}
+
+/// Stored providers, then tracked tags that have none, by id.
+async fn providers(state: &AppState) -> ApiResult<Vec<LocationProvider>> {
+    let mut stored: Vec<LocationProvider> = list_stored(state, PROVIDER).await?;
+    let known: std::collections::HashSet<String> = stored.iter().map(|p| p.id.clone()).collect();
+    for tag in state.pipeline.live().tags().into_keys().filter(|t| !known.contains(t)) {
+        stored.push(implicit_provider(&tag));
+    }
+    stored.sort_by(|a, b| a.id.cmp(&b.id));
+    Ok(stored)
+}
+
+fn implicit_provider(tag: &str) -> LocationProvider {
+    LocationProvider {
+        id: tag.to_string(),
+        kind: crate::omlox::ProviderType::Unknown,
+        name: Some(tag.to_string()),
+        sensors: None,
+        fence_timeout: None,
+        exit_tolerance: None,
+        tolerance_timeout: None,
+        exit_delay: None,
+        properties: None,
+    }
+}
+
+/// `POST /v2/providers`: 201 with the stored provider.
+pub(super) async fn create_provider(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<Response> {
+    state.authorize(&headers, Access::Write)?;
+    let provider: LocationProvider = parse_json(&body)?;
+    if provider.id.trim().is_empty() {
+        return Err(ApiError::field("id", "must not be empty"));
+    }
+    create(&state, PROVIDER, provider.id.clone(), &provider).await
+}
+
+/// `GET /v2/providers/{provider_id}`.
+pub(super) async fn get_provider(
+    State(state): State<AppState>,
+    Path(provider_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<LocationProvider>> {
+    state.authorize(&headers, Access::Read)?;
+    match get_stored::<LocationProvider>(&state, PROVIDER, &provider_id).await? {
+        Some(provider) => Ok(Json(provider)),
+        None if state.pipeline.live().tag(&provider_id).is_some() => Ok(Json(implicit_provider(&provider_id))),
+        None => Err(ApiError::not_found(format!("provider `{provider_id}` not found"))),
+    }
+}
+
+/// `PUT /v2/providers/{provider_id}`: replaces (or creates) it; 204.
+pub(super) async fn put_provider(
+    State(state): State<AppState>,
+    Path(provider_id): Path<String>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<StatusCode> {
+    state.authorize(&headers, Access::Write)?;
+    let provider: LocationProvider = parse_json(&body)?;
+    if provider.id != provider_id {
+        return Err(ApiError::field(
+            "id",
+            format!("`{}` does not match the path's `{provider_id}`", provider.id),
+        ));
+    }
+    replace(&state, PROVIDER, provider_id, &provider).await
+}
+
+/// `DELETE /v2/providers/{provider_id}`: 204, or 404.
+pub(super) async fn delete_provider(
+    State(state): State<AppState>,
+    Path(provider_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<StatusCode> {
+    state.authorize(&headers, Access::Write)?;
+    delete(&state, PROVIDER, provider_id).await
+}
+
+// ---- trackables (stored) ----
+
+/// `GET /v2/trackables`: ids.
+pub(super) async fn list_trackables(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<String>>> {
+    state.authorize(&headers, Access::Read)?;
+    let trackables: Vec<Trackable> = list_stored(&state, TRACKABLE).await?;
+    Ok(Json(trackables.into_iter().map(|t| t.id).collect()))
+}
+
+/// `GET /v2/trackables/summary`.
+pub(super) async fn trackable_summary(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<Trackable>>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(list_stored(&state, TRACKABLE).await?))
+}
+
+/// `POST /v2/trackables`: a UUID is generated when `id` is empty; 201 with the trackable.
+pub(super) async fn create_trackable(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<Response> {
+    state.authorize(&headers, Access::Write)?;
+    let mut value: Value = parse_json(&body)?;
+    if let Value::Object(object) = &mut value {
+        if object.get("id").is_none_or(|id| id.as_str().is_some_and(str::is_empty)) {
+            object.insert("id".into(), Value::String(uuid::Uuid::new_v4().to_string()));
+        }
+    }
+    let trackable: Trackable = parse_json(value.to_string().as_bytes())?;
+    check_uuid(&trackable.id)?;
+    create(&state, TRACKABLE, trackable.id.clone(), &trackable).await
+}
+
+fn check_uuid(id: &str) -> ApiResult<()> {
+    uuid::Uuid::parse_str(id)
+        .map(|_| ())
+        .map_err(|e| ApiError::field("id", format!("`{id}` is not a UUID ({e})")))
+}
+
+/// `GET /v2/trackables/{trackable_id}`.
+pub(super) async fn get_trackable(
+    State(state): State<AppState>,
+    Path(trackable_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Trackable>> {
+    state.authorize(&headers, Access::Read)?;
+    get_stored(&state, TRACKABLE, &trackable_id)
+        .await?
+        .map(Json)
+        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` not found")))
+}
+
+/// `PUT /v2/trackables/{trackable_id}`: replaces it; 200 with the trackable (as omlox
+/// specifies for trackables).
+pub(super) async fn put_trackable(
+    State(state): State<AppState>,
+    Path(trackable_id): Path<String>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<Json<Trackable>> {
+    state.authorize(&headers, Access::Write)?;
+    let trackable: Trackable = parse_json(&body)?;
+    if trackable.id != trackable_id {
+        return Err(ApiError::field(
+            "id",
+            format!("`{}` does not match the path's `{trackable_id}`", trackable.id),
+        ));
+    }
+    check_uuid(&trackable.id)?;
+    replace(&state, TRACKABLE, trackable_id, &trackable).await?;
+    Ok(Json(trackable))
+}
+
+/// `DELETE /v2/trackables/{trackable_id}`.
+pub(super) async fn delete_trackable(
+    State(state): State<AppState>,
+    Path(trackable_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<StatusCode> {
+    state.authorize(&headers, Access::Write)?;
+    delete(&state, TRACKABLE, trackable_id).await
+}
+
+/// `GET /v2/trackables/{trackable_id}/location`: the newest location among its providers.
+pub(super) async fn get_trackable_location(
+    State(state): State<AppState>,
+    Path(trackable_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Value>> {
+    state.authorize(&headers, Access::Read)?;
+    let trackable: Trackable = get_stored(&state, TRACKABLE, &trackable_id)
+        .await?
+        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` not found")))?;
+    let live = state.pipeline.live();
+    trackable
+        .location_providers
+        .unwrap_or_default()
+        .iter()
+        .filter_map(|provider| live.tag(provider))
+        .max_by(|a, b| a.time_s.total_cmp(&b.time_s))
+        .map(|t| Json(t.location))
+        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
+}
+
+// ---- zones and fences (from the site) ----
+
+/// The site as one omlox zone (its local frame).
+fn site_zone(state: &AppState) -> Zone {
+    let name = state.site.name.clone().unwrap_or_else(|| "rtls".into());
+    Zone {
+        id: uuid_for("zone", &name),
+        kind: ZoneType::Uwb,
+        foreign_id: Some(name.clone()),
+        position: None,
+        radius: None,
+        ground_control_points: None,
+        incomplete_configuration: Some(true),
+        measurement_timestamp: None,
+        site: None,
+        building: None,
+        floor: None,
+        name: Some(name),
+        address: None,
+        properties: None,
+        wgs84_height: None,
+    }
+}
+
+/// `GET /v2/zones`.
+pub(super) async fn list_zones(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<String>>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(vec![site_zone(&state).id]))
+}
+
+/// `GET /v2/zones/summary`.
+pub(super) async fn zone_summary(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Zone>>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(vec![site_zone(&state)]))
+}
+
+/// `GET /v2/zones/{zone_id}`.
+pub(super) async fn get_zone(
+    State(state): State<AppState>,
+    Path(zone_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Zone>> {
+    state.authorize(&headers, Access::Read)?;
+    let zone = site_zone(&state);
+    if zone.id == zone_id {
+        Ok(Json(zone))
+    } else {
+        Err(ApiError::not_found(format!("zone `{zone_id}` not found")))
+    }
+}
+
+fn fences(state: &AppState) -> Vec<Fence> {
+    state.site.zones.iter().map(fence_from_zone).collect()
+}
+
+/// `GET /v2/fences`.
+pub(super) async fn list_fences(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<String>>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(fences(&state).into_iter().map(|f| f.id).collect()))
+}
+
+/// `GET /v2/fences/summary`.
+pub(super) async fn fence_summary(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Fence>>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(fences(&state)))
+}
+
+/// `GET /v2/fences/{fence_id}`: by UUID or by the zone's id (`foreign_id`).
+pub(super) async fn get_fence(
+    State(state): State<AppState>,
+    Path(fence_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Fence>> {
+    state.authorize(&headers, Access::Read)?;
+    fences(&state)
+        .into_iter()
+        .find(|f| f.id == fence_id || f.foreign_id.as_deref() == Some(fence_id.as_str()))
+        .map(Json)
+        .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))
+}
+
+/// Writes to fences: the fences are the site's zones, which the trackers were built from.
+pub(super) async fn fences_read_only(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<StatusCode> {
+    state.authorize(&headers, Access::Write)?;
+    Err(ApiError::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        "fences are the site's zones: edit [[zones]] in the site file and restart the server",
+    ))
+}
+
+// ---- stored configuration helpers ----
+
+async fn list_stored<T: DeserializeOwned + Send + 'static>(state: &AppState, kind: &'static str) -> ApiResult<Vec<T>> {
+    let rows = state.query(move |store| store.list_config(kind)).await?;
+    rows.into_iter()
+        .map(|(id, json)| {
+            serde_json::from_str(&json).map_err(|e| {
+                ApiError::new(
+                    StatusCode::INTERNAL_SERVER_ERROR,
+                    format!("stored {kind} `{id}` is corrupt: {e}"),
+                )
+            })
+        })
+        .collect()
+}
+
+async fn get_stored<T: DeserializeOwned + Send + 'static>(
+    state: &AppState,
+    kind: &'static str,
+    id: &str,
+) -> ApiResult<Option<T>> {
+    let key = id.to_string();
+    let json = state.query(move |store| store.get_config(kind, &key)).await?;
+    json.map(|json| {
+        serde_json::from_str(&json).map_err(|e| {
+            ApiError::new(
+                StatusCode::INTERNAL_SERVER_ERROR,
+                format!("stored {kind} `{id}` is corrupt: {e}"),
+            )
+        })
+    })
+    .transpose()
+}
+
+async fn create<T: Serialize>(state: &AppState, kind: &'static str, id: String, object: &T) -> ApiResult<Response> {
+    let json =
+        serde_json::to_string(object).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
+    let body: Value = serde_json::from_str(&json).unwrap_or(Value::Null);
+    let key = id.clone();
+    let existing = state.query(move |store| store.get_config(kind, &key)).await?;
+    if existing.is_some() {
+        return Err(ApiError::field(
+            "id",
+            format!("a {kind} `{id}` exists; use PUT to replace it"),
+        ));
+    }
+    state.query(move |store| store.put_config(kind, &id, &json)).await?;
+    Ok((StatusCode::CREATED, Json(body)).into_response())
+}
+
+async fn replace<T: Serialize>(state: &AppState, kind: &'static str, id: String, object: &T) -> ApiResult<StatusCode> {
+    let json =
+        serde_json::to_string(object).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
+    state.query(move |store| store.put_config(kind, &id, &json)).await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+async fn delete(state: &AppState, kind: &'static str, id: String) -> ApiResult<StatusCode> {
+    let key = id.clone();
+    if state.query(move |store| store.delete_config(kind, &key)).await? {
+        Ok(StatusCode::NO_CONTENT)
+    } else {
+        Err(ApiError::not_found(format!("{kind} `{id}` not found")))
+    }
+}

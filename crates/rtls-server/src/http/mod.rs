@@ -1,0 +1,274 @@
+//! The HTTP and WebSocket surface: omlox hub API under `/v2`, our own API under `/api/v1`,
+//! operations endpoints (`/health`, `/metrics`, `/openapi.json`).
+//!
+//! Auth: `Authorization: Bearer <token>` (the WebSocket also takes `?token=`, since browsers
+//! cannot set headers on it). Writes need the write token; reads the read token when one is
+//! configured. Errors are omlox `Error` objects `{type, code, message}` plus `field` — the
+//! offending field's path — when one field is at fault.
+
+mod api;
+mod hub;
+mod ops;
+mod ws;
+
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use axum::extract::{DefaultBodyLimit, Request, State};
+use axum::http::{HeaderMap, StatusCode};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post, put};
+use axum::{Json, Router};
+use rtls_engine::site::Site;
+use serde::de::DeserializeOwned;
+use serde_json::json;
+
+use crate::auth::{Access, Tokens};
+use crate::metrics::Metrics;
+use crate::pipeline::Pipeline;
+use crate::sink::IngestError;
+use crate::store::{Store, StoreError};
+
+/// What the handlers share.
+#[derive(Clone)]
+pub struct AppState {
+    /// The ingest pipeline and live state.
+    pub pipeline: Pipeline,
+    /// The store connection for queries and configuration (used on blocking threads).
+    pub queries: Arc<Mutex<Box<dyn Store>>>,
+    /// The access tokens.
+    pub tokens: Arc<Tokens>,
+    /// The site being tracked.
+    pub site: Arc<Site>,
+    /// The omlox ingest's accuracy for locations without one (m).
+    pub default_accuracy_m: f64,
+    /// When the server started.
+    pub started: Instant,
+}
+
+/// An API error: the HTTP status, a message and, when one field is at fault, its path.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ApiError {
+    /// The status.
+    pub status: StatusCode,
+    /// What is wrong.
+    pub message: String,
+    /// The offending field (`[3].position.coordinates`, `name`), if one.
+    pub field: Option<String>,
+}
+
+impl ApiError {
+    /// An error without a field.
+    #[must_use]
+    pub fn new(status: StatusCode, message: impl Into<String>) -> Self {
+        Self {
+            status,
+            message: message.into(),
+            field: None,
+        }
+    }
+
+    /// A 400 naming a field.
+    #[must_use]
+    pub fn field(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            status: StatusCode::BAD_REQUEST,
+            message: message.into(),
+            field: Some(field.into()),
+        }
+    }
+
+    /// A 404.
+    #[must_use]
+    pub fn not_found(what: impl Into<String>) -> Self {
+        Self::new(StatusCode::NOT_FOUND, what)
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let kind = self.status.canonical_reason().unwrap_or("error").to_lowercase();
+        let mut body = json!({ "type": kind, "code": self.status.as_u16(), "message": self.message });
+        if let Some(field) = self.field {
+            body["field"] = json!(field);
+        }
+        (self.status, Json(body)).into_response()
+    }
+}
+
+impl From<IngestError> for ApiError {
+    fn from(error: IngestError) -> Self {
+        match error {
+            IngestError::Invalid(message) => Self::new(StatusCode::BAD_REQUEST, message),
+            IngestError::Unauthorized(message) => Self::new(StatusCode::FORBIDDEN, message),
+            IngestError::Unavailable(message) => Self::new(StatusCode::SERVICE_UNAVAILABLE, message),
+        }
+    }
+}
+
+impl From<StoreError> for ApiError {
+    fn from(error: StoreError) -> Self {
+        tracing::error!(error = %error, "store query failed");
+        Self::new(StatusCode::SERVICE_UNAVAILABLE, error.to_string())
+    }
+}
+
+/// The result of a handler.
+pub type ApiResult<T> = Result<T, ApiError>;
+
+impl AppState {
+    /// Checks the request's bearer token against `needed`.
+    ///
+    /// # Errors
+    /// 401 without a token, 403 with a token that does not allow `needed`.
+    pub fn authorize(&self, headers: &HeaderMap, needed: Access) -> ApiResult<()> {
+        let presented = headers
+            .get(axum::http::header::AUTHORIZATION)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.strip_prefix("Bearer ").or_else(|| v.strip_prefix("bearer ")))
+            .map(str::trim);
+        self.authorize_token(presented, needed)
+    }
+
+    /// Checks a presented token against `needed`.
+    ///
+    /// # Errors
+    /// As [`AppState::authorize`].
+    pub fn authorize_token(&self, presented: Option<&str>, needed: Access) -> ApiResult<()> {
+        let granted = self.tokens.access(presented);
+        if granted >= needed {
+            return Ok(());
+        }
+        let what = if needed == Access::Write { "writing" } else { "reading" };
+        Err(match presented {
+            None => ApiError::new(StatusCode::UNAUTHORIZED, format!("{what} needs a bearer token")),
+            Some(_) => ApiError::new(StatusCode::FORBIDDEN, format!("the token does not allow {what}")),
+        })
+    }
+
+    /// Runs `query` on the query connection on a blocking thread.
+    ///
+    /// # Errors
+    /// The query's [`StoreError`] as a 503.
+    pub async fn query<T: Send + 'static>(
+        &self,
+        query: impl FnOnce(&mut dyn Store) -> Result<T, StoreError> + Send + 'static,
+    ) -> ApiResult<T> {
+        let queries = Arc::clone(&self.queries);
+        tokio::task::spawn_blocking(move || {
+            let mut store = queries
+                .lock()
+                .map_err(|_| ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "the query connection failed"))?;
+            query(store.as_mut()).map_err(ApiError::from)
+        })
+        .await
+        .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, format!("query task failed: {e}")))?
+    }
+}
+
+/// Parses a JSON body into `T`, naming the offending field's path on failure.
+///
+/// # Errors
+/// A 400 with `field` (e.g. `location_providers[1]`) and serde's message.
+pub fn parse_json<T: DeserializeOwned>(body: &[u8]) -> ApiResult<T> {
+    let mut deserializer = serde_json::Deserializer::from_slice(body);
+    serde_path_to_error::deserialize(&mut deserializer).map_err(|error| {
+        let path = error.path().to_string();
+        let message = error.into_inner().to_string();
+        if path == "." {
+            ApiError::new(StatusCode::BAD_REQUEST, format!("request body: {message}"))
+        } else {
+            ApiError::field(path, message)
+        }
+    })
+}
+
+/// The largest request body accepted (bytes).
+pub const MAX_BODY_BYTES: usize = 16 * 1024 * 1024;
+
+/// The router with every route, for a server or for tests without a port
+/// (`tower::ServiceExt::oneshot`).
+pub fn router(state: AppState) -> Router {
+    Router::new()
+        .route("/health", get(ops::health))
+        .route("/metrics", get(ops::metrics_text))
+        .route("/openapi.json", get(ops::openapi))
+        .route("/api/v1/measurements", post(api::ingest_measurements))
+        .route("/api/v1/tags", get(api::tags))
+        .route("/api/v1/tracks.geojson", get(api::tracks_geojson))
+        .route("/api/v1/history", get(api::history))
+        .route("/api/v1/events", get(api::events))
+        .route("/api/v1/zones/head-counts", get(api::head_counts))
+        .route("/api/v1/zones.geojson", get(api::zones_geojson))
+        .route(
+            "/v2/providers/locations",
+            put(hub::put_locations).get(hub::get_locations),
+        )
+        .route(
+            "/v2/providers/{provider_id}/location",
+            put(hub::put_provider_location).get(hub::get_provider_location),
+        )
+        .route("/v2/providers", get(hub::list_providers).post(hub::create_provider))
+        .route("/v2/providers/summary", get(hub::provider_summary))
+        .route(
+            "/v2/providers/{provider_id}",
+            get(hub::get_provider)
+                .put(hub::put_provider)
+                .delete(hub::delete_provider),
+        )
+        .route("/v2/trackables", get(hub::list_trackables).post(hub::create_trackable))
+        .route("/v2/trackables/summary", get(hub::trackable_summary))
+        .route(
+            "/v2/trackables/{trackable_id}",
+            get(hub::get_trackable)
+                .put(hub::put_trackable)
+                .delete(hub::delete_trackable),
+        )
+        .route(
+            "/v2/trackables/{trackable_id}/location",
+            get(hub::get_trackable_location),
+        )
+        .route("/v2/zones", get(hub::list_zones))
+        .route("/v2/zones/summary", get(hub::zone_summary))
+        .route("/v2/zones/{zone_id}", get(hub::get_zone))
+        .route("/v2/fences", get(hub::list_fences).post(hub::fences_read_only))
+        .route("/v2/fences/summary", get(hub::fence_summary))
+        .route(
+            "/v2/fences/{fence_id}",
+            get(hub::get_fence)
+                .put(hub::fences_read_only)
+                .delete(hub::fences_read_only),
+        )
+        .route("/v2/ws/socket", get(ws::socket))
+        .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
+        .layer(axum::middleware::from_fn_with_state(state.clone(), count_requests))
+        .with_state(state)
+}
+
+/// Counts requests by route and status class, and logs failures.
+async fn count_requests(State(state): State<AppState>, request: Request, next: Next) -> Response {
+    let route = request
+        .extensions()
+        .get::<axum::extract::MatchedPath>()
+        .map_or_else(|| "unmatched".to_string(), |p| p.as_str().to_string());
+    let method = request.method().clone();
+    let response = next.run(request).await;
+    let status = response.status();
+    let class = format!("{}xx", status.as_u16() / 100);
+    state
+        .pipeline
+        .metrics()
+        .http_requests
+        .get_or_create(&vec![("route".into(), route.clone()), ("status".into(), class)])
+        .inc();
+    if status.is_server_error() {
+        tracing::warn!(%method, %route, status = status.as_u16(), "request failed");
+    }
+    response
+}
+
+/// Shared state for the handlers' metrics access.
+fn metrics(state: &AppState) -> &Metrics {
+    state.pipeline.metrics()
+}

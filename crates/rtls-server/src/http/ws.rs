@@ -1,0 +1,198 @@
+//! The omlox WebSocket `/v2/ws/socket`: subscribe to `location_updates`(`:geojson`),
+//! `fence_events`(`:geojson`) and the extension topics `rtls:alarms` (predictive hazard alarms,
+//! lost tags, no coverage, model switches) and `rtls:events` (everything else).
+//!
+//! Client: `{"event":"subscribe","topic":"location_updates","params":{"provider_id":"tag-7"}}`
+//! → `{"event":"subscribed","topic":…,"subscription_id":1}`, then
+//! `{"event":"message","topic":…,"subscription_id":1,"payload":[…]}` for every update.
+//! `params.provider_id` (or `tag`) filters by tag. A client that falls more than the broadcast
+//! capacity behind misses messages (counted in `rtls_websocket_dropped`).
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::extract::{Query, State};
+use axum::http::HeaderMap;
+use axum::response::Response;
+use serde::Deserialize;
+use serde_json::{json, Value};
+use tokio::sync::broadcast::error::RecvError;
+
+use super::{metrics, ApiResult, AppState};
+use crate::auth::Access;
+use crate::convert::fence_from_zone;
+use crate::omlox::ws::{Topic, WsErrorCode, WsEvent, WsMessage};
+use crate::pipeline::HubMessage;
+
+/// Query of the upgrade request.
+#[derive(Debug, Deserialize)]
+pub(super) struct SocketParams {
+    token: Option<String>,
+}
+
+/// `GET /v2/ws/socket` (upgrade).
+pub(super) async fn socket(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(params): Query<SocketParams>,
+    upgrade: WebSocketUpgrade,
+) -> ApiResult<Response> {
+    if params.token.is_some() {
+        state.authorize_token(params.token.as_deref(), Access::Read)?;
+    } else {
+        state.authorize(&headers, Access::Read)?;
+    }
+    Ok(upgrade.on_upgrade(move |socket| serve(socket, state)))
+}
+
+/// One subscription.
+struct Subscription {
+    topic: Topic,
+    /// Only this tag's messages.
+    tag: Option<String>,
+}
+
+async fn serve(mut socket: WebSocket, state: AppState) {
+    let metrics = metrics(&state);
+    metrics.websocket_clients.inc();
+    let mut hub = state.pipeline.subscribe();
+    let fences: HashMap<String, Value> = state
+        .site
+        .zones
+        .iter()
+        .map(fence_from_zone)
+        .filter_map(|f| Some((f.id.clone(), serde_json::to_value(&f.region).ok()?)))
+        .collect();
+    let mut subscriptions: HashMap<u64, Subscription> = HashMap::new();
+    let mut next_id = 1u64;
+    loop {
+        tokio::select! {
+            incoming = socket.recv() => {
+                let Some(Ok(message)) = incoming else { break };
+                let text = match message {
+                    Message::Text(text) => text.to_string(),
+                    Message::Close(_) => break,
+                    _ => continue,
+                };
+                let reply = handle(&text, &mut subscriptions, &mut next_id);
+                if send(&mut socket, &reply).await.is_err() {
+                    break;
+                }
+            }
+            published = hub.recv() => {
+                let message = match published {
+                    Ok(message) => message,
+                    Err(RecvError::Lagged(missed)) => {
+                        metrics.websocket_dropped.inc_by(missed);
+                        continue;
+                    }
+                    Err(RecvError::Closed) => break,
+                };
+                if deliver(&mut socket, &message, &subscriptions, &fences).await.is_err() {
+                    break;
+                }
+            }
+        }
+    }
+    metrics.websocket_clients.dec();
+}
+
+async fn send(socket: &mut WebSocket, message: &WsMessage) -> Result<(), axum::Error> {
+    let text =
+        serde_json::to_string(message).unwrap_or_else(|e| format!("{{\"event\":\"error\",\"description\":\"{e}\"}}"));
+    socket.send(Message::Text(text.into())).await
+}
+
+/// Answers one client message.
+fn handle(text: &str, subscriptions: &mut HashMap<u64, Subscription>, next_id: &mut u64) -> WsMessage {
+    let request: WsMessage = match serde_json::from_str(text) {
+        Ok(request) => request,
+        Err(e) => {
+            let code = if text.contains("\"event\"") && e.to_string().contains("unknown variant") {
+                if e.to_string().contains("location_updates") {
+                    WsErrorCode::UnknownTopic
+                } else {
+                    WsErrorCode::UnknownEvent
+                }
+            } else {
+                WsErrorCode::InvalidData
+            };
+            return WsMessage::error(code, &e.to_string());
+        }
+    };
+    match request.event {
+        WsEvent::Subscribe => {
+            let Some(topic) = request.topic else {
+                return WsMessage::error(WsErrorCode::SubscriptionFailed, "`topic` is required");
+            };
+            if matches!(
+                topic,
+                Topic::TrackableMotions | Topic::CollisionEvents | Topic::ProximityUpdates
+            ) {
+                return WsMessage::error(WsErrorCode::SubscriptionFailed, "this hub does not provide that topic");
+            }
+            let tag = request.params.as_ref().and_then(|p| {
+                p.get("provider_id")
+                    .or_else(|| p.get("tag"))
+                    .and_then(Value::as_str)
+                    .map(String::from)
+            });
+            let id = *next_id;
+            *next_id += 1;
+            subscriptions.insert(id, Subscription { topic, tag });
+            WsMessage::subscribed(topic, id)
+        }
+        WsEvent::Unsubscribe => match request
+            .subscription_id
+            .and_then(|id| subscriptions.remove(&id).map(|s| (id, s)))
+        {
+            Some((id, subscription)) => WsMessage {
+                event: WsEvent::Unsubscribed,
+                ..WsMessage::subscribed(subscription.topic, id)
+            },
+            None => WsMessage::error(WsErrorCode::UnsubscribeFailed, "no such subscription_id"),
+        },
+        _ => WsMessage::error(WsErrorCode::UnknownEvent, "clients send subscribe or unsubscribe"),
+    }
+}
+
+/// Sends a hub message to every matching subscription.
+async fn deliver(
+    socket: &mut WebSocket,
+    message: &Arc<HubMessage>,
+    subscriptions: &HashMap<u64, Subscription>,
+    fences: &HashMap<String, Value>,
+) -> Result<(), axum::Error> {
+    for (&id, subscription) in subscriptions {
+        let payload = match (message.as_ref(), subscription.topic) {
+            (HubMessage::Location { tag, location }, Topic::LocationUpdates) if wanted(subscription, tag) => {
+                location.clone()
+            }
+            (HubMessage::Location { tag, location }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
+                json!({ "type": "Feature", "geometry": location["position"], "properties": location })
+            }
+            (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => event.clone(),
+            (HubMessage::FenceEvent { tag, event }, Topic::FenceEventsGeojson) if wanted(subscription, tag) => {
+                let geometry = event["fence_id"].as_str().and_then(|id| fences.get(id)).cloned();
+                json!({ "type": "Feature", "geometry": geometry, "properties": event })
+            }
+            (HubMessage::Extension { topic, event }, wanted_topic)
+                if *topic == wanted_topic
+                    && subscription
+                        .tag
+                        .as_deref()
+                        .is_none_or(|t| event["tag"].as_str() == Some(t)) =>
+            {
+                event.clone()
+            }
+            _ => continue,
+        };
+        send(socket, &WsMessage::message(subscription.topic, id, vec![payload])).await?;
+    }
+    Ok(())
+}
+
+fn wanted(subscription: &Subscription, tag: &str) -> bool {
+    subscription.tag.as_deref().is_none_or(|t| t == tag)
+}

@@ -1,0 +1,172 @@
+//! Prometheus metrics (`GET /metrics`, OpenMetrics text format via `prometheus-client`).
+
+use prometheus_client::encoding::text::encode;
+use prometheus_client::metrics::counter::Counter;
+use prometheus_client::metrics::family::Family;
+use prometheus_client::metrics::gauge::Gauge;
+use prometheus_client::metrics::histogram::{exponential_buckets, Histogram};
+use prometheus_client::registry::Registry;
+
+/// Labels of a family: `(name, value)` pairs.
+pub type Labels = Vec<(String, String)>;
+
+/// The server's metrics; every field is registered under `rtls_…`.
+#[derive(Debug)]
+pub struct Metrics {
+    registry: Registry,
+    /// Records appended to the ingest log.
+    pub ingest_records: Counter,
+    /// Ingest-log transactions (group commits).
+    pub ingest_commits: Counter,
+    /// Payloads refused with a client error, by transport.
+    pub ingest_rejected: Family<Labels, Counter>,
+    /// Payloads refused because the ingest queue stayed full.
+    pub ingest_overloaded: Counter,
+    /// Ingest-log appends that failed.
+    pub ingest_store_failures: Counter,
+    /// From submit to acknowledgement (s).
+    pub ingest_ack_seconds: Histogram,
+    /// From a track update's time to its publication (s): the ingest-to-output latency when
+    /// record times are the wall clock.
+    pub pipeline_latency_seconds: Histogram,
+    /// Tracker time per batch of records (s).
+    pub tracking_seconds: Histogram,
+    /// Track updates produced.
+    pub track_updates: Counter,
+    /// Records the tracker refused.
+    pub tracker_errors: Counter,
+    /// Alarms raised, by type.
+    pub alarms: Family<Labels, Counter>,
+    /// Track states stored.
+    pub stored_locations: Counter,
+    /// Events stored.
+    pub stored_events: Counter,
+    /// Output writes that failed.
+    pub output_store_failures: Counter,
+    /// Tags with a live track.
+    pub tags: Gauge,
+    /// Open WebSocket connections.
+    pub websocket_clients: Gauge,
+    /// Messages a slow WebSocket client missed.
+    pub websocket_dropped: Counter,
+    /// HTTP requests, by route and status class.
+    pub http_requests: Family<Labels, Counter>,
+}
+
+impl Default for Metrics {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Metrics {
+    /// Creates and registers every metric.
+    #[must_use]
+    pub fn new() -> Self {
+        let mut registry = Registry::with_prefix("rtls");
+        let latency = || Histogram::new(exponential_buckets(0.0005, 2.0, 16));
+        let metrics = Self {
+            ingest_records: Counter::default(),
+            ingest_commits: Counter::default(),
+            ingest_rejected: Family::default(),
+            ingest_overloaded: Counter::default(),
+            ingest_store_failures: Counter::default(),
+            ingest_ack_seconds: latency(),
+            pipeline_latency_seconds: latency(),
+            tracking_seconds: latency(),
+            track_updates: Counter::default(),
+            tracker_errors: Counter::default(),
+            alarms: Family::default(),
+            stored_locations: Counter::default(),
+            stored_events: Counter::default(),
+            output_store_failures: Counter::default(),
+            tags: Gauge::default(),
+            websocket_clients: Gauge::default(),
+            websocket_dropped: Counter::default(),
+            http_requests: Family::default(),
+            registry: Registry::default(),
+        };
+        let m = &metrics;
+        registry.register(
+            "ingest_records",
+            "Records appended to the ingest log",
+            m.ingest_records.clone(),
+        );
+        registry.register(
+            "ingest_commits",
+            "Ingest-log transactions (group commits)",
+            m.ingest_commits.clone(),
+        );
+        registry.register(
+            "ingest_rejected",
+            "Payloads refused with a client error",
+            m.ingest_rejected.clone(),
+        );
+        registry.register(
+            "ingest_overloaded",
+            "Payloads refused because the ingest queue stayed full",
+            m.ingest_overloaded.clone(),
+        );
+        registry.register(
+            "ingest_store_failures",
+            "Ingest-log appends that failed",
+            m.ingest_store_failures.clone(),
+        );
+        registry.register(
+            "ingest_ack_seconds",
+            "Submit to acknowledgement",
+            m.ingest_ack_seconds.clone(),
+        );
+        registry.register(
+            "pipeline_latency_seconds",
+            "Track update time to publication",
+            m.pipeline_latency_seconds.clone(),
+        );
+        registry.register(
+            "tracking_seconds",
+            "Tracker time per batch of records",
+            m.tracking_seconds.clone(),
+        );
+        registry.register("track_updates", "Track updates produced", m.track_updates.clone());
+        registry.register(
+            "tracker_errors",
+            "Records the tracker refused",
+            m.tracker_errors.clone(),
+        );
+        registry.register("alarms", "Alarms raised", m.alarms.clone());
+        registry.register("stored_locations", "Track states stored", m.stored_locations.clone());
+        registry.register("stored_events", "Events stored", m.stored_events.clone());
+        registry.register(
+            "output_store_failures",
+            "Output writes that failed",
+            m.output_store_failures.clone(),
+        );
+        registry.register("tags", "Tags with a live track", m.tags.clone());
+        registry.register(
+            "websocket_clients",
+            "Open WebSocket connections",
+            m.websocket_clients.clone(),
+        );
+        registry.register(
+            "websocket_dropped",
+            "Messages slow WebSocket clients missed",
+            m.websocket_dropped.clone(),
+        );
+        registry.register(
+            "http_requests",
+            "HTTP requests by route and status",
+            m.http_requests.clone(),
+        );
+        Self { registry, ..metrics }
+    }
+
+    /// The OpenMetrics text exposition.
+    ///
+    /// # Errors
+    /// [`std::fmt::Error`] if encoding fails.
+    pub fn encode(&self) -> Result<String, std::fmt::Error> {
+        let mut text = String::new();
+        encode(&mut text, &self.registry)?;
+        Ok(text)
+    }
+}

@@ -1,0 +1,126 @@
+//! The live state the APIs read: each tag's latest location and each zone's head count.
+
+use std::collections::{BTreeMap, HashMap};
+use std::sync::RwLock;
+
+use rtls_engine::site::Site;
+use rtls_engine::zones::Zone;
+use serde_json::Value;
+
+use crate::omlox::ws::Topic;
+
+/// A message for WebSocket subscribers, already in omlox JSON.
+#[derive(Debug, Clone, PartialEq)]
+pub enum HubMessage {
+    /// A track update as an omlox `Location` (`location_updates`).
+    Location {
+        /// The tag.
+        tag: String,
+        /// The `Location` object.
+        location: Value,
+    },
+    /// A zone entry or exit as an omlox `FenceEvent` (`fence_events`).
+    FenceEvent {
+        /// The tag.
+        tag: String,
+        /// The `FenceEvent` object.
+        event: Value,
+    },
+    /// A predictive alarm, lost tag, model switch, … on an extension topic.
+    Extension {
+        /// `rtls:alarms` or `rtls:events`.
+        topic: Topic,
+        /// The event (the engine's event JSON).
+        event: Value,
+    },
+}
+
+/// A tag's latest reported state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TagState {
+    /// Its time (s).
+    pub time_s: f64,
+    /// Its position (m); the third coordinate is 0 for 2-D tracks.
+    pub position_m: [f64; 3],
+    /// Its lifecycle status (`tentative`, `confirmed`, `coasting`, `lost`).
+    pub status: &'static str,
+    /// The omlox `Location`.
+    pub location: Value,
+}
+
+/// Latest locations and head counts, written by the partition threads.
+#[derive(Debug)]
+pub struct LiveState {
+    zones: Vec<Zone>,
+    latest: RwLock<HashMap<String, TagState>>,
+    head_counts: Vec<RwLock<HashMap<String, usize>>>,
+}
+
+impl LiveState {
+    pub(super) fn new(site: &Site, partitions: usize) -> Self {
+        Self {
+            zones: site.zones.clone(),
+            latest: RwLock::new(HashMap::new()),
+            head_counts: (0..partitions.max(1)).map(|_| RwLock::new(HashMap::new())).collect(),
+        }
+    }
+
+    /// The site's zones.
+    #[must_use]
+    pub fn zones(&self) -> &[Zone] {
+        &self.zones
+    }
+
+    /// A tag's latest state.
+    #[must_use]
+    pub fn tag(&self, tag: &str) -> Option<TagState> {
+        self.latest.read().ok()?.get(tag).cloned()
+    }
+
+    /// Every tag's latest state, ordered by tag.
+    #[must_use]
+    pub fn tags(&self) -> BTreeMap<String, TagState> {
+        self.latest
+            .read()
+            .map(|latest| latest.iter().map(|(k, v)| (k.clone(), v.clone())).collect())
+            .unwrap_or_default()
+    }
+
+    /// Number of tags with a state.
+    #[must_use]
+    pub fn tag_count(&self) -> usize {
+        self.latest.read().map_or(0, |latest| latest.len())
+    }
+
+    /// Tags inside each zone (confirmed entries), for every zone of the site.
+    #[must_use]
+    pub fn head_counts(&self) -> BTreeMap<String, usize> {
+        let mut counts: BTreeMap<String, usize> = self.zones.iter().map(|z| (z.id.clone(), 0)).collect();
+        for partition in &self.head_counts {
+            if let Ok(partition) = partition.read() {
+                for (zone, count) in partition.iter() {
+                    *counts.entry(zone.clone()).or_default() += count;
+                }
+            }
+        }
+        counts
+    }
+
+    pub(super) fn set_tag(&self, tag: &str, state: TagState) {
+        if let Ok(mut latest) = self.latest.write() {
+            latest.insert(tag.to_string(), state);
+        }
+    }
+
+    pub(super) fn remove_tag(&self, tag: &str) {
+        if let Ok(mut latest) = self.latest.write() {
+            latest.remove(tag);
+        }
+    }
+
+    pub(super) fn set_head_counts(&self, partition: usize, counts: HashMap<String, usize>) {
+        if let Some(Ok(mut slot)) = self.head_counts.get(partition).map(|p| p.write()) {
+            *slot = counts;
+        }
+    }
+}

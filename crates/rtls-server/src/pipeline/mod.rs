@@ -1,0 +1,446 @@
+//! The manager layer behind ingest: records are stored durably, acknowledged, and tracked on
+//! worker threads, one [`Tracker`] per tag partition, so no async task ever runs filter work.
+//!
+//! ```text
+//!  transports ──submit()──▶ [bounded queue] ──▶ ingest-log thread ──append+commit──▶ store
+//!  (HTTP, MQTT)   ◀──── ack after commit ─────────┘      │ dispatch by tag hash (bounded)
+//!                                                        ▼
+//!                                  partition threads (Tracker each)
+//!                                    │ live state, hub broadcast, MQTT publications
+//!                                    ▼ (bounded)
+//!                                  output thread ──▶ store (history, events, checkpoint)
+//! ```
+//!
+//! Every queue is bounded: a full partition blocks the ingest-log thread, which fills the
+//! ingest queue, so `submit` waits (and after [`PipelineConfig::submit_timeout`] answers
+//! [`IngestError::Unavailable`]); producers are slowed, never dropped. Broadcasts to
+//! WebSocket and MQTT subscribers are bounded ring buffers: a slow subscriber misses
+//! messages (counted) instead of slowing ingest.
+//!
+//! Restart: the output thread checkpoints the highest ingest-log id below which every record's
+//! outputs are stored; on start the records after it are replayed through the trackers. An
+//! acknowledged record is in the ingest log, so it is never lost; its outputs may be stored
+//! twice if the server died between storing them and the next checkpoint.
+
+mod ingest_log;
+mod live;
+mod outputs;
+mod partition;
+
+use std::sync::atomic::{AtomicI64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use rtls_engine::record::{parse_json_line, to_json_line, Record};
+use rtls_engine::site::Site;
+use rtls_engine::tracker::Tracker;
+use tokio::sync::{broadcast, mpsc, oneshot};
+
+pub use live::{HubMessage, LiveState, TagState};
+
+use crate::metrics::Metrics;
+use crate::sink::{IngestError, IngestFuture, MeasurementSink, Publication};
+use crate::store::{NewRecord, Store, StoreError};
+
+/// Sizes of the pipeline's queues and threads.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PipelineConfig {
+    /// Tag partitions, each a worker thread with its own tracker.
+    pub partitions: usize,
+    /// Payloads waiting for the ingest-log thread.
+    pub ingest_queue_batches: usize,
+    /// Batches waiting for each partition.
+    pub partition_queue_batches: usize,
+    /// Batches waiting for the output thread.
+    pub output_queue_batches: usize,
+    /// Messages a WebSocket / MQTT subscriber may fall behind before it misses some.
+    pub broadcast_capacity: usize,
+    /// Records in one payload at most.
+    pub max_records_per_payload: usize,
+    /// How long `submit` waits for room in the ingest queue before answering
+    /// [`IngestError::Unavailable`].
+    pub submit_timeout: Duration,
+    /// Advance the trackers with the wall clock (Unix seconds, minus `clock_lag_s`) so silent
+    /// tags coast, get lost and are deleted in real time; off: only records move time.
+    pub live_clock: bool,
+    /// How far behind the wall clock the trackers are advanced (s): records may arrive this
+    /// late without being judged late.
+    pub clock_lag_s: f64,
+}
+
+impl Default for PipelineConfig {
+    fn default() -> Self {
+        Self {
+            partitions: std::thread::available_parallelism().map_or(2, |n| n.get()),
+            ingest_queue_batches: 1024,
+            partition_queue_batches: 256,
+            output_queue_batches: 256,
+            broadcast_capacity: 65_536,
+            max_records_per_payload: 100_000,
+            submit_timeout: Duration::from_secs(5),
+            live_clock: true,
+            clock_lag_s: 2.0,
+        }
+    }
+}
+
+/// A failure to start the pipeline.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    /// The site cannot be tracked.
+    #[error("site: {0}")]
+    Site(String),
+    /// The store failed while replaying.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// A thread could not be started.
+    #[error("starting thread {name}: {reason}")]
+    Thread {
+        /// The thread's name.
+        name: String,
+        /// The OS error.
+        reason: String,
+    },
+}
+
+/// A payload of parsed records on its way to the ingest log.
+struct IngestBatch {
+    records: Vec<Record>,
+    rows: Vec<NewRecord>,
+    reply: oneshot::Sender<Result<usize, IngestError>>,
+}
+
+/// Progress counters shared by the threads, for the restart checkpoint.
+struct Progress {
+    /// Highest ingest-log id dispatched to each partition.
+    dispatched: Vec<AtomicI64>,
+    /// Highest ingest-log id whose outputs are stored, per partition.
+    stored: Vec<AtomicI64>,
+}
+
+impl Progress {
+    fn new(partitions: usize, start_id: i64) -> Self {
+        Self {
+            dispatched: (0..partitions).map(|_| AtomicI64::new(start_id)).collect(),
+            stored: (0..partitions).map(|_| AtomicI64::new(start_id)).collect(),
+        }
+    }
+
+    /// The highest id at or below which every record's outputs are stored: the lowest stored
+    /// id of a partition with work in flight, else the highest dispatched id.
+    fn watermark(&self) -> i64 {
+        let mut lowest_busy = i64::MAX;
+        let mut highest = i64::MIN;
+        for (dispatched, stored) in self.dispatched.iter().zip(&self.stored) {
+            let (dispatched, stored) = (dispatched.load(Ordering::Acquire), stored.load(Ordering::Acquire));
+            highest = highest.max(dispatched);
+            if stored < dispatched {
+                lowest_busy = lowest_busy.min(stored);
+            }
+        }
+        if lowest_busy == i64::MAX {
+            highest
+        } else {
+            lowest_busy
+        }
+    }
+}
+
+/// The running pipeline: the [`MeasurementSink`] the transports feed, the live state the APIs
+/// read, and the broadcasts they subscribe to. Cheap to clone.
+#[derive(Clone)]
+pub struct Pipeline {
+    inner: Arc<Inner>,
+}
+
+struct Inner {
+    ingest_tx: Mutex<Option<mpsc::Sender<IngestBatch>>>,
+    validator: Mutex<Tracker>,
+    config: PipelineConfig,
+    live: Arc<LiveState>,
+    hub: broadcast::Sender<Arc<HubMessage>>,
+    publications: broadcast::Sender<Publication>,
+    metrics: Arc<Metrics>,
+    threads: Mutex<Vec<JoinHandle<()>>>,
+}
+
+/// The checkpoint's name in the store.
+pub const CHECKPOINT: &str = "tracked_record_id";
+
+impl Pipeline {
+    /// Starts the threads: `ingest_store` takes the ingest log (and replays it from the
+    /// checkpoint), `output_store` the history and events. Two connections, so that appends
+    /// of records never wait behind history writes.
+    ///
+    /// # Errors
+    /// [`PipelineError::Site`] when the site cannot be tracked, [`PipelineError::Store`] when
+    /// the checkpoint cannot be read, [`PipelineError::Thread`].
+    pub fn start(
+        site: &Site,
+        mut ingest_store: Box<dyn Store>,
+        output_store: Box<dyn Store>,
+        config: PipelineConfig,
+        metrics: Arc<Metrics>,
+    ) -> Result<Self, PipelineError> {
+        let partitions = config.partitions.max(1);
+        let tracker = || Tracker::new(site).map_err(|e| PipelineError::Site(e.to_string()));
+        let validator = tracker()?;
+        let checkpoint = ingest_store.checkpoint(CHECKPOINT)?.unwrap_or(0);
+        let progress = Arc::new(Progress::new(partitions, checkpoint));
+        let live = Arc::new(LiveState::new(site, partitions));
+        let (hub, _) = broadcast::channel(config.broadcast_capacity.max(16));
+        let (publications, _) = broadcast::channel(config.broadcast_capacity.max(16));
+        let mut threads = Vec::new();
+        let spawn = |name: String, body: Box<dyn FnOnce() + Send>| {
+            std::thread::Builder::new()
+                .name(name.clone())
+                .spawn(body)
+                .map_err(|e| PipelineError::Thread {
+                    name,
+                    reason: e.to_string(),
+                })
+        };
+
+        let (output_tx, output_rx) = std::sync::mpsc::sync_channel(config.output_queue_batches.max(1));
+        let output_worker = outputs::OutputWorker {
+            store: output_store,
+            rx: output_rx,
+            progress: Arc::clone(&progress),
+            metrics: Arc::clone(&metrics),
+        };
+        threads.push(spawn("rtls-outputs".into(), Box::new(move || output_worker.run()))?);
+
+        let mut partition_txs = Vec::with_capacity(partitions);
+        for index in 0..partitions {
+            let (tx, rx) = std::sync::mpsc::sync_channel(config.partition_queue_batches.max(1));
+            partition_txs.push(tx);
+            let worker = partition::PartitionWorker {
+                index,
+                tracker: tracker()?,
+                rx,
+                outputs: output_tx.clone(),
+                live: Arc::clone(&live),
+                hub: hub.clone(),
+                publications: publications.clone(),
+                metrics: Arc::clone(&metrics),
+                progress: Arc::clone(&progress),
+                live_clock: config.live_clock,
+                clock_lag_s: config.clock_lag_s,
+                zone_entries: Default::default(),
+                source: site.name.clone().unwrap_or_else(|| "rtls".into()),
+            };
+            threads.push(spawn(
+                format!("rtls-partition-{index}"),
+                Box::new(move || worker.run()),
+            )?);
+        }
+        drop(output_tx);
+
+        let (ingest_tx, ingest_rx) = mpsc::channel(config.ingest_queue_batches.max(1));
+        let ingest_worker = ingest_log::IngestLogWorker {
+            store: ingest_store,
+            rx: ingest_rx,
+            partitions: partition_txs,
+            progress,
+            metrics: Arc::clone(&metrics),
+            replay_after_id: checkpoint,
+        };
+        threads.push(spawn("rtls-ingest-log".into(), Box::new(move || ingest_worker.run()))?);
+
+        Ok(Self {
+            inner: Arc::new(Inner {
+                ingest_tx: Mutex::new(Some(ingest_tx)),
+                validator: Mutex::new(validator),
+                config,
+                live,
+                hub,
+                publications,
+                metrics,
+                threads: Mutex::new(threads),
+            }),
+        })
+    }
+
+    /// The live state (latest location per tag, head counts per zone).
+    #[must_use]
+    pub fn live(&self) -> &Arc<LiveState> {
+        &self.inner.live
+    }
+
+    /// Subscribes to the hub's messages (locations, fence events, extension events).
+    #[must_use]
+    pub fn subscribe(&self) -> broadcast::Receiver<Arc<HubMessage>> {
+        self.inner.hub.subscribe()
+    }
+
+    /// The MQTT publications' channel (tracks and events), for the broker or the bridge.
+    #[must_use]
+    pub fn publications(&self) -> broadcast::Sender<Publication> {
+        self.inner.publications.clone()
+    }
+
+    /// The metrics.
+    #[must_use]
+    pub fn metrics(&self) -> &Arc<Metrics> {
+        &self.inner.metrics
+    }
+
+    /// Parses a payload of JSON lines (`source` names it in errors, e.g. `http body`), checks
+    /// every record against the site, and stores and queues them all (or none).
+    ///
+    /// # Errors
+    /// [`IngestError::Invalid`] naming `source:line: field` for the first bad line;
+    /// [`IngestError::Unavailable`] when the payload could not be stored.
+    pub async fn submit_lines(&self, source: &str, payload: &[u8]) -> Result<usize, IngestError> {
+        let text = std::str::from_utf8(payload).map_err(|e| {
+            let line = 1 + payload[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
+            IngestError::Invalid(format!("{source}:{line}: not UTF-8 text"))
+        })?;
+        let mut records = Vec::new();
+        for (index, line) in text.lines().enumerate() {
+            if line.trim().is_empty() {
+                continue;
+            }
+            if records.len() == self.inner.config.max_records_per_payload {
+                return Err(IngestError::Invalid(format!(
+                    "{source}: more than {} records in one payload; split it",
+                    self.inner.config.max_records_per_payload
+                )));
+            }
+            let record = parse_json_line(line, source, index + 1).map_err(|e| IngestError::Invalid(e.to_string()))?;
+            records.push((index + 1, record));
+        }
+        self.submit_numbered(source, records).await
+    }
+
+    /// Stores and queues records built elsewhere (the omlox location ingest); `source` names
+    /// them in errors, with the 1-based index as the line.
+    ///
+    /// # Errors
+    /// As [`Pipeline::submit_lines`].
+    pub async fn submit_records(&self, source: &str, records: Vec<Record>) -> Result<usize, IngestError> {
+        let numbered = records.into_iter().enumerate().map(|(i, r)| (i + 1, r)).collect();
+        self.submit_numbered(source, numbered).await
+    }
+
+    async fn submit_numbered(&self, source: &str, records: Vec<(usize, Record)>) -> Result<usize, IngestError> {
+        if records.is_empty() {
+            return Ok(0);
+        }
+        {
+            let validator = self
+                .inner
+                .validator
+                .lock()
+                .map_err(|_| IngestError::Unavailable("the record validator failed".into()))?;
+            for (line, record) in &records {
+                validator
+                    .check_record(record, source, *line)
+                    .map_err(|e| IngestError::Invalid(e.to_string()))?;
+            }
+        }
+        let received_ms = unix_ms();
+        let rows = records
+            .iter()
+            .map(|(_, r)| NewRecord {
+                received_ms,
+                source: source.to_string(),
+                time_s: r.time_s,
+                tag: r.tag.clone(),
+                json: to_json_line(r),
+            })
+            .collect();
+        let count = records.len();
+        let (reply, answer) = oneshot::channel();
+        let batch = IngestBatch {
+            records: records.into_iter().map(|(_, r)| r).collect(),
+            rows,
+            reply,
+        };
+        let sender = self
+            .inner
+            .ingest_tx
+            .lock()
+            .ok()
+            .and_then(|guard| guard.clone())
+            .ok_or_else(|| IngestError::Unavailable("the server is shutting down".into()))?;
+        let started = std::time::Instant::now();
+        match tokio::time::timeout(self.inner.config.submit_timeout, sender.send(batch)).await {
+            Ok(Ok(())) => {}
+            Ok(Err(_)) => return Err(IngestError::Unavailable("the server is shutting down".into())),
+            Err(_) => {
+                self.inner.metrics.ingest_overloaded.inc();
+                return Err(IngestError::Unavailable(format!(
+                    "ingest queue full for {:?}; retry later",
+                    self.inner.config.submit_timeout
+                )));
+            }
+        }
+        let result = answer
+            .await
+            .map_err(|_| IngestError::Unavailable("the ingest log stopped".into()))?;
+        self.inner
+            .metrics
+            .ingest_ack_seconds
+            .observe(started.elapsed().as_secs_f64());
+        result.map(|_| count)
+    }
+
+    /// Stops taking records, lets every thread drain its queue (the trackers flush, the
+    /// outputs are stored, the checkpoint is written) and waits for them.
+    pub fn shutdown(&self) {
+        if let Ok(mut sender) = self.inner.ingest_tx.lock() {
+            sender.take();
+        }
+        let threads = self
+            .inner
+            .threads
+            .lock()
+            .map(|mut t| std::mem::take(&mut *t))
+            .unwrap_or_default();
+        for thread in threads {
+            let name = thread.thread().name().unwrap_or("?").to_string();
+            if thread.join().is_err() {
+                tracing::error!(thread = %name, "pipeline thread panicked");
+            }
+        }
+    }
+}
+
+impl MeasurementSink for Pipeline {
+    fn ingest(&self, source: &str, payload: bytes::Bytes) -> IngestFuture {
+        let pipeline = self.clone();
+        let source = source.to_string();
+        Box::pin(async move { pipeline.submit_lines(&source, &payload).await })
+    }
+}
+
+/// Milliseconds since the Unix epoch by the wall clock.
+#[must_use]
+pub fn unix_ms() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
+}
+
+/// Seconds since the Unix epoch by the wall clock.
+#[must_use]
+pub fn unix_s() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// The partition of a tag: FNV-1a of its bytes modulo the partition count (stable across
+/// restarts, so a tag's track always lives on the same thread).
+fn partition_of(tag: &str, partitions: usize) -> usize {
+    // h ← (h ⊕ byte) · 16777619, from the FNV offset basis
+    let hash = tag
+        .bytes()
+        .fold(0x811c_9dc5_u32, |h, b| (h ^ u32::from(b)).wrapping_mul(0x0100_0193));
+    hash as usize % partitions.max(1)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,105 @@
+//! The output thread: stores track states and events, and the restart checkpoint.
+
+use std::sync::atomic::Ordering;
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use super::{Progress, CHECKPOINT};
+use crate::metrics::Metrics;
+use crate::store::{EventRow, LocationRow, Store};
+
+/// How often the checkpoint is written.
+const CHECKPOINT_PERIOD: Duration = Duration::from_secs(1);
+/// At most this many rows are written in one transaction.
+const GROUP_ROWS: usize = 50_000;
+
+/// What one partition produced from one batch of records.
+pub(super) struct OutputBatch {
+    pub partition: usize,
+    /// The last ingest-log id the partition has taken, if the batch followed records.
+    pub processed_id: Option<i64>,
+    pub locations: Vec<LocationRow>,
+    pub events: Vec<EventRow>,
+}
+
+pub(super) struct OutputWorker {
+    pub store: Box<dyn Store>,
+    pub rx: Receiver<OutputBatch>,
+    pub progress: Arc<Progress>,
+    pub metrics: Arc<Metrics>,
+}
+
+impl OutputWorker {
+    pub fn run(mut self) {
+        let mut last_checkpoint = Instant::now();
+        let mut checkpointed = i64::MIN;
+        loop {
+            let first = match self.rx.recv_timeout(CHECKPOINT_PERIOD) {
+                Ok(batch) => Some(batch),
+                Err(RecvTimeoutError::Timeout) => None,
+                Err(RecvTimeoutError::Disconnected) => break,
+            };
+            let mut batches: Vec<OutputBatch> = first.into_iter().collect();
+            let mut rows: usize = batches.iter().map(|b| b.locations.len() + b.events.len()).sum();
+            while rows < GROUP_ROWS {
+                match self.rx.try_recv() {
+                    Ok(batch) => {
+                        rows += batch.locations.len() + batch.events.len();
+                        batches.push(batch);
+                    }
+                    Err(_) => break,
+                }
+            }
+            if !batches.is_empty() {
+                self.store_batches(batches);
+            }
+            if last_checkpoint.elapsed() >= CHECKPOINT_PERIOD {
+                last_checkpoint = Instant::now();
+                checkpointed = self.checkpoint(checkpointed);
+            }
+        }
+        self.checkpoint(checkpointed);
+        tracing::info!("output thread stopped");
+    }
+
+    fn store_batches(&mut self, batches: Vec<OutputBatch>) {
+        let locations: Vec<LocationRow> = batches.iter().flat_map(|b| b.locations.iter().cloned()).collect();
+        let events: Vec<EventRow> = batches.iter().flat_map(|b| b.events.iter().cloned()).collect();
+        let result = self
+            .store
+            .append_locations(&locations)
+            .and_then(|()| self.store.append_events(&events));
+        match result {
+            Ok(()) => {
+                self.metrics.stored_locations.inc_by(locations.len() as u64);
+                self.metrics.stored_events.inc_by(events.len() as u64);
+                for batch in &batches {
+                    if let Some(id) = batch.processed_id {
+                        self.progress.stored[batch.partition].fetch_max(id, Ordering::AcqRel);
+                    }
+                }
+            }
+            Err(e) => {
+                // the records are in the ingest log: the checkpoint stays behind them, so a
+                // restart replays them and regenerates these outputs
+                self.metrics.output_store_failures.inc();
+                tracing::error!(error = %e, locations = locations.len(), events = events.len(), "storing outputs failed");
+            }
+        }
+    }
+
+    fn checkpoint(&mut self, previous: i64) -> i64 {
+        let watermark = self.progress.watermark();
+        if watermark <= previous {
+            return previous;
+        }
+        match self.store.set_checkpoint(CHECKPOINT, watermark) {
+            Ok(()) => watermark,
+            Err(e) => {
+                tracing::error!(error = %e, "writing the checkpoint failed");
+                previous
+            }
+        }
+    }
+}

@@ -1,0 +1,251 @@
+//! A partition thread: one tracker for the tags hashed to it; publishes what it produces.
+
+use std::collections::HashMap;
+use std::sync::atomic::Ordering;
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use rtls_engine::lifecycle::TrackStatus;
+use rtls_engine::tracker::{status_name, Event, Output, TrackUpdate, Tracker};
+use rtls_engine::zones::ZoneEvent;
+use serde_json::Value;
+use tokio::sync::broadcast;
+
+use super::ingest_log::PartitionBatch;
+use super::live::{HubMessage, LiveState, TagState};
+use super::outputs::OutputBatch;
+use super::{unix_ms, unix_s, Progress};
+use crate::convert::{accuracy_m, extension_message, fence_event_from_zone_event, location_from_update, ZoneEventOut};
+use crate::metrics::Metrics;
+use crate::omlox::ProviderType;
+use crate::sink::Publication;
+use crate::store::{EventRow, LocationRow};
+
+/// How often an idle partition advances its tracker with the wall clock.
+const CLOCK_TICK: Duration = Duration::from_millis(250);
+
+pub(super) struct PartitionWorker {
+    pub index: usize,
+    pub tracker: Tracker,
+    pub rx: Receiver<PartitionBatch>,
+    pub outputs: SyncSender<OutputBatch>,
+    pub live: Arc<LiveState>,
+    pub hub: broadcast::Sender<Arc<HubMessage>>,
+    pub publications: broadcast::Sender<Publication>,
+    pub metrics: Arc<Metrics>,
+    pub progress: Arc<Progress>,
+    pub live_clock: bool,
+    pub clock_lag_s: f64,
+    /// Entry time (s) of each (tag, zone) the tag is in, for the exit's `entry_time`.
+    pub zone_entries: HashMap<(String, String), f64>,
+    /// The omlox `source` of our locations (the site's name).
+    pub source: String,
+}
+
+impl PartitionWorker {
+    pub fn run(mut self) {
+        let mut out = Output::default();
+        let mut last_clock = Instant::now();
+        loop {
+            let mut processed = None;
+            match self.rx.recv_timeout(CLOCK_TICK) {
+                Ok(batch) => {
+                    let started = Instant::now();
+                    for (id, record) in batch {
+                        let tag = record.tag.clone();
+                        if let Err(e) = self.tracker.push(record, &mut out) {
+                            self.metrics.tracker_errors.inc();
+                            tracing::warn!(partition = self.index, record_id = id, tag = %tag, error = %e, "record not tracked");
+                        }
+                        processed = Some(id);
+                    }
+                    self.metrics.tracking_seconds.observe(started.elapsed().as_secs_f64());
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => {
+                    if let Err(e) = self.tracker.finish(&mut out) {
+                        tracing::warn!(partition = self.index, error = %e, "flushing the tracker failed");
+                    }
+                    self.emit(&mut out, None);
+                    return;
+                }
+            }
+            if self.live_clock && last_clock.elapsed() >= CLOCK_TICK {
+                last_clock = Instant::now();
+                if let Err(e) = self.tracker.advance_to(unix_s() - self.clock_lag_s, &mut out) {
+                    tracing::warn!(partition = self.index, error = %e, "advancing the clock failed");
+                }
+            }
+            self.emit(&mut out, processed);
+        }
+    }
+
+    /// Publishes and queues for storage what the tracker produced; `processed` is the last
+    /// ingest-log id whose record it has taken.
+    fn emit(&mut self, out: &mut Output, processed: Option<i64>) {
+        if out.updates.is_empty() && out.events.is_empty() && processed.is_none() {
+            return;
+        }
+        let received_ms = unix_ms();
+        let mut batch = OutputBatch {
+            partition: self.index,
+            processed_id: processed,
+            locations: Vec::with_capacity(out.updates.len()),
+            events: Vec::with_capacity(out.events.len()),
+        };
+        for update in &out.updates {
+            self.publish_update(update, received_ms, &mut batch);
+        }
+        for event in &out.events {
+            self.publish_event(event, received_ms, &mut batch);
+        }
+        if !out.events.is_empty() {
+            let counts = self
+                .live
+                .zones()
+                .iter()
+                .map(|zone| (zone.id.clone(), self.tracker.head_count(&zone.id)))
+                .collect();
+            self.live.set_head_counts(self.index, counts);
+        }
+        out.clear();
+        if self.outputs.send(batch).is_err() {
+            tracing::error!(partition = self.index, "output thread stopped; outputs not stored");
+            if let Some(id) = processed {
+                self.progress.stored[self.index].fetch_max(id, Ordering::AcqRel);
+            }
+        }
+    }
+
+    fn publish_update(&mut self, update: &TrackUpdate, received_ms: i64, batch: &mut OutputBatch) {
+        self.metrics.track_updates.inc();
+        let json_line = update.to_json_line();
+        let d = update.dimensions.clamp(2, 3);
+        batch.locations.push(LocationRow {
+            received_ms,
+            time_s: update.time_s,
+            tag: update.tag.to_string(),
+            x_m: update.position_m[0],
+            y_m: update.position_m[1],
+            z_m: (d == 3).then_some(update.position_m[2]),
+            accuracy_m: Some(accuracy_m(&update.position_covariance_m2, d)),
+            predicted: update.predicted,
+            json: json_line.clone(),
+        });
+        let _ = self.publications.send(Publication {
+            topic: format!("rtls/v1/tracks/{}", mqtt_level(&update.tag)),
+            payload: json_line.into(),
+        });
+        if update.status == TrackStatus::Deleted {
+            self.live.remove_tag(&update.tag);
+            return;
+        }
+        match location_from_update(update, &self.source, ProviderType::Uwb).map(serde_json::to_value) {
+            Ok(Ok(location)) => {
+                self.live.set_tag(
+                    &update.tag,
+                    TagState {
+                        time_s: update.time_s,
+                        position_m: update.position_m,
+                        status: status_name(update.status),
+                        location: location.clone(),
+                    },
+                );
+                let _ = self.hub.send(Arc::new(HubMessage::Location {
+                    tag: update.tag.to_string(),
+                    location,
+                }));
+                self.metrics
+                    .pipeline_latency_seconds
+                    .observe((unix_s() - update.time_s).max(0.0));
+            }
+            Ok(Err(e)) => tracing::warn!(tag = %update.tag, error = %e, "location not serialisable"),
+            Err(e) => tracing::warn!(tag = %update.tag, error = %e, "location not representable"),
+        }
+    }
+
+    fn publish_event(&mut self, event: &Event, received_ms: i64, batch: &mut OutputBatch) {
+        let json_line = event.to_json_line();
+        let parsed: Value = serde_json::from_str(&json_line).unwrap_or(Value::Null);
+        let kind = parsed["type"].as_str().unwrap_or("event").to_string();
+        let tag = parsed["tag"].as_str().map(str::to_string);
+        let zone = parsed["zone"].as_str().map(str::to_string);
+        let alarm = is_alarm(event);
+        if alarm {
+            self.metrics
+                .alarms
+                .get_or_create(&vec![("type".into(), kind.clone())])
+                .inc();
+        }
+        batch.events.push(EventRow {
+            received_ms,
+            time_s: event.time_s(),
+            kind: kind.clone(),
+            tag,
+            zone,
+            alarm,
+            json: json_line.clone(),
+        });
+        let _ = self.publications.send(Publication {
+            topic: format!("rtls/v1/events/{kind}"),
+            payload: json_line.into(),
+        });
+        let message = match event {
+            Event::Zone(zone_event) => {
+                let entry = self.track_zone_entry(zone_event);
+                match fence_event_from_zone_event(zone_event, entry) {
+                    Ok(ZoneEventOut::Fence(fence_event)) => {
+                        serde_json::to_value(fence_event)
+                            .ok()
+                            .map(|event| HubMessage::FenceEvent {
+                                tag: zone_event.tag().to_string(),
+                                event,
+                            })
+                    }
+                    Ok(ZoneEventOut::Extension(topic, event)) => Some(HubMessage::Extension { topic, event }),
+                    Err(e) => {
+                        tracing::warn!(error = %e, "zone event not representable");
+                        None
+                    }
+                }
+            }
+            other => match extension_message(other) {
+                Ok((topic, event)) => Some(HubMessage::Extension { topic, event }),
+                Err(e) => {
+                    tracing::warn!(error = %e, "event not representable");
+                    None
+                }
+            },
+        };
+        if let Some(message) = message {
+            let _ = self.hub.send(Arc::new(message));
+        }
+    }
+
+    /// Remembers an entry's time; returns the matching entry's time for an exit.
+    fn track_zone_entry(&mut self, event: &ZoneEvent) -> Option<f64> {
+        match event {
+            ZoneEvent::Enter { tag, zone, time_s } => {
+                self.zone_entries.insert((tag.clone(), zone.clone()), *time_s);
+                None
+            }
+            ZoneEvent::Exit { tag, zone, .. } => self.zone_entries.remove(&(tag.clone(), zone.clone())),
+            ZoneEvent::Dwell { .. } => None,
+        }
+    }
+}
+
+/// Alarms: predicted hazards, tags without coverage, lost tags.
+fn is_alarm(event: &Event) -> bool {
+    match event {
+        Event::HazardPredicted { .. } | Event::NoCoverage { .. } => true,
+        Event::Lifecycle { event, .. } => matches!(event, rtls_engine::lifecycle::LifecycleEvent::Lost),
+        _ => false,
+    }
+}
+
+/// A tag as one MQTT topic level: `/`, `+` and `#` would change the topic's structure.
+fn mqtt_level(tag: &str) -> String {
+    tag.replace(['/', '+', '#'], "_")
+}
