@@ -27,6 +27,7 @@ mod import;
 mod markdown;
 mod plot;
 mod repro;
+mod serve;
 mod survey;
 mod track;
 
@@ -57,6 +58,9 @@ enum Command {
     /// Map the radio environment from measurements and their tracks: per area cell and reader,
     /// the bias and spread of the residuals; flags degraded readers and cells (CSV and PNG).
     Survey(survey::SurveyArgs),
+    /// Run the control-room server: MQTT and HTTP ingest, omlox REST and WebSocket APIs,
+    /// history, alarms, metrics. `--demo` runs seed 000's simulated mine through it.
+    Serve(serve::ServeArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -67,6 +71,7 @@ fn main() -> std::process::ExitCode {
         Command::Import(args) => import::run(&args),
         Command::Eval(args) => eval::run(&args),
         Command::Survey(args) => survey::run(&args),
+        Command::Serve(args) => serve::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -37,6 +37,12 @@ impl Tokens {
     }
 }
 
+/// A random token: 128 bits from the operating system's generator (a v4 UUID without dashes).
+#[must_use]
+pub fn random_token() -> String {
+    uuid::Uuid::new_v4().simple().to_string()
+}
+
 /// Compares two strings without an early exit on the first difference.
 fn constant_time_eq(a: &str, b: &str) -> bool {
     let (a, b) = (a.as_bytes(), b.as_bytes());

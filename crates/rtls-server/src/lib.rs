@@ -16,6 +16,7 @@
 //! - omlox™ hub API 2.0.0, OpenAPI 3.0.2 description (PROFIBUS & PROFINET International).
 
 pub mod auth;
+pub mod config;
 pub mod convert;
 mod error;
 pub mod http;

@@ -1,0 +1,191 @@
+//! `rtls serve`: the control-room server (crate rtls-server) — MQTT and HTTP ingest, the
+//! omlox hub API and WebSocket, history, alarms, metrics. `--demo` runs seed 000's simulated
+//! mine through it.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use clap::Args;
+use rtls_engine::site::Site;
+use rtls_server::auth::Tokens;
+use rtls_server::config::{MqttMode, ServerConfig};
+use rtls_server::serve::{init_logging, serve, Bound, ServeOptions};
+
+/// Arguments of `rtls serve` (each overrides the config file).
+#[derive(Debug, Args)]
+pub struct ServeArgs {
+    /// Configuration file (TOML; see `rtls_server::config` and examples/server.toml).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// The site file (readers, zones, tracker settings).
+    #[arg(long)]
+    site: Option<PathBuf>,
+    /// Run seed 000's simulated mine (its own site) through the server.
+    #[arg(long)]
+    demo: bool,
+    /// Miners in the demo mine.
+    #[arg(long, default_value_t = 600)]
+    demo_miners: usize,
+    /// HTTP listen address.
+    #[arg(long)]
+    http: Option<SocketAddr>,
+    /// Database: `sqlite:PATH` (default `sqlite:rtls.db`) or `postgres://user:password@host/db`.
+    #[arg(long)]
+    db: Option<String>,
+    /// Embedded MQTT broker's listen address.
+    #[arg(long)]
+    mqtt_listen: Option<SocketAddr>,
+    /// Use an external MQTT broker instead of the embedded one (`mqtt://host:port?client_id=…`).
+    #[arg(long, conflicts_with = "no_mqtt")]
+    mqtt_url: Option<String>,
+    /// No MQTT at all.
+    #[arg(long)]
+    no_mqtt: bool,
+    /// Days of history kept.
+    #[arg(long)]
+    retention_days: Option<f64>,
+    /// Tag partitions (worker threads).
+    #[arg(long)]
+    partitions: Option<usize>,
+    /// Records' times are not the wall clock (replays): only records move the trackers' time.
+    #[arg(long)]
+    data_clock: bool,
+    /// `text` or `json` logs (stderr).
+    #[arg(long)]
+    log_format: Option<String>,
+}
+
+/// Runs the server until Ctrl-C or SIGTERM.
+///
+/// # Errors
+/// Bad configuration, an unreadable site, a port in use, a database that cannot be opened.
+pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
+    let mut config = match &args.config {
+        Some(path) => ServerConfig::from_file(path)?,
+        None => ServerConfig::default(),
+    };
+    apply_overrides(&mut config, args);
+    config.validate()?;
+    init_logging(&config.server.log_format);
+
+    let (site_text, site_name) = if args.demo {
+        (rtls_server::demo::demo_site_toml(), "demo mine".to_string())
+    } else {
+        let path = config
+            .server
+            .site
+            .clone()
+            .context("a site file is needed: --site PATH (or server.site in the config), or --demo")?;
+        let text = std::fs::read_to_string(&path).with_context(|| format!("reading the site file {}", path.display()))?;
+        (text, path.display().to_string())
+    };
+    let site = Site::from_toml_str(&site_text, &site_name)?;
+
+    let write = std::env::var("RTLS_WRITE_TOKEN").ok().or(config.auth.write_token.clone());
+    let read = std::env::var("RTLS_READ_TOKEN").ok().or(config.auth.read_token.clone());
+    let write = match write {
+        Some(token) if token.len() >= 8 => token,
+        Some(_) => bail!("the write token must be at least 8 characters"),
+        None if args.demo => {
+            let token = uuid_token();
+            eprintln!("demo write token (set RTLS_WRITE_TOKEN to choose one): {token}");
+            token
+        }
+        None => bail!("writes need a token: set RTLS_WRITE_TOKEN or auth.write_token in the config file"),
+    };
+    let tokens = Tokens { write: write.clone(), read };
+    let demo = args.demo;
+    let miners = args.demo_miners;
+    let feed: Option<rtls_server::serve::Feed> = demo.then(|| {
+        Box::new(move |pipeline, bound: Bound, stop| {
+            rtls_server::demo::start(pipeline, bound, write, miners, stop).unwrap_or_else(|e| {
+                tracing_error(&e);
+                tokio::spawn(async {})
+            })
+        }) as rtls_server::serve::Feed
+    });
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .context("starting the async runtime")?;
+    runtime.block_on(async move {
+        let options = ServeOptions { config, site, site_text, tokens, feed };
+        serve(options, announce, shutdown_signal()).await
+    })?;
+    Ok(())
+}
+
+fn tracing_error(message: &str) {
+    eprintln!("error: demo feed: {message}");
+}
+
+/// Prints where the server listens as one JSON line on stdout (for scripts and tests).
+fn announce(bound: Bound) {
+    let line = serde_json::json!({
+        "http": bound.http.to_string(),
+        "mqtt": bound.mqtt.map(|a| a.to_string()),
+    });
+    println!("{line}");
+}
+
+fn apply_overrides(config: &mut ServerConfig, args: &ServeArgs) {
+    if let Some(site) = &args.site {
+        config.server.site = Some(site.clone());
+    }
+    if let Some(http) = args.http {
+        config.server.http = http;
+    }
+    if let Some(db) = &args.db {
+        config.server.db.clone_from(db);
+    }
+    if let Some(listen) = args.mqtt_listen {
+        config.mqtt.listen = listen;
+    }
+    if let Some(url) = &args.mqtt_url {
+        config.mqtt.mode = MqttMode::External;
+        config.mqtt.url = Some(url.clone());
+    }
+    if args.no_mqtt {
+        config.mqtt.mode = MqttMode::Off;
+    }
+    if let Some(days) = args.retention_days {
+        config.server.retention_days = days;
+    }
+    if let Some(partitions) = args.partitions {
+        config.pipeline.partitions = partitions;
+    }
+    if args.data_clock {
+        config.pipeline.live_clock = false;
+    }
+    if let Some(format) = &args.log_format {
+        config.server.log_format.clone_from(format);
+    }
+}
+
+/// A random token for the demo (128 bits from the OS via a v4 UUID's generator).
+fn uuid_token() -> String {
+    rtls_server::auth::random_token()
+}
+
+/// Resolves on Ctrl-C or SIGTERM.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut signal) => {
+                signal.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {}
+        () = terminate => {}
+    }
+}

@@ -1,0 +1,227 @@
+//! A bounded load test of `rtls serve` on loopback: an in-process server (embedded MQTT broker,
+//! SQLite in a temp dir, 2-D fix-then-filter site), publishers sending one fix per tag per
+//! period over MQTT QoS 1 (each PUBACK only after the records are committed), and a WebSocket
+//! client subscribed to `location_updates`. Reports the sustained acknowledged records/s and
+//! the ingest-to-WebSocket latency (receive time − the record's time stamp, which is its send
+//! time) percentiles.
+//!
+//! ```text
+//! cargo run --release -p rtls-server --example loadtest -- --tags 600 --rate-hz 10 --seconds 30
+//! cargo run --release -p rtls-server --example loadtest -- --tags 600 --rate-hz 0 --seconds 30   # max rate
+//! ```
+//! `--rate-hz 0` sends as fast as the acknowledgements allow (each publisher keeps 64 batches
+//! in flight).
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use futures_util::StreamExt;
+use rtls_engine::site::Site;
+use rtls_server::auth::Tokens;
+use rtls_server::config::ServerConfig;
+use rtls_server::serve::{serve, Bound, ServeOptions};
+use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
+use tokio_tungstenite::tungstenite::Message;
+
+const TOKEN: &str = "loadtest-write-token";
+const PUBLISHERS: usize = 4;
+
+const SITE: &str = r#"
+name = "load test"
+[[readers]]
+id = "A1"
+position_m = [0.0, 0.0, 2.5]
+technology = "uwb"
+[[zones]]
+id = "east"
+name = "East half"
+kind = "area-of-interest"
+shape = { type = "box", min_m = [50.0, 0.0, -10.0], max_m = [100.0, 100.0, 10.0] }
+[tracker]
+pipeline = "fix-then-filter"
+motion_model = "cv"
+filter = "ekf"
+initiation = { confirm_updates = 2, within_s = 5.0 }
+reorder_window_s = 0.05
+output_interval_s = 0.1
+dimensions = 2
+"#;
+
+struct Args {
+    tags: usize,
+    rate_hz: f64,
+    seconds: f64,
+}
+
+fn parse_args() -> Args {
+    let mut args = Args { tags: 600, rate_hz: 10.0, seconds: 20.0 };
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    for pair in argv.chunks(2) {
+        let value = pair.get(1).map(String::as_str).unwrap_or("");
+        match pair[0].as_str() {
+            "--tags" => args.tags = value.parse().expect("--tags N"),
+            "--rate-hz" => args.rate_hz = value.parse().expect("--rate-hz HZ (0: max rate)"),
+            "--seconds" => args.seconds = value.parse().expect("--seconds S"),
+            other => panic!("unknown argument {other}; use --tags, --rate-hz, --seconds"),
+        }
+    }
+    args
+}
+
+fn unix_s() -> f64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_secs_f64()
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+#[tokio::main]
+async fn main() {
+    let args = parse_args();
+    let dir = std::env::temp_dir().join(format!("rtls-loadtest-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut config = ServerConfig::default();
+    config.server.http = "127.0.0.1:0".parse().unwrap();
+    config.mqtt.listen = "127.0.0.1:0".parse().unwrap();
+    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
+    config.pipeline.clock_lag_s = 1.0;
+    let site = Site::from_toml_str(SITE, "loadtest-site.toml").unwrap();
+    let options = ServeOptions {
+        config,
+        site,
+        site_text: SITE.into(),
+        tokens: Tokens { write: TOKEN.into(), read: None },
+        feed: None,
+    };
+    let (bound_tx, bound_rx) = tokio::sync::oneshot::channel::<Bound>();
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let server = tokio::spawn(serve(
+        options,
+        move |bound| {
+            let _ = bound_tx.send(bound);
+        },
+        async move {
+            let _ = stop_rx.await;
+        },
+    ));
+    let bound = bound_rx.await.expect("server started");
+    let mqtt = bound.mqtt.expect("embedded broker");
+
+    // the WebSocket client: latency of every location update
+    let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{}/v2/ws/socket", bound.http)).await.unwrap();
+    futures_util::SinkExt::send(&mut socket, Message::Text(r#"{"event":"subscribe","topic":"location_updates"}"#.into()))
+        .await
+        .unwrap();
+    let latencies = Arc::new(Mutex::new(Vec::<f64>::new()));
+    let measuring = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let ws_task = {
+        let latencies = Arc::clone(&latencies);
+        let measuring = Arc::clone(&measuring);
+        tokio::spawn(async move {
+            while let Some(Ok(message)) = socket.next().await {
+                let Message::Text(text) = message else { continue };
+                let received = unix_s();
+                let value: serde_json::Value = serde_json::from_str(&text).unwrap();
+                for location in value["payload"].as_array().into_iter().flatten() {
+                    let Some(stamp) = location["timestamp_generated"].as_str() else { continue };
+                    let t = rtls_server::omlox::time::parse_timestamp(stamp, "t").unwrap();
+                    if measuring.load(Ordering::Relaxed) {
+                        latencies.lock().unwrap().push(received - t);
+                    }
+                }
+            }
+        })
+    };
+
+    // publishers: tags split among them; one batch = one fix per tag of the publisher
+    let acked = Arc::new(AtomicU64::new(0));
+    let sent = Arc::new(AtomicU64::new(0));
+    let started = Instant::now();
+    let warmup = Duration::from_secs(2);
+    let run = Duration::from_secs_f64(args.seconds);
+    let mut publishers = Vec::new();
+    for p in 0..PUBLISHERS {
+        let tags: Vec<usize> = (0..args.tags).filter(|t| t % PUBLISHERS == p).collect();
+        let (acked, sent) = (Arc::clone(&acked), Arc::clone(&sent));
+        let rate_hz = args.rate_hz;
+        publishers.push(tokio::spawn(async move {
+            let mut options = MqttOptions::new(format!("loadtest-{p}"), mqtt.ip().to_string(), mqtt.port());
+            options.set_credentials("load", TOKEN);
+            options.set_inflight(64);
+            options.set_max_packet_size(1 << 20, 1 << 20);
+            let (client, mut event_loop) = AsyncClient::new(options, 128);
+            let per_batch = tags.len() as u64;
+            let acks = tokio::spawn(async move {
+                while let Ok(event) = event_loop.poll().await {
+                    if let Event::Incoming(Packet::PubAck(_)) = event {
+                        acked.fetch_add(per_batch, Ordering::Relaxed);
+                    }
+                }
+            });
+            let period = (rate_hz > 0.0).then(|| Duration::from_secs_f64(1.0 / rate_hz));
+            let mut next = Instant::now();
+            let mut k = 0u64;
+            while started.elapsed() < warmup + run {
+                let t = unix_s();
+                let mut payload = String::with_capacity(tags.len() * 120);
+                for &tag in &tags {
+                    // each tag walks a circle of 20 m radius at ~1 m/s
+                    let phase = t / 20.0 + tag as f64;
+                    let (x, y) = (50.0 + 20.0 * phase.cos(), 50.0 + 20.0 * phase.sin());
+                    payload.push_str(&format!(
+                        "{{\"t\": {t:.4}, \"tag\": \"tag-{tag:04}\", \"kind\": \"fix\", \"position_m\": [{x:.3}, {y:.3}], \"covariance_m2\": [0.09, 0, 0, 0.09]}}\n"
+                    ));
+                }
+                if client.publish("rtls/v1/measurements/load", QoS::AtLeastOnce, false, payload).await.is_err() {
+                    break;
+                }
+                sent.fetch_add(per_batch, Ordering::Relaxed);
+                k += 1;
+                if let Some(period) = period {
+                    next += period;
+                    tokio::time::sleep_until(next.into()).await;
+                }
+            }
+            let _ = k;
+            tokio::time::sleep(Duration::from_secs(2)).await;
+            let _ = client.disconnect().await;
+            acks.abort();
+        }));
+    }
+    tokio::time::sleep(warmup).await;
+    measuring.store(true, Ordering::Relaxed);
+    let acked_at_start = acked.load(Ordering::Relaxed);
+    let measure_start = Instant::now();
+    tokio::time::sleep(run).await;
+    let acked_in_run = acked.load(Ordering::Relaxed) - acked_at_start;
+    let elapsed = measure_start.elapsed().as_secs_f64();
+    measuring.store(false, Ordering::Relaxed);
+    for publisher in publishers {
+        let _ = publisher.await;
+    }
+    let mut latencies = latencies.lock().unwrap().clone();
+    latencies.sort_by(f64::total_cmp);
+    let offered = if args.rate_hz > 0.0 { Some(args.tags as f64 * args.rate_hz) } else { None };
+    let report = serde_json::json!({
+        "tags": args.tags,
+        "rate_hz": args.rate_hz,
+        "offered_records_per_s": offered,
+        "sustained_records_per_s": (acked_in_run as f64 / elapsed).round(),
+        "records_sent": sent.load(Ordering::Relaxed),
+        "records_acknowledged": acked.load(Ordering::Relaxed),
+        "location_updates_measured": latencies.len(),
+        "latency_p50_ms": (percentile(&latencies, 0.5) * 1000.0 * 10.0).round() / 10.0,
+        "latency_p99_ms": (percentile(&latencies, 0.99) * 1000.0 * 10.0).round() / 10.0,
+        "measured_s": elapsed,
+    });
+    println!("{report}");
+    let _ = stop_tx.send(());
+    let _ = server.await;
+    ws_task.abort();
+    let _ = std::fs::remove_dir_all(&dir);
+}

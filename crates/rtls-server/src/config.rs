@@ -1,0 +1,243 @@
+//! The server's configuration file (TOML) and its defaults.
+//!
+//! ```toml
+//! [server]
+//! http = "127.0.0.1:8080"        # HTTP and WebSocket
+//! site = "site.toml"             # the site file (readers, zones, tracker settings)
+//! db = "sqlite:rtls.db"          # or "postgres://user:password@host/db"
+//! retention_days = 92            # history, events and the ingest log (mine rules: ≥ 3 months)
+//! log_format = "text"            # or "json"
+//! default_accuracy_m = 1.0       # omlox locations without `accuracy`
+//!
+//! [auth]
+//! write_token = "…"              # or the environment variable RTLS_WRITE_TOKEN
+//! read_token = "…"               # optional (RTLS_READ_TOKEN); without it reads are open
+//!
+//! [mqtt]
+//! mode = "embedded"              # "embedded", "external" or "off"
+//! listen = "127.0.0.1:1883"      # the embedded broker
+//! url = "mqtt://broker:1883?client_id=rtls-server"   # the external broker
+//!
+//! [pipeline]
+//! partitions = 2                 # tag partitions (worker threads); default: the CPU count
+//! live_clock = true              # advance tracks with the wall clock (records in Unix time)
+//! clock_lag_s = 2.0
+//! ```
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+use serde::Deserialize;
+
+/// A configuration error, naming the file and the field.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file cannot be read.
+    #[error("config file {path}: {reason}")]
+    Read {
+        /// The path.
+        path: String,
+        /// The OS error.
+        reason: String,
+    },
+    /// The file does not parse or has a bad value (toml names the line, column and key).
+    #[error("config file {path}: {reason}")]
+    Parse {
+        /// The path.
+        path: String,
+        /// What is wrong, where.
+        reason: String,
+    },
+    /// A value is out of range.
+    #[error("config {field}: {reason}")]
+    Invalid {
+        /// The field (`server.retention_days`).
+        field: String,
+        /// What is wrong and what is allowed.
+        reason: String,
+    },
+}
+
+/// Where MQTT measurements come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum MqttMode {
+    /// The server's own broker.
+    #[default]
+    Embedded,
+    /// An external broker (`mqtt.url`).
+    External,
+    /// No MQTT.
+    Off,
+}
+
+/// The whole configuration.
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct ServerConfig {
+    /// `[server]`.
+    pub server: ServerSection,
+    /// `[auth]`.
+    pub auth: AuthSection,
+    /// `[mqtt]`.
+    pub mqtt: MqttSection,
+    /// `[pipeline]`.
+    pub pipeline: PipelineSection,
+}
+
+/// `[server]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ServerSection {
+    /// HTTP listen address.
+    pub http: SocketAddr,
+    /// The site file.
+    pub site: Option<PathBuf>,
+    /// The database URL.
+    pub db: String,
+    /// Days of history, events and ingest log kept.
+    pub retention_days: f64,
+    /// `text` or `json` logs.
+    pub log_format: String,
+    /// Accuracy of omlox locations without one (m).
+    pub default_accuracy_m: f64,
+}
+
+impl Default for ServerSection {
+    fn default() -> Self {
+        Self {
+            http: SocketAddr::from(([127, 0, 0, 1], 8080)),
+            site: None,
+            db: "sqlite:rtls.db".into(),
+            retention_days: 92.0,
+            log_format: "text".into(),
+            default_accuracy_m: 1.0,
+        }
+    }
+}
+
+/// `[auth]`.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct AuthSection {
+    /// The write token.
+    pub write_token: Option<String>,
+    /// The read token.
+    pub read_token: Option<String>,
+}
+
+/// `[mqtt]`.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MqttSection {
+    /// Embedded, external or off.
+    pub mode: MqttMode,
+    /// The embedded broker's listen address.
+    pub listen: SocketAddr,
+    /// The external broker's URL.
+    pub url: Option<String>,
+}
+
+impl Default for MqttSection {
+    fn default() -> Self {
+        Self {
+            mode: MqttMode::Embedded,
+            listen: SocketAddr::from(([127, 0, 0, 1], 1883)),
+            url: None,
+        }
+    }
+}
+
+/// `[pipeline]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PipelineSection {
+    /// Tag partitions (0: the CPU count).
+    pub partitions: usize,
+    /// Advance tracks with the wall clock.
+    pub live_clock: bool,
+    /// How far behind the wall clock (s).
+    pub clock_lag_s: f64,
+}
+
+impl Default for PipelineSection {
+    fn default() -> Self {
+        Self { partitions: 0, live_clock: true, clock_lag_s: 2.0 }
+    }
+}
+
+impl ServerConfig {
+    /// Reads a configuration file.
+    ///
+    /// # Errors
+    /// [`ConfigError::Read`], [`ConfigError::Parse`] (with toml's line, column and key), or
+    /// [`ConfigError::Invalid`] from [`ServerConfig::validate`].
+    pub fn from_file(path: &std::path::Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Read {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })?;
+        let config: Self = toml::from_str(&text).map_err(|e| ConfigError::Parse {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Checks the values' ranges.
+    ///
+    /// # Errors
+    /// [`ConfigError::Invalid`] naming the field.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let invalid = |field: &str, reason: String| ConfigError::Invalid { field: field.into(), reason };
+        let s = &self.server;
+        if !(s.retention_days.is_finite() && s.retention_days > 0.0) {
+            return Err(invalid("server.retention_days", format!("must be > 0 days, got {}", s.retention_days)));
+        }
+        if !matches!(s.log_format.as_str(), "text" | "json") {
+            return Err(invalid("server.log_format", format!("`{}` is not text or json", s.log_format)));
+        }
+        if !(s.default_accuracy_m.is_finite() && s.default_accuracy_m > 0.0) {
+            return Err(invalid("server.default_accuracy_m", format!("must be > 0 m, got {}", s.default_accuracy_m)));
+        }
+        if self.mqtt.mode == MqttMode::External && self.mqtt.url.is_none() {
+            return Err(invalid("mqtt.url", "required when mqtt.mode = \"external\"".into()));
+        }
+        let p = &self.pipeline;
+        if !(p.clock_lag_s.is_finite() && p.clock_lag_s >= 0.0) {
+            return Err(invalid("pipeline.clock_lag_s", format!("must be ≥ 0 s, got {}", p.clock_lag_s)));
+        }
+        for (field, token) in [("auth.write_token", &self.auth.write_token), ("auth.read_token", &self.auth.read_token)] {
+            if token.as_deref().is_some_and(|t| t.len() < 8) {
+                return Err(invalid(field, "must be at least 8 characters".into()));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_unknown_key_and_a_bad_value_are_named_with_their_line() {
+        let dir = std::env::temp_dir().join(format!("rtls-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("server.toml");
+        std::fs::write(&path, "[server]\nhttp = \"127.0.0.1:9000\"\nretention = 5\n").unwrap();
+        let error = ServerConfig::from_file(&path).unwrap_err().to_string();
+        assert!(error.contains("line 3") && error.contains("retention"), "{error}");
+        std::fs::write(&path, "[server]\nretention_days = -1\n").unwrap();
+        let error = ServerConfig::from_file(&path).unwrap_err().to_string();
+        assert!(error.contains("server.retention_days"), "{error}");
+        std::fs::write(&path, "[mqtt]\nmode = \"external\"\n").unwrap();
+        let error = ServerConfig::from_file(&path).unwrap_err().to_string();
+        assert!(error.contains("mqtt.url"), "{error}");
+        std::fs::write(&path, "[server]\nhttp = \"127.0.0.1:9000\"\n[pipeline]\npartitions = 3\n").unwrap();
+        let config = ServerConfig::from_file(&path).unwrap();
+        assert_eq!((config.server.http.port(), config.pipeline.partitions, config.server.retention_days), (9000, 3, 92.0));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

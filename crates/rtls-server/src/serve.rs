@@ -1,0 +1,244 @@
+//! `rtls serve`: opens the store, starts the pipeline, the HTTP/WebSocket server, the MQTT
+//! broker (or the bridge to an external one), retention, and — with `--demo` — the simulated
+//! mine; stops them in order on shutdown.
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use rtls_engine::site::Site;
+use tokio::sync::watch;
+
+use crate::auth::Tokens;
+use crate::config::{MqttMode, ServerConfig};
+use crate::http::{router, AppState};
+use crate::metrics::Metrics;
+use crate::mqtt::{BrokerConfig, EmbeddedBroker, ExternalBroker};
+use crate::pipeline::{unix_ms, Pipeline, PipelineConfig};
+use crate::sink::MeasurementSink;
+use crate::store::{self, Store};
+
+/// How often retention runs.
+const RETENTION_PERIOD: Duration = Duration::from_secs(3600);
+
+/// A failure to start or run the server.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// Bad configuration.
+    #[error("{0}")]
+    Config(String),
+    /// The store could not be opened.
+    #[error("database: {0}")]
+    Store(#[from] store::StoreError),
+    /// The pipeline could not start.
+    #[error(transparent)]
+    Pipeline(#[from] crate::pipeline::PipelineError),
+    /// A listener could not be bound or served.
+    #[error("{what} {address}: {reason}")]
+    Listen {
+        /// `HTTP` or `MQTT`.
+        what: &'static str,
+        /// The address.
+        address: String,
+        /// The OS error.
+        reason: String,
+    },
+}
+
+/// Where the running server listens (ports resolved, for `:0`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Bound {
+    /// HTTP and WebSocket.
+    pub http: SocketAddr,
+    /// The embedded MQTT broker, if it runs.
+    pub mqtt: Option<SocketAddr>,
+}
+
+/// A site and what to do with it.
+pub struct ServeOptions {
+    /// The configuration.
+    pub config: ServerConfig,
+    /// The site.
+    pub site: Site,
+    /// The site file's text (stored as configuration).
+    pub site_text: String,
+    /// The tokens (resolved from the config, the environment or generated).
+    pub tokens: Tokens,
+    /// A feed to start once listening (the demo), given the pipeline as its sink and the
+    /// bound addresses.
+    pub feed: Option<Feed>,
+}
+
+/// A feed started once the server listens (the demo): given the pipeline, the bound
+/// addresses and the stop signal, it returns its task.
+pub type Feed = Box<dyn FnOnce(Pipeline, Bound, watch::Receiver<bool>) -> tokio::task::JoinHandle<()> + Send>;
+
+/// Runs the server until `shutdown` resolves; `on_bound` is told the addresses once
+/// listening.
+///
+/// # Errors
+/// [`ServeError`] when something cannot start.
+pub async fn serve(
+    options: ServeOptions,
+    on_bound: impl FnOnce(Bound) + Send,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> Result<(), ServeError> {
+    let ServeOptions { config, site, site_text, tokens, feed } = options;
+    let db = config.server.db.clone();
+    let open = || store::open(&db);
+    let (ingest_store, output_store, mut query_store) = tokio::task::spawn_blocking(move || {
+        let opened: Result<_, store::StoreError> = (|| Ok((open()?, open()?, open()?)))();
+        opened
+    })
+    .await
+    .map_err(|e| ServeError::Config(format!("opening the database: {e}")))??;
+    query_store.put_config("site", "current", &site_text)?;
+    tracing::info!(backend = query_store.backend(), db = %redact(&config.server.db), "database open");
+
+    let metrics = Arc::new(Metrics::new());
+    let pipeline_config = PipelineConfig {
+        partitions: if config.pipeline.partitions == 0 {
+            PipelineConfig::default().partitions
+        } else {
+            config.pipeline.partitions
+        },
+        live_clock: config.pipeline.live_clock,
+        clock_lag_s: config.pipeline.clock_lag_s,
+        ..PipelineConfig::default()
+    };
+    let pipeline = Pipeline::start(&site, ingest_store, output_store, pipeline_config, Arc::clone(&metrics))?;
+    let queries: Arc<Mutex<Box<dyn Store>>> = Arc::new(Mutex::new(query_store));
+    let tokens = Arc::new(tokens);
+    let state = AppState {
+        pipeline: pipeline.clone(),
+        queries: Arc::clone(&queries),
+        tokens: Arc::clone(&tokens),
+        site: Arc::new(site),
+        default_accuracy_m: config.server.default_accuracy_m,
+        started: Instant::now(),
+    };
+
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let stopped = |mut rx: watch::Receiver<bool>| async move {
+        let _ = rx.wait_for(|stop| *stop).await;
+    };
+
+    let listener = tokio::net::TcpListener::bind(config.server.http)
+        .await
+        .map_err(|e| listen_error("HTTP", config.server.http, &e))?;
+    let http_addr = listener.local_addr().map_err(|e| listen_error("HTTP", config.server.http, &e))?;
+
+    let sink: Arc<dyn MeasurementSink> = Arc::new(pipeline.clone());
+    let mut tasks = Vec::new();
+    let mut mqtt_addr = None;
+    match config.mqtt.mode {
+        MqttMode::Embedded => {
+            let broker_config = BrokerConfig {
+                tokens: (*tokens).clone(),
+                ..BrokerConfig::default()
+            };
+            let broker = EmbeddedBroker::bind(config.mqtt.listen, broker_config, Arc::clone(&sink), pipeline.publications())
+                .await
+                .map_err(|e| ServeError::Listen { what: "MQTT", address: config.mqtt.listen.to_string(), reason: e.to_string() })?;
+            mqtt_addr = Some(broker.local_addr());
+            tasks.push(tokio::spawn(broker.run(stopped(stop_rx.clone()))));
+        }
+        MqttMode::External => {
+            let url = config.mqtt.url.clone().unwrap_or_default();
+            let bridge = ExternalBroker::connect(&url, Arc::clone(&sink), pipeline.publications(), "rtls/v1/measurements/#")
+                .map_err(|e| ServeError::Config(format!("mqtt.url: {e}")))?;
+            tasks.push(tokio::spawn(bridge.run(stopped(stop_rx.clone()))));
+        }
+        MqttMode::Off => {}
+    }
+    tasks.push(tokio::spawn(retention(
+        Arc::clone(&queries),
+        config.server.retention_days,
+        stopped(stop_rx.clone()),
+    )));
+
+    let bound = Bound { http: http_addr, mqtt: mqtt_addr };
+    tracing::info!(http = %http_addr, mqtt = ?mqtt_addr, "listening");
+    on_bound(bound);
+    let feed_task = feed.map(|start| start(pipeline.clone(), bound, stop_rx.clone()));
+
+    let app = router(state);
+    let http = tokio::spawn(
+        axum::serve(listener, app)
+            .with_graceful_shutdown(stopped(stop_rx.clone()))
+            .into_future(),
+    );
+    shutdown.await;
+    tracing::info!("shutting down: closing listeners");
+    let _ = stop_tx.send(true);
+    if let Some(task) = feed_task {
+        let _ = task.await;
+    }
+    let _ = tokio::time::timeout(Duration::from_secs(10), http).await;
+    for task in tasks {
+        let _ = tokio::time::timeout(Duration::from_secs(10), task).await;
+    }
+    tracing::info!("draining the pipeline");
+    let draining = pipeline.clone();
+    let _ = tokio::task::spawn_blocking(move || draining.shutdown()).await;
+    tracing::info!("stopped");
+    Ok(())
+}
+
+fn listen_error(what: &'static str, address: SocketAddr, error: &std::io::Error) -> ServeError {
+    ServeError::Listen { what, address: address.to_string(), reason: error.to_string() }
+}
+
+/// A database URL without its password, for logs.
+fn redact(url: &str) -> String {
+    match (url.find("://"), url.rfind('@')) {
+        (Some(scheme), Some(at)) if at > scheme => {
+            let credentials = &url[scheme + 3..at];
+            let user = credentials.split(':').next().unwrap_or("");
+            format!("{}://{user}:***@{}", &url[..scheme], &url[at + 1..])
+        }
+        _ => url.to_string(),
+    }
+}
+
+/// Deletes what is older than the retention period, hourly.
+async fn retention(queries: Arc<Mutex<Box<dyn Store>>>, retention_days: f64, stopped: impl Future<Output = ()>) {
+    tokio::pin!(stopped);
+    loop {
+        let cutoff_ms = unix_ms() - (retention_days * 86_400_000.0) as i64;
+        let store = Arc::clone(&queries);
+        let pruned = tokio::task::spawn_blocking(move || store.lock().map(|mut s| s.prune(cutoff_ms))).await;
+        match pruned {
+            Ok(Ok(Ok(p))) if p.records + p.locations + p.events > 0 => {
+                tracing::info!(records = p.records, locations = p.locations, events = p.events, retention_days, "retention pruned");
+            }
+            Ok(Ok(Err(e))) => tracing::error!(error = %e, "retention failed"),
+            _ => {}
+        }
+        tokio::select! {
+            () = &mut stopped => return,
+            () = tokio::time::sleep(RETENTION_PERIOD) => {}
+        }
+    }
+}
+
+/// Installs the log subscriber: `text` or `json` lines on stderr, filtered by `RTLS_LOG`
+/// (default `info`).
+pub fn init_logging(format: &str) {
+    let filter = tracing_subscriber::EnvFilter::try_from_env("RTLS_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    let builder = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr);
+    let _ = if format == "json" { builder.json().try_init() } else { builder.try_init() };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::redact;
+
+    #[test]
+    fn passwords_are_not_logged() {
+        assert_eq!(redact("postgres://rtls:secret@db:5432/rtls"), "postgres://rtls:***@db:5432/rtls");
+        assert_eq!(redact("sqlite:rtls.db"), "sqlite:rtls.db");
+    }
+}

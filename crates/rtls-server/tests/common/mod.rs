@@ -1,0 +1,118 @@
+//! Shared by the server's integration tests: a small site, a state on a fresh SQLite file,
+//! records of a tag walking through a hazard zone.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use rtls_engine::site::Site;
+use rtls_server::auth::Tokens;
+use rtls_server::http::AppState;
+use rtls_server::metrics::Metrics;
+use rtls_server::pipeline::{Pipeline, PipelineConfig};
+use rtls_server::store::{self, SqliteSync, Store};
+
+pub const WRITE: &str = "write-token-0123";
+pub const READ: &str = "read-token-4567";
+
+/// Four UWB anchors on a 30 × 20 m floor and a hazard zone x ∈ [14, 18] m.
+pub const SITE: &str = r#"
+name = "test floor"
+[[readers]]
+id = "A1"
+position_m = [0.0, 0.0, 2.5]
+technology = "uwb"
+[[readers]]
+id = "A2"
+position_m = [30.0, 0.0, 2.5]
+technology = "uwb"
+[[readers]]
+id = "A3"
+position_m = [30.0, 20.0, 2.5]
+technology = "uwb"
+[[readers]]
+id = "A4"
+position_m = [0.0, 20.0, 2.5]
+technology = "uwb"
+[[zones]]
+id = "forklift-lane"
+name = "Forklift lane"
+kind = "hazard"
+shape = { type = "box", min_m = [14.0, 0.0, -10.0], max_m = [18.0, 20.0, 10.0] }
+[tracker]
+pipeline = "fix-then-filter"
+motion_model = "cv"
+filter = "ekf"
+acceleration_noise_std_mps2 = 0.5
+initiation = { confirm_updates = 2, within_s = 5.0 }
+coast_timeout_s = 10.0
+delete_timeout_s = 300.0
+reorder_window_s = 0.2
+dimensions = 2
+"#;
+
+pub fn site() -> Site {
+    Site::from_toml_str(SITE, "test-site.toml").expect("test site")
+}
+
+/// A fresh directory under the system's temp dir.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rtls-server-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
+
+pub fn open_sqlite(path: &std::path::Path) -> Box<dyn Store> {
+    store::open(&format!("sqlite:{}", path.display()), SqliteSync::Normal).expect("sqlite")
+}
+
+/// A state over a fresh SQLite file, with the test site, a data clock (no wall clock).
+pub fn state(name: &str) -> AppState {
+    let path = temp_dir(name).join("rtls.db");
+    let site = site();
+    let config = PipelineConfig { partitions: 2, live_clock: false, ..PipelineConfig::default() };
+    let pipeline = Pipeline::start(&site, open_sqlite(&path), open_sqlite(&path), config, Arc::new(Metrics::new()))
+        .expect("pipeline");
+    AppState {
+        pipeline,
+        queries: Arc::new(Mutex::new(open_sqlite(&path))),
+        tokens: Arc::new(Tokens { write: WRITE.into(), read: Some(READ.into()) }),
+        site: Arc::new(site),
+        default_accuracy_m: 0.5,
+        started: Instant::now(),
+    }
+}
+
+/// JSON lines: `tag` walks along y = 10 m from x = 2 m at 1 m/s, one fix per 0.5 s, from
+/// `t0_s` for `seconds` s (it crosses the hazard zone x ∈ [14, 18] m between 12 and 16 s).
+pub fn walk(tag: &str, t0_s: f64, seconds: f64) -> String {
+    let mut lines = String::new();
+    let mut k = 0;
+    loop {
+        let t = 0.5 * f64::from(k);
+        if t > seconds {
+            break;
+        }
+        lines.push_str(&format!(
+            "{{\"t\": {}, \"tag\": \"{tag}\", \"kind\": \"fix\", \"position_m\": [{}, 10.0], \"covariance_m2\": [0.04, 0.0, 0.0, 0.04]}}\n",
+            t0_s + t,
+            2.0 + t
+        ));
+        k += 1;
+    }
+    lines
+}
+
+/// Polls `condition` every 20 ms for up to `timeout`.
+pub async fn eventually(timeout: Duration, mut condition: impl FnMut() -> bool) -> bool {
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        if condition() {
+            return true;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    condition()
+}
