@@ -23,6 +23,8 @@
 //!   scenarios in `scenarios/`, each returning a [`report::ExperimentReport`] (metric | paper |
 //!   ours | bound, tables, figures as data, notes).
 //! - [`reproduction`] — one seeded run of each paper's experiment, with every estimate.
+//! - [`mine`] — seed 000's mine at scale (307 readers, 600 miners, a roof fall) as a live,
+//!   endless feed of RSSI scans for `rtls serve --demo`, with the site file the tracker needs.
 //!
 //! ## Example: seed 004 truth, TDOA and odometry
 //! ```
@@ -47,6 +49,7 @@
 mod error;
 pub mod experiments;
 pub mod metrics;
+pub mod mine;
 pub mod montecarlo;
 pub mod pcrb;
 pub mod report;
