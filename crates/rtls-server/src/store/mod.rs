@@ -233,3 +233,102 @@ pub trait Store: Send {
     /// [`StoreError::Database`].
     fn prune(&mut self, before_ms: i64) -> Result<Pruned, StoreError>;
 }
+
+mod migrations;
+pub mod postgres;
+pub mod sqlite;
+#[cfg(test)]
+mod tests;
+
+pub use self::postgres::PostgresStore;
+pub use self::sqlite::{SqliteStore, SqliteSync};
+
+/// The database URL forms [`open`] accepts, for error messages.
+const ACCEPTED_URLS: &str = "accepted: sqlite:PATH, sqlite://PATH, a file path (SQLite), \
+                             postgres://USER:PASSWORD@HOST:PORT/DATABASE or postgresql://…";
+
+/// Opens the store a database URL names, applying the schema migrations:
+///
+/// - `sqlite:PATH`, `sqlite://PATH` or a bare file path: an SQLite file (created if missing),
+///   WAL journal, `synchronous` per `sqlite_sync`; the path `:memory:` (`sqlite::memory:`) is
+///   a private in-memory database;
+/// - `postgres://…` or `postgresql://…`: a PostgreSQL database (`sqlite_sync` is ignored).
+///
+/// # Errors
+/// [`StoreError::Url`] for anything else (another scheme, an empty path), naming the URL (its
+/// password masked) and the accepted forms; otherwise the errors of [`SqliteStore::open`] and
+/// [`PostgresStore::connect`].
+///
+/// # Examples
+/// ```
+/// use rtls_server::store::{open, SqliteSync, StoreError};
+///
+/// let store = open("sqlite::memory:", SqliteSync::Full)?;
+/// assert_eq!(store.backend(), "sqlite");
+/// assert!(matches!(open("mysql://db.example/rtls", SqliteSync::Full), Err(StoreError::Url { .. })));
+/// # Ok::<(), StoreError>(())
+/// ```
+pub fn open(url: &str, sqlite_sync: SqliteSync) -> Result<Box<dyn Store>, StoreError> {
+    match parse_url(url)? {
+        DatabaseUrl::Postgres => Ok(Box::new(PostgresStore::connect(url)?)),
+        DatabaseUrl::Sqlite(":memory:") => Ok(Box::new(SqliteStore::open_in_memory()?)),
+        DatabaseUrl::Sqlite(path) => Ok(Box::new(SqliteStore::open(std::path::Path::new(path), sqlite_sync)?)),
+    }
+}
+
+/// What a database URL names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum DatabaseUrl<'a> {
+    /// An SQLite file (or `:memory:`).
+    Sqlite(&'a str),
+    /// A PostgreSQL database (the URL goes to the client as it is).
+    Postgres,
+}
+
+/// Classifies a database URL (see [`open`]).
+fn parse_url(url: &str) -> Result<DatabaseUrl<'_>, StoreError> {
+    let rejected = |reason: String| StoreError::Url {
+        url: redact_password(url),
+        reason,
+    };
+    if url.is_empty() {
+        return Err(rejected(format!("empty; {ACCEPTED_URLS}")));
+    }
+    if url.starts_with("postgres://") || url.starts_with("postgresql://") {
+        return Ok(DatabaseUrl::Postgres);
+    }
+    if let Some(path) = url.strip_prefix("sqlite://").or_else(|| url.strip_prefix("sqlite:")) {
+        if path.is_empty() {
+            return Err(rejected(format!("no file path after the scheme; {ACCEPTED_URLS}")));
+        }
+        return Ok(DatabaseUrl::Sqlite(path));
+    }
+    // A scheme is a letter followed by letters, digits, `+`, `-` or `.`, then `:`; one letter
+    // is a Windows drive (`C:\rtls.db`), a path.
+    if let Some((scheme, _)) = url.split_once(':') {
+        let mut characters = scheme.chars();
+        let is_scheme = characters.next().is_some_and(|first| first.is_ascii_alphabetic())
+            && scheme.len() > 1
+            && characters.all(|character| character.is_ascii_alphanumeric() || "+-.".contains(character));
+        if is_scheme {
+            return Err(rejected(format!("unsupported scheme {scheme:?}; {ACCEPTED_URLS}")));
+        }
+    }
+    Ok(DatabaseUrl::Sqlite(url))
+}
+
+/// `url` with the password of its `user:password@` part replaced by `***`, for messages.
+pub(crate) fn redact_password(url: &str) -> String {
+    let Some((scheme, rest)) = url.split_once("://") else {
+        return url.to_owned();
+    };
+    let authority_end = rest.find(['/', '?', '#']).unwrap_or(rest.len());
+    let (authority, path) = rest.split_at(authority_end);
+    match authority.rsplit_once('@') {
+        Some((user_info, host)) => match user_info.split_once(':') {
+            Some((user, _password)) => format!("{scheme}://{user}:***@{host}{path}"),
+            None => url.to_owned(),
+        },
+        None => url.to_owned(),
+    }
+}

@@ -1,0 +1,622 @@
+//! The storage conformance suite: every function here takes a `&mut dyn Store` and is run by
+//! [`conformance!`] against an in-memory SQLite database, an SQLite file and, when
+//! `RTLS_TEST_POSTGRES_URL` is set, PostgreSQL (a schema of its own per test, dropped after).
+//! Back-end-specific tests (durability across reopening, WAL, migrations, URLs) are in
+//! `tests/backends.rs`.
+
+mod backends;
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use super::{
+    EventQuery, EventRow, HistoryQuery, LocationRow, NewRecord, PostgresStore, Pruned, SqliteStore, SqliteSync, Store,
+    StoreError,
+};
+
+/// The variable naming the PostgreSQL database the tests may use.
+const POSTGRES_URL_VARIABLE: &str = "RTLS_TEST_POSTGRES_URL";
+
+/// A name no other test (or test process) uses: `{prefix}_{pid}_{counter}_{nanoseconds}`.
+fn unique_name(prefix: &str) -> String {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let nanos = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |since| since.subsec_nanos());
+    format!(
+        "{prefix}_{}_{}_{nanos}",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+/// An SQLite file in the temporary directory, deleted (with its WAL and shared-memory files)
+/// when dropped.
+pub(super) struct TempDb {
+    pub path: PathBuf,
+}
+
+impl TempDb {
+    pub fn new(test: &str) -> Self {
+        Self {
+            path: std::env::temp_dir().join(format!("{}.db", unique_name(&format!("rtls_store_{test}")))),
+        }
+    }
+
+    pub fn open(&self) -> SqliteStore {
+        SqliteStore::open(&self.path, SqliteSync::Full).expect("open the SQLite file")
+    }
+
+    /// The path of the file SQLite keeps beside the database (`-wal`, `-shm`).
+    pub fn sibling(&self, suffix: &str) -> PathBuf {
+        let mut name = self.path.clone().into_os_string();
+        name.push(suffix);
+        PathBuf::from(name)
+    }
+}
+
+impl Drop for TempDb {
+    fn drop(&mut self) {
+        for path in [self.path.clone(), self.sibling("-wal"), self.sibling("-shm")] {
+            let _ = std::fs::remove_file(Path::new(&path));
+        }
+    }
+}
+
+/// A PostgreSQL schema of its own for one test, dropped (with everything in it) when dropped.
+pub(super) struct PgSchema {
+    pub url: String,
+    pub schema: String,
+}
+
+impl PgSchema {
+    /// `None` (after printing why) when `RTLS_TEST_POSTGRES_URL` is not set.
+    pub fn new() -> Option<Self> {
+        match std::env::var(POSTGRES_URL_VARIABLE) {
+            Ok(url) if !url.is_empty() => Some(Self {
+                url,
+                schema: unique_name("rtls_test"),
+            }),
+            _ => {
+                eprintln!("skipped: {POSTGRES_URL_VARIABLE} not set");
+                None
+            }
+        }
+    }
+
+    pub fn open(&self) -> PostgresStore {
+        PostgresStore::connect_in_schema(&self.url, &self.schema).expect("connect to PostgreSQL")
+    }
+}
+
+impl Drop for PgSchema {
+    fn drop(&mut self) {
+        let dropped = ::postgres::Client::connect(&self.url, ::postgres::NoTls)
+            .and_then(|mut client| client.batch_execute(&format!("DROP SCHEMA IF EXISTS \"{}\" CASCADE", self.schema)));
+        if let Err(error) = dropped {
+            eprintln!("could not drop the test schema {}: {error}", self.schema);
+        }
+    }
+}
+
+/// Runs each named conformance function against every back end, one `#[test]` per pair.
+macro_rules! conformance {
+    ($($test:ident),* $(,)?) => {
+        mod sqlite_memory {
+            $(#[test]
+            fn $test() {
+                let mut store = super::SqliteStore::open_in_memory().expect("open in memory");
+                super::$test(&mut store);
+            })*
+        }
+        mod sqlite_file {
+            $(#[test]
+            fn $test() {
+                let file = super::TempDb::new(stringify!($test));
+                let mut store = file.open();
+                super::$test(&mut store);
+            })*
+        }
+        mod postgres {
+            $(#[test]
+            fn $test() {
+                let Some(schema) = super::PgSchema::new() else { return };
+                let mut store = schema.open();
+                super::$test(&mut store);
+            })*
+        }
+    };
+}
+
+conformance!(
+    ids_increase_and_records_page,
+    large_batch_keeps_its_order,
+    failed_batch_stores_nothing,
+    ids_are_not_reused_after_pruning,
+    history_bounds_limit_and_tags,
+    event_filters,
+    config_crud,
+    checkpoints,
+    prune_deletes_exactly_the_older_rows,
+);
+
+pub(super) fn record(received_ms: i64, time_s: f64, tag: &str, label: &str) -> NewRecord {
+    NewRecord {
+        received_ms,
+        source: format!("mqtt:rtls/v1/measurements/{label}"),
+        time_s,
+        tag: tag.to_owned(),
+        json: format!(r#"{{"t":{time_s},"tag":"{tag}","label":"{label}"}}"#),
+    }
+}
+
+pub(super) fn location(received_ms: i64, time_s: f64, tag: &str) -> LocationRow {
+    LocationRow {
+        received_ms,
+        time_s,
+        tag: tag.to_owned(),
+        x_m: time_s * 2.0 + 0.125,
+        y_m: -time_s,
+        // Every other state is 2-D, every third has no accuracy, every fourth is predicted.
+        z_m: ((time_s as i64) % 2 == 0).then_some(1.5),
+        accuracy_m: ((time_s as i64) % 3 != 0).then_some(0.25 * time_s),
+        predicted: (time_s as i64) % 4 == 0,
+        json: format!(r#"{{"t":{time_s},"tag":"{tag}","received":{received_ms}}}"#),
+    }
+}
+
+pub(super) fn event(received_ms: i64, time_s: f64, kind: &str, tag: Option<&str>, alarm: bool) -> EventRow {
+    EventRow {
+        received_ms,
+        time_s,
+        kind: kind.to_owned(),
+        tag: tag.map(str::to_owned),
+        zone: kind.starts_with("zone").then(|| "stope-3".to_owned()),
+        alarm,
+        json: format!(r#"{{"t":{time_s},"type":"{kind}"}}"#),
+    }
+}
+
+/// Whether `ids` strictly increase.
+fn strictly_increasing(ids: &[i64]) -> bool {
+    ids.windows(2).all(|pair| pair[0] < pair[1])
+}
+
+fn ids_increase_and_records_page(store: &mut dyn Store) {
+    assert_eq!(store.record_count().unwrap(), 0);
+    assert!(store.records_after(0, 10).unwrap().is_empty());
+    assert!(store.append_records(&[]).unwrap().is_empty());
+    assert_eq!(store.record_count().unwrap(), 0);
+
+    let first: Vec<NewRecord> = (0..5)
+        .map(|i| record(1_000 + i, i as f64, "tag-1", &format!("a{i}")))
+        .collect();
+    let second: Vec<NewRecord> = (0..3)
+        .map(|i| record(2_000 + i, 10.0 + i as f64, "*", &format!("b{i}")))
+        .collect();
+    let first_ids = store.append_records(&first).unwrap();
+    let second_ids = store.append_records(&second).unwrap();
+    assert_eq!((first_ids.len(), second_ids.len()), (5, 3));
+    let all_ids: Vec<i64> = first_ids.iter().chain(&second_ids).copied().collect();
+    assert!(strictly_increasing(&all_ids), "ids {all_ids:?}");
+    assert_eq!(store.record_count().unwrap(), 8);
+
+    // Every field comes back as written, under the id the append returned.
+    let all_new: Vec<&NewRecord> = first.iter().chain(&second).collect();
+    let stored = store.records_after(0, 100).unwrap();
+    assert_eq!(stored.len(), 8);
+    for ((stored, new), id) in stored.iter().zip(&all_new).zip(&all_ids) {
+        assert_eq!(stored.id, *id);
+        assert_eq!(
+            (
+                stored.received_ms,
+                &stored.source,
+                stored.time_s,
+                &stored.tag,
+                &stored.json
+            ),
+            (new.received_ms, &new.source, new.time_s, &new.tag, &new.json)
+        );
+    }
+
+    // Paging by the last id seen visits every record once, in order, then stops.
+    let mut paged = Vec::new();
+    let mut after_id = 0;
+    loop {
+        let page = store.records_after(after_id, 3).unwrap();
+        assert!(page.len() <= 3);
+        let Some(last) = page.last() else { break };
+        after_id = last.id;
+        paged.extend(page.iter().map(|record| record.id));
+    }
+    assert_eq!(paged, all_ids);
+    let after_fifth: Vec<i64> = store
+        .records_after(all_ids[4], 100)
+        .unwrap()
+        .iter()
+        .map(|r| r.id)
+        .collect();
+    assert_eq!(after_fifth, second_ids);
+    assert!(store.records_after(all_ids[7], 100).unwrap().is_empty());
+    assert!(store.records_after(0, 0).unwrap().is_empty());
+}
+
+fn large_batch_keeps_its_order(store: &mut dyn Store) {
+    let batch: Vec<NewRecord> = (0..1_000)
+        .map(|i| record(5_000, f64::from(i) * 0.5, &format!("tag-{}", i % 7), &format!("n{i}")))
+        .collect();
+    let ids = store.append_records(&batch).unwrap();
+    assert_eq!(ids.len(), batch.len());
+    assert!(strictly_increasing(&ids));
+    let stored = store.records_after(0, 2_000).unwrap();
+    let stored_json: Vec<&str> = stored.iter().map(|record| record.json.as_str()).collect();
+    let batch_json: Vec<&str> = batch.iter().map(|record| record.json.as_str()).collect();
+    assert_eq!(stored_json, batch_json);
+    assert_eq!(stored.iter().map(|record| record.id).collect::<Vec<_>>(), ids);
+}
+
+/// A record this back end refuses: SQLite stores NaN as NULL, which `time_s NOT NULL`
+/// rejects; PostgreSQL's text type cannot hold a NUL character.
+fn poisoned_record(backend: &str) -> NewRecord {
+    let mut poisoned = record(1_000, 2.0, "tag-1", "poisoned");
+    match backend {
+        "sqlite" => poisoned.time_s = f64::NAN,
+        _ => poisoned.json = "{\"t\":2,\0}".to_owned(),
+    }
+    poisoned
+}
+
+fn failed_batch_stores_nothing(store: &mut dyn Store) {
+    store.append_records(&[record(500, 0.5, "tag-0", "before")]).unwrap();
+    let batch = [
+        record(1_000, 1.0, "tag-1", "good"),
+        poisoned_record(store.backend()),
+        record(1_000, 3.0, "tag-1", "good"),
+    ];
+    let error = store.append_records(&batch).unwrap_err();
+    assert!(
+        matches!(error, StoreError::Database { operation: "append records", backend, .. } if backend == store.backend()),
+        "{error:?}"
+    );
+    assert_eq!(store.record_count().unwrap(), 1);
+    let stored = store.records_after(0, 10).unwrap();
+    assert_eq!(stored.len(), 1);
+    assert!(stored[0].json.contains("before"));
+    // The store stays usable.
+    assert_eq!(
+        store
+            .append_records(&[record(2_000, 4.0, "tag-1", "after")])
+            .unwrap()
+            .len(),
+        1
+    );
+}
+
+fn ids_are_not_reused_after_pruning(store: &mut dyn Store) {
+    let ids = store
+        .append_records(&[
+            record(1_000, 1.0, "t", "x"),
+            record(1_000, 2.0, "t", "y"),
+            record(1_000, 3.0, "t", "z"),
+        ])
+        .unwrap();
+    assert_eq!(store.prune(2_000).unwrap().records, 3);
+    assert_eq!(store.record_count().unwrap(), 0);
+    let new_ids = store.append_records(&[record(3_000, 4.0, "t", "w")]).unwrap();
+    assert!(
+        new_ids[0] > ids[2],
+        "id {} reused after {ids:?} were pruned",
+        new_ids[0]
+    );
+}
+
+fn history_bounds_limit_and_tags(store: &mut dyn Store) {
+    // Appended out of time order, in two batches, interleaved with other tags.
+    let mut rows = Vec::new();
+    for time_s in [5.0, 1.0, 9.0, 3.0, 7.0, 10.0, 2.0, 6.0, 8.0, 4.0] {
+        rows.push(location(100, time_s, "miner-1"));
+        rows.push(location(100, time_s, "miner-2"));
+        rows.push(location(100, time_s, "miner-10"));
+    }
+    let (early, late) = rows.split_at(12);
+    store.append_locations(early).unwrap();
+    store.append_locations(late).unwrap();
+    store.append_locations(&[]).unwrap();
+    // Two states at the same time come back in the order they were stored.
+    let mut twin = location(200, 7.0, "miner-1");
+    twin.json = r#"{"twin":true}"#.to_owned();
+    store.append_locations(&[twin.clone()]).unwrap();
+
+    let query = |from_s: f64, to_s: f64, limit: usize| HistoryQuery {
+        tag: "miner-1".into(),
+        from_s,
+        to_s,
+        limit,
+    };
+    let got = store.history(&query(3.0, 7.0, 100)).unwrap();
+    let times: Vec<f64> = got.iter().map(|row| row.time_s).collect();
+    assert_eq!(
+        times,
+        [3.0, 4.0, 5.0, 6.0, 7.0, 7.0],
+        "bounds are inclusive, oldest first"
+    );
+    assert!(got.iter().all(|row| row.tag == "miner-1"), "other tags are excluded");
+    assert_eq!(
+        got[4],
+        location(100, 7.0, "miner-1"),
+        "every field comes back as written"
+    );
+    assert_eq!(got[5], twin);
+    assert_eq!(got[1], location(100, 4.0, "miner-1"));
+    assert!(got.iter().any(|row| row.z_m.is_none()) && got.iter().any(|row| row.accuracy_m.is_none()));
+    assert!(got.iter().any(|row| row.predicted) && got.iter().any(|row| !row.predicted));
+
+    let limited: Vec<f64> = store
+        .history(&query(3.0, 7.0, 2))
+        .unwrap()
+        .iter()
+        .map(|row| row.time_s)
+        .collect();
+    assert_eq!(limited, [3.0, 4.0]);
+    let point: Vec<f64> = store
+        .history(&query(10.0, 10.0, 5))
+        .unwrap()
+        .iter()
+        .map(|row| row.time_s)
+        .collect();
+    assert_eq!(point, [10.0]);
+    assert!(store.history(&query(7.5, 7.9, 5)).unwrap().is_empty());
+    assert!(store.history(&query(7.0, 3.0, 5)).unwrap().is_empty());
+    assert!(store.history(&query(3.0, 7.0, 0)).unwrap().is_empty());
+    let unknown = HistoryQuery {
+        tag: "miner-3".into(),
+        from_s: 0.0,
+        to_s: 100.0,
+        limit: 10,
+    };
+    assert!(store.history(&unknown).unwrap().is_empty());
+}
+
+fn event_filters(store: &mut dyn Store) {
+    let odd_kind = "it's \"odd\"";
+    let events = [
+        event(10, 1.0, "zone-enter", Some("a"), false),
+        event(10, 2.0, "hazard-predicted", Some("a"), true),
+        event(10, 3.0, "zone-exit", Some("b"), false),
+        event(10, 4.0, "no-coverage", None, true),
+        event(10, 5.0, "zone-enter", Some("b"), false),
+        event(10, 6.0, "model-switch", Some("a"), false),
+        event(10, 7.0, odd_kind, Some("c"), false),
+    ];
+    // Stored out of time order.
+    store.append_events(&events[3..]).unwrap();
+    store.append_events(&events[..3]).unwrap();
+    store.append_events(&[]).unwrap();
+
+    let mut run = |query: EventQuery| -> Vec<f64> {
+        store
+            .events(&EventQuery { limit: 100, ..query })
+            .unwrap()
+            .iter()
+            .map(|row| row.time_s)
+            .collect()
+    };
+    let all = EventQuery {
+        from_s: 0.0,
+        to_s: 10.0,
+        ..EventQuery::default()
+    };
+    let kinds = |names: &[&str]| names.iter().map(|name| (*name).to_owned()).collect::<Vec<_>>();
+    assert_eq!(run(all.clone()), [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
+    assert_eq!(
+        run(EventQuery {
+            from_s: 2.0,
+            to_s: 5.0,
+            ..all.clone()
+        }),
+        [2.0, 3.0, 4.0, 5.0]
+    );
+    assert_eq!(
+        run(EventQuery {
+            tag: Some("a".into()),
+            ..all.clone()
+        }),
+        [1.0, 2.0, 6.0]
+    );
+    assert_eq!(
+        run(EventQuery {
+            kinds: kinds(&["zone-enter", "zone-exit"]),
+            ..all.clone()
+        }),
+        [1.0, 3.0, 5.0]
+    );
+    assert_eq!(
+        run(EventQuery {
+            kinds: kinds(&[odd_kind]),
+            ..all.clone()
+        }),
+        [7.0]
+    );
+    assert_eq!(
+        run(EventQuery {
+            alarms_only: true,
+            ..all.clone()
+        }),
+        [2.0, 4.0]
+    );
+    assert_eq!(
+        run(EventQuery {
+            tag: Some("a".into()),
+            alarms_only: true,
+            ..all.clone()
+        }),
+        [2.0]
+    );
+    assert_eq!(
+        run(EventQuery {
+            tag: Some("b".into()),
+            kinds: kinds(&["zone-enter"]),
+            ..all.clone()
+        }),
+        [5.0]
+    );
+    assert!(run(EventQuery {
+        kinds: kinds(&["zone-enter"]),
+        alarms_only: true,
+        ..all.clone()
+    })
+    .is_empty());
+    assert!(run(EventQuery {
+        kinds: kinds(&["nothing-like-it"]),
+        ..all.clone()
+    })
+    .is_empty());
+
+    let limited = store
+        .events(&EventQuery {
+            limit: 2,
+            ..all.clone()
+        })
+        .unwrap();
+    assert_eq!(
+        limited,
+        [events[0].clone(), events[1].clone()],
+        "every field comes back as written"
+    );
+    let no_tag = store
+        .events(&EventQuery {
+            alarms_only: true,
+            limit: 10,
+            ..all
+        })
+        .unwrap();
+    assert_eq!(no_tag[1], events[3]);
+}
+
+fn config_crud(store: &mut dyn Store) {
+    assert_eq!(store.get_config("trackable", "t2").unwrap(), None);
+    assert!(store.put_config("trackable", "t2", r#"{"v":1}"#).unwrap(), "created");
+    assert!(!store.put_config("trackable", "t2", r#"{"v":2}"#).unwrap(), "replaced");
+    assert_eq!(
+        store.get_config("trackable", "t2").unwrap().as_deref(),
+        Some(r#"{"v":2}"#)
+    );
+    for id in ["t3", "t10", "T1", "t1"] {
+        assert!(store
+            .put_config("trackable", id, &format!(r#"{{"id":"{id}"}}"#))
+            .unwrap());
+    }
+    // Same ids under another kind are other objects.
+    assert!(store.put_config("zone", "t1", r#"{"zone":true}"#).unwrap());
+
+    let ids: Vec<String> = store
+        .list_config("trackable")
+        .unwrap()
+        .into_iter()
+        .map(|(id, _)| id)
+        .collect();
+    assert_eq!(ids, ["T1", "t1", "t10", "t2", "t3"], "ordered by id, byte-wise");
+    assert_eq!(
+        store.list_config("zone").unwrap(),
+        [("t1".to_owned(), r#"{"zone":true}"#.to_owned())]
+    );
+    assert!(store.list_config("fence").unwrap().is_empty());
+
+    assert!(store.delete_config("trackable", "t2").unwrap(), "existed");
+    assert!(!store.delete_config("trackable", "t2").unwrap(), "already gone");
+    assert_eq!(store.get_config("trackable", "t2").unwrap(), None);
+    assert_eq!(
+        store.get_config("zone", "t1").unwrap().as_deref(),
+        Some(r#"{"zone":true}"#)
+    );
+    assert_eq!(store.list_config("trackable").unwrap().len(), 4);
+    assert!(
+        store.put_config("trackable", "t2", r#"{"v":3}"#).unwrap(),
+        "created again after deletion"
+    );
+}
+
+fn checkpoints(store: &mut dyn Store) {
+    assert_eq!(store.checkpoint("tracker").unwrap(), None);
+    store.set_checkpoint("tracker", 5).unwrap();
+    assert_eq!(store.checkpoint("tracker").unwrap(), Some(5));
+    store.set_checkpoint("tracker", 7).unwrap();
+    assert_eq!(store.checkpoint("tracker").unwrap(), Some(7));
+    store.set_checkpoint("replay", i64::MAX).unwrap();
+    store.set_checkpoint("offset", -3).unwrap();
+    assert_eq!(store.checkpoint("tracker").unwrap(), Some(7));
+    assert_eq!(store.checkpoint("replay").unwrap(), Some(i64::MAX));
+    assert_eq!(store.checkpoint("offset").unwrap(), Some(-3));
+}
+
+fn prune_deletes_exactly_the_older_rows(store: &mut dyn Store) {
+    let received = [1_000, 1_999, 2_000, 2_001, 3_000];
+    let records: Vec<NewRecord> = received
+        .iter()
+        .enumerate()
+        .map(|(i, &ms)| record(ms, i as f64, "t", &format!("r{i}")))
+        .collect();
+    store.append_records(&records).unwrap();
+    store
+        .append_locations(&[
+            location(1_000, 1.0, "t"),
+            location(2_000, 2.0, "t"),
+            location(1_500, 3.0, "t"),
+        ])
+        .unwrap();
+    store
+        .append_events(&[
+            event(1_500, 1.0, "zone-enter", Some("t"), false),
+            event(2_000, 2.0, "zone-dwell", Some("t"), false),
+            event(2_500, 3.0, "zone-exit", Some("t"), false),
+        ])
+        .unwrap();
+    store.put_config("site", "mine", "{}").unwrap();
+    store.set_checkpoint("tracker", 5).unwrap();
+
+    assert_eq!(
+        store.prune(2_000).unwrap(),
+        Pruned {
+            records: 2,
+            locations: 2,
+            events: 1
+        }
+    );
+
+    let kept: Vec<i64> = store
+        .records_after(0, 10)
+        .unwrap()
+        .iter()
+        .map(|r| r.received_ms)
+        .collect();
+    assert_eq!(kept, [2_000, 2_001, 3_000]);
+    let history = store
+        .history(&HistoryQuery {
+            tag: "t".into(),
+            from_s: 0.0,
+            to_s: 10.0,
+            limit: 10,
+        })
+        .unwrap();
+    assert_eq!(history.iter().map(|row| row.received_ms).collect::<Vec<_>>(), [2_000]);
+    let events = store
+        .events(&EventQuery {
+            from_s: 0.0,
+            to_s: 10.0,
+            limit: 10,
+            ..EventQuery::default()
+        })
+        .unwrap();
+    assert_eq!(
+        events.iter().map(|row| row.received_ms).collect::<Vec<_>>(),
+        [2_000, 2_500]
+    );
+    assert_eq!(
+        store.get_config("site", "mine").unwrap().as_deref(),
+        Some("{}"),
+        "configuration is kept"
+    );
+    assert_eq!(store.checkpoint("tracker").unwrap(), Some(5), "checkpoints are kept");
+    assert_eq!(store.prune(2_000).unwrap(), Pruned::default(), "nothing older is left");
+}
