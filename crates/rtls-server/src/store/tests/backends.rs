@@ -10,7 +10,7 @@ use super::super::migrations::{
 use super::super::{
     open, parse_url, DatabaseUrl, EventQuery, HistoryQuery, PostgresStore, SqliteStore, SqliteSync, Store, StoreError,
 };
-use super::{event, location, record, PgSchema, TempDb};
+use super::harness::{event, location, record, PgSchema, TempDb};
 
 fn sqlite_history(connection: &mut Connection) -> Vec<AppliedMigration> {
     connection.applied_migrations().expect("read schema_migrations")
