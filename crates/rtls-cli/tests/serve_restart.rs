@@ -30,6 +30,7 @@ technology = "uwb"
 pipeline = "fix-then-filter"
 motion_model = "cv"
 filter = "ekf"
+gate_probability = 0.999
 initiation = { confirm_updates = 2, within_s = 5.0 }
 reorder_window_s = 0.2
 dimensions = 2

@@ -42,6 +42,7 @@ shape = { type = "box", min_m = [50.0, 0.0, -10.0], max_m = [100.0, 100.0, 10.0]
 pipeline = "fix-then-filter"
 motion_model = "cv"
 filter = "ekf"
+gate_probability = 0.999
 initiation = { confirm_updates = 2, within_s = 5.0 }
 reorder_window_s = 0.05
 output_interval_s = 0.1

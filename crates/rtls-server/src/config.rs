@@ -8,6 +8,7 @@
 //! retention_days = 92            # history, events and the ingest log (mine rules: ≥ 3 months)
 //! log_format = "text"            # or "json"
 //! default_accuracy_m = 1.0       # omlox locations without `accuracy`
+//! sqlite_sync = "full"           # or "normal": safe against a crash, not a power loss
 //!
 //! [auth]
 //! write_token = "…"              # or the environment variable RTLS_WRITE_TOKEN
@@ -101,6 +102,10 @@ pub struct ServerSection {
     pub log_format: String,
     /// Accuracy of omlox locations without one (m).
     pub default_accuracy_m: f64,
+    /// SQLite's `synchronous`: `full` (every commit is fsynced: safe against power loss) or
+    /// `normal` (safe against a process crash, e.g. SIGKILL; the last commits may be lost on
+    /// power loss).
+    pub sqlite_sync: String,
 }
 
 impl Default for ServerSection {
@@ -112,6 +117,7 @@ impl Default for ServerSection {
             retention_days: 92.0,
             log_format: "text".into(),
             default_accuracy_m: 1.0,
+            sqlite_sync: "full".into(),
         }
     }
 }
@@ -197,6 +203,9 @@ impl ServerConfig {
         }
         if !matches!(s.log_format.as_str(), "text" | "json") {
             return Err(invalid("server.log_format", format!("`{}` is not text or json", s.log_format)));
+        }
+        if !matches!(s.sqlite_sync.as_str(), "full" | "normal") {
+            return Err(invalid("server.sqlite_sync", format!("`{}` is not full or normal", s.sqlite_sync)));
         }
         if !(s.default_accuracy_m.is_finite() && s.default_accuracy_m > 0.0) {
             return Err(invalid("server.default_accuracy_m", format!("must be > 0 m, got {}", s.default_accuracy_m)));

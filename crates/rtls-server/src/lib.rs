@@ -1,28 +1,33 @@
-//! The service layer of rtls. What exists so far is the data model of the omlox™ hub API 2.0.0
-//! that `rtls serve` will speak; the server itself (REST under `/v2`, WebSocket
-//! `/v2/ws/socket`, storage) is issue 8.
+//! The service layer of rtls: `rtls serve`, the control-room server (docs/SERVER.md).
 //!
-//! - [`omlox`] — serde types for the objects the hub API serves and accepts (`Location`,
-//!   `Trackable`, `LocationProvider`, `Zone`, `Fence`, `FenceEvent`, WebSocket messages) and the
-//!   field-level validation of the ingest body (`PUT /v2/providers/locations`).
-//! - [`convert`] — the engine's outputs in omlox terms (`TrackUpdate` → `Location`, `ZoneEvent`
-//!   → `FenceEvent`, site zones → `Fence`, other events → the `rtls:alarms` / `rtls:events`
-//!   extension topics) and ingested `Location`s → engine `Record`s.
-//!
-//! No async and no I/O here: everything is a pure function of its inputs, testable without a
-//! port.
+//! - [`pipeline`] — the manager layer behind ingest: the ingest log (durable before any
+//!   acknowledgement, group commit), tag partitions on worker threads each with a tracker, the
+//!   output thread (history, events, restart checkpoint), bounded queues throughout.
+//! - [`mqtt`] — the embedded MQTT 3.1.1 broker (PUBACK only after commit) and the bridge to an
+//!   external broker; [`http`] — the omlox hub API under `/v2`, the WebSocket, `/api/v1`
+//!   (ingest, history with CSV/GeoJSON, events, head counts) and `/health`, `/metrics`,
+//!   `/openapi.json`.
+//! - [`store`] — SQLite (default, WAL) and PostgreSQL with schema migrations and retention.
+//! - [`omlox`] and [`convert`] — the omlox hub API 2.0.0 data model and the engine's outputs in
+//!   its terms; [`auth`] — write and read tokens; [`config`] — the configuration file;
+//!   [`serve`] — starting and stopping it all; [`demo`] — seed 000's simulated mine as a live
+//!   feed.
 //!
 //! # References
 //! - omlox™ hub API 2.0.0, OpenAPI 3.0.2 description (PROFIBUS & PROFINET International).
+//! - OASIS MQTT 3.1.1 (2014).
 
 pub mod auth;
 pub mod config;
 pub mod convert;
+pub mod demo;
 mod error;
 pub mod http;
 pub mod metrics;
+pub mod mqtt;
 pub mod omlox;
 pub mod pipeline;
+pub mod serve;
 pub mod sink;
 pub mod store;
 

@@ -17,7 +17,7 @@ use crate::metrics::Metrics;
 use crate::mqtt::{BrokerConfig, EmbeddedBroker, ExternalBroker};
 use crate::pipeline::{unix_ms, Pipeline, PipelineConfig};
 use crate::sink::MeasurementSink;
-use crate::store::{self, Store};
+use crate::store::{self, SqliteSync, Store};
 
 /// How often retention runs.
 const RETENTION_PERIOD: Duration = Duration::from_secs(3600);
@@ -86,7 +86,8 @@ pub async fn serve(
 ) -> Result<(), ServeError> {
     let ServeOptions { config, site, site_text, tokens, feed } = options;
     let db = config.server.db.clone();
-    let open = || store::open(&db);
+    let sync = if config.server.sqlite_sync == "normal" { SqliteSync::Normal } else { SqliteSync::Full };
+    let open = move || store::open(&db, sync);
     let (ingest_store, output_store, mut query_store) = tokio::task::spawn_blocking(move || {
         let opened: Result<_, store::StoreError> = (|| Ok((open()?, open()?, open()?)))();
         opened
@@ -134,10 +135,7 @@ pub async fn serve(
     let mut mqtt_addr = None;
     match config.mqtt.mode {
         MqttMode::Embedded => {
-            let broker_config = BrokerConfig {
-                tokens: (*tokens).clone(),
-                ..BrokerConfig::default()
-            };
+            let broker_config = BrokerConfig::new((*tokens).clone());
             let broker = EmbeddedBroker::bind(config.mqtt.listen, broker_config, Arc::clone(&sink), pipeline.publications())
                 .await
                 .map_err(|e| ServeError::Listen { what: "MQTT", address: config.mqtt.listen.to_string(), reason: e.to_string() })?;
@@ -146,7 +144,8 @@ pub async fn serve(
         }
         MqttMode::External => {
             let url = config.mqtt.url.clone().unwrap_or_default();
-            let bridge = ExternalBroker::connect(&url, Arc::clone(&sink), pipeline.publications(), "rtls/v1/measurements/#")
+            let bridge = ExternalBroker::connect(&url, Arc::clone(&sink), pipeline.publications(), crate::mqtt::MEASUREMENT_FILTER)
+                .await
                 .map_err(|e| ServeError::Config(format!("mqtt.url: {e}")))?;
             tasks.push(tokio::spawn(bridge.run(stopped(stop_rx.clone()))));
         }
@@ -164,11 +163,12 @@ pub async fn serve(
     let feed_task = feed.map(|start| start(pipeline.clone(), bound, stop_rx.clone()));
 
     let app = router(state);
-    let http = tokio::spawn(
-        axum::serve(listener, app)
-            .with_graceful_shutdown(stopped(stop_rx.clone()))
-            .into_future(),
-    );
+    let http_stopped = stopped(stop_rx.clone());
+    let http = tokio::spawn(async move {
+        if let Err(e) = axum::serve(listener, app).with_graceful_shutdown(http_stopped).await {
+            tracing::error!(error = %e, "HTTP server failed");
+        }
+    });
     shutdown.await;
     tracing::info!("shutting down: closing listeners");
     let _ = stop_tx.send(true);
@@ -208,7 +208,11 @@ async fn retention(queries: Arc<Mutex<Box<dyn Store>>>, retention_days: f64, sto
     loop {
         let cutoff_ms = unix_ms() - (retention_days * 86_400_000.0) as i64;
         let store = Arc::clone(&queries);
-        let pruned = tokio::task::spawn_blocking(move || store.lock().map(|mut s| s.prune(cutoff_ms))).await;
+        let pruned = tokio::task::spawn_blocking(move || match store.lock() {
+            Ok(mut store) => Ok(store.prune(cutoff_ms)),
+            Err(_) => Err(()),
+        })
+        .await;
         match pruned {
             Ok(Ok(Ok(p))) if p.records + p.locations + p.events > 0 => {
                 tracing::info!(records = p.records, locations = p.locations, events = p.events, retention_days, "retention pruned");

@@ -44,6 +44,7 @@ shape = { type = "box", min_m = [14.0, 0.0, -10.0], max_m = [18.0, 20.0, 10.0] }
 pipeline = "fix-then-filter"
 motion_model = "cv"
 filter = "ekf"
+gate_probability = 0.999
 acceleration_noise_std_mps2 = 0.5
 initiation = { confirm_updates = 2, within_s = 5.0 }
 coast_timeout_s = 10.0

@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# Starts a local mosquitto broker for the external-broker tests of rtls-server
+# (crates/rtls-server/tests/mqtt_mosquitto.rs).
+#
+# - installs Debian's mosquitto when it is missing (needs root, as on the project's machines);
+# - runs it as a background daemon (not through systemd) with its own configuration in a
+#   temporary directory: one listener on 127.0.0.1:18830, anonymous clients allowed, no
+#   persistence;
+# - waits until the port accepts connections;
+# - does nothing but print the variable when a broker already answers on that port.
+#
+# Usage:  eval "$(bash .ci/services/mosquitto.sh | tail -n 1)"
+# The last line printed is always: export RTLS_TEST_MOSQUITTO_URL=mqtt://127.0.0.1:18830
+set -euo pipefail
+
+host=127.0.0.1
+port=18830
+url="mqtt://${host}:${port}"
+
+port_accepts() {
+    # bash's /dev/tcp: succeeds when something accepts a TCP connection on host:port.
+    (exec 3<>"/dev/tcp/${host}/${port}") 2>/dev/null
+}
+
+if port_accepts; then
+    echo "mosquitto.sh: a broker already accepts connections on ${host}:${port}" >&2
+    echo "export RTLS_TEST_MOSQUITTO_URL=${url}"
+    exit 0
+fi
+
+mosquitto_bin=$(command -v mosquitto || true)
+if [ -z "${mosquitto_bin}" ] && [ -x /usr/sbin/mosquitto ]; then
+    mosquitto_bin=/usr/sbin/mosquitto
+fi
+if [ -z "${mosquitto_bin}" ]; then
+    echo "mosquitto.sh: installing mosquitto (apt-get)" >&2
+    export DEBIAN_FRONTEND=noninteractive
+    if ! apt-get install -y --no-install-recommends mosquitto >&2; then
+        apt-get update >&2
+        apt-get install -y --no-install-recommends mosquitto >&2
+    fi
+    mosquitto_bin=$(command -v mosquitto || echo /usr/sbin/mosquitto)
+fi
+
+work_dir=$(mktemp -d /tmp/rtls-mosquitto.XXXXXX)
+config="${work_dir}/mosquitto.conf"
+cat >"${config}" <<CONF
+# Written by .ci/services/mosquitto.sh for the rtls-server tests.
+listener ${port} ${host}
+allow_anonymous true
+persistence false
+pid_file ${work_dir}/mosquitto.pid
+log_dest file ${work_dir}/mosquitto.log
+log_type error
+log_type warning
+log_type notice
+CONF
+# Debian's package runs the broker as the user "mosquitto" when started as root; let it write
+# its pid and log files.
+if id mosquitto >/dev/null 2>&1; then
+    chown -R mosquitto "${work_dir}"
+fi
+
+"${mosquitto_bin}" -c "${config}" -d
+
+for _ in $(seq 1 100); do
+    if port_accepts; then
+        echo "mosquitto.sh: mosquitto runs on ${host}:${port} (config and log in ${work_dir})" >&2
+        echo "export RTLS_TEST_MOSQUITTO_URL=${url}"
+        exit 0
+    fi
+    sleep 0.1
+done
+
+echo "mosquitto.sh: mosquitto did not accept connections on ${host}:${port} within 10 s; its log:" >&2
+cat "${work_dir}/mosquitto.log" >&2 || true
+exit 1
