@@ -77,12 +77,15 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
             .site
             .clone()
             .context("a site file is needed: --site PATH (or server.site in the config), or --demo")?;
-        let text = std::fs::read_to_string(&path).with_context(|| format!("reading the site file {}", path.display()))?;
+        let text =
+            std::fs::read_to_string(&path).with_context(|| format!("reading the site file {}", path.display()))?;
         (text, path.display().to_string())
     };
     let site = Site::from_toml_str(&site_text, &site_name)?;
 
-    let write = std::env::var("RTLS_WRITE_TOKEN").ok().or(config.auth.write_token.clone());
+    let write = std::env::var("RTLS_WRITE_TOKEN")
+        .ok()
+        .or(config.auth.write_token.clone());
     let read = std::env::var("RTLS_READ_TOKEN").ok().or(config.auth.read_token.clone());
     let write = match write {
         Some(token) if token.len() >= 8 => token,
@@ -94,7 +97,10 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
         }
         None => bail!("writes need a token: set RTLS_WRITE_TOKEN or auth.write_token in the config file"),
     };
-    let tokens = Tokens { write: write.clone(), read };
+    let tokens = Tokens {
+        write: write.clone(),
+        read,
+    };
     let demo = args.demo;
     let miners = args.demo_miners;
     let feed: Option<rtls_server::serve::Feed> = demo.then(|| {
@@ -110,7 +116,13 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
         .build()
         .context("starting the async runtime")?;
     runtime.block_on(async move {
-        let options = ServeOptions { config, site, site_text, tokens, feed };
+        let options = ServeOptions {
+            config,
+            site,
+            site_text,
+            tokens,
+            feed,
+        };
         serve(options, announce, shutdown_signal()).await
     })?;
     Ok(())

@@ -11,8 +11,8 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use rumqttc::{AsyncClient, Event, MqttOptions, Outgoing, Packet, QoS};
 use rtls_server::store::{self, SqliteSync};
+use rumqttc::{AsyncClient, Event, MqttOptions, Outgoing, Packet, QoS};
 
 const TOKEN: &str = "restart-test-write-token";
 
@@ -46,7 +46,16 @@ fn start(dir: &std::path::Path) -> Server {
     let site = dir.join("site.toml");
     std::fs::write(&site, SITE).unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_rtls"))
-        .args(["serve", "--site", site.to_str().unwrap(), "--http", "127.0.0.1:0", "--mqtt-listen", "127.0.0.1:0", "--data-clock"])
+        .args([
+            "serve",
+            "--site",
+            site.to_str().unwrap(),
+            "--http",
+            "127.0.0.1:0",
+            "--mqtt-listen",
+            "127.0.0.1:0",
+            "--data-clock",
+        ])
         .arg("--db")
         .arg(format!("sqlite:{}", dir.join("rtls.db").display()))
         .env("RTLS_WRITE_TOKEN", TOKEN)
@@ -56,8 +65,11 @@ fn start(dir: &std::path::Path) -> Server {
         .spawn()
         .expect("rtls serve starts");
     let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let bound: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("announce line {line:?}: {e}"));
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let bound: serde_json::Value =
+        serde_json::from_str(&line).unwrap_or_else(|e| panic!("announce line {line:?}: {e}"));
     Server {
         child,
         http: bound["http"].as_str().unwrap().to_string(),
@@ -113,7 +125,11 @@ async fn mqtt_writer(mqtt: String, tag: &'static str, acked: Keys) {
     let publisher = tokio::spawn(async move {
         for batch in 0.. {
             let payload: String = (batch * 20..batch * 20 + 20).map(|i| record(tag, i)).collect();
-            if client.publish("rtls/v1/measurements/r1", QoS::AtLeastOnce, false, payload).await.is_err() {
+            if client
+                .publish("rtls/v1/measurements/r1", QoS::AtLeastOnce, false, payload)
+                .await
+                .is_err()
+            {
                 return;
             }
         }
@@ -129,7 +145,10 @@ async fn mqtt_writer(mqtt: String, tag: &'static str, acked: Keys) {
             }
             Ok(Event::Incoming(Packet::PubAck(ack))) => {
                 if let Some(batch) = in_flight.remove(&ack.pkid) {
-                    acked.lock().unwrap().extend((batch * 20..batch * 20 + 20).map(|i| key(tag, i)));
+                    acked
+                        .lock()
+                        .unwrap()
+                        .extend((batch * 20..batch * 20 + 20).map(|i| key(tag, i)));
                 }
             }
             Ok(_) => {}
@@ -172,17 +191,36 @@ async fn no_acknowledged_record_is_lost_when_the_server_is_killed_during_ingest(
     server.child.kill().unwrap(); // SIGKILL
     server.child.wait().unwrap();
     for writer in writers {
-        tokio::time::timeout(Duration::from_secs(30), writer).await.expect("writers stop").unwrap();
+        tokio::time::timeout(Duration::from_secs(30), writer)
+            .await
+            .expect("writers stop")
+            .unwrap();
     }
     let acked = acked.lock().unwrap().clone();
     let from_mqtt = acked.iter().filter(|(tag, _)| tag == "mqtt-1").count();
-    println!("acknowledged before SIGKILL: {} records ({from_mqtt} over MQTT)", acked.len());
-    assert!(acked.len() >= 3000 && from_mqtt > 0, "ingest ran: {} acked, {from_mqtt} over MQTT", acked.len());
+    println!(
+        "acknowledged before SIGKILL: {} records ({from_mqtt} over MQTT)",
+        acked.len()
+    );
+    assert!(
+        acked.len() >= 3000 && from_mqtt > 0,
+        "ingest ran: {} acked, {from_mqtt} over MQTT",
+        acked.len()
+    );
 
     let stored = stored_keys(&dir);
     let lost: Vec<_> = acked.difference(&stored).collect();
-    println!("stored: {} records; acknowledged but lost: {}", stored.len(), lost.len());
-    assert!(lost.is_empty(), "{} acknowledged records lost, e.g. {:?}", lost.len(), lost.first());
+    println!(
+        "stored: {} records; acknowledged but lost: {}",
+        stored.len(),
+        lost.len()
+    );
+    assert!(
+        lost.is_empty(),
+        "{} acknowledged records lost, e.g. {:?}",
+        lost.len(),
+        lost.first()
+    );
 
     // the restarted server replays the log: the tags are tracked again, health is ok
     let mut server = start(&dir);
@@ -203,7 +241,12 @@ async fn no_acknowledged_record_is_lost_when_the_server_is_killed_during_ingest(
         }
         tokio::time::sleep(Duration::from_millis(40)).await;
     }
-    let names: HashSet<&str> = tags.as_array().unwrap().iter().map(|t| t["tag"].as_str().unwrap()).collect();
+    let names: HashSet<&str> = tags
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["tag"].as_str().unwrap())
+        .collect();
     assert_eq!(names, HashSet::from(["http-1", "http-2", "mqtt-1"]));
 
     // SIGTERM: a graceful stop with exit status 0
@@ -214,7 +257,10 @@ async fn no_acknowledged_record_is_lost_when_the_server_is_killed_during_ingest(
         if let Some(status) = server.child.try_wait().unwrap() {
             break status;
         }
-        assert!(started.elapsed() < Duration::from_secs(20), "no exit 20 s after SIGTERM");
+        assert!(
+            started.elapsed() < Duration::from_secs(20),
+            "no exit 20 s after SIGTERM"
+        );
         std::thread::sleep(Duration::from_millis(50));
     };
     assert!(status.success(), "{status}");

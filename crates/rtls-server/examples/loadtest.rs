@@ -56,7 +56,11 @@ struct Args {
 }
 
 fn parse_args() -> Args {
-    let mut args = Args { tags: 600, rate_hz: 10.0, seconds: 20.0 };
+    let mut args = Args {
+        tags: 600,
+        rate_hz: 10.0,
+        seconds: 20.0,
+    };
     let argv: Vec<String> = std::env::args().skip(1).collect();
     for pair in argv.chunks(2) {
         let value = pair.get(1).map(String::as_str).unwrap_or("");
@@ -71,7 +75,10 @@ fn parse_args() -> Args {
 }
 
 fn unix_s() -> f64 {
-    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_secs_f64()
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64()
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -96,7 +103,10 @@ async fn main() {
         config,
         site,
         site_text: SITE.into(),
-        tokens: Tokens { write: TOKEN.into(), read: None },
+        tokens: Tokens {
+            write: TOKEN.into(),
+            read: None,
+        },
         feed: None,
     };
     let (bound_tx, bound_rx) = tokio::sync::oneshot::channel::<Bound>();
@@ -114,10 +124,15 @@ async fn main() {
     let mqtt = bound.mqtt.expect("embedded broker");
 
     // the WebSocket client: latency of every location update
-    let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{}/v2/ws/socket", bound.http)).await.unwrap();
-    futures_util::SinkExt::send(&mut socket, Message::Text(r#"{"event":"subscribe","topic":"location_updates"}"#.into()))
+    let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{}/v2/ws/socket", bound.http))
         .await
         .unwrap();
+    futures_util::SinkExt::send(
+        &mut socket,
+        Message::Text(r#"{"event":"subscribe","topic":"location_updates"}"#.into()),
+    )
+    .await
+    .unwrap();
     let latencies = Arc::new(Mutex::new(Vec::<f64>::new()));
     let measuring = Arc::new(std::sync::atomic::AtomicBool::new(false));
     let ws_task = {
@@ -129,7 +144,9 @@ async fn main() {
                 let received = unix_s();
                 let value: serde_json::Value = serde_json::from_str(&text).unwrap();
                 for location in value["payload"].as_array().into_iter().flatten() {
-                    let Some(stamp) = location["timestamp_generated"].as_str() else { continue };
+                    let Some(stamp) = location["timestamp_generated"].as_str() else {
+                        continue;
+                    };
                     let t = rtls_server::omlox::time::parse_timestamp(stamp, "t").unwrap();
                     if measuring.load(Ordering::Relaxed) {
                         latencies.lock().unwrap().push(received - t);
@@ -207,7 +224,11 @@ async fn main() {
     }
     let mut latencies = latencies.lock().unwrap().clone();
     latencies.sort_by(f64::total_cmp);
-    let offered = if args.rate_hz > 0.0 { Some(args.tags as f64 * args.rate_hz) } else { None };
+    let offered = if args.rate_hz > 0.0 {
+        Some(args.tags as f64 * args.rate_hz)
+    } else {
+        None
+    };
     let report = serde_json::json!({
         "tags": args.tags,
         "rate_hz": args.rate_hz,

@@ -168,7 +168,11 @@ pub struct PipelineSection {
 
 impl Default for PipelineSection {
     fn default() -> Self {
-        Self { partitions: 0, live_clock: true, clock_lag_s: 2.0 }
+        Self {
+            partitions: 0,
+            live_clock: true,
+            clock_lag_s: 2.0,
+        }
     }
 }
 
@@ -196,28 +200,49 @@ impl ServerConfig {
     /// # Errors
     /// [`ConfigError::Invalid`] naming the field.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        let invalid = |field: &str, reason: String| ConfigError::Invalid { field: field.into(), reason };
+        let invalid = |field: &str, reason: String| ConfigError::Invalid {
+            field: field.into(),
+            reason,
+        };
         let s = &self.server;
         if !(s.retention_days.is_finite() && s.retention_days > 0.0) {
-            return Err(invalid("server.retention_days", format!("must be > 0 days, got {}", s.retention_days)));
+            return Err(invalid(
+                "server.retention_days",
+                format!("must be > 0 days, got {}", s.retention_days),
+            ));
         }
         if !matches!(s.log_format.as_str(), "text" | "json") {
-            return Err(invalid("server.log_format", format!("`{}` is not text or json", s.log_format)));
+            return Err(invalid(
+                "server.log_format",
+                format!("`{}` is not text or json", s.log_format),
+            ));
         }
         if !matches!(s.sqlite_sync.as_str(), "full" | "normal") {
-            return Err(invalid("server.sqlite_sync", format!("`{}` is not full or normal", s.sqlite_sync)));
+            return Err(invalid(
+                "server.sqlite_sync",
+                format!("`{}` is not full or normal", s.sqlite_sync),
+            ));
         }
         if !(s.default_accuracy_m.is_finite() && s.default_accuracy_m > 0.0) {
-            return Err(invalid("server.default_accuracy_m", format!("must be > 0 m, got {}", s.default_accuracy_m)));
+            return Err(invalid(
+                "server.default_accuracy_m",
+                format!("must be > 0 m, got {}", s.default_accuracy_m),
+            ));
         }
         if self.mqtt.mode == MqttMode::External && self.mqtt.url.is_none() {
             return Err(invalid("mqtt.url", "required when mqtt.mode = \"external\"".into()));
         }
         let p = &self.pipeline;
         if !(p.clock_lag_s.is_finite() && p.clock_lag_s >= 0.0) {
-            return Err(invalid("pipeline.clock_lag_s", format!("must be ≥ 0 s, got {}", p.clock_lag_s)));
+            return Err(invalid(
+                "pipeline.clock_lag_s",
+                format!("must be ≥ 0 s, got {}", p.clock_lag_s),
+            ));
         }
-        for (field, token) in [("auth.write_token", &self.auth.write_token), ("auth.read_token", &self.auth.read_token)] {
+        for (field, token) in [
+            ("auth.write_token", &self.auth.write_token),
+            ("auth.read_token", &self.auth.read_token),
+        ] {
             if token.as_deref().is_some_and(|t| t.len() < 8) {
                 return Err(invalid(field, "must be at least 8 characters".into()));
             }
@@ -244,9 +269,20 @@ mod tests {
         std::fs::write(&path, "[mqtt]\nmode = \"external\"\n").unwrap();
         let error = ServerConfig::from_file(&path).unwrap_err().to_string();
         assert!(error.contains("mqtt.url"), "{error}");
-        std::fs::write(&path, "[server]\nhttp = \"127.0.0.1:9000\"\n[pipeline]\npartitions = 3\n").unwrap();
+        std::fs::write(
+            &path,
+            "[server]\nhttp = \"127.0.0.1:9000\"\n[pipeline]\npartitions = 3\n",
+        )
+        .unwrap();
         let config = ServerConfig::from_file(&path).unwrap();
-        assert_eq!((config.server.http.port(), config.pipeline.partitions, config.server.retention_days), (9000, 3, 92.0));
+        assert_eq!(
+            (
+                config.server.http.port(),
+                config.pipeline.partitions,
+                config.server.retention_days
+            ),
+            (9000, 3, 92.0)
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -52,7 +52,11 @@ pub fn start(
             None => None,
         };
         let mut tick = tokio::time::interval(Duration::from_secs(1));
-        tracing::info!(miners, via = if publisher.is_some() { "mqtt" } else { "sink" }, "demo mine started");
+        tracing::info!(
+            miners,
+            via = if publisher.is_some() { "mqtt" } else { "sink" },
+            "demo mine started"
+        );
         loop {
             tokio::select! {
                 _ = stop.wait_for(|s| *s) => break,
@@ -73,7 +77,11 @@ pub fn start(
                     .publish(DEMO_TOPIC, QoS::AtLeastOnce, false, payload.into_bytes())
                     .await
                     .map_err(|e| e.to_string()),
-                None => pipeline.ingest("demo", payload.into()).await.map(|_| ()).map_err(|e| e.to_string()),
+                None => pipeline
+                    .ingest("demo", payload.into())
+                    .await
+                    .map(|_| ())
+                    .map_err(|e| e.to_string()),
             };
             if let Err(e) = result {
                 tracing::warn!(error = %e, records = records.len(), "demo feed: records not delivered");

@@ -84,9 +84,19 @@ pub async fn serve(
     on_bound: impl FnOnce(Bound) + Send,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> Result<(), ServeError> {
-    let ServeOptions { config, site, site_text, tokens, feed } = options;
+    let ServeOptions {
+        config,
+        site,
+        site_text,
+        tokens,
+        feed,
+    } = options;
     let db = config.server.db.clone();
-    let sync = if config.server.sqlite_sync == "normal" { SqliteSync::Normal } else { SqliteSync::Full };
+    let sync = if config.server.sqlite_sync == "normal" {
+        SqliteSync::Normal
+    } else {
+        SqliteSync::Full
+    };
     let open = move || store::open(&db, sync);
     let (ingest_store, output_store, mut query_store) = tokio::task::spawn_blocking(move || {
         let opened: Result<_, store::StoreError> = (|| Ok((open()?, open()?, open()?)))();
@@ -128,7 +138,9 @@ pub async fn serve(
     let listener = tokio::net::TcpListener::bind(config.server.http)
         .await
         .map_err(|e| listen_error("HTTP", config.server.http, &e))?;
-    let http_addr = listener.local_addr().map_err(|e| listen_error("HTTP", config.server.http, &e))?;
+    let http_addr = listener
+        .local_addr()
+        .map_err(|e| listen_error("HTTP", config.server.http, &e))?;
 
     let sink: Arc<dyn MeasurementSink> = Arc::new(pipeline.clone());
     let mut tasks = Vec::new();
@@ -136,17 +148,31 @@ pub async fn serve(
     match config.mqtt.mode {
         MqttMode::Embedded => {
             let broker_config = BrokerConfig::new((*tokens).clone());
-            let broker = EmbeddedBroker::bind(config.mqtt.listen, broker_config, Arc::clone(&sink), pipeline.publications())
-                .await
-                .map_err(|e| ServeError::Listen { what: "MQTT", address: config.mqtt.listen.to_string(), reason: e.to_string() })?;
+            let broker = EmbeddedBroker::bind(
+                config.mqtt.listen,
+                broker_config,
+                Arc::clone(&sink),
+                pipeline.publications(),
+            )
+            .await
+            .map_err(|e| ServeError::Listen {
+                what: "MQTT",
+                address: config.mqtt.listen.to_string(),
+                reason: e.to_string(),
+            })?;
             mqtt_addr = Some(broker.local_addr());
             tasks.push(tokio::spawn(broker.run(stopped(stop_rx.clone()))));
         }
         MqttMode::External => {
             let url = config.mqtt.url.clone().unwrap_or_default();
-            let bridge = ExternalBroker::connect(&url, Arc::clone(&sink), pipeline.publications(), crate::mqtt::MEASUREMENT_FILTER)
-                .await
-                .map_err(|e| ServeError::Config(format!("mqtt.url: {e}")))?;
+            let bridge = ExternalBroker::connect(
+                &url,
+                Arc::clone(&sink),
+                pipeline.publications(),
+                crate::mqtt::MEASUREMENT_FILTER,
+            )
+            .await
+            .map_err(|e| ServeError::Config(format!("mqtt.url: {e}")))?;
             tasks.push(tokio::spawn(bridge.run(stopped(stop_rx.clone()))));
         }
         MqttMode::Off => {}
@@ -157,7 +183,10 @@ pub async fn serve(
         stopped(stop_rx.clone()),
     )));
 
-    let bound = Bound { http: http_addr, mqtt: mqtt_addr };
+    let bound = Bound {
+        http: http_addr,
+        mqtt: mqtt_addr,
+    };
     tracing::info!(http = %http_addr, mqtt = ?mqtt_addr, "listening");
     on_bound(bound);
     let feed_task = feed.map(|start| start(pipeline.clone(), bound, stop_rx.clone()));
@@ -187,7 +216,11 @@ pub async fn serve(
 }
 
 fn listen_error(what: &'static str, address: SocketAddr, error: &std::io::Error) -> ServeError {
-    ServeError::Listen { what, address: address.to_string(), reason: error.to_string() }
+    ServeError::Listen {
+        what,
+        address: address.to_string(),
+        reason: error.to_string(),
+    }
 }
 
 /// A database URL without its password, for logs.
@@ -215,7 +248,13 @@ async fn retention(queries: Arc<Mutex<Box<dyn Store>>>, retention_days: f64, sto
         .await;
         match pruned {
             Ok(Ok(Ok(p))) if p.records + p.locations + p.events > 0 => {
-                tracing::info!(records = p.records, locations = p.locations, events = p.events, retention_days, "retention pruned");
+                tracing::info!(
+                    records = p.records,
+                    locations = p.locations,
+                    events = p.events,
+                    retention_days,
+                    "retention pruned"
+                );
             }
             Ok(Ok(Err(e))) => tracing::error!(error = %e, "retention failed"),
             _ => {}
@@ -232,8 +271,14 @@ async fn retention(queries: Arc<Mutex<Box<dyn Store>>>, retention_days: f64, sto
 pub fn init_logging(format: &str) {
     let filter = tracing_subscriber::EnvFilter::try_from_env("RTLS_LOG")
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
-    let builder = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr);
-    let _ = if format == "json" { builder.json().try_init() } else { builder.try_init() };
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    let _ = if format == "json" {
+        builder.json().try_init()
+    } else {
+        builder.try_init()
+    };
 }
 
 #[cfg(test)]
@@ -242,7 +287,10 @@ mod tests {
 
     #[test]
     fn passwords_are_not_logged() {
-        assert_eq!(redact("postgres://rtls:secret@db:5432/rtls"), "postgres://rtls:***@db:5432/rtls");
+        assert_eq!(
+            redact("postgres://rtls:secret@db:5432/rtls"),
+            "postgres://rtls:***@db:5432/rtls"
+        );
         assert_eq!(redact("sqlite:rtls.db"), "sqlite:rtls.db");
     }
 }

@@ -32,22 +32,36 @@ async fn start(mut config: ServerConfig) -> Running {
         config,
         site: common::site(),
         site_text: SITE.into(),
-        tokens: Tokens { write: WRITE.into(), read: Some(READ.into()) },
+        tokens: Tokens {
+            write: WRITE.into(),
+            read: Some(READ.into()),
+        },
         feed: None,
     };
     let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();
     let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let task = tokio::spawn(serve(options, move |b| drop(bound_tx.send(b)), async move {
-        let _ = stop_rx.await;
-    }));
-    let bound = tokio::time::timeout(Duration::from_secs(20), bound_rx).await.expect("server starts").unwrap();
+    let task = tokio::spawn(serve(
+        options,
+        move |b| {
+            let _ = bound_tx.send(b);
+        },
+        async move {
+            let _ = stop_rx.await;
+        },
+    ));
+    let bound = tokio::time::timeout(Duration::from_secs(20), bound_rx)
+        .await
+        .expect("server starts")
+        .unwrap();
     Running { bound, stop, task }
 }
 
 type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
 async fn subscribe(http: std::net::SocketAddr, requests: &[&str]) -> Socket {
-    let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{http}/v2/ws/socket?token={READ}")).await.unwrap();
+    let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{http}/v2/ws/socket?token={READ}"))
+        .await
+        .unwrap();
     for request in requests {
         socket.send(Message::Text((*request).into())).await.unwrap();
         let reply = next_json(&mut socket).await;
@@ -58,7 +72,9 @@ async fn subscribe(http: std::net::SocketAddr, requests: &[&str]) -> Socket {
 
 async fn next_json(socket: &mut Socket) -> Value {
     loop {
-        let message = tokio::time::timeout(Duration::from_secs(20), socket.next()).await.expect("a message within 20 s");
+        let message = tokio::time::timeout(Duration::from_secs(20), socket.next())
+            .await
+            .expect("a message within 20 s");
         if let Some(Ok(Message::Text(text))) = message {
             return serde_json::from_str(&text).unwrap();
         }
@@ -110,11 +126,18 @@ async fn walk_reaches_websocket_and_mqtt(running: &Running, broker: &str, write_
     });
     // other tags' records too, which the location subscription filters out
     let payload = format!("{}{}", walk("miner-7", 5000.0, 20.0), walk("miner-8", 5000.0, 2.0));
-    publisher.publish("rtls/v1/measurements/reader-1", QoS::AtLeastOnce, false, payload).await.unwrap();
-    tokio::time::timeout(Duration::from_secs(20), ack_rx.recv()).await.expect("PUBACK").unwrap();
+    publisher
+        .publish("rtls/v1/measurements/reader-1", QoS::AtLeastOnce, false, payload)
+        .await
+        .unwrap();
+    tokio::time::timeout(Duration::from_secs(20), ack_rx.recv())
+        .await
+        .expect("PUBACK")
+        .unwrap();
 
     let (mut last_x, mut fence_events, mut locations) = (0.0, Vec::new(), 0);
-    while last_x < 21.0 || fence_events.len() < 2 {
+    // the newest records wait for later data (reorder window, epoch): x ≈ 20 m at the end
+    while last_x < 19.5 || fence_events.len() < 2 {
         let message = next_json(&mut socket).await;
         assert_eq!(message["event"], "message", "{message}");
         for payload in message["payload"].as_array().unwrap() {
@@ -135,15 +158,25 @@ async fn walk_reaches_websocket_and_mqtt(running: &Running, broker: &str, write_
     assert_eq!(fence_events[0]["foreign_id"], "forklift-lane");
     assert!(fence_events[1]["entry_time"].is_string() && fence_events[1]["exit_time"].is_string());
 
-    let (topic, payload) = tokio::time::timeout(Duration::from_secs(20), track_rx.recv()).await.expect("a track publication").unwrap();
-    assert!(topic == "rtls/v1/tracks/miner-7" || topic == "rtls/v1/tracks/miner-8", "{topic}");
+    let (topic, payload) = tokio::time::timeout(Duration::from_secs(20), track_rx.recv())
+        .await
+        .expect("a track publication")
+        .unwrap();
+    assert!(
+        topic == "rtls/v1/tracks/miner-7" || topic == "rtls/v1/tracks/miner-8",
+        "{topic}"
+    );
     let update: Value = serde_json::from_slice(&payload).unwrap();
     assert!(update["t"].as_f64().unwrap() >= 5000.0, "{update}");
 }
 
 async fn stop(running: Running) {
     running.stop.send(()).unwrap();
-    tokio::time::timeout(Duration::from_secs(30), running.task).await.expect("graceful stop").unwrap().unwrap();
+    tokio::time::timeout(Duration::from_secs(30), running.task)
+        .await
+        .expect("graceful stop")
+        .unwrap()
+        .unwrap();
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -157,9 +190,20 @@ async fn embedded_broker_to_websocket_and_mqtt_subscribers() {
 
     // a client without the write token cannot publish: refused at CONNECT
     let (client, mut event_loop) = mqtt_client(&broker, "intruder", Some("not-the-token"));
-    client.publish("rtls/v1/measurements/x", QoS::AtLeastOnce, false, walk("intruder", 1.0, 1.0)).await.unwrap();
+    client
+        .publish(
+            "rtls/v1/measurements/x",
+            QoS::AtLeastOnce,
+            false,
+            walk("intruder", 1.0, 1.0),
+        )
+        .await
+        .unwrap();
     let refused = loop {
-        match tokio::time::timeout(Duration::from_secs(10), event_loop.poll()).await.expect("an answer") {
+        match tokio::time::timeout(Duration::from_secs(10), event_loop.poll())
+            .await
+            .expect("an answer")
+        {
             Ok(Event::Incoming(Packet::ConnAck(ack))) => break format!("{:?}", ack.code),
             Ok(_) => {}
             Err(e) => break e.to_string(),
@@ -168,13 +212,23 @@ async fn embedded_broker_to_websocket_and_mqtt_subscribers() {
     assert!(!refused.contains("Success"), "{refused}");
 
     // an unknown WebSocket topic is an omlox error 10001 / 10000
-    let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{}/v2/ws/socket?token={READ}", running.bound.http)).await.unwrap();
-    socket.send(Message::Text(r#"{"event":"subscribe","topic":"weather"}"#.into())).await.unwrap();
+    let (mut socket, _) =
+        tokio_tungstenite::connect_async(format!("ws://{}/v2/ws/socket?token={READ}", running.bound.http))
+            .await
+            .unwrap();
+    socket
+        .send(Message::Text(r#"{"event":"subscribe","topic":"weather"}"#.into()))
+        .await
+        .unwrap();
     let reply = next_json(&mut socket).await;
     assert_eq!(reply["event"], "error");
     assert!(matches!(reply["code"].as_u64(), Some(10000..=10005)), "{reply}");
     // a WebSocket without a token is refused
-    assert!(tokio_tungstenite::connect_async(format!("ws://{}/v2/ws/socket", running.bound.http)).await.is_err());
+    assert!(
+        tokio_tungstenite::connect_async(format!("ws://{}/v2/ws/socket", running.bound.http))
+            .await
+            .is_err()
+    );
     stop(running).await;
 }
 
@@ -207,7 +261,10 @@ async fn postgresql_storage_serves_history() {
     let name = database.clone();
     tokio::task::spawn_blocking(move || {
         let mut client = postgres::Client::connect(&admin, postgres::NoTls).unwrap();
-        client.batch_execute(&format!("DROP DATABASE IF EXISTS {name}; CREATE DATABASE {name}")).unwrap();
+        client
+            .batch_execute(&format!("DROP DATABASE IF EXISTS {name}"))
+            .unwrap();
+        client.batch_execute(&format!("CREATE DATABASE {name}")).unwrap();
     })
     .await
     .unwrap();
@@ -238,14 +295,16 @@ async fn postgresql_storage_serves_history() {
             .await
             .unwrap();
         rows = history.as_array().unwrap().clone();
-        if rows.last().is_some_and(|r| r["t"].as_f64().unwrap() >= 7019.9) {
+        if rows.last().is_some_and(|r| r["t"].as_f64().unwrap() >= 7017.9) {
             break;
         }
         tokio::time::sleep(Duration::from_millis(25)).await;
     }
     assert!(rows.len() >= 20, "{} states in PostgreSQL", rows.len());
     let events: Value = client
-        .get(format!("http://{http}/api/v1/events?tag=miner-pg&type=zone-enter,zone-exit"))
+        .get(format!(
+            "http://{http}/api/v1/events?tag=miner-pg&type=zone-enter,zone-exit"
+        ))
         .bearer_auth(READ)
         .send()
         .await
@@ -253,12 +312,19 @@ async fn postgresql_storage_serves_history() {
         .json()
         .await
         .unwrap();
-    let kinds: Vec<&str> = events.as_array().unwrap().iter().map(|e| e["type"].as_str().unwrap()).collect();
+    let kinds: Vec<&str> = events
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["type"].as_str().unwrap())
+        .collect();
     assert_eq!(kinds, ["zone-enter", "zone-exit"]);
     stop(running).await;
     tokio::task::spawn_blocking(move || {
         let mut client = postgres::Client::connect(&url, postgres::NoTls).unwrap();
-        client.batch_execute(&format!("DROP DATABASE IF EXISTS {database} WITH (FORCE)")).unwrap();
+        client
+            .batch_execute(&format!("DROP DATABASE IF EXISTS {database} WITH (FORCE)"))
+            .unwrap();
     })
     .await
     .unwrap();

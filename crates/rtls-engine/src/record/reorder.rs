@@ -180,6 +180,28 @@ impl Reorderer {
         Ok(self.release_up_to(newest_s - self.window_s))
     }
 
+    /// Releases the held records at or before `clock_s − window_s`, in time order: a live
+    /// clock (`clock_s`, on the records' time base) says no record older than that can still
+    /// arrive in time, so the last records of a tag that falls silent are not held for ever.
+    /// Records older than the released ones stay late, as after [`Reorderer::push`].
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::record::{Measurement, Record, Reorderer};
+    ///
+    /// let mut reorderer = Reorderer::new(1.0).unwrap();
+    /// let record = Record { time_s: 10.0, tag: "a".into(), measurement: Measurement::Rssi { anchor: "R".into(), rssi_dbm: -60.0 } };
+    /// assert!(reorderer.push(record).unwrap().is_empty());
+    /// assert!(reorderer.release_until(10.5).is_empty()); // 10 > 10.5 − 1
+    /// assert_eq!(reorderer.release_until(11.0).len(), 1);
+    /// ```
+    pub fn release_until(&mut self, clock_s: f64) -> Vec<Emitted> {
+        if !clock_s.is_finite() {
+            return Vec::new();
+        }
+        self.release_up_to(clock_s - self.window_s)
+    }
+
     /// Releases every held record, in time order (end of input).
     ///
     /// Later pushes still compare with the last released time stamp.

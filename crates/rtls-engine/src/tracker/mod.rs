@@ -369,7 +369,9 @@ impl Tracker {
     }
 
     /// Advances the tracker's clock to `time_s` without a record (a live server calls this
-    /// with its clock): due ticks run, so coasting tracks are predicted, lost and deleted.
+    /// with its clock): records held in the re-ordering window at or before
+    /// `time_s − reorder_window_s` are applied, and due ticks run, so coasting tracks are
+    /// predicted, lost and deleted.
     ///
     /// # Errors
     /// A non-finite `time_s`.
@@ -379,6 +381,10 @@ impl Tracker {
                 name: "time_s",
                 reason: "must be finite",
             });
+        }
+        // records the clock says can no longer be overtaken leave the re-ordering window
+        for emitted in self.reorderer.release_until(time_s) {
+            self.emitted(emitted, out)?;
         }
         if time_s > self.now_s {
             self.now_s = time_s;

@@ -73,13 +73,26 @@ pub fn open_sqlite(path: &std::path::Path) -> Box<dyn Store> {
 pub fn state(name: &str) -> AppState {
     let path = temp_dir(name).join("rtls.db");
     let site = site();
-    let config = PipelineConfig { partitions: 2, live_clock: false, ..PipelineConfig::default() };
-    let pipeline = Pipeline::start(&site, open_sqlite(&path), open_sqlite(&path), config, Arc::new(Metrics::new()))
-        .expect("pipeline");
+    let config = PipelineConfig {
+        partitions: 2,
+        live_clock: false,
+        ..PipelineConfig::default()
+    };
+    let pipeline = Pipeline::start(
+        &site,
+        open_sqlite(&path),
+        open_sqlite(&path),
+        config,
+        Arc::new(Metrics::new()),
+    )
+    .expect("pipeline");
     AppState {
         pipeline,
         queries: Arc::new(Mutex::new(open_sqlite(&path))),
-        tokens: Arc::new(Tokens { write: WRITE.into(), read: Some(READ.into()) }),
+        tokens: Arc::new(Tokens {
+            write: WRITE.into(),
+            read: Some(READ.into()),
+        }),
         site: Arc::new(site),
         default_accuracy_m: 0.5,
         started: Instant::now(),
