@@ -14,7 +14,7 @@ use crate::error::Result;
 use crate::lifecycle::{Lifecycle, LifecycleEvent, LifecycleSettings, TrackStatus};
 use crate::radio_map::RadioMap;
 use crate::record::Measurement;
-use crate::site::{AlarmSettings, TrackerSettings};
+use crate::site::{AlarmSettings, Pipeline, TrackerSettings};
 use crate::zones::{Zone, ZoneMonitor};
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter};
 use rtls_estimation::imm::ImmState;
@@ -118,6 +118,13 @@ pub(crate) struct Core<const N: usize> {
     index: HashMap<Arc<str>, usize>,
     tracks: Vec<Track<N>>,
     pub(crate) monitor: ZoneMonitor,
+}
+
+/// Fix-then-filter: whether the track's open epoch holds readings from before `now_s`. Its fix
+/// will carry the epoch's last reading time, so ticking the track at `now_s` first would put
+/// the fix's update behind the tick (time going backwards for the lifecycle).
+fn holds_earlier_readings<const N: usize>(shared: &Shared, track: &Track<N>, now_s: f64) -> bool {
+    shared.settings.pipeline == Pipeline::FixThenFilter && track.epoch.last().is_some_and(|&(t, _)| t < now_s)
 }
 
 /// Tracked dimensions of a CV state of size `N`.
@@ -280,6 +287,11 @@ impl<const N: usize> Core<N> {
             close_due_epoch(shared, track, now_s, out)?;
             if track.unreported.is_some() && track.state.as_ref().is_some_and(|s| s.time_s() < now_s) {
                 report(shared, track, &mut self.monitor, out)?;
+            }
+            if holds_earlier_readings(shared, track, now_s) {
+                // its fix will be dated before this tick: the lifecycle and the coasting output
+                // wait for it (the epoch closes by the first tick after its window)
+                continue;
             }
             let Some(lifecycle) = track.lifecycle.as_mut() else {
                 continue;

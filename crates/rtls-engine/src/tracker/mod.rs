@@ -27,12 +27,14 @@
 //! Records pass a re-ordering window (`reorder_window_s`); later ones are reported as
 //! [`Event::Late`], never applied silently out of order. A track's update is reported once all
 //! readings of its time stamp are in (when a later record of the tag arrives, or at the next
-//! tick). The tracker ticks every half `output_interval_s` of record time: a track whose update
-//! is overdue by more than `output_interval_s` coasts, outputting its prediction every
-//! `output_interval_s`, flagged `predicted`, with its growing covariance (seed 000's gap
-//! filling, so the position-equipment loss rate PEL is 0); after `coast_timeout_s` of silence
-//! it is lost and keeps reporting its last estimated position (status `lost`); after
-//! `delete_timeout_s` it is deleted.
+//! tick). The tracker ticks every half `output_interval_s` of record time, in time order with
+//! the records: the ticks before a record's time run before it is applied (so a tag's outputs do
+//! not depend on other tags' records), and a fix-then-filter track whose open epoch holds
+//! earlier readings is ticked once its fix is in. A track whose update is overdue by more than
+//! `output_interval_s` coasts, outputting its prediction every `output_interval_s`, flagged
+//! `predicted`, with its growing covariance (seed 000's gap filling, so the position-equipment
+//! loss rate PEL is 0); after `coast_timeout_s` of silence it is lost and keeps reporting its
+//! last estimated position (status `lost`); after `delete_timeout_s` it is deleted.
 //!
 //! # Zones and alarms
 //! Confirmed and coasting positions feed the zone monitor (enter / exit / dwell with anti-flap).
@@ -114,6 +116,8 @@ mod tests_anonymous;
 mod tests_imm;
 #[cfg(test)]
 mod tests_schedule;
+#[cfg(test)]
+mod tests_timing;
 mod update;
 
 pub use anonymous::ANONYMOUS_TAG;
@@ -140,6 +144,15 @@ use crate::zones::ZoneKind;
 
 /// Ticks run to catch up after a silence of the whole input, at most.
 const MAX_CATCH_UP_TICKS: f64 = 100_000.0;
+
+/// Which ticks [`Tracker::run_ticks`] runs relative to a time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum TicksDue {
+    /// Those strictly before it: due before a record at that time is applied.
+    Before,
+    /// Those before it and at it.
+    Through,
+}
 
 /// The tracks of a 2-D or a 3-D site.
 #[derive(Debug, Clone)]
@@ -309,7 +322,13 @@ impl Tracker {
         }
     }
 
+    /// Applies one in-order record: first the ticks due before its time, then the record, then
+    /// a tick at its time if one is due.
     fn apply(&mut self, record: &Record, out: &mut Output) -> Result<()> {
+        // a tick at τ must see every track as of τ: the ticks between the previous record and
+        // this one come first, or a track this record updates (or starts) would be ticked at
+        // an earlier time after its update (its lifecycle's time would go backwards)
+        self.run_ticks(record.time_s, TicksDue::Before, out)?;
         if record.tag == ANONYMOUS_TAG {
             let shared = match &self.tracks {
                 Tracks::Planar(core) => &core.shared,
@@ -333,26 +352,27 @@ impl Tracker {
                 }),
             }
             self.now_s = self.now_s.max(record.time_s);
-            return self.tick_if_due(self.now_s, out);
+            return self.run_ticks(self.now_s, TicksDue::Through, out);
         }
         match &mut self.tracks {
             Tracks::Planar(core) => core.apply(record.time_s, &record.tag, &record.measurement, out)?,
             Tracks::Spatial(core) => core.apply(record.time_s, &record.tag, &record.measurement, out)?,
         }
         self.now_s = self.now_s.max(record.time_s);
-        self.tick_if_due(self.now_s, out)
+        self.run_ticks(self.now_s, TicksDue::Through, out)
     }
 
-    /// Runs the ticks due by `now_s`. Ticks lie on a grid of half the output interval from the
-    /// first record, so a coasting output is at most half an interval late; after a silence
-    /// longer than [`MAX_CATCH_UP_TICKS`] ticks the grid restarts at `now_s`.
-    fn tick_if_due(&mut self, now_s: f64, out: &mut Output) -> Result<()> {
+    /// Runs the ticks due before `time_s` ([`TicksDue::Before`]) or by it
+    /// ([`TicksDue::Through`]). Ticks lie on a grid of half the output interval from the first
+    /// record, so a coasting output is at most half an interval late; after a silence longer
+    /// than [`MAX_CATCH_UP_TICKS`] ticks the grid restarts at `time_s`.
+    fn run_ticks(&mut self, time_s: f64, due: TicksDue, out: &mut Output) -> Result<()> {
         let period_s = self.output_interval_s / 2.0;
-        let mut next_s = *self.next_tick_s.get_or_insert(now_s);
-        if (now_s - next_s) / period_s > MAX_CATCH_UP_TICKS {
-            next_s = now_s;
+        let mut next_s = *self.next_tick_s.get_or_insert(time_s);
+        if (time_s - next_s) / period_s > MAX_CATCH_UP_TICKS {
+            next_s = time_s;
         }
-        while next_s <= now_s {
+        while next_s < time_s || (due == TicksDue::Through && next_s == time_s) {
             match &mut self.tracks {
                 Tracks::Planar(core) => core.tick(next_s, out)?,
                 Tracks::Spatial(core) => core.tick(next_s, out)?,
@@ -388,7 +408,7 @@ impl Tracker {
         }
         if time_s > self.now_s {
             self.now_s = time_s;
-            self.tick_if_due(time_s, out)?;
+            self.run_ticks(time_s, TicksDue::Through, out)?;
         }
         Ok(())
     }
