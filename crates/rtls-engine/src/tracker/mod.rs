@@ -309,6 +309,16 @@ impl Tracker {
 
     fn emitted(&mut self, emitted: Emitted, out: &mut Output) -> Result<()> {
         match emitted {
+            // the live clock ticked past it (it arrived after the window had closed on it)
+            Emitted::InOrder(record) if record.time_s < self.now_s => {
+                out.events.push(Event::Late {
+                    tag: record.tag.as_str().into(),
+                    time_s: record.time_s,
+                    kind: record.measurement.kind(),
+                    lateness_s: self.now_s - record.time_s,
+                });
+                Ok(())
+            }
             Emitted::InOrder(record) => self.apply(&record, out),
             Emitted::Late { record, lateness_s } => {
                 out.events.push(Event::Late {
@@ -390,8 +400,9 @@ impl Tracker {
 
     /// Advances the tracker's clock to `time_s` without a record (a live server calls this
     /// with its clock): records held in the re-ordering window at or before
-    /// `time_s − reorder_window_s` are applied, and due ticks run, so coasting tracks are
-    /// predicted, lost and deleted.
+    /// `time_s − reorder_window_s` are applied, and the ticks due by then run, so coasting
+    /// tracks are predicted, lost and deleted. A record older than that arriving later is
+    /// reported [`Event::Late`].
     ///
     /// # Errors
     /// A non-finite `time_s`.
@@ -402,13 +413,16 @@ impl Tracker {
                 reason: "must be finite",
             });
         }
-        // records the clock says can no longer be overtaken leave the re-ordering window
+        // records the clock says can no longer be overtaken leave the re-ordering window, and
+        // the ticks run up to the window's far edge only: a record still inside the window
+        // can be applied after them
         for emitted in self.reorderer.release_until(time_s) {
             self.emitted(emitted, out)?;
         }
-        if time_s > self.now_s {
-            self.now_s = time_s;
-            self.run_ticks(time_s, TicksDue::Through, out)?;
+        let clock_s = time_s - self.reorderer.window_s();
+        if clock_s > self.now_s {
+            self.now_s = clock_s;
+            self.run_ticks(clock_s, TicksDue::Through, out)?;
         }
         Ok(())
     }

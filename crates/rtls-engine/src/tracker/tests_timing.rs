@@ -187,3 +187,63 @@ fn a_tick_inside_an_open_epoch_waits_for_its_fix() {
         "the silence is filled with predictions"
     );
 }
+
+/// A live clock (`advance_to`, as the server calls it with the wall clock) releases a silent
+/// tag's last scan from the re-ordering window, then coasts and loses the track; a record
+/// that arrives after the clock passed its time is reported late, not applied behind a tick.
+#[test]
+fn the_live_clock_releases_the_window_and_reports_records_it_passed_as_late() {
+    let mut tracker = mine_like();
+    let mut out = Output::default();
+    let position = [10.0, 5.0];
+    for k in 0..6 {
+        for record in scan("live", f64::from(k), position, &[0, 1, 2, 3]) {
+            tracker.push(record, &mut out).unwrap();
+        }
+    }
+    let latest = |out: &Output| {
+        out.updates
+            .iter()
+            .filter(|u| !u.predicted)
+            .map(|u| u.time_s)
+            .fold(f64::NAN, f64::max)
+    };
+    // the scan at 5 s waits in the 0.5 s window for newer data that never comes
+    assert!(latest(&out) < 5.0, "latest measured update {}", latest(&out));
+    out.clear();
+    tracker.advance_to(5.4, &mut out).unwrap();
+    assert!(
+        out.updates.iter().all(|u| u.time_s < 5.0),
+        "5.4 s − 0.5 s window: the 5 s scan stays held"
+    );
+    tracker.advance_to(6.6, &mut out).unwrap();
+    assert_eq!(
+        latest(&out),
+        5.0,
+        "the clock released the last scan (reported at the next output tick)"
+    );
+    // silence: coasting predictions, then lost after the coast timeout
+    for k in 1..=40 {
+        tracker.advance_to(6.6 + 0.5 * f64::from(k), &mut out).unwrap();
+    }
+    assert!(out.updates.iter().any(|u| u.predicted && u.time_s > 7.0));
+    let lost = out.events.iter().any(|e| {
+        matches!(
+            e,
+            Event::Lifecycle {
+                event: LifecycleEvent::Lost,
+                ..
+            }
+        )
+    });
+    assert!(lost, "the silent track is lost");
+    // a scan from 20 s ago arrives now: late, not an error
+    out.clear();
+    for record in scan("live", 6.0, position, &[0, 1]) {
+        tracker.push(record, &mut out).unwrap();
+    }
+    tracker.advance_to(27.0, &mut out).unwrap();
+    let late = out.events.iter().filter(|e| matches!(e, Event::Late { .. })).count();
+    assert_eq!(late, 2);
+    assert!(out.updates.iter().all(|u| u.time_s > 6.0));
+}
