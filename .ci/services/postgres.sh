@@ -77,9 +77,9 @@ admin_psql -d postgres >&2 <<SQL
 DO \$\$
 BEGIN
     IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = '$role') THEN
-        CREATE ROLE $role LOGIN PASSWORD '$password';
+        CREATE ROLE $role LOGIN CREATEDB PASSWORD '$password';
     ELSE
-        ALTER ROLE $role LOGIN PASSWORD '$password';
+        ALTER ROLE $role LOGIN CREATEDB PASSWORD '$password';
     END IF;
 END
 \$\$;

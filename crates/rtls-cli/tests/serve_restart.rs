@@ -7,7 +7,7 @@ mod common;
 
 use std::collections::{HashMap, HashSet};
 use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -31,13 +31,16 @@ pipeline = "fix-then-filter"
 motion_model = "cv"
 filter = "ekf"
 gate_probability = 0.999
+acceleration_noise_std_mps2 = 0.5
+coast_timeout_s = 10.0
+delete_timeout_s = 300.0
 initiation = { confirm_updates = 2, within_s = 5.0 }
 reorder_window_s = 0.2
 dimensions = 2
 "#;
 
 struct Server {
-    child: Child,
+    child: common::KillOnDrop,
     http: String,
     mqtt: String,
 }
@@ -71,7 +74,7 @@ fn start(dir: &std::path::Path) -> Server {
     let bound: serde_json::Value =
         serde_json::from_str(&line).unwrap_or_else(|e| panic!("announce line {line:?}: {e}"));
     Server {
-        child,
+        child: common::KillOnDrop(child),
         http: bound["http"].as_str().unwrap().to_string(),
         mqtt: bound["mqtt"].as_str().unwrap().to_string(),
     }
@@ -188,8 +191,8 @@ async fn no_acknowledged_record_is_lost_when_the_server_is_killed_during_ingest(
     while acked.lock().unwrap().len() < 3000 && Instant::now() < deadline {
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
-    server.child.kill().unwrap(); // SIGKILL
-    server.child.wait().unwrap();
+    server.child.0.kill().unwrap(); // SIGKILL
+    server.child.0.wait().unwrap();
     for writer in writers {
         tokio::time::timeout(Duration::from_secs(30), writer)
             .await
@@ -250,11 +253,11 @@ async fn no_acknowledged_record_is_lost_when_the_server_is_killed_during_ingest(
     assert_eq!(names, HashSet::from(["http-1", "http-2", "mqtt-1"]));
 
     // SIGTERM: a graceful stop with exit status 0
-    let pid = server.child.id().to_string();
+    let pid = server.child.0.id().to_string();
     assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
     let started = Instant::now();
     let status = loop {
-        if let Some(status) = server.child.try_wait().unwrap() {
+        if let Some(status) = server.child.0.try_wait().unwrap() {
             break status;
         }
         assert!(

@@ -43,6 +43,9 @@ pipeline = "fix-then-filter"
 motion_model = "cv"
 filter = "ekf"
 gate_probability = 0.999
+acceleration_noise_std_mps2 = 0.5
+coast_timeout_s = 10.0
+delete_timeout_s = 300.0
 initiation = { confirm_updates = 2, within_s = 5.0 }
 reorder_window_s = 0.05
 output_interval_s = 0.1

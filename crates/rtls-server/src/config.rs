@@ -285,4 +285,22 @@ mod tests {
         );
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    #[test]
+    fn the_documented_example_file_parses_to_the_defaults_it_documents() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/server.toml");
+        let config = ServerConfig::from_file(&path).unwrap();
+        let defaults = ServerConfig::default();
+        assert_eq!(
+            config.server.site.as_deref(),
+            Some(std::path::Path::new("examples/site.toml"))
+        );
+        assert_eq!(
+            (config.server.http, &config.server.db),
+            (defaults.server.http, &defaults.server.db)
+        );
+        assert_eq!(config.mqtt, defaults.mqtt);
+        assert_eq!(config.pipeline, defaults.pipeline);
+        assert_eq!(config.server.retention_days, 92.0);
+    }
 }
