@@ -47,10 +47,7 @@ pub fn start(
     };
     let mut simulation = MineSimulation::new(MineLayout::seed000(), config).map_err(|e| e.to_string())?;
     Ok(tokio::spawn(async move {
-        let mut publisher = match bound.mqtt {
-            Some(address) => Some(connect(address, &write_token)),
-            None => None,
-        };
+        let mut publisher = bound.mqtt.map(|address| connect(address, &write_token));
         let mut tick = tokio::time::interval(Duration::from_secs(1));
         tracing::info!(
             miners,
