@@ -12,12 +12,13 @@ use tokio::sync::watch;
 
 use crate::auth::Tokens;
 use crate::config::{MqttMode, ServerConfig};
+use crate::http::QueryStore;
 use crate::http::{router, AppState};
 use crate::metrics::Metrics;
 use crate::mqtt::{BrokerConfig, EmbeddedBroker, ExternalBroker};
 use crate::pipeline::{unix_ms, Pipeline, PipelineConfig};
 use crate::sink::MeasurementSink;
-use crate::store::{self, SqliteSync, Store};
+use crate::store::{self, SqliteSync};
 
 /// How often retention runs.
 const RETENTION_PERIOD: Duration = Duration::from_secs(3600);
@@ -98,15 +99,6 @@ pub async fn serve(
         SqliteSync::Full
     };
     let open = move || store::open(&db, sync);
-    let (ingest_store, output_store, mut query_store) = tokio::task::spawn_blocking(move || {
-        let opened: Result<_, store::StoreError> = (|| Ok((open()?, open()?, open()?)))();
-        opened
-    })
-    .await
-    .map_err(|e| ServeError::Config(format!("opening the database: {e}")))??;
-    query_store.put_config("site", "current", &site_text)?;
-    tracing::info!(backend = query_store.backend(), db = %redact(&config.server.db), "database open");
-
     let metrics = Arc::new(Metrics::new());
     let pipeline_config = PipelineConfig {
         partitions: if config.pipeline.partitions == 0 {
@@ -118,8 +110,26 @@ pub async fn serve(
         clock_lag_s: config.pipeline.clock_lag_s,
         ..PipelineConfig::default()
     };
-    let pipeline = Pipeline::start(&site, ingest_store, output_store, pipeline_config, Arc::clone(&metrics))?;
-    let queries: Arc<Mutex<Box<dyn Store>>> = Arc::new(Mutex::new(query_store));
+    // the stores are synchronous (the PostgreSQL client blocks on a runtime of its own): open
+    // them, store the site and start the pipeline (which reads the checkpoint) off the runtime
+    let pipeline_site = site.clone();
+    let pipeline_metrics = Arc::clone(&metrics);
+    let (pipeline, query_store) = tokio::task::spawn_blocking(move || -> Result<_, ServeError> {
+        let (ingest_store, output_store, mut query_store) = (open()?, open()?, open()?);
+        query_store.put_config("site", "current", &site_text)?;
+        let pipeline = Pipeline::start(
+            &pipeline_site,
+            ingest_store,
+            output_store,
+            pipeline_config,
+            pipeline_metrics,
+        )?;
+        Ok((pipeline, query_store))
+    })
+    .await
+    .map_err(|e| ServeError::Config(format!("opening the database: {e}")))??;
+    tracing::info!(backend = query_store.backend(), db = %redact(&config.server.db), "database open");
+    let queries = Arc::new(Mutex::new(QueryStore::new(query_store)));
     let tokens = Arc::new(tokens);
     let state = AppState {
         pipeline: pipeline.clone(),
@@ -236,7 +246,7 @@ fn redact(url: &str) -> String {
 }
 
 /// Deletes what is older than the retention period, hourly.
-async fn retention(queries: Arc<Mutex<Box<dyn Store>>>, retention_days: f64, stopped: impl Future<Output = ()>) {
+async fn retention(queries: Arc<Mutex<QueryStore>>, retention_days: f64, stopped: impl Future<Output = ()>) {
     tokio::pin!(stopped);
     loop {
         let cutoff_ms = unix_ms() - (retention_days * 86_400_000.0) as i64;

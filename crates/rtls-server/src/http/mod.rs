@@ -36,7 +36,7 @@ pub struct AppState {
     /// The ingest pipeline and live state.
     pub pipeline: Pipeline,
     /// The store connection for queries and configuration (used on blocking threads).
-    pub queries: Arc<Mutex<Box<dyn Store>>>,
+    pub queries: Arc<Mutex<QueryStore>>,
     /// The access tokens.
     pub tokens: Arc<Tokens>,
     /// The site being tracked.
@@ -45,6 +45,49 @@ pub struct AppState {
     pub default_accuracy_m: f64,
     /// When the server started.
     pub started: Instant,
+}
+
+/// The query connection: closed on a thread of its own when dropped, because the PostgreSQL
+/// client blocks on a runtime of its own to close, which must not happen on an async task.
+pub struct QueryStore(Option<Box<dyn Store>>);
+
+impl QueryStore {
+    /// Wraps a store.
+    #[must_use]
+    pub fn new(store: Box<dyn Store>) -> Self {
+        Self(Some(store))
+    }
+
+    /// The store.
+    fn get(&mut self) -> ApiResult<&mut (dyn Store + 'static)> {
+        self.0
+            .as_deref_mut()
+            .ok_or_else(|| ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "the query connection is closed"))
+    }
+
+    /// Deletes rows stored before `before_ms` (retention).
+    ///
+    /// # Errors
+    /// The store's error, or a closed connection.
+    pub fn prune(&mut self, before_ms: i64) -> Result<crate::store::Pruned, String> {
+        self.get()
+            .map_err(|e| e.message)?
+            .prune(before_ms)
+            .map_err(|e| e.to_string())
+    }
+}
+
+impl Drop for QueryStore {
+    fn drop(&mut self) {
+        if let Some(store) = self.0.take() {
+            let closing = std::thread::Builder::new()
+                .name("rtls-store-close".into())
+                .spawn(move || drop(store));
+            if let Err(e) = closing {
+                tracing::warn!(error = %e, "could not close the query connection on its own thread");
+            }
+        }
+    }
 }
 
 /// An API error: the HTTP status, a message and, when one field is at fault, its path.
@@ -160,7 +203,7 @@ impl AppState {
             let mut store = queries
                 .lock()
                 .map_err(|_| ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "the query connection failed"))?;
-            query(store.as_mut()).map_err(ApiError::from)
+            query(store.get()?).map_err(ApiError::from)
         })
         .await
         .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, format!("query task failed: {e}")))?

@@ -13,11 +13,16 @@ use super::{metrics, AppState};
 /// The OpenAPI 3 description of this server's API (ours; the omlox paths follow the hub API).
 pub const OPENAPI: &str = include_str!("../../openapi.json");
 
-/// `GET /health`: 200 when the store answers within 2 s, else 503; with counts.
+/// `GET /health`: 200 when the store answers a cheap query (the restart checkpoint) within
+/// 2 s, else 503; with the live tag count.
 pub(super) async fn health(State(state): State<AppState>) -> Response {
-    let store = tokio::time::timeout(Duration::from_secs(2), state.query(|store| store.record_count())).await;
+    let store = tokio::time::timeout(
+        Duration::from_secs(2),
+        state.query(|store| store.checkpoint(crate::pipeline::CHECKPOINT)),
+    )
+    .await;
     let (status, store_state, records) = match store {
-        Ok(Ok(count)) => (StatusCode::OK, "ok".to_string(), Some(count)),
+        Ok(Ok(checkpoint)) => (StatusCode::OK, "ok".to_string(), Some(checkpoint.unwrap_or(0))),
         Ok(Err(e)) => (StatusCode::SERVICE_UNAVAILABLE, e.message, None),
         Err(_) => (
             StatusCode::SERVICE_UNAVAILABLE,
@@ -28,7 +33,7 @@ pub(super) async fn health(State(state): State<AppState>) -> Response {
     let body = json!({
         "status": if status == StatusCode::OK { "ok" } else { "degraded" },
         "store": store_state,
-        "records": records,
+        "tracked_record_id": records,
         "tags": state.pipeline.live().tag_count(),
         "uptime_s": state.started.elapsed().as_secs_f64(),
     });

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use rtls_engine::site::Site;
 use rtls_server::auth::Tokens;
-use rtls_server::http::AppState;
+use rtls_server::http::{AppState, QueryStore};
 use rtls_server::metrics::Metrics;
 use rtls_server::pipeline::{Pipeline, PipelineConfig};
 use rtls_server::store::{self, SqliteSync, Store};
@@ -88,7 +88,7 @@ pub fn state(name: &str) -> AppState {
     .expect("pipeline");
     AppState {
         pipeline,
-        queries: Arc::new(Mutex::new(open_sqlite(&path))),
+        queries: Arc::new(Mutex::new(QueryStore::new(open_sqlite(&path)))),
         tokens: Arc::new(Tokens {
             write: WRITE.into(),
             read: Some(READ.into()),
