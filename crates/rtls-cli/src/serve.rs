@@ -66,6 +66,13 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
         None => ServerConfig::default(),
     };
     apply_overrides(&mut config, args);
+    // the environment's tokens take precedence and are validated with the file's
+    if let Ok(token) = std::env::var("RTLS_WRITE_TOKEN") {
+        config.auth.write_token = Some(token);
+    }
+    if let Ok(token) = std::env::var("RTLS_READ_TOKEN") {
+        config.auth.read_token = Some(token);
+    }
     config.validate()?;
     init_logging(&config.server.log_format);
 
@@ -83,15 +90,10 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
     };
     let site = Site::from_toml_str(&site_text, &site_name)?;
 
-    let write = std::env::var("RTLS_WRITE_TOKEN")
-        .ok()
-        .or(config.auth.write_token.clone());
-    let read = std::env::var("RTLS_READ_TOKEN").ok().or(config.auth.read_token.clone());
-    let write = match write {
-        Some(token) if token.len() >= 8 => token,
-        Some(_) => bail!("the write token must be at least 8 characters"),
+    let write = match config.auth.write_token.clone() {
+        Some(token) => token,
         None if args.demo => {
-            let token = uuid_token();
+            let token = rtls_server::auth::random_token();
             eprintln!("demo write token (set RTLS_WRITE_TOKEN to choose one): {token}");
             token
         }
@@ -99,18 +101,22 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
     };
     let tokens = Tokens {
         write: write.clone(),
-        read,
+        read: config.auth.read_token.clone(),
     };
-    let demo = args.demo;
-    let miners = args.demo_miners;
-    let feed: Option<rtls_server::serve::Feed> = demo.then(|| {
-        Box::new(move |pipeline, bound: Bound, stop| {
+    let feed: Option<rtls_server::serve::Feed> = if args.demo {
+        let miners = args.demo_miners;
+        if miners == 0 {
+            bail!("--demo-miners must be at least 1");
+        }
+        Some(Box::new(move |pipeline, bound: Bound, stop| {
             rtls_server::demo::start(pipeline, bound, write, miners, stop).unwrap_or_else(|e| {
-                tracing_error(&e);
+                eprintln!("error: demo feed: {e}");
                 tokio::spawn(async {})
             })
-        }) as rtls_server::serve::Feed
-    });
+        }))
+    } else {
+        None
+    };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
@@ -126,10 +132,6 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
         serve(options, announce, shutdown_signal()).await
     })?;
     Ok(())
-}
-
-fn tracing_error(message: &str) {
-    eprintln!("error: demo feed: {message}");
 }
 
 /// Prints where the server listens as one JSON line on stdout (for scripts and tests).
@@ -173,11 +175,6 @@ fn apply_overrides(config: &mut ServerConfig, args: &ServeArgs) {
     if let Some(format) = &args.log_format {
         config.server.log_format.clone_from(format);
     }
-}
-
-/// A random token for the demo (128 bits from the OS via a v4 UUID's generator).
-fn uuid_token() -> String {
-    rtls_server::auth::random_token()
 }
 
 /// Resolves on Ctrl-C or SIGTERM.

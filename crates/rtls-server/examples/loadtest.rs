@@ -58,7 +58,7 @@ struct Args {
     seconds: f64,
 }
 
-fn parse_args() -> Args {
+fn parse_args() -> Result<Args, String> {
     let mut args = Args {
         tags: 600,
         rate_hz: 10.0,
@@ -66,15 +66,38 @@ fn parse_args() -> Args {
     };
     let argv: Vec<String> = std::env::args().skip(1).collect();
     for pair in argv.chunks(2) {
-        let value = pair.get(1).map(String::as_str).unwrap_or("");
+        let value = pair.get(1).map_or("", String::as_str);
+        let bad = |what: &str| format!("{} {value:?}: expected {what}", pair[0]);
         match pair[0].as_str() {
-            "--tags" => args.tags = value.parse().expect("--tags N"),
-            "--rate-hz" => args.rate_hz = value.parse().expect("--rate-hz HZ (0: max rate)"),
-            "--seconds" => args.seconds = value.parse().expect("--seconds S"),
-            other => panic!("unknown argument {other}; use --tags, --rate-hz, --seconds"),
+            "--tags" => {
+                args.tags = value
+                    .parse()
+                    .ok()
+                    .filter(|&n| n > 0)
+                    .ok_or_else(|| bad("a tag count ≥ 1"))?
+            }
+            "--rate-hz" => {
+                args.rate_hz = value
+                    .parse()
+                    .ok()
+                    .filter(|r: &f64| r.is_finite() && *r >= 0.0)
+                    .ok_or_else(|| bad("a rate ≥ 0 Hz (0: maximum rate)"))?;
+            }
+            "--seconds" => {
+                args.seconds = value
+                    .parse()
+                    .ok()
+                    .filter(|s: &f64| s.is_finite() && *s > 0.0)
+                    .ok_or_else(|| bad("a duration > 0 s"))?;
+            }
+            other => {
+                return Err(format!(
+                    "unknown argument {other}; use --tags N, --rate-hz HZ, --seconds S"
+                ))
+            }
         }
     }
-    args
+    Ok(args)
 }
 
 fn unix_s() -> f64 {
@@ -93,7 +116,13 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 
 #[tokio::main]
 async fn main() {
-    let args = parse_args();
+    let args = match parse_args() {
+        Ok(args) => args,
+        Err(message) => {
+            eprintln!("error: {message}");
+            std::process::exit(2);
+        }
+    };
     let dir = std::env::temp_dir().join(format!("rtls-loadtest-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let mut config = ServerConfig::default();

@@ -251,6 +251,23 @@ impl ServerConfig {
     }
 }
 
+/// `url` (database, MQTT broker) with the password of its `user:password@` part replaced by
+/// `***`, for log lines and error messages.
+pub(crate) fn redact_password(url: &str) -> String {
+    let Some((scheme, rest)) = url.split_once("://") else {
+        return url.to_owned();
+    };
+    let authority_end = rest.find(['/', '?', '#']).unwrap_or(rest.len());
+    let (authority, path) = rest.split_at(authority_end);
+    match authority.rsplit_once('@') {
+        Some((user_info, host)) => match user_info.split_once(':') {
+            Some((user, _password)) => format!("{scheme}://{user}:***@{host}{path}"),
+            None => url.to_owned(),
+        },
+        None => url.to_owned(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -284,6 +301,21 @@ mod tests {
             (9000, 3, 92.0)
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn passwords_are_hidden_and_everything_else_kept() {
+        assert_eq!(
+            redact_password("mqtt://rtls:s3cret@broker:1883?client_id=a"),
+            "mqtt://rtls:***@broker:1883?client_id=a"
+        );
+        assert_eq!(
+            redact_password("postgres://rtls:secret@db:5432/rtls"),
+            "postgres://rtls:***@db:5432/rtls"
+        );
+        assert_eq!(redact_password("mqtt://rtls@broker:1883"), "mqtt://rtls@broker:1883");
+        assert_eq!(redact_password("mqtt://broker:1883/x@y:z"), "mqtt://broker:1883/x@y:z");
+        assert_eq!(redact_password("sqlite:rtls.db"), "sqlite:rtls.db");
     }
 
     #[test]

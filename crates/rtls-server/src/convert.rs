@@ -12,6 +12,7 @@
 //!   `√λ_max` of the x–y block — conservative in every direction, and exactly σ for a circular
 //!   error. Back on ingest, `accuracy = a` becomes the covariance `a² I`.
 
+use rtls_engine::lifecycle::LifecycleEvent;
 use rtls_engine::record::{Measurement, Record};
 use rtls_engine::tracker::{status_name, Event, TrackUpdate};
 use rtls_engine::zones::{Shape, Zone as SiteZone, ZoneEvent, ZoneKind};
@@ -222,37 +223,58 @@ pub fn fence_event_from_zone_event(event: &ZoneEvent, entry_time_s: Option<f64>)
     }))
 }
 
+/// Whether an event raises an alarm (stored flagged as one, counted in `rtls_alarms_total`):
+/// a predicted hazard, a tag in a zone without coverage, a lost tag.
+#[must_use]
+pub fn is_alarm(event: &Event) -> bool {
+    match event {
+        Event::HazardPredicted { .. } | Event::NoCoverage { .. } => true,
+        Event::Lifecycle { event, .. } => *event == LifecycleEvent::Lost,
+        _ => false,
+    }
+}
+
+/// Whether an event goes to `rtls:alarms`: the alarms, what ends them (hazard cleared, a lost
+/// tag recovered) and model switches.
+fn on_alarm_topic(event: &Event) -> bool {
+    is_alarm(event)
+        || match event {
+            Event::HazardCleared { .. } | Event::ModelSwitch { .. } => true,
+            Event::Lifecycle { event, .. } => *event == LifecycleEvent::Recovered,
+            _ => false,
+        }
+}
+
 /// An engine event as an extension-topic payload: the event's JSON line (its `type`, `t`,
-/// `tag`, …) plus `timestamp` (ISO 8601). Alarms — `hazard-predicted`, `hazard-cleared`,
-/// `no-coverage`, `model-switch` and lifecycle `lost` / `recovered` — go to `rtls:alarms`,
-/// everything else to `rtls:events`.
+/// `tag`, …) plus `timestamp` (ISO 8601). The alarms of [`is_alarm`], `hazard-cleared`,
+/// `model-switch` and lifecycle `recovered` go to `rtls:alarms`, everything else to
+/// `rtls:events`.
 ///
 /// # Errors
 /// [`ServerError::Unrepresentable`] when the time cannot be written as a timestamp.
 pub fn extension_message(event: &Event) -> Result<(Topic, Value)> {
-    let mut value: Value = serde_json::from_str(&event.to_json_line()).map_err(|e| ServerError::Unrepresentable {
+    let value: Value = serde_json::from_str(&event.to_json_line()).map_err(|e| ServerError::Unrepresentable {
         field: "event".into(),
         reason: format!("engine event is not JSON ({e})"),
     })?;
+    extension_payload(event, value)
+}
+
+/// As [`extension_message`], for a caller that already holds the event's JSON (`value`, from
+/// [`Event::to_json_line`]).
+///
+/// # Errors
+/// As [`extension_message`].
+pub fn extension_payload(event: &Event, mut value: Value) -> Result<(Topic, Value)> {
     let timestamp = format_timestamp(event.time_s(), "timestamp")?;
-    let is_alarm = match &value["type"] {
-        Value::String(t)
-            if matches!(
-                t.as_str(),
-                "hazard-predicted" | "hazard-cleared" | "no-coverage" | "model-switch"
-            ) =>
-        {
-            true
-        }
-        Value::String(t) if t == "lifecycle" => {
-            matches!(value["event"].as_str(), Some("lost" | "recovered"))
-        }
-        _ => false,
-    };
     if let Value::Object(object) = &mut value {
         object.insert("timestamp".into(), json!(timestamp));
     }
-    let topic = if is_alarm { Topic::RtlsAlarms } else { Topic::RtlsEvents };
+    let topic = if on_alarm_topic(event) {
+        Topic::RtlsAlarms
+    } else {
+        Topic::RtlsEvents
+    };
     Ok((topic, value))
 }
 

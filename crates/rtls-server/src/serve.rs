@@ -128,7 +128,7 @@ pub async fn serve(
     })
     .await
     .map_err(|e| ServeError::Config(format!("opening the database: {e}")))??;
-    tracing::info!(backend = query_store.backend(), db = %redact(&config.server.db), "database open");
+    tracing::info!(backend = query_store.backend(), db = %crate::config::redact_password(&config.server.db), "database open");
     let queries = Arc::new(Mutex::new(QueryStore::new(query_store)));
     let tokens = Arc::new(tokens);
     let state = AppState {
@@ -233,18 +233,6 @@ fn listen_error(what: &'static str, address: SocketAddr, error: &std::io::Error)
     }
 }
 
-/// A database URL without its password, for logs.
-fn redact(url: &str) -> String {
-    match (url.find("://"), url.rfind('@')) {
-        (Some(scheme), Some(at)) if at > scheme => {
-            let credentials = &url[scheme + 3..at];
-            let user = credentials.split(':').next().unwrap_or("");
-            format!("{}://{user}:***@{}", &url[..scheme], &url[at + 1..])
-        }
-        _ => url.to_string(),
-    }
-}
-
 /// Deletes what is older than the retention period, hourly.
 async fn retention(queries: Arc<Mutex<QueryStore>>, retention_days: f64, stopped: impl Future<Output = ()>) {
     tokio::pin!(stopped);
@@ -289,18 +277,4 @@ pub fn init_logging(format: &str) {
     } else {
         builder.try_init()
     };
-}
-
-#[cfg(test)]
-mod tests {
-    use super::redact;
-
-    #[test]
-    fn passwords_are_not_logged() {
-        assert_eq!(
-            redact("postgres://rtls:secret@db:5432/rtls"),
-            "postgres://rtls:***@db:5432/rtls"
-        );
-        assert_eq!(redact("sqlite:rtls.db"), "sqlite:rtls.db");
-    }
 }

@@ -369,6 +369,13 @@ async fn omlox_location_ingest_and_trackables_name_the_bad_field() {
     assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
     let id = reply.json()["id"].as_str().unwrap().to_string();
     assert!(uuid::Uuid::parse_str(&id).is_ok());
+    let again = json!({"id": id, "type": "omlox"}).to_string();
+    let reply = call(&app, Method::POST, "/v2/trackables", Some(WRITE), &again).await;
+    assert_eq!(
+        (reply.status, reply.json()["field"].as_str()),
+        (StatusCode::BAD_REQUEST, Some("id")),
+        "a second create is refused"
+    );
     let reply = call(
         &app,
         Method::GET,

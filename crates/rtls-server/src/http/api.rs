@@ -1,11 +1,9 @@
 //! Our own API under `/api/v1`: measurement ingest, live tags, history and events with CSV and
 //! GeoJSON export, head counts, zones as GeoJSON.
 
-use std::fmt::Write as _;
-
 use axum::body::Bytes;
 use axum::extract::{Query, State};
-use axum::http::{header, HeaderMap};
+use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde::Deserialize;
@@ -173,7 +171,7 @@ pub(super) async fn history(
     };
     let rows = state.query(move |store| store.history(&query)).await?;
     Ok(match format.as_str() {
-        "csv" => ([(header::CONTENT_TYPE, "text/csv")], history_csv(&rows)).into_response(),
+        "csv" => ([(header::CONTENT_TYPE, "text/csv")], history_csv(&rows)?).into_response(),
         "geojson" => geojson(history_geojson(&tag, &rows)),
         _ => {
             let states: Vec<Value> = rows.iter().filter_map(|r| serde_json::from_str(&r.json).ok()).collect();
@@ -182,35 +180,31 @@ pub(super) async fn history(
     })
 }
 
-/// History as CSV: `t,timestamp,tag,x_m,y_m,z_m,accuracy_m,predicted`.
-fn history_csv(rows: &[LocationRow]) -> String {
-    let mut text = String::from("t,timestamp,tag,x_m,y_m,z_m,accuracy_m,predicted\n");
+/// History as CSV (the `csv` crate quotes as RFC 4180 needs):
+/// `t,timestamp,tag,x_m,y_m,z_m,accuracy_m,predicted`.
+fn history_csv(rows: &[LocationRow]) -> ApiResult<String> {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    let failed = |e: csv::Error| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, format!("writing CSV: {e}"));
+    writer
+        .write_record(["t", "timestamp", "tag", "x_m", "y_m", "z_m", "accuracy_m", "predicted"])
+        .map_err(failed)?;
+    let optional = |v: Option<f64>| v.map_or_else(String::new, |v| v.to_string());
     for row in rows {
-        let timestamp = format_timestamp(row.time_s, "t").unwrap_or_default();
-        let optional = |v: Option<f64>| v.map_or_else(String::new, |v| v.to_string());
-        let _ = writeln!(
-            text,
-            "{},{},{},{},{},{},{},{}",
-            row.time_s,
-            timestamp,
-            csv_field(&row.tag),
-            row.x_m,
-            row.y_m,
-            optional(row.z_m),
-            optional(row.accuracy_m),
-            row.predicted
-        );
+        writer
+            .write_record([
+                row.time_s.to_string(),
+                format_timestamp(row.time_s, "t").unwrap_or_default(),
+                row.tag.clone(),
+                row.x_m.to_string(),
+                row.y_m.to_string(),
+                optional(row.z_m),
+                optional(row.accuracy_m),
+                row.predicted.to_string(),
+            ])
+            .map_err(failed)?;
     }
-    text
-}
-
-/// A CSV field, quoted when it holds a comma, quote or line break (RFC 4180).
-fn csv_field(text: &str) -> String {
-    if text.contains([',', '"', '\n', '\r']) {
-        format!("\"{}\"", text.replace('"', "\"\""))
-    } else {
-        text.to_string()
-    }
+    let bytes = writer.into_inner().map_err(|e| failed(e.into_error().into()))?;
+    String::from_utf8(bytes).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))
 }
 
 /// History as GeoJSON: a LineString of the path plus one Point per state.
@@ -274,4 +268,33 @@ pub(super) async fn events(
     let rows = state.query(move |store| store.events(&query)).await?;
     let events: Vec<Value> = rows.iter().filter_map(|r| serde_json::from_str(&r.json).ok()).collect();
     Ok(Json(Value::Array(events)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn history_csv_quotes_a_tag_with_a_comma_or_quote_and_reads_back() {
+        let row = |tag: &str| LocationRow {
+            received_ms: 0,
+            time_s: 12.5,
+            tag: tag.into(),
+            x_m: 1.0,
+            y_m: 2.0,
+            z_m: None,
+            accuracy_m: Some(0.3),
+            predicted: true,
+            json: String::new(),
+        };
+        let text = history_csv(&[row("crew 4, \"north\""), row("plain")]).unwrap();
+        let mut reader = csv::Reader::from_reader(text.as_bytes());
+        let tags: Vec<String> = reader.records().map(|r| r.unwrap()[2].to_string()).collect();
+        assert_eq!(tags, ["crew 4, \"north\"", "plain"]);
+        assert!(
+            text.lines().nth(1).unwrap().contains("\"crew 4, \"\"north\"\"\""),
+            "{text}"
+        );
+        assert!(text.lines().nth(2).unwrap().ends_with(",1,2,,0.3,true"), "{text}");
+    }
 }

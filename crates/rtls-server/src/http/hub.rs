@@ -32,8 +32,7 @@ pub(super) async fn put_locations(
     body: Bytes,
 ) -> ApiResult<StatusCode> {
     state.authorize(&headers, Access::Write)?;
-    let text =
-        std::str::from_utf8(&body).map_err(|_| ApiError::new(StatusCode::BAD_REQUEST, "request body: not UTF-8"))?;
+    let text = utf8(&body)?;
     let locations = parse_locations(text).map_err(server_error)?;
     ingest_locations(&state, &locations).await
 }
@@ -47,8 +46,7 @@ pub(super) async fn put_provider_location(
     body: Bytes,
 ) -> ApiResult<StatusCode> {
     state.authorize(&headers, Access::Write)?;
-    let text =
-        std::str::from_utf8(&body).map_err(|_| ApiError::new(StatusCode::BAD_REQUEST, "request body: not UTF-8"))?;
+    let text = utf8(&body)?;
     let locations = parse_locations(&format!("[{text}]")).map_err(server_error)?;
     if let Some(location) = locations.iter().find(|l| l.provider_id != provider_id) {
         return Err(ApiError::field(
@@ -72,6 +70,16 @@ async fn ingest_locations(state: &AppState, locations: &[Location]) -> ApiResult
         .map_err(server_error)?;
     state.pipeline.submit_records("omlox locations", records).await?;
     Ok(StatusCode::NO_CONTENT)
+}
+
+/// The body as text, or a 400 naming the first bad byte.
+fn utf8(body: &[u8]) -> ApiResult<&str> {
+    std::str::from_utf8(body).map_err(|e| {
+        ApiError::new(
+            StatusCode::BAD_REQUEST,
+            format!("request body: not UTF-8 at byte {}", e.valid_up_to()),
+        )
+    })
 }
 
 /// A conversion error as a 400, with its field path when it has one.
@@ -438,15 +446,20 @@ async fn create<T: Serialize>(state: &AppState, kind: &'static str, id: String, 
     let json =
         serde_json::to_string(object).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
     let body: Value = serde_json::from_str(&json).unwrap_or(Value::Null);
+    // one call under the query connection's lock: no other request can create it in between
     let key = id.clone();
-    let existing = state.query(move |store| store.get_config(kind, &key)).await?;
-    if existing.is_some() {
+    let created = state
+        .query(move |store| match store.get_config(kind, &key)? {
+            Some(_) => Ok(false),
+            None => store.put_config(kind, &key, &json),
+        })
+        .await?;
+    if !created {
         return Err(ApiError::field(
             "id",
             format!("a {kind} `{id}` exists; use PUT to replace it"),
         ));
     }
-    state.query(move |store| store.put_config(kind, &id, &json)).await?;
     Ok((StatusCode::CREATED, Json(body)).into_response())
 }
 

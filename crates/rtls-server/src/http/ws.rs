@@ -106,20 +106,20 @@ async fn send(socket: &mut WebSocket, message: &WsMessage) -> Result<(), axum::E
 
 /// Answers one client message.
 fn handle(text: &str, subscriptions: &mut HashMap<u64, Subscription>, next_id: &mut u64) -> WsMessage {
-    let request: WsMessage = match serde_json::from_str(text) {
+    // read the event and the topic first, so an unknown one gets its own omlox error code
+    let value: Value = match serde_json::from_str(text) {
+        Ok(value) => value,
+        Err(e) => return WsMessage::error(WsErrorCode::InvalidData, &e.to_string()),
+    };
+    if serde_json::from_value::<WsEvent>(value["event"].clone()).is_err() {
+        return WsMessage::error(WsErrorCode::UnknownEvent, &format!("event {}", value["event"]));
+    }
+    if !value["topic"].is_null() && serde_json::from_value::<Topic>(value["topic"].clone()).is_err() {
+        return WsMessage::error(WsErrorCode::UnknownTopic, &format!("topic {}", value["topic"]));
+    }
+    let request: WsMessage = match serde_json::from_value(value) {
         Ok(request) => request,
-        Err(e) => {
-            let code = if text.contains("\"event\"") && e.to_string().contains("unknown variant") {
-                if e.to_string().contains("location_updates") {
-                    WsErrorCode::UnknownTopic
-                } else {
-                    WsErrorCode::UnknownEvent
-                }
-            } else {
-                WsErrorCode::InvalidData
-            };
-            return WsMessage::error(code, &e.to_string());
-        }
+        Err(e) => return WsMessage::error(WsErrorCode::InvalidData, &e.to_string()),
     };
     match request.event {
         WsEvent::Subscribe => {

@@ -184,7 +184,7 @@ impl ExternalBroker {
         publications: broadcast::Sender<Publication>,
         measurement_filter: &str,
     ) -> Result<Self, BridgeError> {
-        let display_url = redact_password(url);
+        let display_url = crate::config::redact_password(url);
         if !valid_filter(measurement_filter) {
             return Err(BridgeError::InvalidFilter {
                 filter: measurement_filter.to_owned(),
@@ -266,44 +266,9 @@ fn parse_options(url: &str) -> Result<MqttOptions, OptionError> {
     }
 }
 
-/// `url` with the password of its user information (`scheme://user:password@host`) replaced
-/// by `***`, for log lines and error messages.
-fn redact_password(url: &str) -> String {
-    let Some(authority_start) = url.find("://").map(|i| i + 3) else {
-        return url.to_owned();
-    };
-    let authority_end = url[authority_start..]
-        .find(['/', '?', '#'])
-        .map_or(url.len(), |i| authority_start + i);
-    let authority = &url[authority_start..authority_end];
-    let Some(at) = authority.rfind('@') else {
-        return url.to_owned();
-    };
-    let Some(colon) = authority[..at].find(':') else {
-        return url.to_owned();
-    };
-    format!(
-        "{}{}:***{}",
-        &url[..authority_start],
-        &authority[..colon],
-        &url[authority_start + at..]
-    )
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn passwords_are_hidden_and_everything_else_kept() {
-        assert_eq!(
-            redact_password("mqtt://rtls:s3cret@broker:1883?client_id=a"),
-            "mqtt://rtls:***@broker:1883?client_id=a"
-        );
-        assert_eq!(redact_password("mqtt://rtls@broker:1883"), "mqtt://rtls@broker:1883");
-        assert_eq!(redact_password("mqtt://broker:1883/x@y:z"), "mqtt://broker:1883/x@y:z");
-        assert_eq!(redact_password("not a url"), "not a url");
-    }
 
     #[test]
     fn the_client_id_defaults_and_credentials_come_from_the_url() {

@@ -16,7 +16,9 @@ use super::ingest_log::PartitionBatch;
 use super::live::{HubMessage, LiveState, TagState};
 use super::outputs::OutputBatch;
 use super::{unix_ms, unix_s, Progress};
-use crate::convert::{accuracy_m, extension_message, fence_event_from_zone_event, location_from_update, ZoneEventOut};
+use crate::convert::{
+    accuracy_m, extension_payload, fence_event_from_zone_event, is_alarm, location_from_update, ZoneEventOut,
+};
 use crate::metrics::Metrics;
 use crate::omlox::ProviderType;
 use crate::sink::Publication;
@@ -175,7 +177,11 @@ impl PartitionWorker {
         if alarm {
             self.metrics
                 .alarms
-                .get_or_create(&vec![("type".into(), kind.clone())])
+                // a lost tag is counted as `lost`, not as its event type `lifecycle`
+                .get_or_create(&vec![(
+                    "type".into(),
+                    parsed["event"].as_str().unwrap_or(&kind).to_string(),
+                )])
                 .inc();
         }
         batch.events.push(EventRow {
@@ -210,7 +216,7 @@ impl PartitionWorker {
                     }
                 }
             }
-            other => match extension_message(other) {
+            other => match extension_payload(other, parsed) {
                 Ok((topic, event)) => Some(HubMessage::Extension { topic, event }),
                 Err(e) => {
                     tracing::warn!(error = %e, "event not representable");
@@ -233,15 +239,6 @@ impl PartitionWorker {
             ZoneEvent::Exit { tag, zone, .. } => self.zone_entries.remove(&(tag.clone(), zone.clone())),
             ZoneEvent::Dwell { .. } => None,
         }
-    }
-}
-
-/// Alarms: predicted hazards, tags without coverage, lost tags.
-fn is_alarm(event: &Event) -> bool {
-    match event {
-        Event::HazardPredicted { .. } | Event::NoCoverage { .. } => true,
-        Event::Lifecycle { event, .. } => matches!(event, rtls_engine::lifecycle::LifecycleEvent::Lost),
-        _ => false,
     }
 }
 

@@ -288,7 +288,7 @@ enum DatabaseUrl<'a> {
 /// Classifies a database URL (see [`open`]).
 fn parse_url(url: &str) -> Result<DatabaseUrl<'_>, StoreError> {
     let rejected = |reason: String| StoreError::Url {
-        url: redact_password(url),
+        url: crate::config::redact_password(url),
         reason,
     };
     if url.is_empty() {
@@ -315,20 +315,4 @@ fn parse_url(url: &str) -> Result<DatabaseUrl<'_>, StoreError> {
         }
     }
     Ok(DatabaseUrl::Sqlite(url))
-}
-
-/// `url` with the password of its `user:password@` part replaced by `***`, for messages.
-pub(crate) fn redact_password(url: &str) -> String {
-    let Some((scheme, rest)) = url.split_once("://") else {
-        return url.to_owned();
-    };
-    let authority_end = rest.find(['/', '?', '#']).unwrap_or(rest.len());
-    let (authority, path) = rest.split_at(authority_end);
-    match authority.rsplit_once('@') {
-        Some((user_info, host)) => match user_info.split_once(':') {
-            Some((user, _password)) => format!("{scheme}://{user}:***@{host}{path}"),
-            None => url.to_owned(),
-        },
-        None => url.to_owned(),
-    }
 }

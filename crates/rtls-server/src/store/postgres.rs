@@ -11,10 +11,8 @@ use ::postgres::types::ToSql;
 use ::postgres::{Client, Config, NoTls, Row, Statement};
 
 use super::migrations::{self, AppliedMigration, Migration, MigrationTarget, POSTGRES_MIGRATIONS};
-use super::{
-    redact_password, EventQuery, EventRow, HistoryQuery, LocationRow, NewRecord, Pruned, Store, StoreError,
-    StoredRecord,
-};
+use super::{EventQuery, EventRow, HistoryQuery, LocationRow, NewRecord, Pruned, Store, StoreError, StoredRecord};
+use crate::config::redact_password;
 
 /// The advisory lock that serialises migrations of concurrent processes (an arbitrary key:
 /// "rtls" in ASCII).
