@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use rtls_engine::record::to_json_line;
 use rtls_sim::mine::{MineConfig, MineLayout, MineSimulation, SiteOptions};
-use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
+use rumqttc::{AsyncClient, Event, MqttOptions, Outgoing, Packet, QoS};
 use tokio::sync::watch;
 
 use crate::pipeline::{unix_s, Pipeline};
@@ -101,7 +101,8 @@ fn connect(address: std::net::SocketAddr, write_token: &str) -> AsyncClient {
     tokio::spawn(async move {
         loop {
             match event_loop.poll().await {
-                Ok(Event::Incoming(Packet::Disconnect)) => break,
+                // our own disconnect at shutdown: the broker closes the connection next
+                Ok(Event::Incoming(Packet::Disconnect) | Event::Outgoing(Outgoing::Disconnect)) => break,
                 Ok(_) => {}
                 Err(rumqttc::ConnectionError::RequestsDone) => break,
                 Err(e) => {

@@ -199,7 +199,9 @@ pub async fn serve(
     };
     tracing::info!(http = %http_addr, mqtt = ?mqtt_addr, "listening");
     on_bound(bound);
-    let feed_task = feed.map(|start| start(pipeline.clone(), bound, stop_rx.clone()));
+    // the feed stops first, while the broker can still acknowledge its last payload
+    let (feed_stop_tx, feed_stop_rx) = watch::channel(false);
+    let feed_task = feed.map(|start| start(pipeline.clone(), bound, feed_stop_rx));
 
     let app = router(state);
     let http_stopped = stopped(stop_rx.clone());
@@ -209,11 +211,12 @@ pub async fn serve(
         }
     });
     shutdown.await;
+    if let Some(task) = feed_task {
+        let _ = feed_stop_tx.send(true);
+        let _ = tokio::time::timeout(Duration::from_secs(10), task).await;
+    }
     tracing::info!("shutting down: closing listeners");
     let _ = stop_tx.send(true);
-    if let Some(task) = feed_task {
-        let _ = task.await;
-    }
     let _ = tokio::time::timeout(Duration::from_secs(10), http).await;
     for task in tasks {
         let _ = tokio::time::timeout(Duration::from_secs(10), task).await;

@@ -106,13 +106,25 @@ async fn ingest_is_authorised_validated_by_line_and_field_and_tracked() {
     // nothing of a refused payload is stored
     assert_eq!(state.query(|s| s.record_count()).await.unwrap(), 0);
 
-    let reply = call(&app, Method::POST, "/api/v1/measurements", Some(WRITE), &body).await;
+    // the first 14 s of the walk end inside the hazard zone (x ∈ [14, 18] m): counted there
+    let lines: Vec<&str> = body.lines().collect();
+    let (first, rest) = (lines[..29].join("\n"), lines[29..].join("\n"));
+    let reply = call(&app, Method::POST, "/api/v1/measurements", Some(WRITE), &first).await;
     assert_eq!(reply.status, StatusCode::OK, "{}", reply.text());
-    assert_eq!(reply.json()["accepted"], json!(41));
+    assert_eq!(reply.json()["accepted"], json!(29));
+    let live = state.pipeline.live().clone();
+    assert!(
+        eventually(Duration::from_secs(10), || live.head_counts().get("forklift-lane")
+            == Some(&1))
+        .await,
+        "{:?}",
+        live.head_counts()
+    );
+    let reply = call(&app, Method::POST, "/api/v1/measurements", Some(WRITE), &rest).await;
+    assert_eq!(reply.json()["accepted"], json!(12));
     assert_eq!(state.query(|s| s.record_count()).await.unwrap(), 41);
 
     // tracked to the walk's end (t = 1020 s, less the reorder window)
-    let live = state.pipeline.live().clone();
     assert!(
         eventually(Duration::from_secs(10), || live
             .tag("miner-1")
