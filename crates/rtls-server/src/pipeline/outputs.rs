@@ -64,8 +64,15 @@ impl OutputWorker {
     }
 
     fn store_batches(&mut self, batches: Vec<OutputBatch>) {
-        let locations: Vec<LocationRow> = batches.iter().flat_map(|b| b.locations.iter().cloned()).collect();
-        let events: Vec<EventRow> = batches.iter().flat_map(|b| b.events.iter().cloned()).collect();
+        // move the rows out (no copies); keep which partitions they complete
+        let mut processed = Vec::with_capacity(batches.len());
+        let mut locations = Vec::new();
+        let mut events = Vec::new();
+        for batch in batches {
+            processed.push((batch.partition, batch.processed_id));
+            locations.extend(batch.locations);
+            events.extend(batch.events);
+        }
         let result = self
             .store
             .append_locations(&locations)
@@ -74,9 +81,9 @@ impl OutputWorker {
             Ok(()) => {
                 self.metrics.stored_locations.inc_by(locations.len() as u64);
                 self.metrics.stored_events.inc_by(events.len() as u64);
-                for batch in &batches {
-                    if let Some(id) = batch.processed_id {
-                        self.progress.stored[batch.partition].fetch_max(id, Ordering::AcqRel);
+                for (partition, id) in processed {
+                    if let Some(id) = id {
+                        self.progress.stored[partition].fetch_max(id, Ordering::AcqRel);
                     }
                 }
             }
