@@ -16,6 +16,8 @@
 //! - [`manoeuvre`] — seed 004's variable-dimension KF (CV ↔ CA) with manoeuvre detection.
 //! - [`imm`] — interacting multiple models across CV, CA and coordinated-turn models of
 //!   different state size, each run by a KF, EKF or UKF.
+//! - [`adaptive`] — innovation-based adaptive measurement noise (a consistent covariance
+//!   when the stated noise is too small).
 //! - [`aided`] — accelerometer-aided (seed 002) and odometry-aided (seed 004) tracking.
 //! - [`smoother`] — RTS smoothing of a filtered sequence.
 //! - [`stats`] — chi-square quantiles, gates and consistency intervals.
@@ -46,6 +48,7 @@
 
 extern crate alloc;
 
+pub mod adaptive;
 pub mod aided;
 mod error;
 pub mod filter;
