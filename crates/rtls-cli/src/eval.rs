@@ -7,8 +7,10 @@
 //!
 //! Every track sample is compared with the truth of its tag at its time, interpolated linearly
 //! between the bracketing truth samples (`rtls_engine::evaluation`). Prints a table (overall and
-//! per tag: count, RMSE, mean, median, p90, p95, max, in m) and the samples that could not be
-//! scored, by reason; `--json` prints one JSON object instead.
+//! per tag: count, RMSE, mean, median, p90, p95, max, in m), the consistency of the reported
+//! covariances where the track lines carry `cov` (mean and median NEES, the share of truths
+//! inside the reported 68 % and 95 % ellipses) and the samples that could not be scored, by
+//! reason; `--json` prints one JSON object instead.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -16,8 +18,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Args;
 use rtls_engine::evaluation::{
-    evaluate, parse_track_lines, parse_truth_csv, ErrorStatistics, Evaluation, EvaluationSettings, Unmatched,
-    TRACKS_SOURCE, TRUTH_SOURCE,
+    evaluate, parse_track_lines, parse_truth_csv, Consistency, ErrorStatistics, Evaluation, EvaluationSettings,
+    Unmatched, TRACKS_SOURCE, TRUTH_SOURCE,
 };
 use rtls_engine::EngineError;
 use serde::Serialize;
@@ -236,6 +238,41 @@ fn table_report(args: &EvalArgs, settings: &EvaluationSettings, counts: &Counts,
     }
     out.push('\n');
 
+    if let Some(overall) = &evaluation.consistency {
+        let rows: Vec<(&str, &Consistency)> = std::iter::once(("overall", overall))
+            .chain(evaluation.consistency_per_tag.iter().map(|(tag, c)| (tag.as_str(), c)))
+            .collect();
+        let _ = writeln!(
+            out,
+            "covariance consistency (NEES = eᵀP⁻¹e, consistent: mean {}, 95 % of truths inside the 95 % ellipse)",
+            overall.dimensions
+        );
+        let _ = writeln!(
+            out,
+            "{:<width$}  {:>7}  {:>9}  {:>11}  {:>9}  {:>9}",
+            "tag", "count", "mean NEES", "median NEES", "in 68 %", "in 95 %"
+        );
+        for (tag, c) in rows {
+            let _ = writeln!(
+                out,
+                "{tag:<width$}  {:>7}  {:>9.2}  {:>11.2}  {:>8.1}%  {:>8.1}%",
+                c.count,
+                c.mean_nees,
+                c.median_nees,
+                100.0 * c.inside_68,
+                100.0 * c.inside_95
+            );
+        }
+        if overall.not_positive_definite > 0 {
+            let _ = writeln!(
+                out,
+                "{} scored samples had a covariance that is not positive definite (not counted above)",
+                overall.not_positive_definite
+            );
+        }
+        out.push('\n');
+    }
+
     let _ = writeln!(
         out,
         "unmatched track samples: {} of {}",
@@ -260,6 +297,14 @@ struct TagStatistics<'a> {
     tag: &'a str,
     #[serde(flatten)]
     statistics: &'a ErrorStatistics,
+}
+
+/// One per-tag consistency entry of the JSON output.
+#[derive(Serialize)]
+struct TagConsistency<'a> {
+    tag: &'a str,
+    #[serde(flatten)]
+    consistency: &'a Consistency,
 }
 
 /// One per-tag unmatched entry of the JSON output.
@@ -307,6 +352,10 @@ fn json_report(
         "include_predicted": settings.include_predicted,
         "overall": evaluation.overall,
         "per_tag": per_tag,
+        "consistency": evaluation.consistency,
+        "consistency_per_tag": evaluation.consistency_per_tag.iter()
+            .map(|(tag, c)| TagConsistency { tag, consistency: c })
+            .collect::<Vec<_>>(),
         "unmatched": unmatched,
         "unmatched_per_tag": unmatched_per_tag,
     });

@@ -2,9 +2,11 @@
 
 use std::collections::BTreeMap;
 
+use super::consistency::nees;
 use super::truth::check_same_time_same_position;
 use super::{
-    ErrorStatistics, Evaluation, EvaluationSettings, TrackSample, TruthSample, Unmatched, TRACKS_SOURCE, TRUTH_SOURCE,
+    Consistency, ErrorStatistics, Evaluation, EvaluationSettings, TrackSample, TruthSample, Unmatched, TRACKS_SOURCE,
+    TRUTH_SOURCE,
 };
 use crate::error::{EngineError, Result};
 
@@ -73,8 +75,9 @@ fn sample_error(file: &str, line: usize, field: &str, reason: String) -> EngineE
     }
 }
 
-/// Distance between a track sample and the truth at its time, m (2-D or 3-D).
-fn position_error(sample: &TrackSample, truth: &Bracket<'_>, dimensions: usize) -> Result<f64> {
+/// The error vector of a track sample against the truth at its time (the first `dimensions`
+/// axes; the others 0), m.
+fn position_error(sample: &TrackSample, truth: &Bracket<'_>, dimensions: usize) -> Result<[f64; 3]> {
     if dimensions == 3 {
         let need_z = |line: usize| {
             sample_error(
@@ -109,18 +112,25 @@ fn position_error(sample: &TrackSample, truth: &Bracket<'_>, dimensions: usize) 
             }
         }
     }
-    let mut squared_m2 = 0.0;
-    for axis in 0..dimensions {
+    let mut error_m = [0.0; 3];
+    for (axis, error) in error_m.iter_mut().enumerate().take(dimensions) {
         let lower = truth.lower.position_m[axis];
         // p = p₀ + w·(p₁ − p₀)
         let true_m = match truth.upper {
             Some((upper, weight)) => lower + weight * (upper.position_m[axis] - lower),
             None => lower,
         };
-        let difference_m = sample.position_m[axis] - true_m;
-        squared_m2 += difference_m * difference_m;
+        *error = sample.position_m[axis] - true_m;
     }
-    Ok(squared_m2.sqrt())
+    Ok(error_m)
+}
+
+/// The NEES values of one tag's scored samples with a covariance, and how many covariances
+/// could not be used.
+#[derive(Default)]
+struct NeesValues {
+    values: Vec<f64>,
+    not_positive_definite: usize,
 }
 
 fn check_settings(settings: &EvaluationSettings) -> Result<()> {
@@ -184,7 +194,7 @@ fn non_finite_field(time_s: f64, position_m: &[f64; 3], has_z: bool) -> Option<&
 ///
 /// let truth = |time_s: f64, x: f64| TruthSample { time_s, tag: "a".into(), position_m: [x, 0.0, 0.0], has_z: false, line: 0 };
 /// let track = |time_s: f64, x: f64, y: f64| TrackSample {
-///     time_s, tag: "a".into(), position_m: [x, y, 0.0], has_z: false, predicted: false, line: 0,
+///     time_s, tag: "a".into(), position_m: [x, y, 0.0], has_z: false, predicted: false, covariance_m2: None, line: 0,
 /// };
 /// let evaluation = evaluate(
 ///     &[truth(0.0, 0.0), truth(0.4, 4.0), truth(2.0, 4.0)],
@@ -234,6 +244,7 @@ pub fn evaluate(truth: &[TruthSample], tracks: &[TrackSample], settings: &Evalua
     }
 
     let mut errors_by_tag: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
+    let mut nees_by_tag: BTreeMap<&str, NeesValues> = BTreeMap::new();
     let mut unmatched = Unmatched::default();
     let mut unmatched_by_tag: BTreeMap<&str, Unmatched> = BTreeMap::new();
     for sample in tracks {
@@ -251,7 +262,16 @@ pub fn evaluate(truth: &[TruthSample], tracks: &[TrackSample], settings: &Evalua
         match matched {
             Ok(bracket) => {
                 let error_m = position_error(sample, &bracket, settings.dimensions)?;
-                errors_by_tag.entry(&sample.tag).or_default().push(error_m);
+                // |e| = √(Σ eᵢ²)
+                let distance_m = error_m.iter().map(|e| e * e).sum::<f64>().sqrt();
+                errors_by_tag.entry(&sample.tag).or_default().push(distance_m);
+                if let Some(covariance_m2) = &sample.covariance_m2 {
+                    let entry = nees_by_tag.entry(&sample.tag).or_default();
+                    match nees(&error_m, covariance_m2, settings.dimensions) {
+                        Some(value) => entry.values.push(value),
+                        None => entry.not_positive_definite += 1,
+                    }
+                }
             }
             Err(reason) => {
                 unmatched.count(reason);
@@ -286,9 +306,22 @@ pub fn evaluate(truth: &[TruthSample], tracks: &[TrackSample], settings: &Evalua
         .into_iter()
         .map(|(tag, errors)| Ok((tag.to_string(), ErrorStatistics::from_errors(&errors)?)))
         .collect::<Result<Vec<_>>>()?;
+    let all_nees: Vec<f64> = nees_by_tag.values().flat_map(|n| n.values.iter().copied()).collect();
+    let not_positive_definite = nees_by_tag.values().map(|n| n.not_positive_definite).sum();
+    let consistency = Consistency::from_nees(&all_nees, settings.dimensions, not_positive_definite)?;
+    let mut consistency_per_tag = Vec::new();
+    for (tag, values) in nees_by_tag {
+        if let Some(summary) =
+            Consistency::from_nees(&values.values, settings.dimensions, values.not_positive_definite)?
+        {
+            consistency_per_tag.push((tag.to_string(), summary));
+        }
+    }
     Ok(Evaluation {
         overall,
         per_tag,
+        consistency,
+        consistency_per_tag,
         unmatched,
         unmatched_per_tag: unmatched_by_tag
             .into_iter()

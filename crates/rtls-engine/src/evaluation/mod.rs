@@ -30,6 +30,7 @@
 //! # Ok::<(), rtls_engine::EngineError>(())
 //! ```
 
+mod consistency;
 mod evaluate;
 mod statistics;
 mod track;
@@ -76,6 +77,9 @@ pub struct TrackSample {
     pub has_z: bool,
     /// Whether the position is a prediction without a measurement (coasting), not an update.
     pub predicted: bool,
+    /// The reported position covariance, m², row-major `D × D` (4 or 9 entries), when the line
+    /// gave one (`cov`); [`evaluate`] scores its consistency with the errors ([`Consistency`]).
+    pub covariance_m2: Option<Vec<f64>>,
     /// 1-based line of the file the sample was read from (0 when built in code); errors name it.
     pub line: usize,
 }
@@ -133,6 +137,36 @@ pub struct ErrorStatistics {
     pub max_m: f64,
 }
 
+/// Whether the reported covariances hold the errors as often as they claim: the normalised
+/// estimation error squared (NEES) of the position, `ε = eᵀ P⁻¹ e` with `e` the error and `P`
+/// the reported position covariance on the evaluated axes (the top-left 2 × 2 block in 2-D).
+///
+/// For a consistent estimator `ε ~ χ²(d)`: its mean is `d` (2 or 3) and the reported 95 %
+/// ellipse (`ε ≤ χ²_d(0.95)`: 5.991 in 2-D, 7.815 in 3-D) holds the truth 95 % of the time. A
+/// larger mean NEES and a smaller coverage mean an overconfident tracker; the reverse, a
+/// pessimistic one.
+///
+/// # References
+/// Bar-Shalom, Li & Kirubarajan, *Estimation with Applications to Tracking and Navigation*,
+/// 2001, §5.4.2 (NEES).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Consistency {
+    /// Scored samples with a covariance (those without one are not counted here).
+    pub count: usize,
+    /// Degrees of freedom `d` (the evaluated axes).
+    pub dimensions: usize,
+    /// Mean NEES; `d` when consistent.
+    pub mean_nees: f64,
+    /// Median NEES; `χ²_d(0.5)` (1.386 in 2-D) when consistent.
+    pub median_nees: f64,
+    /// Share of samples inside the reported 95 % ellipse (ellipsoid in 3-D), 0–1.
+    pub inside_95: f64,
+    /// Share inside the reported 68.3 % ellipse (the "1 σ" region of `d` dimensions), 0–1.
+    pub inside_68: f64,
+    /// Samples whose covariance block was not positive definite (counted apart, not scored).
+    pub not_positive_definite: usize,
+}
+
 /// Track samples that were not scored, by reason. Each sample is counted once, under the first
 /// reason in field order that applies.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
@@ -168,6 +202,11 @@ pub struct Evaluation {
     pub overall: ErrorStatistics,
     /// Per tag with at least one scored sample, sorted by tag id.
     pub per_tag: Vec<(String, ErrorStatistics)>,
+    /// The consistency of the reported covariances over all scored samples that carry one;
+    /// `None` when none does.
+    pub consistency: Option<Consistency>,
+    /// The same per tag, for the tags with at least one scored sample with a covariance.
+    pub consistency_per_tag: Vec<(String, Consistency)>,
     /// Samples not scored, by reason (all tags).
     pub unmatched: Unmatched,
     /// The same per tag, for the tags with at least one unmatched sample, sorted by tag id (so a

@@ -123,7 +123,7 @@ fn truth_rows_at_the_same_time_must_agree() {
 
 #[test]
 fn track_lines_read_the_needed_keys_and_ignore_the_rest() {
-    let line = r#"{"t": 12.5, "vx": 0.1, "cov": [[1, 0], [0, 1]], "tag": "miner-017", "x": 10, "y": -2.5, "z": 1.75,
+    let line = r#"{"t": 12.5, "vx": 0.1, "cov": [1, 0, 0, 0, 1, 0, 0, 0, 2], "tag": "miner-017", "x": 10, "y": -2.5, "z": 1.75,
         "status": "confirmed", "events": {"zone": "A"}, "predicted": false}"#
         .replace('\n', " ");
     let sample = parse_track_line(&line, "tracks.jsonl", 4).unwrap().unwrap();
@@ -132,6 +132,16 @@ fn track_lines_read_the_needed_keys_and_ignore_the_rest() {
         (sample.position_m, sample.has_z, sample.predicted, sample.line),
         ([10.0, -2.5, 1.75], true, false, 4)
     );
+    assert_eq!(
+        sample.covariance_m2.as_deref(),
+        Some(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 2.0][..])
+    );
+    // a covariance of the wrong size or nested is an error naming `cov`
+    for bad in [r#"[[1, 0], [0, 1]]"#, "[1, 0, 0]", "[1, 0, 0, 1e999]"] {
+        let line = format!(r#"{{"t": 1, "tag": "a", "x": 1, "y": 2, "cov": {bad}}}"#);
+        let error = parse_track_line(&line, "tracks.jsonl", 2).unwrap_err().to_string();
+        assert!(error.starts_with("tracks.jsonl:2: field `cov`"), "{error}");
+    }
     // a raw fix: no velocity, no predicted flag
     let fix = parse_track_line(r#"{"t": 1, "tag": "a", "x": 1, "y": 2}"#, "fixes.jsonl", 1)
         .unwrap()

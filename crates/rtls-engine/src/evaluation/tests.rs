@@ -24,6 +24,7 @@ fn track(tag: &str, time_s: f64, position_m: &[f64], predicted: bool, line: usiz
         position_m: [position_m[0], position_m[1], position_m.get(2).copied().unwrap_or(0.0)],
         has_z: position_m.len() == 3,
         predicted,
+        covariance_m2: None,
         line,
     }
 }

@@ -16,6 +16,7 @@ struct TrackWire {
     y: Option<f64>,
     z: Option<f64>,
     predicted: Option<bool>,
+    cov: Option<Vec<f64>>,
 }
 
 /// Reads a [`TrackWire`], leaving in `key` the key being read when an error occurred.
@@ -62,6 +63,7 @@ impl<'de> Visitor<'de> for TrackSeed<'_> {
                 "y" => read_once(&mut map, &mut wire.y, "y")?,
                 "z" => read_once(&mut map, &mut wire.z, "z")?,
                 "predicted" => read_once(&mut map, &mut wire.predicted, "predicted")?,
+                "cov" => read_once(&mut map, &mut wire.cov, "cov")?,
                 _ => {
                     map.next_value::<IgnoredAny>()?;
                 }
@@ -75,15 +77,16 @@ impl<'de> Visitor<'de> for TrackSeed<'_> {
 /// Parses one line of a track file (JSON Lines, as written by `rtls track`).
 ///
 /// Reads `t` (s), `tag`, `x`, `y` (m), optional `z` (m; absent for a 2-D position) and optional
-/// `predicted` (bool, default false: a prediction without a measurement); every other key
-/// (`vx`, `cov`, `status`, …) is ignored, so raw fixes in the same shape read too. A blank line
+/// `predicted` (bool, default false: a prediction without a measurement) and optional `cov` (the
+/// position covariance, m², row-major: 4 entries for `x, y`, 9 for `x, y, z`); every other key
+/// (`vx`, `status`, …) is ignored, so raw fixes in the same shape read too. A blank line
 /// (empty or white space only) is `Ok(None)`.
 ///
 /// # Errors
 /// [`EngineError::Parse`] with `file` and `line` as given and the key at fault as the field (`-`
 /// when the line is not a JSON object): malformed JSON, a missing `t`, `tag`, `x` or `y`, a value
 /// of the wrong type (`"z": null` included: leave the key out for 2-D), a repeated key, an empty
-/// tag.
+/// tag, a `cov` whose length is not 4 or 9 or that holds a non-finite entry.
 ///
 /// # Examples
 /// ```
@@ -126,12 +129,27 @@ pub fn parse_track_line(text: &str, file: &str, line: usize) -> Result<Option<Tr
     }
     let x = wire.x.ok_or_else(|| missing("x"))?;
     let y = wire.y.ok_or_else(|| missing("y"))?;
+    let covariance_m2 = match wire.cov {
+        None => None,
+        Some(cov) if (cov.len() == 4 || cov.len() == 9) && cov.iter().all(|c| c.is_finite()) => Some(cov),
+        Some(cov) => {
+            return Err(error(
+                "cov",
+                format!(
+                    "has {} entries or a non-finite one; a position covariance is 4 (x, y) or 9 (x, y, z) \
+                     finite numbers, row-major, m²",
+                    cov.len()
+                ),
+            ))
+        }
+    };
     Ok(Some(TrackSample {
         time_s,
         tag,
         position_m: [x, y, wire.z.unwrap_or(0.0)],
         has_z: wire.z.is_some(),
         predicted: wire.predicted.unwrap_or(false),
+        covariance_m2,
         line,
     }))
 }

@@ -248,6 +248,7 @@ pub fn samples_from_updates(updates: &[TrackUpdate]) -> Vec<TrackSample> {
             position_m: u.position_m,
             has_z: u.dimensions == 3,
             predicted: u.predicted,
+            covariance_m2: Some(u.position_covariance_m2[..u.dimensions * u.dimensions].to_vec()),
             line: index + 1,
         })
         .collect()
