@@ -297,6 +297,16 @@ fn validate(site: &mut Site, text: &str, file: &str) -> Result<()> {
                 t.imm.switch_probability > 0.0 && t.imm.switch_probability < 1.0,
                 "must lie strictly between 0 and 1",
             ),
+            (
+                at("adaptive_noise.memory_s"),
+                t.adaptive_noise.memory_s.is_finite() && (1e-3..=1e6).contains(&t.adaptive_noise.memory_s),
+                "must be a number of seconds from 0.001 to 10⁶",
+            ),
+            (
+                at("adaptive_noise.max_scale"),
+                t.adaptive_noise.max_scale.is_finite() && (1.0..=1e6).contains(&t.adaptive_noise.max_scale),
+                "must be a number from 1 to 10⁶ (a multiple of the stated variance)",
+            ),
         ],
     )?;
 

@@ -16,7 +16,7 @@ mod keys;
 mod load;
 mod options;
 
-pub use options::{ImmSettings, SchedulingCell, SchedulingSettings};
+pub use options::{AdaptiveNoiseSettings, ImmSettings, SchedulingCell, SchedulingSettings};
 
 use std::path::PathBuf;
 
@@ -328,6 +328,9 @@ pub struct TrackerSettings {
     /// The interacting multiple models of `motion_model = "imm"`.
     #[serde(default)]
     pub imm: ImmSettings,
+    /// Innovation-based adaptive measurement noise (on by default).
+    #[serde(default)]
+    pub adaptive_noise: AdaptiveNoiseSettings,
 }
 
 fn default_dimensions() -> u8 {

@@ -1,4 +1,5 @@
-//! Optional tracker sections of the site model: `[tracker.imm]` and `[scheduling]`.
+//! Optional tracker sections of the site model: `[tracker.imm]`, `[tracker.adaptive_noise]`
+//! and `[scheduling]`.
 
 use serde::Deserialize;
 
@@ -65,6 +66,35 @@ impl Default for ImmSettings {
             ca_jerk_noise_std_mps3: 1.0,
             ct_turn_rate_noise_std_radps2: 0.2,
             switch_probability: 0.6,
+        }
+    }
+}
+
+/// `[tracker.adaptive_noise]`: innovation-based adaptive measurement noise
+/// ([`rtls_estimation::adaptive`]). Each track keeps one noise scale `λ ≥ 1` per measurement
+/// class (ranges, RSSI, TDOA, position fixes, fingerprint fixes, velocities) and updates with
+/// `λR` instead of the stated `R`; `λ` follows the innovations (covariance matching), so a track
+/// whose readers are noisier than the site says reports a covariance that still holds the
+/// truth (95 % ellipses about 95 % of the time). It never goes below the stated noise.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AdaptiveNoiseSettings {
+    /// Whether the scales adapt; `false` keeps `λ = 1` (the stated noise). Default true.
+    pub enabled: bool,
+    /// The scale averages the innovations of its class over this window, s (> 0; a running
+    /// mean over a track's first updates). Long enough that a manoeuvre of a few seconds is the
+    /// motion model's to explain, short enough to follow a tag into a noisier area. Default 20.
+    pub memory_s: f64,
+    /// The largest scale, a multiple of the stated variance (≥ 1). Default 400 (σ × 20).
+    pub max_scale: f64,
+}
+
+impl Default for AdaptiveNoiseSettings {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            memory_s: 20.0,
+            max_scale: 400.0,
         }
     }
 }

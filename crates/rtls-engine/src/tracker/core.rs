@@ -22,7 +22,9 @@ use rtls_estimation::motion::ConstantVelocity;
 use rtls_estimation::Gaussian;
 
 use super::modes::Manoeuvres;
+use super::noise::NoiseScales;
 use super::schedule::{Scheduling, TrackSchedule};
+use rtls_estimation::adaptive::AdaptiveNoise;
 
 /// An accelerometer sample drives the prediction (zero-order hold) for at most this long, s.
 pub(super) const ACCELERATION_HOLD_S: f64 = 1.0;
@@ -53,6 +55,8 @@ pub(crate) struct Shared {
     pub(crate) manoeuvres: Option<Arc<Manoeuvres>>,
     /// Seed 003's adaptive node scheduling (`[scheduling]`).
     pub(crate) scheduling: Option<Arc<Scheduling>>,
+    /// Adaptive measurement noise (`[tracker.adaptive_noise]`); `None` when disabled.
+    pub(crate) adaptive: Option<AdaptiveNoise>,
 }
 
 /// One tag's track: its state (a value it owns), lifecycle and pending work.
@@ -81,6 +85,12 @@ pub(crate) struct Track<const N: usize> {
     pub(super) mode: usize,
     /// Under `[scheduling]`: the track's task nodes and last reported firing set.
     pub(super) schedule: TrackSchedule,
+    /// Adaptive measurement-noise scales, per measurement class.
+    pub(super) noise: NoiseScales,
+    /// Running share of gated updates that fell outside the gate (exponential, ~20 updates).
+    pub(super) rejection_rate: f64,
+    /// Gated updates since the track (re)started.
+    pub(super) gated_updates: u32,
 }
 
 impl<const N: usize> Track<N> {
@@ -99,6 +109,9 @@ impl<const N: usize> Track<N> {
             modes: None,
             mode: 0,
             schedule: TrackSchedule::default(),
+            noise: NoiseScales::default(),
+            rejection_rate: 0.0,
+            gated_updates: 0,
         }
     }
 

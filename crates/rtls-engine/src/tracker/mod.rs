@@ -104,6 +104,7 @@ mod core;
 mod epoch;
 pub(crate) mod models;
 mod modes;
+mod noise;
 mod output;
 mod report;
 mod schedule;
@@ -121,9 +122,11 @@ mod tests_timing;
 mod update;
 
 pub use anonymous::ANONYMOUS_TAG;
+pub use noise::{InnovationTotals, Innovations, NoiseClass};
 pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
 pub(crate) use schedule::scheduling_layout;
 
+use rtls_estimation::adaptive::AdaptiveNoise;
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, SigmaPointParameters, UnscentedKalmanFilter};
 use rtls_estimation::motion::{ConstantVelocity, ProcessNoise};
 use rtls_estimation::stats::chi_square_quantile;
@@ -234,6 +237,14 @@ impl Tracker {
             no_coverage_zones,
             manoeuvres,
             scheduling: Scheduling::new(site)?.map(Arc::new),
+            adaptive: if settings.adaptive_noise.enabled {
+                Some(AdaptiveNoise::new(
+                    settings.adaptive_noise.memory_s,
+                    settings.adaptive_noise.max_scale,
+                )?)
+            } else {
+                None
+            },
         };
         let monitor = site.zone_monitor()?;
         let tracks = if settings.dimensions == 3 {

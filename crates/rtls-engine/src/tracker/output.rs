@@ -1,5 +1,6 @@
 //! What the tracker reports: track updates and events, and their JSON Lines form.
 
+use super::noise::Innovations;
 use std::sync::Arc;
 
 use serde_json::{json, Map, Value};
@@ -384,14 +385,18 @@ pub struct Output {
     pub events: Vec<Event>,
     /// Raw fixes of the fix-then-filter pipeline (before filtering).
     pub fixes: Vec<RawFix>,
+    /// Innovation totals per measurement class of the updates computed since the last
+    /// [`Output::clear`] (a consumer that clears adds them up with [`Innovations::merge`]).
+    pub innovations: Innovations,
 }
 
 impl Output {
-    /// Empties all three lists, keeping their capacity.
+    /// Empties all three lists, keeping their capacity, and zeroes the innovation totals.
     pub fn clear(&mut self) {
         self.updates.clear();
         self.events.clear();
         self.fixes.clear();
+        self.innovations = Innovations::default();
     }
 
     /// `true` when nothing was produced.

@@ -13,6 +13,7 @@ use super::alarms::position_of;
 use super::anchors::AnchorReading;
 use super::core::{dimensions, rejected, Shared, Track, ACCELERATION_HOLD_S};
 use super::models::{AnchorLaw, AnchorMeasurement};
+use super::noise::NoiseClass;
 use super::output::{Event, Output, UpdateSource};
 use crate::error::Result;
 use crate::lifecycle::{Lifecycle, TrackStatus};
@@ -68,12 +69,29 @@ pub(super) fn accept<const N: usize>(
     let time_s = updated.state.time_s();
     let dof = updated.measurement_dim().clamp(1, 3);
     let gated = matches!(track.status(), Some(TrackStatus::Confirmed | TrackStatus::Coasting));
-    if gated && updated.nis > shared.gates[dof - 1] {
-        let reason = format!(
+    let outside = gated && updated.nis > shared.gates[dof - 1];
+    if gated {
+        // r ← (1 − α) r + α·[outside the gate]
+        track.rejection_rate += REJECTION_RATE_WEIGHT * (f64::from(u8::from(outside)) - track.rejection_rate);
+        track.gated_updates = track.gated_updates.saturating_add(1);
+    }
+    if outside {
+        let mut reason = format!(
             "outside the χ²({dof}) validation gate: NIS {:.2} > {:.2}",
             updated.nis,
             shared.gates[dof - 1]
         );
+        if track.gated_updates >= REACQUIRE_MIN_UPDATES && track.rejection_rate > REACQUIRE_REJECTION_RATE {
+            // the track no longer explains its measurements (locked on a mirror solution or
+            // left behind by a manoeuvre): start again from a fresh fix rather than gate out
+            // every measurement for ever
+            reason.push_str(&format!(
+                "; {:.0} % of the track's recent measurements fell outside the gate, so the track \
+                 re-initialises from its next fix",
+                100.0 * track.rejection_rate
+            ));
+            reacquire(track);
+        }
         out.events.push(rejected(&track.tag, time_s, kind, reason));
         return Ok(());
     }
@@ -100,6 +118,26 @@ pub(super) fn accept<const N: usize>(
     }
     track.unreported = Some(source);
     Ok(())
+}
+
+/// Weight `α` of one gated update in a track's running rejection rate (about the last 20).
+const REJECTION_RATE_WEIGHT: f64 = 0.1;
+
+/// A confirmed track whose running rejection rate exceeds this re-initialises.
+const REACQUIRE_REJECTION_RATE: f64 = 0.6;
+
+/// Gated updates a track needs before its rejection rate can re-initialise it.
+const REACQUIRE_MIN_UPDATES: u32 = 10;
+
+/// Drops the track's state (keeping its lifecycle, so it is reported as the same track) so its
+/// next fix starts it again; the adaptive noise scales, learnt on a wrong state, start over.
+pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
+    track.state = None;
+    track.modes = None;
+    track.epoch.clear();
+    track.noise = Default::default();
+    track.rejection_rate = 0.0;
+    track.gated_updates = 0;
 }
 
 /// Under the IMM: reports a `model-switch` when the mode to report changes (see
@@ -251,9 +289,14 @@ pub(super) fn component_update<const N: usize>(
     out: &mut Output,
 ) -> Result<()> {
     let k = indices.len();
+    // R ← λ R, the class's adaptive noise scale
+    let class = NoiseClass::of_component_kind(kind, source == UpdateSource::Velocity);
+    let scale = track.noise.scale(class);
+    let scaled: Vec<f64> = covariance.iter().map(|c| scale * c).collect();
+    let covariance_scaled = &scaled[..];
     // the single-model update of the (combined) prior gives the gate's NIS; under the IMM the
     // state is the modes' combined posterior
-    let result = NoiseCovariance::full(DMatrix::from_row_slice(k, k, covariance))
+    let result = NoiseCovariance::full(DMatrix::from_row_slice(k, k, covariance_scaled))
         .and_then(|noise| ComponentSelection::<N>::new(indices, noise))
         .and_then(|model| {
             shared
@@ -262,14 +305,21 @@ pub(super) fn component_update<const N: usize>(
         })
         .and_then(|updated| match (&shared.manoeuvres, &prior.modes) {
             (Some(manoeuvres), Some(modes)) => {
-                let posterior = manoeuvres.update_components(modes, indices, value, covariance)?;
+                let posterior = manoeuvres.update_components(modes, indices, value, covariance_scaled)?;
                 let state = manoeuvres.combined(&posterior)?;
                 Ok((Updated { state, ..updated }, Some(posterior)))
             }
             _ => Ok((updated, None)),
         });
     match result {
-        Ok((updated, modes)) => accept(shared, track, updated, modes, kind, source, out),
+        Ok((updated, modes)) => {
+            let gate = shared.gates[k.clamp(1, 3) - 1];
+            out.innovations.record(class, &updated, gate, scale);
+            track
+                .noise
+                .observe(shared.adaptive.as_ref(), class, &updated, covariance, gate);
+            accept(shared, track, updated, modes, kind, source, out)
+        }
         Err(error) => {
             let reason = format!("{} update failed: {error}", source.name());
             out.events
@@ -323,7 +373,14 @@ pub(super) fn coupled_update<const N: usize>(
     let Some(state) = track.state.as_ref() else {
         return Ok(());
     };
-    let (model, z) = match reading {
+    let class = match reading {
+        AnchorReading::Range { .. } => NoiseClass::Range,
+        AnchorReading::Rssi { .. } => NoiseClass::Rssi,
+        AnchorReading::Tdoa { .. } => NoiseClass::Tdoa,
+    };
+    // R ← λ R, the class's adaptive noise scale
+    let scale = track.noise.scale(class);
+    let (model, z, stated_variance) = match reading {
         AnchorReading::Range {
             anchor,
             range_m,
@@ -333,9 +390,10 @@ pub(super) fn coupled_update<const N: usize>(
                 shared.anchors.get(anchor).position_m,
                 shared.tag_height_m,
                 AnchorLaw::Range,
-                variance_m2,
+                scale * variance_m2,
             ),
             range_m,
+            variance_m2,
         ),
         AnchorReading::Rssi {
             anchor,
@@ -353,9 +411,10 @@ pub(super) fn coupled_update<const N: usize>(
                     shared.anchors.get(anchor).position_m,
                     shared.tag_height_m,
                     law,
-                    variance_db2,
+                    scale * variance_db2,
                 ),
                 rssi_dbm,
+                variance_db2,
             )
         }
         AnchorReading::Tdoa {
@@ -372,9 +431,10 @@ pub(super) fn coupled_update<const N: usize>(
                     shared.anchors.get(anchor).position_m,
                     shared.tag_height_m,
                     law,
-                    variance_m2,
+                    scale * variance_m2,
                 ),
                 range_difference_m,
+                variance_m2,
             )
         }
     };
@@ -395,7 +455,17 @@ pub(super) fn coupled_update<const N: usize>(
         _ => Ok((updated, None)),
     });
     match result {
-        Ok((updated, modes)) => accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out),
+        Ok((updated, modes)) => {
+            out.innovations.record(class, &updated, shared.gates[0], scale);
+            track.noise.observe(
+                shared.adaptive.as_ref(),
+                class,
+                &updated,
+                &[stated_variance],
+                shared.gates[0],
+            );
+            accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)
+        }
         Err(error) => {
             out.events.push(rejected(
                 &track.tag,

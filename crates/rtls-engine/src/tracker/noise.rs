@@ -1,0 +1,214 @@
+//! Per-track adaptive measurement noise (`[tracker.adaptive_noise]`): one scale `λ ≥ 1` per
+//! measurement class, applied to the stated noise before an update and re-estimated from the
+//! update's innovation afterwards ([`rtls_estimation::adaptive`]).
+
+use nalgebra::DMatrix;
+use rtls_estimation::adaptive::{AdaptiveNoise, NoiseScale};
+use rtls_estimation::filter::Updated;
+
+/// Measurement classes that keep separate noise scales: their errors come from different
+/// physics, so one being worse than stated says nothing about the others.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoiseClass {
+    /// Tightly coupled ranges.
+    Range,
+    /// Tightly coupled RSSI.
+    Rssi,
+    /// Tightly coupled range differences.
+    Tdoa,
+    /// Position fixes: epoch fixes of fix-then-filter and `fix` records.
+    Fix,
+    /// Fingerprint fixes (`rssi_vector` scans located in the radio map).
+    Fingerprint,
+    /// Velocity and odometry.
+    Velocity,
+}
+
+impl NoiseClass {
+    /// Number of classes.
+    pub const COUNT: usize = 6;
+
+    /// Every class, in index order.
+    pub const ALL: [Self; Self::COUNT] = [
+        Self::Range,
+        Self::Rssi,
+        Self::Tdoa,
+        Self::Fix,
+        Self::Fingerprint,
+        Self::Velocity,
+    ];
+
+    /// The class's name in summaries: `range`, `rssi`, `tdoa`, `fix`, `fingerprint`, `velocity`.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Range => "range",
+            Self::Rssi => "rssi",
+            Self::Tdoa => "tdoa",
+            Self::Fix => "fix",
+            Self::Fingerprint => "fingerprint",
+            Self::Velocity => "velocity",
+        }
+    }
+
+    /// The class of a component update, by the record kind that produced it (the `kind` the
+    /// tracker names in events: `rssi_vector` is a fingerprint; `velocity` / `odometry` a
+    /// velocity; every other position update a fix).
+    pub(super) fn of_component_kind(kind: &str, is_velocity: bool) -> Self {
+        match (kind, is_velocity) {
+            (_, true) => Self::Velocity,
+            ("rssi_vector", false) => Self::Fingerprint,
+            _ => Self::Fix,
+        }
+    }
+}
+
+/// A track's noise scales, one per [`NoiseClass`], and the time of each class's last update (a
+/// value the track owns).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct NoiseScales {
+    scales: [NoiseScale; NoiseClass::COUNT],
+    last_update_s: [f64; NoiseClass::COUNT],
+}
+
+impl Default for NoiseScales {
+    fn default() -> Self {
+        Self {
+            scales: [NoiseScale::default(); NoiseClass::COUNT],
+            last_update_s: [f64::NAN; NoiseClass::COUNT],
+        }
+    }
+}
+
+impl NoiseScales {
+    /// `λ` of `class` (1 while adaptation is off or nothing was observed).
+    pub(super) fn scale(&self, class: NoiseClass) -> f64 {
+        self.scales[class as usize].scale()
+    }
+
+    /// Re-estimates `class`'s scale from an update computed with `λR`, given the stated `R`
+    /// (row-major `m × m`) and the gate `γ` innovations are clipped to. An update whose numbers
+    /// the estimator refuses (it already passed the filter's own checks) leaves the scale as it
+    /// was.
+    pub(super) fn observe<const N: usize>(
+        &mut self,
+        adaptive: Option<&AdaptiveNoise>,
+        class: NoiseClass,
+        updated: &Updated<N>,
+        stated_noise: &[f64],
+        gate: f64,
+    ) {
+        let Some(adaptive) = adaptive else {
+            return;
+        };
+        let m = updated.measurement_dim();
+        if stated_noise.len() != m * m {
+            return;
+        }
+        let noise = DMatrix::from_row_slice(m, m, stated_noise);
+        let index = class as usize;
+        let time_s = updated.state.time_s();
+        // Δt since the class's previous update (NaN before the first: the running mean rules)
+        let elapsed_s = time_s - self.last_update_s[index];
+        let slot = &mut self.scales[index];
+        if let Ok(next) = adaptive.observe(
+            slot,
+            elapsed_s,
+            &updated.innovation,
+            &updated.innovation_covariance,
+            &noise,
+            gate,
+        ) {
+            *slot = next;
+            self.last_update_s[index] = time_s;
+        }
+    }
+}
+
+/// Running totals of one class's innovations over a run: how well the stated (and adapted)
+/// noise explains what the filter saw. A consistent filter has a mean NIS per degree of
+/// freedom near 1.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct InnovationTotals {
+    /// Updates computed (accepted or gated out).
+    pub updates: u64,
+    /// `Σ m`, the measurement components.
+    pub dof: u64,
+    /// `Σ NIS` (each clipped at its validation gate, so one wild outlier does not dominate).
+    pub nis: f64,
+    /// `Σ ln N(ν; 0, S) = −½ Σ (NIS + ln |S| + m ln 2π)` with the clipped NIS: the innovation
+    /// log-likelihood that `rtls tune` maximises.
+    pub log_likelihood: f64,
+    /// `Σ λ`, the adaptive noise scale in force at each update.
+    pub noise_scale: f64,
+}
+
+impl InnovationTotals {
+    /// Adds one update with the given NIS, `ln |S|`, `m` and clip gate, under scale `λ`.
+    pub(super) fn add(&mut self, nis: f64, log_det_s: f64, m: usize, gate: f64, scale: f64) {
+        let nis = nis.min(gate);
+        self.updates += 1;
+        self.dof += m as u64;
+        self.nis += nis;
+        // ln N(ν; 0, S) = −½ (νᵀS⁻¹ν + ln|S| + m ln 2π)
+        self.log_likelihood -= 0.5 * (nis + log_det_s + m as f64 * (2.0 * core::f64::consts::PI).ln());
+        self.noise_scale += scale;
+    }
+
+    /// Mean NIS per degree of freedom (`None` before any update).
+    #[must_use]
+    pub fn mean_nis_per_dof(&self) -> Option<f64> {
+        (self.dof > 0).then(|| self.nis / self.dof as f64)
+    }
+
+    /// Mean adaptive noise scale `λ` (`None` before any update).
+    #[must_use]
+    pub fn mean_noise_scale(&self) -> Option<f64> {
+        (self.updates > 0).then(|| self.noise_scale / self.updates as f64)
+    }
+
+    /// Adds another run's totals.
+    pub fn merge(&mut self, other: &Self) {
+        self.updates += other.updates;
+        self.dof += other.dof;
+        self.nis += other.nis;
+        self.log_likelihood += other.log_likelihood;
+        self.noise_scale += other.noise_scale;
+    }
+}
+
+/// [`InnovationTotals`] per [`NoiseClass`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Innovations(pub [InnovationTotals; NoiseClass::COUNT]);
+
+impl Innovations {
+    /// The totals of `class`.
+    #[must_use]
+    pub fn of(&self, class: NoiseClass) -> &InnovationTotals {
+        &self.0[class as usize]
+    }
+
+    /// Records one update of `class` computed with noise scale `scale`.
+    pub(super) fn record<const N: usize>(&mut self, class: NoiseClass, updated: &Updated<N>, gate: f64, scale: f64) {
+        self.0[class as usize].add(
+            updated.nis,
+            updated.log_det_innovation_covariance,
+            updated.measurement_dim(),
+            gate,
+            scale,
+        );
+    }
+
+    /// The total innovation log-likelihood over every class.
+    #[must_use]
+    pub fn log_likelihood(&self) -> f64 {
+        self.0.iter().map(|t| t.log_likelihood).sum()
+    }
+
+    /// Adds another run's totals.
+    pub fn merge(&mut self, other: &Self) {
+        for (mine, theirs) in self.0.iter_mut().zip(&other.0) {
+            mine.merge(theirs);
+        }
+    }
+}
