@@ -11,6 +11,8 @@
 //! - [`site`] — the site model (TOML): readers/anchors, zones, tracker settings.
 //! - [`lifecycle`] — track initiation, M-of-N confirmation, coasting (000's gap filling), lost
 //!   and deleted states.
+//! - [`tuning`] — fitting a site to a recording: process noise by innovation likelihood, and
+//!   with ground truth the readers' range bias / noise and path-loss laws (`rtls tune`).
 //! - [`zones`] — zone geometry (2-D polygons with floor or height range, 3-D boxes), and
 //!   enter / exit / dwell events with anti-flap tolerance.
 
@@ -24,6 +26,7 @@ pub mod scheduling;
 pub mod site;
 pub mod survey;
 pub mod tracker;
+pub mod tuning;
 pub mod zones;
 
 pub use error::{EngineError, Result};

@@ -1,0 +1,298 @@
+//! Tuning a site to a recording (`rtls tune`): the process noise by maximum likelihood on the
+//! innovations (no truth needed), and with ground truth the readers' range bias and noise and
+//! their path-loss laws, and the process noise that minimises the position error.
+//!
+//! Every candidate runs the one tracker ([`Tracker`]) over the records, exactly as
+//! `rtls track` would; nothing is simulated.
+//!
+//! # Without truth: innovation likelihood
+//! For each candidate white-acceleration density `σ_a` on a logarithmic grid the records are
+//! tracked and the innovation log-likelihood `ℓ(σ_a) = Σₖ ln N(νₖ; 0, Sₖ)` (each NIS clipped at
+//! its gate, [`crate::tracker::InnovationTotals`]) is summed over every update; the `σ_a` of
+//! the largest `ℓ` is chosen (Mehra 1970's maximum-likelihood identification of the noise
+//! from the innovations). The adaptive measurement-noise scales `λ` the run ends with tell
+//! how much noisier each class of measurement was than the site stated; `rtls tune` writes
+//! `√λ̄` times the stated standard deviations.
+//!
+//! # With truth
+//! - Ranges: per reader, the residuals `rᵢ − dᵢ` against the slant distance from the reader to
+//!   the true position at the record's time give `bias_m = median(r − d)` and
+//!   `range_std_m = 1.4826 · MAD(r − d)` (a robust standard deviation).
+//! - RSSI: per reader, the log-distance law `ρ = ρ₀ − 10 n log₁₀(d / 1 m)` by least squares on
+//!   `(log₁₀ d, ρ)`, with the residual standard deviation as the shadowing.
+//! - `σ_a`: the grid value whose tracks (with the calibrated readers) have the smallest RMSE
+//!   against the truth.
+//!
+//! # Errors
+//! Settings the tracker refuses; no update at all on any candidate (nothing to tune on).
+//!
+//! # References
+//! R. K. Mehra, "On the identification of variances and adaptive Kalman filtering", IEEE
+//! Trans. Automatic Control 15(2), 1970; Bar-Shalom, Li & Kirubarajan 2001, §5.4 and §11.
+//!
+//! # Example
+//! ```
+//! use rtls_engine::record::{Measurement, Record};
+//! use rtls_engine::site::Site;
+//! use rtls_engine::tuning::{tune, TuningSettings};
+//! let site = Site::from_toml_str(r#"
+//!     readers = [
+//!       { id = "A", position_m = [0.0, 0.0], technology = "uwb", radio = { range = { range_std_m = 0.05, bias_m = 0.0 } } },
+//!       { id = "B", position_m = [20.0, 0.0], technology = "uwb", radio = { range = { range_std_m = 0.05, bias_m = 0.0 } } },
+//!       { id = "C", position_m = [0.0, 20.0], technology = "uwb", radio = { range = { range_std_m = 0.05, bias_m = 0.0 } } },
+//!     ]
+//!     [tracker]
+//!     pipeline = "tightly-coupled"
+//!     motion_model = "cv"
+//!     filter = "ekf"
+//!     acceleration_noise_std_mps2 = 0.5
+//!     gate_probability = 0.999
+//!     initiation = { confirm_updates = 3, within_s = 5.0 }
+//!     coast_timeout_s = 5.0
+//!     delete_timeout_s = 60.0
+//!     reorder_window_s = 0.0
+//! "#, "site.toml")?;
+//! // a tag walking at 1 m/s along x, exact ranges
+//! let records: Vec<Record> = (0..300).map(|k| {
+//!     let t = k as f64 * 0.1;
+//!     let anchor = ["A", "B", "C"][k % 3];
+//!     let a = site.reader(anchor).unwrap().position_xyz_m();
+//!     let p = [2.0 + 0.5 * t, 5.0];
+//!     let range_m = ((p[0] - a[0]).powi(2) + (p[1] - a[1]).powi(2)).sqrt();
+//!     Record { time_s: t, tag: "w".into(), measurement: Measurement::Range { anchor: anchor.into(), range_m, std_m: None } }
+//! }).collect();
+//! let tuned = tune(&site, None, &records, None, &TuningSettings::default())?;
+//! assert!(tuned.acceleration_noise_std_mps2 < 0.5); // a steady walk: a quieter model fits better
+//! # Ok::<(), rtls_engine::EngineError>(())
+//! ```
+
+mod readers;
+
+pub use readers::{PathLossFit, RangeFit, ReaderCalibration};
+
+use std::collections::BTreeMap;
+
+use crate::error::{EngineError, Result};
+use crate::evaluation::{evaluate, EvaluationSettings, TrackSample, TruthSample};
+use crate::radio_map::RadioMap;
+use crate::record::Record;
+use crate::site::Site;
+use crate::tracker::{Innovations, NoiseClass, Output, Tracker};
+
+/// What [`tune`] searches.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TuningSettings {
+    /// Candidate white-acceleration standard deviations `σ_a`, m/s² (each > 0).
+    pub acceleration_grid_mps2: Vec<f64>,
+    /// Truth samples more than this far apart are not interpolated across, s.
+    pub max_truth_gap_s: f64,
+    /// With truth: the first seconds of each track that are not scored (convergence).
+    pub skip_initial_s: f64,
+}
+
+impl Default for TuningSettings {
+    /// `σ_a` from 0.02 to 10 m/s² in 14 log-spaced steps (a parked asset to a braking car);
+    /// truth gaps up to 0.5 s; 1 s skipped.
+    fn default() -> Self {
+        Self {
+            acceleration_grid_mps2: vec![
+                0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, 10.0,
+            ],
+            max_truth_gap_s: 0.5,
+            skip_initial_s: 1.0,
+        }
+    }
+}
+
+/// One candidate `σ_a` and how it did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// The white-acceleration standard deviation, m/s².
+    pub acceleration_noise_std_mps2: f64,
+    /// Innovation log-likelihood `Σ ln N(ν; 0, S)` over all updates.
+    pub log_likelihood: f64,
+    /// Updates computed.
+    pub updates: u64,
+    /// With truth: RMSE of the non-predicted track updates, m.
+    pub rmse_m: Option<f64>,
+    /// With truth: the share of truths inside the reported 95 % ellipse.
+    pub inside_95: Option<f64>,
+    /// The innovation totals per measurement class.
+    pub innovations: Innovations,
+}
+
+/// What [`tune`] chose, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tuning {
+    /// The chosen `σ_a`, m/s².
+    pub acceleration_noise_std_mps2: f64,
+    /// Every candidate, in grid order.
+    pub candidates: Vec<Candidate>,
+    /// Index of the chosen candidate.
+    pub chosen: usize,
+    /// With truth: the readers' calibration (empty without truth).
+    pub readers: Vec<ReaderCalibration>,
+    /// Without truth: the factor `√λ̄` by which each measurement class's stated standard
+    /// deviation should grow (≥ 1; 1 when the class was not seen or was consistent), from the
+    /// chosen candidate's mean adaptive noise scale.
+    pub noise_std_factors: Vec<(NoiseClass, f64)>,
+}
+
+/// Tunes `site` to `records` (time-ordered or not; they pass the tracker's re-ordering window
+/// like any input). See the [module documentation](self).
+///
+/// # Errors
+/// [`EngineError::InvalidParameter`] for an empty or non-positive grid; those of
+/// [`Tracker::new`] and [`Tracker::push`]; when no candidate computed a single update.
+pub fn tune(
+    site: &Site,
+    radio_map: Option<&RadioMap>,
+    records: &[Record],
+    truth: Option<&[TruthSample]>,
+    settings: &TuningSettings,
+) -> Result<Tuning> {
+    if settings.acceleration_grid_mps2.is_empty()
+        || settings
+            .acceleration_grid_mps2
+            .iter()
+            .any(|s| !(s.is_finite() && *s > 0.0))
+    {
+        return Err(EngineError::InvalidParameter {
+            name: "acceleration_grid_mps2",
+            reason: "must hold at least one finite value > 0, m/s²",
+        });
+    }
+    let mut site = site.clone();
+    let readers = match truth {
+        Some(truth) => {
+            let calibration = readers::calibrate(&site, records, truth, settings.max_truth_gap_s);
+            readers::apply(&mut site, &calibration);
+            calibration
+        }
+        None => Vec::new(),
+    };
+    let mut candidates = Vec::with_capacity(settings.acceleration_grid_mps2.len());
+    for &sigma in &settings.acceleration_grid_mps2 {
+        site.tracker.acceleration_noise_std_mps2 = sigma;
+        candidates.push(run_candidate(&site, radio_map, records, truth, settings)?);
+    }
+    let chosen = choose(&candidates).ok_or(EngineError::InvalidParameter {
+        name: "records",
+        reason: "gave no filter update on any candidate: nothing to tune on (check that the \
+                 records' readers are in the site and that tracks start)",
+    })?;
+    let noise_std_factors = NoiseClass::ALL
+        .iter()
+        .map(|&class| {
+            let scale = candidates[chosen]
+                .innovations
+                .of(class)
+                .mean_noise_scale()
+                .unwrap_or(1.0);
+            (class, scale.max(1.0).sqrt())
+        })
+        .collect();
+    Ok(Tuning {
+        acceleration_noise_std_mps2: candidates[chosen].acceleration_noise_std_mps2,
+        candidates,
+        chosen,
+        readers,
+        noise_std_factors,
+    })
+}
+
+/// The best candidate: smallest RMSE when truth scored them all, else the largest innovation
+/// log-likelihood; `None` when none computed an update.
+fn choose(candidates: &[Candidate]) -> Option<usize> {
+    let usable = || candidates.iter().enumerate().filter(|(_, c)| c.updates > 0);
+    if candidates.iter().all(|c| c.rmse_m.is_some()) {
+        usable()
+            .min_by(|a, b| {
+                a.1.rmse_m
+                    .unwrap_or(f64::INFINITY)
+                    .total_cmp(&b.1.rmse_m.unwrap_or(f64::INFINITY))
+            })
+            .map(|(i, _)| i)
+    } else {
+        usable()
+            .max_by(|a, b| a.1.log_likelihood.total_cmp(&b.1.log_likelihood))
+            .map(|(i, _)| i)
+    }
+}
+
+/// Tracks `records` on `site` and scores the run.
+fn run_candidate(
+    site: &Site,
+    radio_map: Option<&RadioMap>,
+    records: &[Record],
+    truth: Option<&[TruthSample]>,
+    settings: &TuningSettings,
+) -> Result<Candidate> {
+    let mut tracker = Tracker::new(site)?;
+    if let Some(map) = radio_map {
+        tracker = tracker.with_radio_map(map.clone());
+    }
+    let mut out = Output::default();
+    let mut innovations = Innovations::default();
+    let mut samples = Vec::new();
+    let mut drain = |out: &mut Output, innovations: &mut Innovations| {
+        innovations.merge(&out.innovations);
+        if truth.is_some() {
+            samples.extend(out.updates.iter().filter(|u| !u.predicted).map(|u| TrackSample {
+                time_s: u.time_s,
+                tag: u.tag.to_string(),
+                position_m: u.position_m,
+                has_z: u.dimensions == 3,
+                predicted: false,
+                covariance_m2: Some(u.position_covariance_m2[..u.dimensions * u.dimensions].to_vec()),
+                line: 0,
+            }));
+        }
+        out.clear();
+    };
+    for record in records {
+        tracker.push(record.clone(), &mut out)?;
+        drain(&mut out, &mut innovations);
+    }
+    tracker.finish(&mut out)?;
+    drain(&mut out, &mut innovations);
+    let updates = innovations.0.iter().map(|t| t.updates).sum();
+    let (rmse_m, inside_95) = match truth {
+        Some(truth) if !samples.is_empty() => {
+            let evaluation = EvaluationSettings {
+                max_gap_s: settings.max_truth_gap_s,
+                skip_initial_s: settings.skip_initial_s,
+                ..EvaluationSettings::default()
+            };
+            match evaluate(truth, &samples, &evaluation) {
+                Ok(scored) => (Some(scored.overall.rmse_m), scored.consistency.map(|c| c.inside_95)),
+                Err(_) => (Some(f64::INFINITY), None),
+            }
+        }
+        Some(_) => (Some(f64::INFINITY), None),
+        None => (None, None),
+    };
+    Ok(Candidate {
+        acceleration_noise_std_mps2: site.tracker.acceleration_noise_std_mps2,
+        log_likelihood: innovations.log_likelihood(),
+        updates,
+        rmse_m,
+        inside_95,
+        innovations,
+    })
+}
+
+/// Samples of each tag's truth, time-sorted, for interpolation.
+pub(crate) fn truth_by_tag(truth: &[TruthSample]) -> BTreeMap<&str, Vec<&TruthSample>> {
+    let mut by_tag: BTreeMap<&str, Vec<&TruthSample>> = BTreeMap::new();
+    for sample in truth {
+        by_tag.entry(&sample.tag).or_default().push(sample);
+    }
+    for samples in by_tag.values_mut() {
+        samples.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    }
+    by_tag
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,290 @@
+//! Reader calibration against ground truth: range bias and noise, log-distance path loss.
+
+use std::collections::BTreeMap;
+
+use super::truth_by_tag;
+use crate::evaluation::TruthSample;
+use crate::record::{Measurement, Record};
+use crate::site::{PathLoss, Radio, RangeErrors, Site};
+
+/// Fewer residuals than this leave a reader as it was.
+const MIN_SAMPLES: usize = 30;
+
+/// Distances below this are clamped in the path-loss fit (the law is a far-field one), m.
+const MIN_FIT_DISTANCE_M: f64 = 0.5;
+
+/// Path-loss exponents outside this interval are not physical for a site; the fit is clamped.
+const EXPONENT_RANGE: (f64, f64) = (1.0, 6.0);
+
+/// A reader's range errors fitted against truth: `r = d + bias + N(0, std²)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RangeFit {
+    /// `median(r − d)`, m.
+    pub bias_m: f64,
+    /// `1.4826 · MAD(r − d)`, m (at least 1 mm).
+    pub range_std_m: f64,
+    /// Residuals used.
+    pub samples: usize,
+}
+
+/// A reader's log-distance law fitted against truth: `ρ = ρ₀ − 10 n log₁₀(d / 1 m) + N(0, σ²)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathLossFit {
+    /// `ρ₀` at 1 m, dBm.
+    pub reference_power_dbm: f64,
+    /// `n` (clamped to 1–6).
+    pub exponent: f64,
+    /// Residual standard deviation, dB (at least 0.1).
+    pub shadowing_std_db: f64,
+    /// Samples used.
+    pub samples: usize,
+}
+
+/// What the truth says about one reader.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReaderCalibration {
+    /// Reader id.
+    pub reader: String,
+    /// Range fit, when the reader gave at least 30 ranges with truth.
+    pub range: Option<RangeFit>,
+    /// Path-loss fit, when it gave at least 30 RSSI samples with truth.
+    pub path_loss: Option<PathLossFit>,
+}
+
+/// The true position of `tag` at `time_s`, linearly interpolated between the bracketing truth
+/// samples no more than `max_gap_s` apart; `z` is the truth's or `tag_height_m`.
+fn truth_at(truth: &[&TruthSample], time_s: f64, max_gap_s: f64, tag_height_m: f64) -> Option<[f64; 3]> {
+    let after = truth.partition_point(|s| s.time_s <= time_s);
+    let lower = truth.get(after.checked_sub(1)?)?;
+    let z = |s: &TruthSample| if s.has_z { s.position_m[2] } else { tag_height_m };
+    if lower.time_s == time_s {
+        return Some([lower.position_m[0], lower.position_m[1], z(lower)]);
+    }
+    let upper = truth.get(after)?;
+    if upper.time_s - lower.time_s > max_gap_s {
+        return None;
+    }
+    // p = p₀ + w (p₁ − p₀), w = (t − t₀) / (t₁ − t₀)
+    let w = (time_s - lower.time_s) / (upper.time_s - lower.time_s);
+    let lerp = |a: f64, b: f64| a + w * (b - a);
+    Some([
+        lerp(lower.position_m[0], upper.position_m[0]),
+        lerp(lower.position_m[1], upper.position_m[1]),
+        lerp(z(lower), z(upper)),
+    ])
+}
+
+/// The median of `values` (not empty), reordering them.
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        0.5 * (values[n / 2 - 1] + values[n / 2])
+    }
+}
+
+/// Range bias and robust noise from residuals `r − d`.
+fn fit_range(residuals: &mut [f64]) -> RangeFit {
+    let bias_m = median(residuals);
+    let mut deviations: Vec<f64> = residuals.iter().map(|r| (r - bias_m).abs()).collect();
+    // σ = 1.4826 · MAD (consistent for Gaussian errors)
+    let range_std_m = (1.4826 * median(&mut deviations)).max(1e-3);
+    RangeFit {
+        bias_m,
+        range_std_m,
+        samples: residuals.len(),
+    }
+}
+
+/// Least squares `ρ = ρ₀ − 10 n x`, `x = log₁₀ d`, over `(x, ρ)` pairs.
+fn fit_path_loss(samples: &[(f64, f64)]) -> PathLossFit {
+    let n = samples.len() as f64;
+    let mean_x = samples.iter().map(|s| s.0).sum::<f64>() / n;
+    let mean_rho = samples.iter().map(|s| s.1).sum::<f64>() / n;
+    let sxx: f64 = samples.iter().map(|s| (s.0 - mean_x).powi(2)).sum();
+    let sxr: f64 = samples.iter().map(|s| (s.0 - mean_x) * (s.1 - mean_rho)).sum();
+    // slope b = Sxρ / Sxx = −10 n; n clamped to a physical range; ρ₀ = ρ̄ + 10 n x̄
+    let exponent = if sxx > 1e-9 { -sxr / sxx / 10.0 } else { 2.0 };
+    let exponent = exponent.clamp(EXPONENT_RANGE.0, EXPONENT_RANGE.1);
+    let reference_power_dbm = mean_rho + 10.0 * exponent * mean_x;
+    // σ² = Σ (ρ − ρ₀ + 10 n x)² / (N − 2)
+    let residual_variance = samples
+        .iter()
+        .map(|s| (s.1 - reference_power_dbm + 10.0 * exponent * s.0).powi(2))
+        .sum::<f64>()
+        / (n - 2.0).max(1.0);
+    PathLossFit {
+        reference_power_dbm,
+        exponent,
+        shadowing_std_db: residual_variance.sqrt().max(0.1),
+        samples: samples.len(),
+    }
+}
+
+/// Fits every reader that gave enough ranges or RSSI with truth at their time.
+pub(super) fn calibrate(
+    site: &Site,
+    records: &[Record],
+    truth: &[TruthSample],
+    max_gap_s: f64,
+) -> Vec<ReaderCalibration> {
+    let by_tag = truth_by_tag(truth);
+    let tag_height_m = site.tracker.tag_height_m.unwrap_or(0.0);
+    let mut ranges: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
+    let mut rssi: BTreeMap<&str, Vec<(f64, f64)>> = BTreeMap::new();
+    for record in records {
+        let Some(tag_truth) = by_tag.get(record.tag.as_str()) else {
+            continue;
+        };
+        let (anchor, value, is_range) = match &record.measurement {
+            Measurement::Range { anchor, range_m, .. } => (anchor, *range_m, true),
+            Measurement::Rssi { anchor, rssi_dbm } => (anchor, *rssi_dbm, false),
+            _ => continue,
+        };
+        let (Some(reader), Some(position)) = (
+            site.reader(anchor),
+            truth_at(tag_truth, record.time_s, max_gap_s, tag_height_m),
+        ) else {
+            continue;
+        };
+        let a = reader.position_xyz_m();
+        // d = |p − a| (slant)
+        let d = ((position[0] - a[0]).powi(2) + (position[1] - a[1]).powi(2) + (position[2] - a[2]).powi(2)).sqrt();
+        if !(value.is_finite() && d.is_finite()) {
+            continue;
+        }
+        if is_range {
+            ranges.entry(&reader.id).or_default().push(value - d);
+        } else {
+            rssi.entry(&reader.id)
+                .or_default()
+                .push((d.max(MIN_FIT_DISTANCE_M).log10(), value));
+        }
+    }
+    site.readers
+        .iter()
+        .filter_map(|reader| {
+            let range = ranges
+                .get_mut(reader.id.as_str())
+                .filter(|r| r.len() >= MIN_SAMPLES)
+                .map(|r| fit_range(r));
+            let path_loss = rssi
+                .get(reader.id.as_str())
+                .filter(|s| s.len() >= MIN_SAMPLES)
+                .map(|s| fit_path_loss(s));
+            (range.is_some() || path_loss.is_some()).then(|| ReaderCalibration {
+                reader: reader.id.clone(),
+                range,
+                path_loss,
+            })
+        })
+        .collect()
+}
+
+/// Writes the fits into the site's readers.
+pub(super) fn apply(site: &mut Site, calibration: &[ReaderCalibration]) {
+    for fit in calibration {
+        let Some(reader) = site.readers.iter_mut().find(|r| r.id == fit.reader) else {
+            continue;
+        };
+        let radio = reader.radio.get_or_insert(Radio {
+            path_loss: None,
+            range: None,
+        });
+        if let Some(range) = fit.range {
+            radio.range = Some(RangeErrors {
+                range_std_m: range.range_std_m,
+                bias_m: range.bias_m,
+            });
+        }
+        if let Some(law) = fit.path_loss {
+            radio.path_loss = Some(PathLoss {
+                reference_power_dbm: law.reference_power_dbm,
+                exponent: law.exponent,
+                shadowing_std_db: law.shadowing_std_db,
+                reference_distance_m: 1.0,
+            });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn range_fit_is_robust_to_outliers() {
+        // bias 0.2 m, σ 0.1 m (normal quantiles), plus 10 % wild outliers at ±25 m: the median
+        // stays put and the MAD grows only to 0.1·Φ⁻¹(0.778)/0.6745 ≈ 0.113 m
+        let normal_quantile = |p: f64| {
+            // Φ⁻¹ by bisection on the error function's series-free form: Φ(x) = ½ erfc(−x/√2)
+            let (mut lo, mut hi) = (-8.0f64, 8.0f64);
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                let cdf = 0.5 * (1.0 + libm_erf(mid / 2f64.sqrt()));
+                if cdf < p {
+                    lo = mid
+                } else {
+                    hi = mid
+                }
+            }
+            0.5 * (lo + hi)
+        };
+        let mut residuals: Vec<f64> = (0..900)
+            .map(|i| 0.2 + 0.1 * normal_quantile((i as f64 + 0.5) / 900.0))
+            .collect();
+        residuals.extend((0..100).map(|k| if k % 2 == 0 { 25.0 } else { -25.0 }));
+        let fit = fit_range(&mut residuals);
+        assert!((fit.bias_m - 0.2).abs() < 0.01, "{fit:?}");
+        assert!((0.10..0.125).contains(&fit.range_std_m), "{fit:?}");
+    }
+
+    /// erf by Abramowitz & Stegun 7.1.26 (|error| < 1.5e-7), enough for a test's quantiles.
+    fn libm_erf(x: f64) -> f64 {
+        let t = 1.0 / (1.0 + 0.327_591_1 * x.abs());
+        let poly =
+            t * (0.254_829_592 + t * (-0.284_496_736 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+        let y = 1.0 - poly * (-x * x).exp();
+        if x >= 0.0 {
+            y
+        } else {
+            -y
+        }
+    }
+
+    #[test]
+    fn path_loss_fit_recovers_the_law() {
+        // ρ = −45 − 10·2.5·log₁₀ d exactly
+        let samples: Vec<(f64, f64)> = (1..100)
+            .map(|k| {
+                let x = (k as f64 * 0.2).log10();
+                (x, -45.0 - 25.0 * x)
+            })
+            .collect();
+        let fit = fit_path_loss(&samples);
+        assert!(
+            (fit.exponent - 2.5).abs() < 1e-9 && (fit.reference_power_dbm + 45.0).abs() < 1e-9,
+            "{fit:?}"
+        );
+        assert_eq!(fit.shadowing_std_db, 0.1);
+    }
+
+    #[test]
+    fn truth_is_interpolated_and_gaps_are_not() {
+        let sample = |t: f64, x: f64| TruthSample {
+            time_s: t,
+            tag: "a".into(),
+            position_m: [x, 0.0, 0.0],
+            has_z: false,
+            line: 0,
+        };
+        let truth = [sample(0.0, 0.0), sample(1.0, 10.0), sample(5.0, 10.0)];
+        let refs: Vec<&TruthSample> = truth.iter().collect();
+        assert_eq!(truth_at(&refs, 0.25, 2.0, 1.5), Some([2.5, 0.0, 1.5]));
+        assert_eq!(truth_at(&refs, 3.0, 2.0, 1.5), None);
+        assert_eq!(truth_at(&refs, -1.0, 2.0, 1.5), None);
+        assert_eq!(truth_at(&refs, 5.0, 2.0, 0.0), Some([10.0, 0.0, 0.0]));
+    }
+}
