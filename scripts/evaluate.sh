@@ -4,7 +4,8 @@
 #
 #   scripts/evaluate.sh [OUT_DIR]      (default: target/evaluation)
 #
-# Prints one line per configuration: dataset, run, configuration, samples, RMSE, mean, median, p95 (m).
+# Prints one line per configuration: dataset, run, configuration, samples, RMSE, mean, median, p95 (m),
+# the share of truths inside the reported 95 % ellipse and the mean NEES (2 when consistent).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-target/evaluation}
@@ -24,9 +25,11 @@ score() {
   local dataset=$1 run=$2 config=$3 truth=$4 tracks=$5; shift 5
   "$RTLS" eval --truth "$truth" --tracks "$tracks" --json "$@" | python3 -c '
 import json, sys
-o = json.load(sys.stdin)["overall"]
+j = json.load(sys.stdin)
+o, c = j["overall"], j.get("consistency")
 row = sys.argv[1:4] + [o[k] for k in ("count", "rmse_m", "mean_m", "median_m", "p95_m")]
-print("%-10s %-32s %-44s %7d %7.3f %7.3f %7.3f %7.3f" % tuple(row))' "$dataset" "$run" "$config"
+row += ["%6.1f%%" % (100 * c["inside_95"]), "%8.2f" % c["mean_nees"]] if c else ["-", "-"]
+print("%-10s %-32s %-44s %7d %7.3f %7.3f %7.3f %7.3f %7s %8s" % tuple(row))' "$dataset" "$run" "$config"
 }
 
 # track RUN_DIR NAME INPUT [track flags…] → $RUN_DIR/NAME.tracks.jsonl, NAME.fixes.jsonl, NAME.events.jsonl
@@ -36,7 +39,7 @@ track() {
     --events "$dir/$name.events.jsonl" --fixes "$dir/$name.fixes.jsonl" --quiet "$@" 2> "$dir/$name.summary.txt"
 }
 
-printf '%-10s %-32s %-44s %7s %7s %7s %7s %7s\n' dataset run configuration samples RMSE mean median p95
+printf '%-10s %-32s %-44s %7s %7s %7s %7s %7s %7s %8s\n' dataset run configuration samples RMSE mean median p95 in95 NEES
 # UWB two-way ranging with motion capture: 3 tags on a trolley, 8 anchors (first 1 s skipped)
 for run in fast mid; do
   d=$OUT/lias/$run

@@ -11,11 +11,14 @@
 //!           [--include-predicted] [--json]
 //! rtls survey --site SITE --input RECORDS --tracks TRACKS --out CELLS.csv [--readers-out CSV]
 //!             [--png PNG] [--cell-m M] …
+//! rtls tune --site SITE --input FILE --out TUNED.toml [--truth TRUTH.csv] [--until-s T]
+//!           [--grid A,B,…] [--json]
 //! ```
 //!
 //! `track` runs a measurement file through the tracker of a site (docs/FORMATS.md), `import`
 //! converts a recorded dataset into site, measurement and ground-truth files, `eval` scores a
-//! track file against ground truth (docs/EVALUATION.md), `survey` maps where the radio
+//! track file against ground truth (docs/EVALUATION.md) with the consistency of its covariances,
+//! `tune` fits a site's noise settings to a recording (with or without ground truth), `survey` maps where the radio
 //! environment is degraded (seed 000's obstacle map: residual bias per area cell and reader).
 //!
 //! `repro` reruns the seed papers' experiments (seeded Monte Carlo, in parallel), prints
@@ -30,6 +33,7 @@ mod repro;
 mod serve;
 mod survey;
 mod track;
+mod tune;
 
 use clap::{Parser, Subcommand};
 
@@ -58,6 +62,10 @@ enum Command {
     /// Map the radio environment from measurements and their tracks: per area cell and reader,
     /// the bias and spread of the residuals; flags degraded readers and cells (CSV and PNG).
     Survey(survey::SurveyArgs),
+    /// Fit a site to a recording: the process noise by innovation likelihood (or, with ground
+    /// truth, the readers' range bias and noise, path-loss laws and the process noise by RMSE);
+    /// writes the tuned site file.
+    Tune(tune::TuneArgs),
     /// Run the control-room server: MQTT and HTTP ingest, omlox REST and WebSocket APIs,
     /// history, alarms, metrics. `--demo` runs seed 000's simulated mine through it.
     Serve(serve::ServeArgs),
@@ -71,6 +79,7 @@ fn main() -> std::process::ExitCode {
         Command::Import(args) => import::run(&args),
         Command::Eval(args) => eval::run(&args),
         Command::Survey(args) => survey::run(&args),
+        Command::Tune(args) => tune::run(&args),
         Command::Serve(args) => serve::run(&args),
     };
     match result {

@@ -115,9 +115,7 @@ fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
 
 /// Loads the site (with command-line overrides) and its radio map, if it names one.
 fn load_site(args: &TrackArgs) -> anyhow::Result<(Site, Option<RadioMap>)> {
-    let site_name = args.site.display().to_string();
-    let text = std::fs::read_to_string(&args.site).with_context(|| format!("reading {site_name}"))?;
-    let mut site = Site::from_toml_str(&text, &site_name)?;
+    let (mut site, radio_map) = load_site_file(&args.site)?;
     if let Some(pipeline) = args.pipeline {
         site.tracker.pipeline = match pipeline {
             PipelineArg::FixThenFilter => Pipeline::FixThenFilter,
@@ -140,6 +138,14 @@ fn load_site(args: &TrackArgs) -> anyhow::Result<(Site, Option<RadioMap>)> {
     if site.tracker.pipeline == Pipeline::TightlyCoupled && site.tracker.filter == FilterKind::Kf {
         bail!("the tightly coupled pipeline needs --filter ekf or ukf (raw measurements are nonlinear)");
     }
+    Ok((site, radio_map))
+}
+
+/// Loads a site file and the radio map it names, if any (`rtls track`, `rtls tune`).
+pub(crate) fn load_site_file(path: &Path) -> anyhow::Result<(Site, Option<RadioMap>)> {
+    let site_name = path.display().to_string();
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {site_name}"))?;
+    let site = Site::from_toml_str(&text, &site_name)?;
     let radio_map = match &site.fingerprints {
         Some(database) if database.format != FingerprintFormat::Csv => bail!(
             "{site_name}: [fingerprints] format {:?}: rtls track loads radio maps in the \"csv\" format \
@@ -147,7 +153,7 @@ fn load_site(args: &TrackArgs) -> anyhow::Result<(Site, Option<RadioMap>)> {
             database.format
         ),
         Some(database) => {
-            let path = args.site.parent().unwrap_or(Path::new(".")).join(&database.path);
+            let path = path.parent().unwrap_or(Path::new(".")).join(&database.path);
             let name = path.display().to_string();
             let text = std::fs::read_to_string(&path)
                 .with_context(|| format!("reading the radio map {name} named by {site_name} [fingerprints]"))?;

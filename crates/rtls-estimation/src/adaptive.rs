@@ -12,13 +12,23 @@
 //! E[νᵀ R⁻¹ ν] = tr(R⁻¹ H P⁻ Hᵀ) + m λ*   ⇒   λ̂* = λ + (νᵀ R⁻¹ ν − tr(R⁻¹ S)) / m
 //! ```
 //!
-//! one unbiased sample of `λ*` per update (`m` measurement components). The samples are
-//! averaged over a time window `τ` (`memory_s`): `λ̄ₖ = (1 − αₖ) λ̄ₖ₋₁ + αₖ λ̂*ₖ` with
-//! `αₖ = max(1 / (k + 1), 1 − e^(−Δtₖ/τ))`, a running mean over the first updates (the stated
-//! noise counting as one sample, so a wrong one is corrected within a few updates) that turns
-//! into an exponential window of `τ` seconds, whatever the measurement rate. The scale used is
-//! `λ = clamp(λ̄, 1, max_scale)`: never more confident than the stated noise (an honest floor),
-//! never unboundedly pessimistic.
+//! one unbiased sample of `λ*` per update (`m` measurement components) when the filter's
+//! other assumptions hold. They may not: an innovation larger than `S` can also be a motion the
+//! model under-predicts, so the excess is blamed on the measurement only in its share of `S`,
+//! `ρ = min(1, tr λR / tr S)`: `λ̂* = λ + ρ (νᵀ R⁻¹ ν − tr(R⁻¹ S)) / m`. A sample is only as
+//! informative as the measurement is against the prior: its variance grows as `1/ρ²`,
+//! so when the prediction dominates (`H P⁻ Hᵀ ≫ λR`, e.g. fixes a minute apart) it says almost
+//! nothing about `R`. The samples are therefore averaged with precision weights
+//! `wₖ = ρₖ² ∈ (0, 1]` over a time window `τ` (`memory_s`):
+//!
+//! ```text
+//! Wₖ = e^(−Δtₖ/τ) Wₖ₋₁ + wₖ,   λ̄ₖ = λ̄ₖ₋₁ + (wₖ / Wₖ)(λ̂*ₖ − λ̄ₖ₋₁),   W₀ = 1, λ̄₀ = 1
+//! ```
+//!
+//! (the stated noise counts as one full-weight sample, so a wrong one is corrected within a few
+//! updates; then the window forgets at `τ` seconds, whatever the measurement rate). The scale
+//! used is `λ = clamp(λ̄, 1, max_scale)`: never more confident than the stated noise (an honest
+//! floor), never unboundedly pessimistic.
 //!
 //! A window of seconds to tens of seconds separates a site's noise level, which changes
 //! slowly, from a manoeuvre, whose large innovations last a few seconds and are the motion
@@ -70,8 +80,10 @@ pub struct AdaptiveNoise {
 /// One measurement class's current noise scale for one track (a value the track owns).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoiseScale {
-    /// `λ̄`, the running average of the scale samples (unclamped).
+    /// `λ̄`, the weighted running average of the scale samples (unclamped).
     average: f64,
+    /// `W`, the decayed sum of the samples' weights (the stated noise counts 1).
+    weight_sum: f64,
     /// `λ = clamp(λ̄, 1, max)`.
     scale: f64,
     /// Number of updates observed.
@@ -83,6 +95,7 @@ impl Default for NoiseScale {
     fn default() -> Self {
         Self {
             average: 1.0,
+            weight_sum: 1.0,
             scale: 1.0,
             updates: 0,
         }
@@ -191,25 +204,31 @@ impl AdaptiveNoise {
         let q = clip * r_factor.solve(innovation).dot(innovation);
         // tr(R⁻¹ S)
         let trace = r_factor.solve(innovation_covariance).trace();
-        // λ̂* = λ + (νᵀ R⁻¹ ν − tr(R⁻¹ S)) / m
-        let sample = scale.scale + (q - trace) / m as f64;
+        // the measurement's share of S, ρ = min(1, tr λR / tr S)
+        let share = (scale.scale * noise.trace() / innovation_covariance.trace()).min(1.0);
+        // λ̂* = λ + ρ (νᵀ R⁻¹ ν − tr(R⁻¹ S)) / m: an innovation larger than S is blamed on the
+        // measurement only in the measurement's share of S (the rest is the prediction's: a
+        // manoeuvre or a long gap the motion model under-predicts)
+        let sample = scale.scale + share * (q - trace) / m as f64;
         if !sample.is_finite() {
             return Err(EstimationError::NonFinite {
                 what: "noise scale sample",
             });
         }
-        // αₖ = max(1 / (k + 1), 1 − e^(−Δt/τ)), k counting the stated noise as the first sample
-        let running = 1.0 / (f64::from(scale.updates) + 2.0);
-        let window = if elapsed_s.is_finite() && elapsed_s > 0.0 {
-            1.0 - (-elapsed_s / self.memory_s).exp()
+        // w = ρ², the sample's precision relative to a tight prior's
+        let precision = share * share;
+        // W = e^(−Δt/τ) W + w (no decay before the first update or for a zero Δt)
+        let decay = if elapsed_s.is_finite() && elapsed_s > 0.0 {
+            (-elapsed_s / self.memory_s).exp()
         } else {
-            0.0
+            1.0
         };
-        let weight = running.max(window);
-        // λ̄ₖ = (1 − α) λ̄ₖ₋₁ + α λ̂*ₖ, kept within [0, max] so a long run cannot wind it up
-        let average = ((1.0 - weight) * scale.average + weight * sample).clamp(0.0, self.max_scale);
+        let weight_sum = decay * scale.weight_sum + precision;
+        // λ̄ ← λ̄ + (w / W)(λ̂* − λ̄), kept within [0, max] so a long run cannot wind it up
+        let average = (scale.average + precision / weight_sum * (sample - scale.average)).clamp(0.0, self.max_scale);
         Ok(NoiseScale {
             average,
+            weight_sum,
             // λ = clamp(λ̄, 1, max)
             scale: average.clamp(1.0, self.max_scale),
             updates: scale.updates.saturating_add(1),
@@ -269,8 +288,8 @@ mod tests {
     fn outliers_are_clipped_and_the_scale_is_bounded() {
         let adaptive = AdaptiveNoise::new(1.0, 50.0).unwrap();
         let mut scale = NoiseScale::default();
-        // one enormous outlier counts as NIS = γ: the first update weighs ½ (the stated noise is
-        // the other sample), λ̂* = 1 + (γ − 1) = 9, so λ̄ = ½ (1 + 9)
+        // one enormous outlier counts as NIS = γ: λ̂* = 1 + (γ − 1) = 9, weighed against the
+        // stated noise's sample (decayed by e^(−Δt/τ)): λ̄ = 1 + 8 / (1 + e^(−0.1))
         scale = adaptive
             .observe(
                 &scale,
@@ -281,7 +300,10 @@ mod tests {
                 9.0,
             )
             .unwrap();
-        assert!((scale.scale() - 5.0).abs() < 1e-9, "{scale:?}");
+        assert!(
+            (scale.scale() - (1.0 + 8.0 / (1.0 + (-0.1f64).exp()))).abs() < 1e-9,
+            "{scale:?}"
+        );
         // a long run of them saturates at the bound, never beyond
         for _ in 0..10_000 {
             let s = scalar(scale.scale());

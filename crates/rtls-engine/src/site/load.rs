@@ -307,6 +307,11 @@ fn validate(site: &mut Site, text: &str, file: &str) -> Result<()> {
                 t.adaptive_noise.max_scale.is_finite() && (1.0..=1e6).contains(&t.adaptive_noise.max_scale),
                 "must be a number from 1 to 10⁶ (a multiple of the stated variance)",
             ),
+            (
+                at("adaptive_noise.correlation_s"),
+                t.adaptive_noise.correlation_s.is_finite() && (0.0..=3600.0).contains(&t.adaptive_noise.correlation_s),
+                "must be a number of seconds from 0 to 3600",
+            ),
         ],
     )?;
 

@@ -87,6 +87,13 @@ pub struct AdaptiveNoiseSettings {
     pub memory_s: f64,
     /// The largest scale, a multiple of the stated variance (≥ 1). Default 400 (σ × 20).
     pub max_scale: f64,
+    /// Correlation time of measurement errors, s (≥ 0; 0 treats every measurement as
+    /// independent). A reader's readings (or a class of fixes) closer together than this are
+    /// not independent information: each variance is inflated by `max(1, 2 τ_c / Δt)`, `Δt`
+    /// after the same reader's previous reading of the tag, so a 100 Hz stream is not taken for
+    /// 100 independent looks a second. Applies whether or not `enabled`. Default 0.25 (multipath
+    /// and body shadowing change as a walking tag moves a few wavelengths).
+    pub correlation_s: f64,
 }
 
 impl Default for AdaptiveNoiseSettings {
@@ -95,6 +102,7 @@ impl Default for AdaptiveNoiseSettings {
             enabled: true,
             memory_s: 20.0,
             max_scale: 400.0,
+            correlation_s: 0.25,
         }
     }
 }

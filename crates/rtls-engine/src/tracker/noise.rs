@@ -63,12 +63,23 @@ impl NoiseClass {
     }
 }
 
-/// A track's noise scales, one per [`NoiseClass`], and the time of each class's last update (a
-/// value the track owns).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Where a measurement comes from, for its error correlation in time: one reader's readings
+/// of one class, or a whole class of component measurements (fixes, velocities).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Source {
+    pub(super) class: NoiseClass,
+    /// The reader's index for anchor readings; `usize::MAX` for a class-wide source.
+    pub(super) anchor: usize,
+}
+
+/// A track's noise scales, one per [`NoiseClass`], the time of each class's last update and of
+/// each source's last measurement (a value the track owns).
+#[derive(Debug, Clone, PartialEq)]
 pub(crate) struct NoiseScales {
     scales: [NoiseScale; NoiseClass::COUNT],
     last_update_s: [f64; NoiseClass::COUNT],
+    /// `(source, time of its last measurement)`, a handful per track.
+    last_measurement_s: Vec<(Source, f64)>,
 }
 
 impl Default for NoiseScales {
@@ -76,11 +87,41 @@ impl Default for NoiseScales {
         Self {
             scales: [NoiseScale::default(); NoiseClass::COUNT],
             last_update_s: [f64::NAN; NoiseClass::COUNT],
+            last_measurement_s: Vec::new(),
         }
     }
 }
 
 impl NoiseScales {
+    /// The inflation `c = max(1, 2 τ_c / Δt)` of a measurement's stated variance for errors
+    /// correlated over `τ_c` (`correlation_s`), `Δt` after the same source's previous one; and
+    /// records this one's time. `1` for a source's first measurement or `τ_c = 0`.
+    ///
+    /// A filter treats successive measurements as independent, so `n` of them within `τ_c`
+    /// shrink its covariance `n` times although their errors, moving together, average out far
+    /// less. Over a window `T ≫ τ_c` the mean of errors with correlation time `τ_c` has the
+    /// variance `σ² · 2τ_c / T`, where independent samples every `Δt` would give `σ² Δt / T`:
+    /// inflating each variance by `2τ_c / Δt` gives the filter the information the window
+    /// really holds (the equivalent white noise of a Gauss–Markov error; Gelb, *Applied Optimal
+    /// Estimation*, 1974, §3.8 and §4.6).
+    pub(super) fn correlation_inflation(&mut self, source: Source, time_s: f64, correlation_s: f64) -> f64 {
+        let previous = match self.last_measurement_s.iter_mut().find(|(s, _)| *s == source) {
+            Some(entry) => Some(std::mem::replace(&mut entry.1, time_s)),
+            None => {
+                self.last_measurement_s.push((source, time_s));
+                None
+            }
+        };
+        match previous {
+            // c = max(1, 2 τ_c / Δt); simultaneous readings of one source count as one interval
+            Some(previous_s) if correlation_s > 0.0 => {
+                let elapsed_s = (time_s - previous_s).max(1e-3);
+                (2.0 * correlation_s / elapsed_s).max(1.0)
+            }
+            _ => 1.0,
+        }
+    }
+
     /// `λ` of `class` (1 while adaptation is off or nothing was observed).
     pub(super) fn scale(&self, class: NoiseClass) -> f64 {
         self.scales[class as usize].scale()

@@ -51,10 +51,13 @@ fn positions(out: &Output, from_s: f64, to_s: f64) -> Vec<(f64, [f64; 3])> {
         .collect()
 }
 
+/// The simulated ranges' errors are independent from one reading to the next: the site says so.
+const WHITE_NOISE: &str = "adaptive_noise = { correlation_s = 0.0 }";
+
 /// The test site under the IMM, with a quiet CV mode (σ_a = 0.05 m/s² instead of the single
 /// CV model's 0.5 m/s²): the manoeuvre modes carry the turns.
 fn imm_site(pipeline: &str, filter: &str) -> Site {
-    let text = site_text(pipeline, filter, "")
+    let text = site_text(pipeline, filter, WHITE_NOISE)
         .replace("motion_model = \"cv\"", "motion_model = \"imm\"")
         .replace(
             "acceleration_noise_std_mps2 = 0.5",
@@ -77,7 +80,10 @@ fn the_imm_reports_the_turn_as_model_switches_and_tracks_it_better_than_cv() {
             records
         };
         let imm = run(&mut Tracker::new(&imm_site(pipeline, filter)).unwrap(), records());
-        let cv = run(&mut Tracker::new(&site(pipeline, filter, "")).unwrap(), records());
+        let cv = run(
+            &mut Tracker::new(&site(pipeline, filter, WHITE_NOISE)).unwrap(),
+            records(),
+        );
         let found = switches(&imm);
         // out of the quiet mode within 2 s of the turn's start, back to CV within 4 s of its end
         let onset = found

@@ -13,7 +13,7 @@ use super::alarms::position_of;
 use super::anchors::AnchorReading;
 use super::core::{dimensions, rejected, Shared, Track, ACCELERATION_HOLD_S};
 use super::models::{AnchorLaw, AnchorMeasurement};
-use super::noise::NoiseClass;
+use super::noise::{NoiseClass, Source};
 use super::output::{Event, Output, UpdateSource};
 use crate::error::Result;
 use crate::lifecycle::{Lifecycle, TrackStatus};
@@ -289,10 +289,19 @@ pub(super) fn component_update<const N: usize>(
     out: &mut Output,
 ) -> Result<()> {
     let k = indices.len();
-    // R ← λ R, the class's adaptive noise scale
     let class = NoiseClass::of_component_kind(kind, source == UpdateSource::Velocity);
+    // R ← c R for errors correlated in time (c = max(1, 2τ_c/Δt)), then λ on top
+    let inflation = track.noise.correlation_inflation(
+        Source {
+            class,
+            anchor: usize::MAX,
+        },
+        prior.state.time_s(),
+        shared.settings.adaptive_noise.correlation_s,
+    );
+    let stated: Vec<f64> = covariance.iter().map(|c| inflation * c).collect();
     let scale = track.noise.scale(class);
-    let scaled: Vec<f64> = covariance.iter().map(|c| scale * c).collect();
+    let scaled: Vec<f64> = stated.iter().map(|c| scale * c).collect();
     let covariance_scaled = &scaled[..];
     // the single-model update of the (combined) prior gives the gate's NIS; under the IMM the
     // state is the modes' combined posterior
@@ -317,7 +326,7 @@ pub(super) fn component_update<const N: usize>(
             out.innovations.record(class, &updated, gate, scale);
             track
                 .noise
-                .observe(shared.adaptive.as_ref(), class, &updated, covariance, gate);
+                .observe(shared.adaptive.as_ref(), class, &updated, &stated, gate);
             accept(shared, track, updated, modes, kind, source, out)
         }
         Err(error) => {
@@ -378,8 +387,18 @@ pub(super) fn coupled_update<const N: usize>(
         AnchorReading::Rssi { .. } => NoiseClass::Rssi,
         AnchorReading::Tdoa { .. } => NoiseClass::Tdoa,
     };
-    // R ← λ R, the class's adaptive noise scale
-    let scale = track.noise.scale(class);
+    let anchor = match reading {
+        AnchorReading::Range { anchor, .. }
+        | AnchorReading::Rssi { anchor, .. }
+        | AnchorReading::Tdoa { anchor, .. } => anchor,
+    };
+    // R ← c R for errors correlated in time (c = max(1, 2τ_c/Δt) per reader), then λ R
+    let inflation = track.noise.correlation_inflation(
+        Source { class, anchor },
+        time_s,
+        shared.settings.adaptive_noise.correlation_s,
+    );
+    let scale = inflation * track.noise.scale(class);
     let (model, z, stated_variance) = match reading {
         AnchorReading::Range {
             anchor,
@@ -456,12 +475,13 @@ pub(super) fn coupled_update<const N: usize>(
     });
     match result {
         Ok((updated, modes)) => {
-            out.innovations.record(class, &updated, shared.gates[0], scale);
+            out.innovations
+                .record(class, &updated, shared.gates[0], scale / inflation);
             track.noise.observe(
                 shared.adaptive.as_ref(),
                 class,
                 &updated,
-                &[stated_variance],
+                &[inflation * stated_variance],
                 shared.gates[0],
             );
             accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)
