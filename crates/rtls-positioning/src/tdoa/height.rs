@@ -48,7 +48,10 @@ use crate::multilateration::{levenberg_marquardt, variance_factor, GaussNewtonOp
 ///   a bad `Q`;
 /// - [`PositioningError::DegenerateGeometry`] when `J̃ᵀJ̃` is singular at every start's
 ///   minimum (e.g. collinear projected stations) or the iteration reaches a station;
-/// - [`PositioningError::DidNotConverge`] when no start converges.
+/// - [`PositioningError::DidNotConverge`] when no start converges;
+/// - [`PositioningError::ImplausibleFix`] / [`PositioningError::NotPositiveDefinite`] for a
+///   minimum that fails [`Fix2::check_plausible`] (range differences no position near the
+///   stations explains).
 ///
 /// # Example
 /// ```
@@ -94,11 +97,14 @@ pub fn planar_at_height(
             Err(error) => last_error = Some(error),
         }
     }
-    best.map(|(_, fix)| fix).ok_or_else(|| {
+    let fix = best.map(|(_, fix)| fix).ok_or_else(|| {
         last_error.unwrap_or(PositioningError::DegenerateGeometry {
             reason: "no start of the planar tdoa fix reached a minimum",
         })
-    })
+    })?;
+    let projected: Vec<[f64; 2]> = stations_m.iter().map(|s| [s[0], s[1]]).collect();
+    fix.check_plausible(&projected, 0.0)?;
+    Ok(fix)
 }
 
 /// [`PositioningError::DegenerateGeometry`] unless the projected stations span the plane:
