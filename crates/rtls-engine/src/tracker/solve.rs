@@ -282,12 +282,36 @@ fn tdoa_fix<const D: usize>(
             fix
         })
     } else {
-        chan_taylor::<D>(&planar, 0, &differences, &covariance)
+        chan_taylor::<D>(&planar, 0, &differences, &covariance).map(|fix| inflated(fix, &planar, &group))
     }
     .map_err(|e| format!("TDOA solution failed: {e}{}", co_located_note::<D>(anchors, &indices)))?;
     fix.check_plausible(&planar, 0.0)
         .map_err(|e| format!("TDOA fix refused: {e}"))?;
     Ok(EpochFix { fix, method: "tdoa" })
+}
+
+/// A Chan + Taylor fix with its covariance scaled by the a-posteriori variance factor (as
+/// `multilaterate` and `planar_at_height` do):
+/// ```text
+/// χ² = Σ_i (r_i − (‖p − s_i‖ − ‖p − s_0‖))² / σ_i²    (diagonal Q; station 0 the reference)
+/// σ̂₀² = max(1, χ² / (m − D)) when m > D,  P ← σ̂₀² P
+/// ```
+/// (Teunissen, *Adjustment Theory*, 2000, §4.4.)
+fn inflated<const D: usize>(mut fix: Fix<D>, stations: &[[f64; D]], group: &[TdoaEntry]) -> Fix<D> {
+    let distance = |s: &[f64; D]| (fix.position - SVector::<f64, D>::from(*s)).norm();
+    let reference_m = distance(&stations[0]);
+    // χ² = Σ e_i² / σ_i²
+    let chi_square: f64 = group
+        .iter()
+        .zip(&stations[1..])
+        .map(|((_, r, v), s)| (r - (distance(s) - reference_m)).powi(2) / v)
+        .sum();
+    let dof = group.len().saturating_sub(D);
+    if dof > 0 && chi_square.is_finite() {
+        // σ̂₀² = max(1, χ²/dof)
+        fix.covariance *= (chi_square / dof as f64).max(1.0);
+    }
+    fix
 }
 
 #[cfg(test)]

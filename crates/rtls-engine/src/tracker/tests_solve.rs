@@ -192,6 +192,36 @@ fn planar_tdoa_accounts_for_anchor_heights() {
 }
 
 #[test]
+fn spatial_tdoa_covariance_grows_with_inconsistent_differences() {
+    let room = [
+        ("A", [0.0, 0.0, 0.2]),
+        ("B", [12.0, 0.0, 2.0]),
+        ("C", [0.0, 9.0, 3.0]),
+        ("D", [12.0, 9.0, 0.5]),
+        ("E", [6.0, 4.0, 3.0]),
+        ("F", [3.0, 8.0, 1.0]),
+    ];
+    let site = make_site(&room, "fix-then-filter", true);
+    let anchors = Anchors::new(&site);
+    let tag = [4.0, 3.0, 1.2];
+    let readings = |nlos: f64| -> Vec<AnchorReading> {
+        (1..room.len())
+            .map(|i| AnchorReading::Tdoa {
+                anchor: i,
+                reference: 0,
+                range_difference_m: slant(tag, room[i].1) - slant(tag, room[0].1) + if i == 3 { nlos } else { 0.0 },
+                variance_m2: 1e-4,
+            })
+            .collect()
+    };
+    let clean = solve_epoch::<3>(&anchors, &readings(0.0), 1.0, None).unwrap();
+    let biased = solve_epoch::<3>(&anchors, &readings(1.0), 1.0, None).unwrap();
+    // a 1 m NLOS excess at σ = 1 cm: χ²/dof ≫ 1 inflates the covariance far beyond the clean one
+    let ratio = biased[0].fix.covariance.trace() / clean[0].fix.covariance.trace();
+    assert!(ratio > 100.0, "{ratio}");
+}
+
+#[test]
 fn projected_ranges_carry_the_propagated_variance() {
     let site = make_site(&MAST, "fix-then-filter", false);
     let anchors = Anchors::new(&site);
