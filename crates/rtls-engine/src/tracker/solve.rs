@@ -100,7 +100,7 @@ pub(crate) fn solve_epoch<const D: usize>(
 ///
 /// # Errors
 /// A bad path-loss law or RSSI value, or a non-finite projection.
-pub(crate) fn epoch_ranges<const D: usize>(
+fn epoch_ranges<const D: usize>(
     anchors: &Anchors,
     readings: &[AnchorReading],
     tag_height_m: f64,
