@@ -89,6 +89,19 @@ pub enum PositioningError {
         /// Why and what to do.
         reason: &'static str,
     },
+    /// A fix far outside the anchors that produced it (a wrong local minimum, a model that
+    /// does not fit the site, e.g. anchor heights ignored): refused rather than used.
+    #[error(
+        "implausible fix: {distance_m:.1} m from the anchors' centroid, beyond the limit of {limit_m:.1} m \
+         (a few times the anchors' extent plus the measured reach); the measurements or the anchor \
+         coordinates are inconsistent"
+    )]
+    ImplausibleFix {
+        /// Distance of the fix from the anchors' centroid (m).
+        distance_m: f64,
+        /// The largest plausible distance (m).
+        limit_m: f64,
+    },
     /// An iterative solver did not converge within its iteration limit.
     #[error(
         "the iterative solver did not converge in {iterations} iterations; check the geometry and the initial guess"

@@ -83,6 +83,87 @@ impl<const D: usize> Fix<D> {
     }
 }
 
+/// A plausible fix lies within `PLAUSIBLE_EXTENT_FACTOR ×` the anchors' bounding-box diagonal
+/// (plus the caller's reach) of their centroid.
+pub const PLAUSIBLE_EXTENT_FACTOR: f64 = 4.0;
+
+impl<const D: usize> Fix<D> {
+    /// Refuses a fix no tracker should start from or be updated with: a non-finite position or
+    /// covariance, a covariance that is not symmetric positive definite, or a position far
+    /// outside the anchors that produced it.
+    ///
+    /// ```text
+    /// c = (1/N) Σ a_i,   diag = ‖max_i a_i − min_i a_i‖       (bounding-box diagonal)
+    /// limit = PLAUSIBLE_EXTENT_FACTOR · diag + reach_m
+    /// plausible ⇔ ‖p − c‖ ≤ limit  and  P = Pᵀ ≻ 0 (Cholesky succeeds)
+    /// ```
+    /// `reach_m` is how far beyond the anchors the measurements themselves allow the tag to
+    /// be: for ranges the largest range plus three standard deviations (the tag is within
+    /// `r_i + 3σ_i` of each anchor), for range differences 0. A TDOA fix in the plane that
+    /// ignores anchor heights, or Gauss–Newton converging to a far local minimum, gives
+    /// positions thousands of kilometres away with a finite covariance; starting a track there
+    /// gates out every later measurement.
+    ///
+    /// # Units
+    /// Anchors and `reach_m` in m.
+    ///
+    /// # Errors
+    /// [`PositioningError::Underdetermined`] without anchors; [`PositioningError::NonFinite`]
+    /// for a NaN/∞ position, covariance, anchor or reach;
+    /// [`PositioningError::NotPositiveDefinite`] (`what = "fix covariance"`) for an asymmetric
+    /// or indefinite covariance; [`PositioningError::ImplausibleFix`] beyond the limit.
+    ///
+    /// # Example
+    /// ```
+    /// use nalgebra::{Matrix2, Vector2};
+    /// use rtls_positioning::{Fix2, PositioningError};
+    /// let anchors = [[0.0, 0.0], [20.0, 0.0], [0.0, 15.0]]; // diagonal 25 m
+    /// let fix = Fix2 { position: Vector2::new(5.0, 5.0), covariance: Matrix2::identity() };
+    /// assert!(fix.check_plausible(&anchors, 0.0).is_ok());
+    /// let far = Fix2 { position: Vector2::new(1.8e7, 0.0), ..fix };
+    /// assert!(matches!(far.check_plausible(&anchors, 0.0), Err(PositioningError::ImplausibleFix { .. })));
+    /// # Ok::<(), PositioningError>(())
+    /// ```
+    ///
+    /// # References
+    /// Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking and
+    /// Navigation*, 2001, §3.4 (validation before use) and §5.2 (a covariance must be
+    /// positive definite).
+    pub fn check_plausible(&self, anchors_m: &[[f64; D]], reach_m: f64) -> Result<()> {
+        self.checked()?;
+        if anchors_m.is_empty() {
+            return Err(PositioningError::Underdetermined { anchors: 0, needed: 1 });
+        }
+        if !(anchors_m.iter().flatten().all(|v| v.is_finite()) && reach_m.is_finite()) {
+            return Err(PositioningError::NonFinite {
+                what: "anchor positions or reach of a fix check",
+            });
+        }
+        let symmetric = (self.covariance - self.covariance.transpose()).amax() <= 1e-9 * self.covariance.amax();
+        if !symmetric || self.covariance.cholesky().is_none() {
+            return Err(PositioningError::NotPositiveDefinite { what: "fix covariance" });
+        }
+        let point = |a: &[f64; D]| SVector::<f64, D>::from(*a);
+        // c = (1/N) Σ a_i
+        let centroid = anchors_m
+            .iter()
+            .fold(SVector::<f64, D>::zeros(), |acc, a| acc + point(a))
+            / anchors_m.len() as f64;
+        // diag = ‖max a − min a‖
+        let low = anchors_m.iter().fold(point(&anchors_m[0]), |acc, a| acc.inf(&point(a)));
+        let high = anchors_m.iter().fold(point(&anchors_m[0]), |acc, a| acc.sup(&point(a)));
+        let diagonal_m = (high - low).norm();
+        // limit = k · diag + reach
+        let limit_m = PLAUSIBLE_EXTENT_FACTOR * diagonal_m + reach_m.max(0.0);
+        let distance_m = (self.position - centroid).norm();
+        if distance_m.is_finite() && distance_m <= limit_m {
+            Ok(())
+        } else {
+            Err(PositioningError::ImplausibleFix { distance_m, limit_m })
+        }
+    }
+}
+
 /// Sample covariance of fix errors measured at surveyed points: the observation covariance `U`
 /// of a positioning method.
 ///

@@ -104,4 +104,4 @@ pub mod range_free;
 pub mod tdoa;
 
 pub use error::{PositioningError, Result};
-pub use fix::{calibrate_fix_noise, Fix, Fix2, Fix3};
+pub use fix::{calibrate_fix_noise, Fix, Fix2, Fix3, PLAUSIBLE_EXTENT_FACTOR};

@@ -9,7 +9,7 @@ use rtls_estimation::Gaussian;
 use super::anchors::AnchorReading;
 use super::core::{dimensions, rejected, Shared, Track};
 use super::output::{Output, RawFix};
-use super::solve::solve_epoch;
+use super::solve::{solve_epoch, EpochFix};
 use super::update::{coupled_update, fix_update};
 use crate::error::Result;
 use crate::site::Pipeline;
@@ -34,10 +34,12 @@ pub(super) fn anchor_reading<const N: usize>(
         expire_initial_readings(shared, track, time_s, kind, out);
         track.epoch.push((time_s, reading));
         let readings: Vec<AnchorReading> = track.epoch.iter().map(|(_, r)| *r).collect();
+        // a failure waits for more readings; its reason is reported if the readings expire
         if let Ok(fixes) = solve::<N>(shared, &readings, None) {
             track.epoch.clear();
-            for (position, covariance) in fixes {
-                out.fixes.push(raw_fix(&track.tag, time_s, &position, &covariance));
+            for (position, covariance, method) in fixes {
+                out.fixes
+                    .push(epoch_raw_fix(&track.tag, time_s, &position, &covariance, method));
                 fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
             }
         }
@@ -53,19 +55,20 @@ pub(super) fn anchor_reading<const N: usize>(
     Ok(())
 }
 
-/// A fix as `(position, row-major covariance)` on the tracked axes.
-pub(super) type FlatFix = (Vec<f64>, Vec<f64>);
+/// A fix as `(position, row-major covariance, method)` on the tracked axes.
+pub(super) type FlatFix = (Vec<f64>, Vec<f64>, &'static str);
 
-/// Solves readings into fixes `(position, row-major covariance)` on the tracked axes.
+/// Solves readings into fixes `(position, row-major covariance, method)` on the tracked axes.
 pub(super) fn solve<const N: usize>(
     shared: &Shared,
     readings: &[AnchorReading],
     guess: Option<&Gaussian<N>>,
 ) -> std::result::Result<Vec<FlatFix>, String> {
-    fn flatten<const D: usize>(fix: &rtls_positioning::Fix<D>) -> (Vec<f64>, Vec<f64>) {
+    fn flatten<const D: usize>(fix: &EpochFix<D>) -> FlatFix {
         (
-            fix.position.iter().copied().collect(),
-            fix.covariance.transpose().iter().copied().collect(),
+            fix.fix.position.iter().copied().collect(),
+            fix.fix.covariance.transpose().iter().copied().collect(),
+            fix.method,
         )
     }
     let tag_height_m = shared.tag_height_m;
@@ -116,7 +119,13 @@ pub(super) fn expire_initial_readings<const N: usize>(
     // the buffer is in time order
     let expired = track.epoch.iter().take_while(|(t, _)| now_s - t > window_s).count();
     if expired > 0 {
-        let reason = format!("{expired} reading(s) expired before enough anchors could initialise the track");
+        // why the buffered readings gave no fix (they would have been cleared if they had)
+        let readings: Vec<AnchorReading> = track.epoch.iter().map(|(_, r)| *r).collect();
+        let why = match solve::<N>(shared, &readings, None) {
+            Err(reason) if !reason.is_empty() => format!(": {reason}"),
+            _ => String::new(),
+        };
+        let reason = format!("{expired} reading(s) expired before enough anchors could initialise the track{why}");
         out.events.push(rejected(&track.tag, now_s, kind, reason));
         track.epoch.drain(..expired);
     }
@@ -133,14 +142,23 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
     let guess = track.state.as_ref().filter(|_| !track.is_lost());
     match solve::<N>(shared, &readings, guess) {
         Ok(fixes) => {
-            for (position, covariance) in fixes {
-                out.fixes.push(raw_fix(&track.tag, time_s, &position, &covariance));
+            for (position, covariance, method) in fixes {
+                out.fixes
+                    .push(epoch_raw_fix(&track.tag, time_s, &position, &covariance, method));
                 fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
             }
         }
         Err(reason) => out.events.push(rejected(&track.tag, time_s, "epoch", reason)),
     }
     Ok(())
+}
+
+/// An epoch's raw fix, naming the solver's method.
+fn epoch_raw_fix(tag: &Arc<str>, time_s: f64, position: &[f64], covariance: &[f64], method: &'static str) -> RawFix {
+    RawFix {
+        method: Some(method),
+        ..raw_fix(tag, time_s, position, covariance)
+    }
 }
 
 pub(super) fn raw_fix(tag: &Arc<str>, time_s: f64, position: &[f64], covariance: &[f64]) -> RawFix {
@@ -154,5 +172,6 @@ pub(super) fn raw_fix(tag: &Arc<str>, time_s: f64, position: &[f64], covariance:
         dimensions: position.len(),
         position_m,
         covariance_m2,
+        method: None,
     }
 }

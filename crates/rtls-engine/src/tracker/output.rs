@@ -152,11 +152,15 @@ pub struct RawFix {
     pub position_m: [f64; 3],
     /// Covariance, `D × D` row-major in the first `D²` entries, m².
     pub covariance_m2: [f64; 9],
+    /// How an epoch fix was made (`gauss-newton`, `gauss-newton-from-centroid`,
+    /// `weighted-centroid`, `tdoa`); `None` for other fixes (fingerprints).
+    pub method: Option<&'static str>,
 }
 
 impl RawFix {
     /// The fix as a JSON line in the track-file shape (`t`, `tag`, `x`, `y`[, `z`], `cov`,
-    /// `predicted: false`, `source: "raw-fix"`), so `rtls eval` reads it like a track file.
+    /// `predicted: false`, `source: "raw-fix"`, and `method` when known), so `rtls eval` reads
+    /// it like a track file.
     #[must_use]
     pub fn to_json_line(&self) -> String {
         let d = self.dimensions;
@@ -164,6 +168,9 @@ impl RawFix {
         object.insert("cov".into(), json!(&self.covariance_m2[..d * d]));
         object.insert("predicted".into(), json!(false));
         object.insert("source".into(), json!("raw-fix"));
+        if let Some(method) = self.method {
+            object.insert("method".into(), json!(method));
+        }
         Value::Object(object).to_string()
     }
 }

@@ -20,10 +20,20 @@ use crate::error::Result;
 /// p ← p + α δ with the better of α = 1 and α* if the cost does not increase (μ ← μ/10),
 ///     else μ ← 10 μ and retry
 /// stop when ‖α δ‖ < relative_tolerance · (anchor spread), or when no step lowers the cost
-/// P = (JᵀWJ)⁻¹ at the solution                        (the Cramér–Rao bound there)
-/// GDOP = √tr((JᵀJ)⁻¹) with unit rows u_i              (geometry only)
 /// χ² = cost at the solution,  dof = N − D
+/// σ̂₀² = max(1, χ²/dof) if dof > 0, else 1             a-posteriori variance factor
+/// P = σ̂₀² (JᵀWJ)⁻¹ at the solution                    (the Cramér–Rao bound there, inflated)
+/// GDOP = √tr((JᵀJ)⁻¹) with unit rows u_i              (geometry only)
 /// ```
+/// The a-posteriori variance factor keeps the covariance honest when the residuals are larger
+/// than the stated noise (NLOS, a wrong `σ`): `(JᵀWJ)⁻¹` alone trusts the a-priori variances
+/// whatever the data say. It never shrinks the covariance below the a-priori one (residuals
+/// smaller than expected are no evidence of better ranges at a handful of redundant
+/// measurements); [`GaussNewtonFix::variance_factor`] reports the factor applied.
+///
+/// Negative ranges are accepted: a range is a noisy `r = d + e ≥ −∞`, and close to an anchor
+/// Wi-Fi FTM / RTT (or a bias-corrected UWB range) can be negative; the cost weighs it like any
+/// other value. The linear start squares ranges, so it uses `max(r, 0)`.
 /// The interpolated step matters where one direction is weakly determined (height, with all
 /// anchors near one plane): there the neglected second-order term `Σ w_i e_i ∇²d_i` is
 /// comparable to `JᵀWJ`, and plain Gauss–Newton oscillates and converges slowly (often beyond
@@ -45,8 +55,7 @@ use crate::error::Result;
 ///   per anchor;
 /// - [`crate::PositioningError::NonFiniteEntry`] for a NaN/∞ anchor coordinate, range or
 ///   variance; [`crate::PositioningError::NonFinite`] for a NaN/∞ guess;
-/// - [`crate::PositioningError::InvalidParameter`] for a negative range, a variance `≤ 0` or
-///   invalid options;
+/// - [`crate::PositioningError::InvalidParameter`] for a variance `≤ 0` or invalid options;
 /// - [`crate::PositioningError::DuplicateAnchors`] for two anchors at one position;
 /// - [`crate::PositioningError::DegenerateGeometry`] for collinear/coplanar anchors (linear
 ///   start), a start at an anchor, or a singular `JᵀWJ` at the solution;
@@ -76,6 +85,8 @@ use crate::error::Result;
 /// K. Levenberg, *Q. Appl. Math.* 2(2), 1944; D. W. Marquardt, *J. SIAM* 11(2), 1963 (damping);
 /// J. Nocedal, S. J. Wright, *Numerical Optimization*, 2nd ed., 2006, §3.5 (interpolating line
 /// search) and §10.3 (Gauss–Newton's linear convergence on large-residual problems);
+/// P. J. G. Teunissen, *Adjustment Theory*, Delft, 2000, §4.4 (the a-posteriori variance
+/// factor `σ̂₀² = êᵀ W ê / (m − n)`);
 /// seed 003 (multi-point LS multilateration baseline).
 pub fn gauss_newton<const D: usize>(
     anchors_m: &[[f64; D]],
@@ -90,12 +101,14 @@ pub fn gauss_newton<const D: usize>(
         Initial::Guess(_) => validate::anchors(anchors_m, D, false)?,
     };
     let n = anchors_m.len();
-    validate::ranges(ranges_m, n, "ranges_m", "ranges (one per anchor)")?;
+    validate::signed_ranges(ranges_m, n, "ranges (one per anchor)")?;
     validate::variances(variances_m2, n, "variances_m2", "range variances (one per anchor)")?;
     let start = match initial {
         Initial::Linear => {
-            let reference = resolve_reference(ReferenceAnchor::NearestRange, ranges_m)?;
-            solve(anchors_m, ranges_m, Some(variances_m2), reference)?.0
+            // the differenced equations square the ranges: a negative range means "close", r⁺ = max(r, 0)
+            let clamped: Vec<f64> = ranges_m.iter().map(|r| r.max(0.0)).collect();
+            let reference = resolve_reference(ReferenceAnchor::NearestRange, &clamped)?;
+            solve(anchors_m, &clamped, Some(variances_m2), reference)?.0
         }
         Initial::Guess(p) => {
             validate::finite_point(&p, "initial position")?;

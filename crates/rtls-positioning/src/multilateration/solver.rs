@@ -17,6 +17,11 @@ const MAX_STEP_SCALE: f64 = 4.0;
 /// The line search tries `α*` only when it differs from 1 by more than this.
 const LINE_SEARCH_TRIGGER: f64 = 0.1;
 
+/// A step that lowers the cost by less than this fraction of it ends the iteration: the
+/// point is a minimum to round-off, even if the step itself is still long (a flat valley,
+/// where the position is not determined better than the covariance says anyway).
+const FUNCTION_TOLERANCE: f64 = 1e-12;
+
 /// Iteration limit and tolerance of the Gauss–Newton / Levenberg–Marquardt solvers
 /// ([`super::gauss_newton`], [`super::toa_rss`], DV-Hop refinement).
 ///
@@ -114,8 +119,9 @@ pub enum Initial<const D: usize> {
 /// ranges to be detected).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GaussNewtonFix<const D: usize> {
-    /// Position (m) and covariance `(JᵀWJ)⁻¹` at the solution (m²): the Cramér–Rao bound
-    /// there, a first-order (small-noise) estimate.
+    /// Position (m) and covariance `σ̂₀² (JᵀWJ)⁻¹` at the solution (m²): the Cramér–Rao bound
+    /// there (a first-order, small-noise estimate), inflated by the a-posteriori variance
+    /// factor when the residuals exceed the stated noise.
     pub fix: Fix<D>,
     /// `√tr((UᵀU)⁻¹)` of the unit line-of-sight vectors to the anchors used, at the fix
     /// (geometry only, unweighted; see [`super::gdop`]).
@@ -128,6 +134,9 @@ pub struct GaussNewtonFix<const D: usize> {
     /// Degrees of freedom of `chi_square`: scalar measurements minus `D` (0 when exactly
     /// determined).
     pub degrees_of_freedom: usize,
+    /// The a-posteriori variance factor `σ̂₀² = max(1, χ²/dof)` (1 when `dof = 0`) by which
+    /// `(JᵀWJ)⁻¹` was multiplied: above 1 when the residuals are larger than the stated noise.
+    pub variance_factor: f64,
 }
 
 impl<const D: usize> GaussNewtonFix<D> {
@@ -138,7 +147,7 @@ impl<const D: usize> GaussNewtonFix<D> {
     /// use nalgebra::{Matrix2, Vector2};
     /// use rtls_positioning::{multilateration::GaussNewtonFix, Fix2};
     /// let fix = Fix2 { position: Vector2::zeros(), covariance: Matrix2::identity() };
-    /// let s = GaussNewtonFix { fix, gdop: 1.0, iterations: 3, chi_square: 6.0, degrees_of_freedom: 3 };
+    /// let s = GaussNewtonFix { fix, gdop: 1.0, iterations: 3, chi_square: 6.0, degrees_of_freedom: 3, variance_factor: 2.0 };
     /// assert_eq!(s.reduced_chi_square(), Some(2.0));
     /// ```
     ///
@@ -207,7 +216,8 @@ pub(crate) struct Minimum<const D: usize> {
 /// α δ, α ∈ {1, α*}                          the better of the full and the interpolated step
 ///                                           (see line_search)
 /// accept it if the cost does not increase (μ ← μ/10), else retry with μ ← 10 μ
-/// stop when ‖α δ‖ < tolerance_m, or when no damping lowers the cost (p is a minimum)
+/// stop when ‖α δ‖ < tolerance_m, when the cost falls by less than FUNCTION_TOLERANCE × cost,
+///     or when no damping lowers the cost (p is a minimum)
 /// ```
 ///
 /// # Errors
@@ -252,9 +262,11 @@ pub(crate) fn levenberg_marquardt<const D: usize>(
                 iterations: iteration - 1,
             });
         };
+        // Δc = c(p) − c(p + α δ) ≥ 0
+        let decrease = normal.cost - next.cost;
         p = candidate;
         normal = next;
-        if step_m < tolerance_m {
+        if step_m < tolerance_m || decrease <= FUNCTION_TOLERANCE * normal.cost {
             return Ok(Minimum {
                 position: p,
                 normal,
@@ -319,7 +331,12 @@ fn line_search<const D: usize>(
     best
 }
 
-/// Builds the result: covariance `N⁻¹`, GDOP over `anchors_used`, χ² and its dof.
+/// Builds the result: covariance `σ̂₀² N⁻¹`, GDOP over `anchors_used`, χ² and its dof.
+///
+/// ```text
+/// dof = m − D,   σ̂₀² = max(1, χ²/dof) when dof > 0, else 1
+/// P = σ̂₀² N⁻¹
+/// ```
 ///
 /// # Errors
 /// [`PositioningError::DegenerateGeometry`] if `N` (or `UᵀU`) is singular at the solution;
@@ -330,30 +347,48 @@ pub(crate) fn finish<'a, const D: usize>(
     measurements: usize,
     coincidence_m: f64,
 ) -> Result<GaussNewtonFix<D>> {
-    // P = (JᵀWJ)⁻¹
+    // (JᵀWJ)⁻¹
     let (_, covariance) = solve_spd(
         &minimum.normal.information,
         &SVector::zeros(),
         "the information matrix JᵀWJ is singular at the fix (the fix lies on the line or plane of the anchors)",
     )?;
-    let fix = Fix {
-        position: minimum.position,
-        covariance: (covariance + covariance.transpose()) * 0.5,
-    }
-    .checked()?;
-    let gdop = dop_at(anchors_used, &minimum.position, coincidence_m)?.gdop;
     if !minimum.normal.cost.is_finite() {
         return Err(PositioningError::NonFinite {
             what: "normalised residual (chi-square)",
         });
     }
+    let degrees_of_freedom = measurements.saturating_sub(D);
+    let variance_factor = variance_factor(minimum.normal.cost, degrees_of_freedom);
+    let fix = Fix {
+        position: minimum.position,
+        // P = σ̂₀² (JᵀWJ)⁻¹, symmetrised against round-off
+        covariance: (covariance + covariance.transpose()) * (0.5 * variance_factor),
+    }
+    .checked()?;
+    let gdop = dop_at(anchors_used, &minimum.position, coincidence_m)?.gdop;
     Ok(GaussNewtonFix {
         fix,
         gdop,
         iterations: minimum.iterations,
         chi_square: minimum.normal.cost,
-        degrees_of_freedom: measurements.saturating_sub(D),
+        degrees_of_freedom,
+        variance_factor,
     })
+}
+
+/// The a-posteriori variance factor `σ̂₀² = max(1, χ²/dof)`, or 1 without redundancy
+/// (`dof = 0`): the factor by which a least-squares covariance is inflated when the residuals
+/// exceed the stated noise, never shrunk below the a-priori one.
+///
+/// # References
+/// P. J. G. Teunissen, *Adjustment Theory*, Delft, 2000, §4.4.
+pub(crate) fn variance_factor(chi_square: f64, degrees_of_freedom: usize) -> f64 {
+    if degrees_of_freedom == 0 {
+        return 1.0;
+    }
+    // σ̂₀² = χ² / (m − n), floored at the a-priori 1
+    (chi_square / degrees_of_freedom as f64).max(1.0)
 }
 
 #[cfg(test)]

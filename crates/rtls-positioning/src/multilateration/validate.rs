@@ -141,6 +141,18 @@ pub(crate) fn ranges(ranges_m: &[f64], n: usize, name: &'static str, what: &'sta
     Ok(())
 }
 
+/// Validates a per-anchor vector of signed ranges: length `n`, finite. Negative values are
+/// accepted: a range is a noisy measurement `r = d + e`, and for a tag close to an anchor the
+/// error `e` can exceed `d` (Wi-Fi FTM / RTT and UWB with a calibrated bias both report
+/// negative ranges there); the least-squares cost handles them as it handles any other value.
+///
+/// # Errors
+/// [`PositioningError::DimensionMismatch`], [`PositioningError::NonFiniteEntry`]
+/// (row = anchor, column 0).
+pub(crate) fn signed_ranges(ranges_m: &[f64], n: usize, what: &'static str) -> Result<()> {
+    per_anchor(ranges_m, n, what)
+}
+
 /// Validates a per-anchor vector of variances: length `n`, finite, `> 0`.
 ///
 /// # Errors
@@ -269,6 +281,8 @@ mod tests {
             ranges(&[1.0, -1.0], 2, "r", "r"),
             Err(PositioningError::InvalidParameter { name: "r", .. })
         ));
+        assert!(signed_ranges(&[1.0, -1.0], 2, "r").is_ok());
+        assert!(signed_ranges(&[1.0, f64::NAN], 2, "r").is_err());
         assert!(matches!(
             variances(&[1.0, 0.0], 2, "v", "v"),
             Err(PositioningError::InvalidParameter { name: "v", .. })

@@ -13,15 +13,19 @@
 //!   two-step WLS from 4 in the plane and 5 in space).
 //! - [`taylor`], [`chan_taylor`] — Gauss–Newton / Levenberg–Marquardt (Foy/Torrieri)
 //!   refinement to the maximum-likelihood fix.
+//! - [`planar_at_height`] — the planar fix of a tag at a known height from stations at their
+//!   own heights (slant-range differences), for 2-D tracking with anchors on the ceiling.
 //! - [`cyclic_reference`] — seed 004's rotating master station.
 //! - [`range_differences_at`], [`differenced_range_covariance`] — the noise-free measurement
 //!   and the covariance of differenced independent TOAs, for simulation and configuration.
 
 mod chan;
+mod height;
 mod problem;
 mod taylor;
 
 pub use chan::{chan, ChanSolution};
+pub use height::planar_at_height;
 pub use taylor::{chan_taylor, taylor, TAYLOR_MAX_ITERATIONS};
 
 use nalgebra::{DMatrix, SVector};
