@@ -21,7 +21,9 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use rtls_engine::radio_map::RadioMap;
 use rtls_engine::record::{CsvRecords, JsonLines, Record};
-use rtls_engine::site::{FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site};
+use rtls_engine::site::{
+    read_text_file, FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site, MAX_RADIO_MAP_BYTES, MAX_SITE_BYTES,
+};
 use rtls_engine::survey::{SurveyMap, SurveySettings};
 use rtls_engine::tracker::{Event, Output, Tracker};
 
@@ -116,7 +118,7 @@ fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
 /// Loads the site (with command-line overrides) and its radio map, if it names one.
 fn load_site(args: &TrackArgs) -> anyhow::Result<(Site, Option<RadioMap>)> {
     let site_name = args.site.display().to_string();
-    let text = std::fs::read_to_string(&args.site).with_context(|| format!("reading {site_name}"))?;
+    let text = read_text_file(&args.site, MAX_SITE_BYTES, "site")?;
     let mut site = Site::from_toml_str(&text, &site_name)?;
     if let Some(pipeline) = args.pipeline {
         site.tracker.pipeline = match pipeline {
@@ -149,8 +151,8 @@ fn load_site(args: &TrackArgs) -> anyhow::Result<(Site, Option<RadioMap>)> {
         Some(database) => {
             let path = args.site.parent().unwrap_or(Path::new(".")).join(&database.path);
             let name = path.display().to_string();
-            let text = std::fs::read_to_string(&path)
-                .with_context(|| format!("reading the radio map {name} named by {site_name} [fingerprints]"))?;
+            let text = read_text_file(&path, MAX_RADIO_MAP_BYTES, "radio map")
+                .with_context(|| format!("reading the radio map named by {site_name} [fingerprints]"))?;
             Some(RadioMap::from_csv_str(&text, &name, &site)?)
         }
         None => None,
