@@ -117,7 +117,14 @@ pub(super) fn expire_initial_readings<const N: usize>(
     let expired = track.epoch.iter().take_while(|(t, _)| now_s - t > window_s).count();
     if expired > 0 {
         let reason = format!("{expired} reading(s) expired before enough anchors could initialise the track");
-        out.events.push(rejected(&track.tag, now_s, kind, reason));
+        // at the end of input (`now_s` = ∞) the event is dated by the last expired reading:
+        // an event always carries a finite time
+        let time_s = if now_s.is_finite() {
+            now_s
+        } else {
+            track.epoch[expired - 1].0
+        };
+        out.events.push(rejected(&track.tag, time_s, kind, reason));
         track.epoch.drain(..expired);
     }
 }
