@@ -112,7 +112,8 @@ fn range_fix<const D: usize>(
     for (anchor, weighted_sum, weight_sum) in sums {
         let a = anchors.get(anchor).position_m;
         // r̄ = Σ wᵢ rᵢ / Σ wᵢ, σ̄² = 1 / Σ wᵢ
-        let mut range_m = weighted_sum / weight_sum;
+        // a negative range (Wi-Fi FTM/RTT next to the responder) is a distance of about 0
+        let mut range_m = (weighted_sum / weight_sum).max(0.0);
         if D == 2 {
             // r_h = √(max(r² − Δz², 0))
             let dz = a[2] - tag_height_m;
