@@ -21,7 +21,9 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use rtls_engine::radio_map::RadioMap;
 use rtls_engine::record::{CsvRecords, JsonLines, Record};
-use rtls_engine::site::{FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site};
+use rtls_engine::site::{
+    read_text_file, FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site, MAX_RADIO_MAP_BYTES, MAX_SITE_BYTES,
+};
 use rtls_engine::survey::{SurveyMap, SurveySettings};
 use rtls_engine::tracker::{Event, Output, Tracker};
 
@@ -144,7 +146,7 @@ fn load_site(args: &TrackArgs) -> anyhow::Result<(Site, Option<RadioMap>)> {
 /// Loads a site file and the radio map it names, if any (`rtls track`, `rtls tune`).
 pub(crate) fn load_site_file(path: &Path) -> anyhow::Result<(Site, Option<RadioMap>)> {
     let site_name = path.display().to_string();
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {site_name}"))?;
+    let text = read_text_file(path, MAX_SITE_BYTES, "site")?;
     let site = Site::from_toml_str(&text, &site_name)?;
     let radio_map = match &site.fingerprints {
         Some(database) if database.format != FingerprintFormat::Csv => bail!(
@@ -155,8 +157,8 @@ pub(crate) fn load_site_file(path: &Path) -> anyhow::Result<(Site, Option<RadioM
         Some(database) => {
             let path = path.parent().unwrap_or(Path::new(".")).join(&database.path);
             let name = path.display().to_string();
-            let text = std::fs::read_to_string(&path)
-                .with_context(|| format!("reading the radio map {name} named by {site_name} [fingerprints]"))?;
+            let text = read_text_file(&path, MAX_RADIO_MAP_BYTES, "radio map")
+                .with_context(|| format!("reading the radio map named by {site_name} [fingerprints]"))?;
             Some(RadioMap::from_csv_str(&text, &name, &site)?)
         }
         None => None,

@@ -3,7 +3,7 @@
 use std::fmt::Write as _;
 
 use crate::error::{EngineError, Result};
-use crate::site::Site;
+use crate::site::{Site, MAX_RADIO_MAP_ROWS};
 
 /// The position columns every header starts with.
 const POSITION_COLUMNS: [&str; 2] = ["x_m", "y_m"];
@@ -213,6 +213,13 @@ pub(super) fn parse(text: &str, file: &str, site: &Site) -> Result<Parsed> {
         lines: Vec::new(),
     };
     for (line, cells) in lines {
+        if parsed.positions_m.len() == MAX_RADIO_MAP_ROWS {
+            return Err(error(
+                line,
+                "-",
+                format!("more than {MAX_RADIO_MAP_ROWS} reference points; a radio map may have at most that many rows"),
+            ));
+        }
         if cells.len() != header.len() {
             return Err(error(
                 line,

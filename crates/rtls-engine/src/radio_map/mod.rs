@@ -41,7 +41,9 @@ pub use csv_text::{radio_map_csv, RadioMapRow};
 
 use std::collections::HashMap;
 
-use rtls_positioning::fingerprint::{FingerprintDatabase, FingerprintIndex, Knn, SignalSpace, Survey};
+use rtls_positioning::fingerprint::{
+    FingerprintDatabase, FingerprintIndex, Knn, SignalRepresentation, SignalSpace, Survey,
+};
 use rtls_positioning::PositioningError;
 
 use crate::error::{EngineError, Result};
@@ -134,9 +136,13 @@ impl RadioMap {
     ///
     /// Every reader column must be a reader of `site` (its `x, y` become the anchor position of
     /// the fingerprint database); when the site's `[fingerprints].readers` is non-empty, the
-    /// reader columns must be exactly those ids in that order. The map starts with
-    /// [`RadioMap::DEFAULT_NEIGHBOURS`], [`SignalSpace::powed_sorensen`] and the variance floor
-    /// `s²/12` (see [`RadioMap::locate`]).
+    /// reader columns must be exactly those ids in that order. The map starts with the site's
+    /// `[fingerprints]` `neighbours` (default [`RadioMap::DEFAULT_NEIGHBOURS`]), the powed/Sørensen
+    /// signal space ([`SignalSpace::powed_sorensen`]) with the site's `noise_floor_dbm` (default
+    /// −104 dBm), and the variance floor `s²/12` (see [`RadioMap::locate`]). At most
+    /// [`MAX_RADIO_MAP_ROWS`](crate::site::MAX_RADIO_MAP_ROWS) reference points are read; read
+    /// the file with [`read_text_file`](crate::site::read_text_file) and
+    /// [`MAX_RADIO_MAP_BYTES`](crate::site::MAX_RADIO_MAP_BYTES) to bound its size.
     ///
     /// `file` only names the input in errors.
     ///
@@ -147,7 +153,8 @@ impl RadioMap {
     /// unknown to the site or different from `[fingerprints].readers`; a row with the wrong
     /// number of cells, a position or RSSI that is not a finite number, a floor that is not an
     /// integer, a row where no reader was heard; an RSSI below the signal space's floor
-    /// (−104 dBm by default); a file without rows.
+    /// (−104 dBm by default); a file without rows or with more than
+    /// [`MAX_RADIO_MAP_ROWS`](crate::site::MAX_RADIO_MAP_ROWS).
     ///
     /// # Examples
     /// See [`RadioMap`]. A reader the site does not know is an error naming its column:
@@ -187,7 +194,15 @@ impl RadioMap {
             .enumerate()
             .map(|(column, id)| (id.clone(), column))
             .collect();
-        let space = SignalSpace::powed_sorensen();
+        let mut space = SignalSpace::powed_sorensen();
+        let mut neighbours = Self::DEFAULT_NEIGHBOURS;
+        if let Some(settings) = &site.fingerprints {
+            // the site's [fingerprints] neighbours and noise_floor_dbm (defaults: 3, −104 dBm)
+            neighbours = settings.neighbours.max(1);
+            if let SignalRepresentation::Powed { floor_dbm, .. } = &mut space.representation {
+                *floor_dbm = settings.noise_floor_dbm;
+            }
+        }
         let index = build_index(&database, space, file, &parsed.lines, &parsed.reader_ids)?;
         let min_variance_m2 = spacing_variance_m2(database.reference_points_m());
         Ok(Self {
@@ -197,7 +212,7 @@ impl RadioMap {
             database,
             lines: parsed.lines,
             index,
-            knn: Knn::wknn(Self::DEFAULT_NEIGHBOURS),
+            knn: Knn::wknn(neighbours),
             min_variance_m2,
         })
     }

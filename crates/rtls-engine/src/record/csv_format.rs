@@ -2,7 +2,7 @@
 
 use std::io::BufRead;
 
-use super::{AnchorReading, Invalid, Measurement, Record};
+use super::{read_line, AnchorReading, Invalid, Line, Measurement, Record, MAX_LINE_BYTES};
 use crate::error::{EngineError, Result};
 
 /// The CSV columns, in the order [`to_csv_row`] writes them.
@@ -60,7 +60,8 @@ const READINGS: usize = 13;
 /// Reads CSV records from any buffered reader, one `Result<Record>` per data row.
 ///
 /// Blank lines and lines whose first non-blank character is `#` are skipped (and counted, so
-/// that errors name the file's line); cells are trimmed; quoting follows RFC 4180 within a line
+/// that errors name the file's line); a line longer than [`MAX_LINE_BYTES`] or not UTF-8 is an
+/// error for that line; cells are trimmed; quoting follows RFC 4180 within a line
 /// (a record is one line: no field of a valid record contains a line break). Each bad row is
 /// reported as an error and reading continues with the next row; a read error of the underlying
 /// reader is reported once and ends the iteration.
@@ -81,27 +82,46 @@ pub struct CsvRecords<R> {
     file: String,
     line: usize,
     done: bool,
+    skipping: bool,
     buffer: Vec<u8>,
 }
 
-/// The next line that is not blank or a comment: `Ok(None)` at the end of the input.
+/// What [`next_line`] found.
+enum Next<'b> {
+    End,
+    Text(&'b [u8]),
+    TooLong,
+}
+
+/// The next line that is not blank or a comment, at most [`MAX_LINE_BYTES`] long.
 fn next_line<'b>(
     reader: &mut impl BufRead,
     buffer: &'b mut Vec<u8>,
     line: &mut usize,
-) -> std::io::Result<Option<&'b [u8]>> {
+    skipping: &mut bool,
+) -> std::io::Result<Next<'b>> {
     loop {
-        buffer.clear();
-        if reader.read_until(b'\n', buffer)? == 0 {
-            return Ok(None);
-        }
-        *line += 1;
-        let trimmed = buffer.trim_ascii();
-        if !trimmed.is_empty() && !trimmed.starts_with(b"#") {
-            break;
+        match read_line(reader, buffer, skipping)? {
+            Line::End => return Ok(Next::End),
+            Line::TooLong => {
+                *line += 1;
+                return Ok(Next::TooLong);
+            }
+            Line::Text => {
+                *line += 1;
+                let trimmed = buffer.trim_ascii();
+                if !trimmed.is_empty() && !trimmed.starts_with(b"#") {
+                    break;
+                }
+            }
         }
     }
-    Ok(Some(buffer.trim_ascii_end()))
+    Ok(Next::Text(buffer.trim_ascii_end()))
+}
+
+/// The error of a line longer than [`MAX_LINE_BYTES`].
+fn too_long() -> String {
+    format!("line is longer than {MAX_LINE_BYTES} bytes; a record is one short line")
 }
 
 /// Splits one line into trimmed cells.
@@ -134,10 +154,11 @@ impl<R: BufRead> CsvRecords<R> {
             field: field.to_string(),
             reason,
         };
-        let (mut buffer, mut line) = (Vec::new(), 0);
-        let header = match next_line(&mut reader, &mut buffer, &mut line) {
-            Ok(Some(text)) => split(text).map_err(|reason| error(line, "-", reason))?,
-            Ok(None) => {
+        let (mut buffer, mut line, mut skipping) = (Vec::new(), 0, false);
+        let header = match next_line(&mut reader, &mut buffer, &mut line, &mut skipping) {
+            Ok(Next::Text(text)) => split(text).map_err(|reason| error(line, "-", reason))?,
+            Ok(Next::TooLong) => return Err(error(line, "-", too_long())),
+            Ok(Next::End) => {
                 return Err(error(
                     line,
                     "-",
@@ -175,6 +196,7 @@ impl<R: BufRead> CsvRecords<R> {
             file: file.to_string(),
             line,
             done: false,
+            skipping,
             buffer,
         })
     }
@@ -201,9 +223,10 @@ impl<R: BufRead> Iterator for CsvRecords<R> {
             field: "-".into(),
             reason,
         };
-        let row = match next_line(&mut self.reader, &mut self.buffer, &mut self.line) {
-            Ok(Some(text)) => split(text),
-            Ok(None) => {
+        let row = match next_line(&mut self.reader, &mut self.buffer, &mut self.line, &mut self.skipping) {
+            Ok(Next::Text(text)) => split(text),
+            Ok(Next::TooLong) => Err(too_long()),
+            Ok(Next::End) => {
                 self.done = true;
                 return None;
             }

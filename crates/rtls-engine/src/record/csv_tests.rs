@@ -85,7 +85,11 @@ fn bad_numbers_name_the_column() {
 
 #[test]
 fn validation_errors_name_the_csv_column() {
-    assert_eq!(row_error("1,a,range,R1,,-4,,,,,,,,"), (2, "value".into()));
+    assert_eq!(row_error("1,a,range,R1,,nan,,,,,,,,"), (2, "value".into()));
+    assert_eq!(row_error("1e16,a,range,R1,,4,,,,,,,,"), (2, "t".into()));
+    // Wi-Fi FTM/RTT gives negative ranges for close devices: finite ones are accepted
+    let text = format!("{HEADER}\n1,a,range,R1,,-0.4,,,,,,,,\n");
+    assert!(CsvRecords::from_text(&text, "in.csv").unwrap().next().unwrap().is_ok());
     assert_eq!(row_error("1,a,range,R1,,4,-1,,,,,,,"), (2, "std".into()));
     assert_eq!(row_error("1,a,tdoa,R1,R1,3,,,,,,,,"), (2, "reference".into()));
     assert_eq!(row_error("1,a,odometry,,,3,,1,-0.1,,,,,"), (2, "heading_std".into()));

@@ -6,7 +6,7 @@ use std::io::BufRead;
 use serde::de::{self, DeserializeSeed, MapAccess, Visitor};
 use serde::Serialize;
 
-use super::{AnchorReading, Invalid, Measurement, Record};
+use super::{read_line, AnchorReading, Invalid, Line, Measurement, Record, MAX_LINE_BYTES};
 use crate::error::{EngineError, Result};
 
 /// The flat wire form of a record: every key of every kind, each optional. Declares the keys
@@ -337,6 +337,7 @@ pub struct JsonLines<R> {
     file: String,
     line: usize,
     done: bool,
+    skipping: bool,
     buffer: Vec<u8>,
 }
 
@@ -349,6 +350,7 @@ impl<R: BufRead> JsonLines<R> {
             file: file.to_string(),
             line: 0,
             done: false,
+            skipping: false,
             buffer: Vec::new(),
         }
     }
@@ -365,13 +367,24 @@ impl<R: BufRead> Iterator for JsonLines<R> {
 
     fn next(&mut self) -> Option<Result<Record>> {
         while !self.done {
-            self.buffer.clear();
-            match self.reader.read_until(b'\n', &mut self.buffer) {
-                Ok(0) => self.done = true,
-                Ok(_) => {
+            match read_line(&mut self.reader, &mut self.buffer, &mut self.skipping) {
+                Ok(Line::End) => self.done = true,
+                Ok(Line::TooLong) => {
                     self.line += 1;
-                    let Ok(text) = std::str::from_utf8(&self.buffer) else {
-                        return Some(Err(self.error("line is not valid UTF-8")));
+                    let reason = format!("line is longer than {MAX_LINE_BYTES} bytes; a record is one short line");
+                    return Some(Err(self.error(&reason)));
+                }
+                Ok(Line::Text) => {
+                    self.line += 1;
+                    let text = match std::str::from_utf8(&self.buffer) {
+                        Ok(text) => text,
+                        Err(error) => {
+                            let reason = format!(
+                                "line is not valid UTF-8 (byte {} of the line); is the input a text file?",
+                                error.valid_up_to() + 1
+                            );
+                            return Some(Err(self.error(&reason)));
+                        }
                     };
                     let trimmed = text.trim();
                     if trimmed.is_empty() || trimmed.starts_with('#') {

@@ -127,9 +127,25 @@ fn wrong_types_name_the_key() {
 #[test]
 fn values_are_validated_with_the_key_named() {
     assert_eq!(
-        error_field(r#"{"t": 1, "tag": "a", "kind": "range", "anchor": "R", "range_m": -4}"#),
-        "range_m"
+        error_field(r#"{"t": 1, "tag": "a", "kind": "range", "anchor": "R", "range_m": 4, "std_m": -1}"#),
+        "std_m"
     );
+    // Wi-Fi FTM/RTT gives negative ranges for close devices: finite ones are accepted
+    let close = parse_json_line(
+        r#"{"t": 1, "tag": "a", "kind": "range", "anchor": "R", "range_m": -0.4}"#,
+        "f",
+        1,
+    );
+    assert!(close.is_ok(), "{close:?}");
+    // a gateway sending nanoseconds: refused, naming the time
+    let error = parse_json_line(
+        r#"{"t": 1e16, "tag": "a", "kind": "rssi", "anchor": "R", "rssi_dbm": -1}"#,
+        "f",
+        3,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(error.starts_with("f:3: field `t`: 1e16 s is beyond"), "{error}");
     assert_eq!(
         error_field(r#"{"t": 1, "tag": "", "kind": "range", "anchor": "R", "range_m": 4}"#),
         "tag"

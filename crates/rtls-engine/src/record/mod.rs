@@ -7,8 +7,8 @@
 //! Records that arrive out of order are put back in order by a [`Reorderer`], which reports late
 //! ones instead of dropping them.
 //!
-//! Every parser validates what it reads ([`Record::validate`]): finite numbers, non-negative
-//! ranges and standard deviations, symmetric positive semi-definite covariances of the right
+//! Every parser validates what it reads ([`Record::validate`]): plausible times (finite, within
+//! ±[`MAX_ABS_TIME_S`]), finite numbers, non-negative speeds and standard deviations, symmetric positive semi-definite covariances of the right
 //! size, non-empty ids. Errors are [`EngineError::Parse`] naming the file, line and field.
 //!
 //! # References
@@ -18,14 +18,76 @@
 mod csv_format;
 mod json;
 mod reorder;
+mod time;
 
 pub use csv_format::{to_csv_row, CsvRecords, CSV_COLUMNS};
 pub use json::{parse_json_line, to_json_line, JsonLines};
 pub use reorder::{Emitted, Reorderer};
+pub use time::{implausible_time, TimeGate, JUMP_CONFIRMATIONS, MAX_ABS_TIME_S};
+
+/// The longest record line the readers accept, bytes (1 MiB): a longer line is an error for
+/// that line (and is skipped without being held in memory), so a binary or endless input
+/// cannot exhaust memory.
+pub const MAX_LINE_BYTES: usize = 1 << 20;
 
 use serde::{Deserialize, Serialize};
 
 use crate::error::{EngineError, Result};
+
+/// What [`read_line`] found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Line {
+    /// The end of the input.
+    End,
+    /// A line (with its `\n`, if any) is in the buffer.
+    Text,
+    /// The line is longer than [`MAX_LINE_BYTES`]; the buffer is empty and the rest of the line
+    /// is skipped by the next call.
+    TooLong,
+}
+
+/// Reads one line into `buffer`, holding at most [`MAX_LINE_BYTES`]. `skipping` carries over
+/// between calls: after [`Line::TooLong`] the next call first drops the rest of that line.
+pub(crate) fn read_line(
+    reader: &mut impl std::io::BufRead,
+    buffer: &mut Vec<u8>,
+    skipping: &mut bool,
+) -> std::io::Result<Line> {
+    buffer.clear();
+    loop {
+        let available = match reader.fill_buf() {
+            Ok(available) => available,
+            Err(error) if error.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(error) => return Err(error),
+        };
+        if available.is_empty() {
+            *skipping = false;
+            return Ok(if buffer.is_empty() { Line::End } else { Line::Text });
+        }
+        let (length, complete) = match available.iter().position(|&b| b == b'\n') {
+            Some(i) => (i + 1, true),
+            None => (available.len(), false),
+        };
+        if *skipping {
+            reader.consume(length);
+            if complete {
+                *skipping = false;
+            }
+            continue;
+        }
+        if buffer.len() + length > MAX_LINE_BYTES {
+            buffer.clear();
+            reader.consume(length);
+            *skipping = !complete;
+            return Ok(Line::TooLong);
+        }
+        buffer.extend_from_slice(&available[..length]);
+        reader.consume(length);
+        if complete {
+            return Ok(Line::Text);
+        }
+    }
+}
 
 /// One measurement of one tag at one time.
 ///
@@ -93,7 +155,8 @@ pub enum Measurement {
     Range {
         /// The anchor's id.
         anchor: String,
-        /// Measured distance, m (≥ 0).
+        /// Measured distance, m (finite; may be negative: Wi-Fi FTM/RTT reports negative
+        /// ranges for devices close to the responder).
         range_m: f64,
         /// Its standard deviation, m (≥ 0).
         std_m: Option<f64>,
@@ -211,7 +274,9 @@ impl Invalid {
 type Checked = core::result::Result<(), Invalid>;
 
 impl Record {
-    /// Checks every value: finite numbers, non-negative ranges and standard deviations, vectors
+    /// Checks every value: a plausible time ([`implausible_time`]: finite, within
+    /// ±[`MAX_ABS_TIME_S`] s), finite numbers (a range may be negative), non-negative speeds and
+    /// standard deviations, vectors
     /// of 2 or 3 components, covariances of matching size that are symmetric and positive
     /// semi-definite, non-empty ids without leading or trailing white space, control characters,
     /// `;` or `=` (so that every id can be written in CSV), TDOA anchor ≠ reference, RSSI vectors
@@ -230,22 +295,24 @@ impl Record {
     /// let record = Record {
     ///     time_s: 3.0,
     ///     tag: "robot-2".into(),
-    ///     measurement: Measurement::Range { anchor: "U1".into(), range_m: -1.0, std_m: None },
+    ///     measurement: Measurement::Range { anchor: "U1".into(), range_m: 1.0, std_m: Some(-0.1) },
     /// };
     /// let error = record.validate("log.jsonl", 7).unwrap_err();
-    /// assert!(error.to_string().starts_with("log.jsonl:7: field `range_m`"));
+    /// assert!(error.to_string().starts_with("log.jsonl:7: field `std_m`"));
     /// ```
     pub fn validate(&self, file: &str, line: usize) -> Result<()> {
         self.check().map_err(|invalid| invalid.at(file, line))
     }
 
     pub(crate) fn check(&self) -> Checked {
-        finite("t", self.time_s)?;
+        if let Some(reason) = implausible_time(self.time_s) {
+            return Err(Invalid::new("t", reason));
+        }
         id("tag", &self.tag)?;
         match &self.measurement {
             Measurement::Range { anchor, range_m, std_m } => {
                 id("anchor", anchor)?;
-                non_negative("range_m", *range_m)?;
+                finite("range_m", *range_m)?;
                 optional_std("std_m", *std_m)
             }
             Measurement::Rssi { anchor, rssi_dbm } => {
@@ -357,10 +424,12 @@ fn check_readings(readings: &[AnchorReading]) -> Checked {
             "is empty; list at least one heard anchor (omit the record if none was heard)",
         ));
     }
+    // a set, not a scan of the earlier readings: a long line must not cost quadratic time
+    let mut seen = std::collections::HashSet::with_capacity(readings.len());
     for (i, reading) in readings.iter().enumerate() {
         id(&format!("readings[{i}].anchor"), &reading.anchor)?;
         finite(&format!("readings[{i}].rssi_dbm"), reading.rssi_dbm)?;
-        if readings[..i].iter().any(|r| r.anchor == reading.anchor) {
+        if !seen.insert(reading.anchor.as_str()) {
             return Err(Invalid::new(
                 format!("readings[{i}].anchor"),
                 format!("anchor `{}` is listed twice", reading.anchor),

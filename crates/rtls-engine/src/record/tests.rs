@@ -77,8 +77,10 @@ fn time_and_tag_are_checked() {
 }
 
 #[test]
-fn ranges_and_stds_must_be_finite_and_non_negative() {
-    assert_eq!(rejected_field(range(-0.1, None)), "range_m");
+fn ranges_are_finite_and_stds_non_negative() {
+    // negative ranges (Wi-Fi FTM/RTT, close devices) are accepted
+    assert!(record(range(-0.1, None)).validate("f", 1).is_ok());
+    assert_eq!(rejected_field(range(f64::NAN, None)), "range_m");
     assert_eq!(rejected_field(range(f64::INFINITY, None)), "range_m");
     assert_eq!(rejected_field(range(1.0, Some(-1.0))), "std_m");
     assert!(record(range(0.0, Some(0.0))).validate("f", 1).is_ok());

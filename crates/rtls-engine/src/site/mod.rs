@@ -13,9 +13,12 @@
 //!   Navigation*, Wiley 2001: gates (§2.6), M-of-N track initiation and deletion.
 
 mod keys;
+mod limits;
 mod load;
 mod options;
+mod ranges;
 
+pub use limits::{read_text_file, MAX_RADIO_MAP_BYTES, MAX_RADIO_MAP_ROWS, MAX_SITE_BYTES, MAX_ZONE_VERTICES};
 pub use options::{AdaptiveNoiseSettings, ImmSettings, SchedulingCell, SchedulingSettings};
 
 use std::path::PathBuf;
@@ -230,6 +233,22 @@ pub struct FingerprintDatabase {
     /// Reader ids in the order of the RSSI columns (empty when the format fixes the order).
     #[serde(default)]
     pub readers: Vec<String>,
+    /// WKNN: the number of nearest reference points averaged, `k` (1 to 100). Default 3
+    /// ([`crate::radio_map::RadioMap::DEFAULT_NEIGHBOURS`]).
+    #[serde(default = "default_neighbours")]
+    pub neighbours: usize,
+    /// The noise floor `ρ_min` of the powed signal space, dBm (−150 to −30): weaker readings
+    /// count as not heard, and a map cell below it is an error. Default −104.
+    #[serde(default = "default_noise_floor_dbm")]
+    pub noise_floor_dbm: f64,
+}
+
+fn default_neighbours() -> usize {
+    crate::radio_map::RadioMap::DEFAULT_NEIGHBOURS
+}
+
+fn default_noise_floor_dbm() -> f64 {
+    -104.0
 }
 
 /// Where positions come from.
@@ -325,6 +344,12 @@ pub struct TrackerSettings {
     /// Velocity standard deviation of a new track, m/s (> 0). Default 2.
     #[serde(default = "default_initial_speed_std_mps")]
     pub initial_speed_std_mps: f64,
+    /// A record more than this far ahead of the newest record is refused as a bad time stamp
+    /// (a `rejected` event), not coasted through; [`crate::record::JUMP_CONFIRMATIONS`] records
+    /// in a row on the new time base are taken as a real gap (see
+    /// [`crate::record::TimeGate`]), s (1 s to 1 year). Default 86 400 (one day).
+    #[serde(default = "default_max_time_jump_s")]
+    pub max_time_jump_s: f64,
     /// The interacting multiple models of `motion_model = "imm"`.
     #[serde(default)]
     pub imm: ImmSettings,
@@ -343,6 +368,10 @@ fn default_output_interval_s() -> f64 {
 
 fn default_initial_speed_std_mps() -> f64 {
     2.0
+}
+
+fn default_max_time_jump_s() -> f64 {
+    86_400.0
 }
 
 /// `[alarms]`: predictive hazard alarms (seed 000): a tag's predicted path, with its
@@ -386,6 +415,26 @@ impl Default for AlarmSettings {
 }
 
 impl TrackerSettings {
+    /// The IMM's CV-mode white-acceleration std, m/s²: `[tracker.imm]
+    /// cv_acceleration_noise_std_mps2`, or `acceleration_noise_std_mps2` when it is absent.
+    ///
+    /// # Example
+    /// ```
+    /// let site = rtls_engine::site::Site::from_toml_str(
+    ///     include_str!("../../../../examples/site.toml"),
+    ///     "examples/site.toml",
+    /// )?;
+    /// let expected = site.tracker.imm.cv_acceleration_noise_std_mps2.unwrap_or(site.tracker.acceleration_noise_std_mps2);
+    /// assert_eq!(site.tracker.imm_cv_acceleration_noise_std_mps2(), expected);
+    /// # Ok::<(), rtls_engine::EngineError>(())
+    /// ```
+    #[must_use]
+    pub fn imm_cv_acceleration_noise_std_mps2(&self) -> f64 {
+        self.imm
+            .cv_acceleration_noise_std_mps2
+            .unwrap_or(self.acceleration_noise_std_mps2)
+    }
+
     /// The track lifecycle these settings describe (`initiation`, `coast_timeout_s`,
     /// `delete_timeout_s`).
     ///
@@ -539,5 +588,7 @@ fn invalid(file: &str, text: &str, path: &str, reason: impl Into<String>) -> Eng
     }
 }
 
+#[cfg(test)]
+mod example_tests;
 #[cfg(test)]
 mod tests;

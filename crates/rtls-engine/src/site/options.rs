@@ -36,12 +36,17 @@ pub struct SchedulingCell {
 }
 
 /// `[tracker.imm]`: the modes of `motion_model = "imm"` (Blom & Bar-Shalom 1988; seed 004's
-/// manoeuvre problem). The CV mode uses `tracker.acceleration_noise_std_mps2`; the CA mode a
-/// white jerk; the coordinated turn (2-D only) the CV noise plus a white turn acceleration.
+/// manoeuvre problem). The CV mode uses `cv_acceleration_noise_std_mps2` (by default
+/// `tracker.acceleration_noise_std_mps2`); the CA mode a white jerk; the coordinated turn (2-D
+/// only) the CV noise plus a white turn acceleration.
 /// Modes switch as a continuous-time Markov chain with the given mean sojourn times.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ImmSettings {
+    /// CV mode (and the coordinated turn's translational noise): white-acceleration std, m/s²
+    /// (> 0). Absent: `tracker.acceleration_noise_std_mps2` (see
+    /// [`super::TrackerSettings::imm_cv_acceleration_noise_std_mps2`]).
+    pub cv_acceleration_noise_std_mps2: Option<f64>,
     /// Mean time in the constant-velocity mode, s (> 0). Default 20.
     pub cv_sojourn_s: f64,
     /// Mean time in the constant-acceleration mode, s (> 0). Default 4.
@@ -60,6 +65,7 @@ pub struct ImmSettings {
 impl Default for ImmSettings {
     fn default() -> Self {
         Self {
+            cv_acceleration_noise_std_mps2: None,
             cv_sojourn_s: 20.0,
             ca_sojourn_s: 4.0,
             ct_sojourn_s: 4.0,

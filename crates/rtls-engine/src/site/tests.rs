@@ -54,7 +54,7 @@ fn line_containing(text: &str, needle: &str) -> usize {
 #[test]
 fn the_annotated_example_loads() {
     let site = Site::from_toml_str(EXAMPLE, "site.toml").unwrap();
-    assert_eq!(site.readers.len(), 5);
+    assert_eq!(site.readers.len(), 7);
     let a1 = site.reader("A1").unwrap();
     assert_eq!(a1.technology, Technology::Uwb);
     assert_eq!(a1.radio.unwrap().range.unwrap().range_std_m, 0.10);
@@ -82,7 +82,10 @@ fn the_annotated_example_loads() {
     let db = site.fingerprints.as_ref().unwrap();
     assert_eq!(
         (db.format, db.readers.as_slice()),
-        (FingerprintFormat::Csv, &["B1".to_string()][..])
+        (
+            FingerprintFormat::Csv,
+            &["B1".to_string(), "B2".into(), "B3".into()][..]
+        )
     );
     assert_eq!(site.zone_monitor().unwrap().zones().len(), 3);
 }

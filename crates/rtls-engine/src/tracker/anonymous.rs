@@ -79,6 +79,8 @@ impl AnonymousFront {
                     let a = anchors.get(anchor).position_m;
                     // planar range: √(r² − (a_z − h)²)
                     let dz = a[2] - self.tag_height_m;
+                    // a negative range (Wi-Fi FTM/RTT next to the responder) is about 0
+                    let range_m = range_m.max(0.0);
                     let planar_squared = range_m * range_m - dz * dz;
                     if planar_squared < 0.0 {
                         let reason = format!(

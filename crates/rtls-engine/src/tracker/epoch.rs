@@ -126,7 +126,14 @@ pub(super) fn expire_initial_readings<const N: usize>(
             _ => String::new(),
         };
         let reason = format!("{expired} reading(s) expired before enough anchors could initialise the track{why}");
-        out.events.push(rejected(&track.tag, now_s, kind, reason));
+        // at the end of input (`now_s` = ∞) the event is dated by the last expired reading:
+        // an event always carries a finite time
+        let time_s = if now_s.is_finite() {
+            now_s
+        } else {
+            track.epoch[expired - 1].0
+        };
+        out.events.push(rejected(&track.tag, time_s, kind, reason));
         track.epoch.drain(..expired);
     }
 }

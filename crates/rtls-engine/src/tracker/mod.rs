@@ -141,11 +141,13 @@ use self::schedule::Scheduling;
 use crate::error::{EngineError, Result};
 use crate::lifecycle::{LifecycleEvent, TrackStatus};
 use crate::radio_map::RadioMap;
-use crate::record::{Emitted, Record, Reorderer};
+use crate::record::{Emitted, Record, Reorderer, TimeGate};
 use crate::site::{MotionModelKind, Site};
 use crate::zones::ZoneKind;
 
-/// Ticks run to catch up after a silence of the whole input, at most.
+/// Ticks run to catch up after a silence of the whole input, at most: after a longer silence
+/// (or when a tick step is lost in rounding) the tick grid restarts at the record's time, so
+/// one record never costs more than this many ticks.
 const MAX_CATCH_UP_TICKS: f64 = 100_000.0;
 
 /// Which ticks [`Tracker::run_ticks`] runs relative to a time.
@@ -172,6 +174,8 @@ pub struct Tracker {
     tracks: Tracks,
     /// Records with tag [`ANONYMOUS_TAG`], when the site has an `[anonymous]` section.
     anonymous: Option<AnonymousFront>,
+    /// Refuses records whose time jumps beyond `max_time_jump_s` (before they move any clock).
+    time_gate: TimeGate,
     reorderer: Reorderer,
     next_tick_s: Option<f64>,
     output_interval_s: f64,
@@ -259,6 +263,7 @@ impl Tracker {
         Ok(Self {
             tracks,
             anonymous,
+            time_gate: TimeGate::new(settings.max_time_jump_s)?,
             reorderer: Reorderer::new(settings.reorder_window_s)?,
             next_tick_s: None,
             output_interval_s: settings.output_interval_s,
@@ -308,10 +313,23 @@ impl Tracker {
     /// Pushes one record; what it (and the records it releases from the re-ordering window)
     /// produced is appended to `out`.
     ///
+    /// A record whose time is not plausible (not finite, beyond
+    /// ±[`MAX_ABS_TIME_S`](crate::record::MAX_ABS_TIME_S)) or jumps more than
+    /// `tracker.max_time_jump_s` ahead of the newest record ([`TimeGate`]) is refused: an
+    /// [`Event::Rejected`] with the reason, at the newest accepted time (0 before any).
+    ///
     /// # Errors
-    /// A non-finite time ([`EngineError::InvalidParameter`]); numerical failures of the
-    /// lifecycle or zone monitor.
+    /// Numerical failures of the lifecycle or zone monitor.
     pub fn push(&mut self, record: Record, out: &mut Output) -> Result<()> {
+        if let Err(reason) = self.time_gate.check(record.time_s) {
+            out.events.push(Event::Rejected {
+                tag: record.tag.as_str().into(),
+                time_s: self.time_gate.newest_s().unwrap_or(0.0),
+                kind: record.measurement.kind(),
+                reason,
+            });
+            return Ok(());
+        }
         for emitted in self.reorderer.push(record)? {
             self.emitted(emitted, out)?;
         }
@@ -393,6 +411,7 @@ impl Tracker {
         if (time_s - next_s) / period_s > MAX_CATCH_UP_TICKS {
             next_s = time_s;
         }
+        let mut ticks = 0.0;
         while next_s < time_s || (due == TicksDue::Through && next_s == time_s) {
             match &mut self.tracks {
                 Tracks::Planar(core) => core.tick(next_s, out)?,
@@ -403,7 +422,14 @@ impl Tracker {
                 front.tick(next_s, self.output_interval_s, out)?;
                 anonymous_zones(&mut self.tracks, out, mark)?;
             }
-            next_s += period_s;
+            ticks += 1.0;
+            let after_s = next_s + period_s;
+            if after_s <= next_s || ticks > MAX_CATCH_UP_TICKS {
+                // bounded work: a step lost in rounding (|t| ≫ the period) cannot loop forever
+                next_s = if next_s < time_s { time_s } else { time_s.next_up() };
+                continue;
+            }
+            next_s = after_s;
         }
         self.next_tick_s = Some(next_s);
         Ok(())

@@ -43,7 +43,8 @@ pub(crate) struct Manoeuvres {
 }
 
 impl Manoeuvres {
-    /// The modes for a `dimensions`-D track: CV (`tracker.acceleration_noise_std_mps2`), CA
+    /// The modes for a `dimensions`-D track: CV (`tracker.imm.cv_acceleration_noise_std_mps2`,
+    /// by default `tracker.acceleration_noise_std_mps2`), CA
     /// (white jerk) and, in 2-D, a coordinated turn; Markov switching with the configured mean
     /// sojourn times; start with 80 % CV (2-D: 10 % each manoeuvre mode; 3-D: 20 % CA).
     ///
@@ -52,7 +53,7 @@ impl Manoeuvres {
     pub(crate) fn new(settings: &TrackerSettings) -> rtls_estimation::Result<Self> {
         let imm = settings.imm;
         // q = σ² (continuous white-noise spectral densities)
-        let cv_noise = ProcessNoise::continuous(settings.acceleration_noise_std_mps2.powi(2));
+        let cv_noise = ProcessNoise::continuous(settings.imm_cv_acceleration_noise_std_mps2().powi(2));
         let ca_noise = ProcessNoise::continuous(imm.ca_jerk_noise_std_mps3.powi(2));
         let planar = settings.dimensions != 3;
         let axes = if planar { 2 } else { 3 };

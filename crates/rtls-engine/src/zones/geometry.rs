@@ -42,6 +42,15 @@ pub(super) fn problem(shape: &Shape) -> Option<(String, String)> {
 
 fn polygon_problem(v: &[P2]) -> Option<(String, String)> {
     let n = v.len();
+    if n > crate::site::MAX_ZONE_VERTICES {
+        return Some((
+            "shape.vertices_m".into(),
+            format!(
+                "has {n} vertices; a zone may have at most {} (simplify the outline)",
+                crate::site::MAX_ZONE_VERTICES
+            ),
+        ));
+    }
     if n < 3 {
         return Some((
             "shape.vertices_m".into(),
