@@ -84,6 +84,10 @@ fn main() -> std::process::ExitCode {
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) if error.downcast_ref::<track::UntrackedTags>().is_some() => {
+            eprintln!("error: {error:#}");
+            std::process::ExitCode::from(track::EXIT_UNTRACKED)
+        }
         Err(error) => {
             eprintln!("error: {error:#}");
             std::process::ExitCode::FAILURE

@@ -9,9 +9,15 @@
 //! `--events`, and the fix-then-filter pipeline's raw fixes to `--fixes`. Input is JSON Lines,
 //! or CSV when the file name ends in `.csv` (docs/FORMATS.md). Every input error names the
 //! file, the line and the field.
+//!
+//! The summary on standard error counts records, updates, fixes and events, and the rejected
+//! records by kind and reason (numbers in a reason are replaced by `#`, so reasons group).
+//! A tag that had records but no track output is named with its rejections, and the exit
+//! status is then [`EXIT_UNTRACKED`] (3); 1 is an error that stopped the run (site, input,
+//! outputs), 0 a run in which every tag with records was tracked.
 
 use std::cell::RefCell;
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -25,7 +31,7 @@ use rtls_engine::site::{
     read_text_file, FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site, MAX_RADIO_MAP_BYTES, MAX_SITE_BYTES,
 };
 use rtls_engine::survey::{SurveyMap, SurveySettings};
-use rtls_engine::tracker::{Event, Output, Tracker};
+use rtls_engine::tracker::{Event, Output, Tracker, ANONYMOUS_TAG};
 
 /// A pipeline named on the command line.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -56,8 +62,16 @@ pub enum MotionModelArg {
     Imm,
 }
 
+/// Exit status of a run that finished but left a tag with records without any track output.
+pub const EXIT_UNTRACKED: u8 = 3;
+
 /// Arguments of `rtls track`.
 #[derive(Debug, Args)]
+#[command(
+    after_help = "Exit status: 0 when every tag with records got a track; 3 when the run finished \
+but a tag with records got no track output (the summary names it, with its rejected records by \
+reason); 1 when an error stopped the run (site, input or outputs)."
+)]
 pub struct TrackArgs {
     /// Site model (TOML; see examples/site.toml).
     #[arg(long)]
@@ -166,6 +180,22 @@ pub(crate) fn load_site_file(path: &Path) -> anyhow::Result<(Site, Option<RadioM
     Ok((site, radio_map))
 }
 
+/// The run finished, but tags with records got no track output (exit status
+/// [`EXIT_UNTRACKED`]).
+#[derive(Debug)]
+pub struct UntrackedTags(pub usize);
+
+impl std::fmt::Display for UntrackedTags {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} tag(s) had records but no track output (listed above)", self.0)
+    }
+}
+
+impl std::error::Error for UntrackedTags {}
+
+/// Rejected (or late) records by `(kind, reason category)`.
+type Rejections = BTreeMap<(&'static str, String), usize>;
+
 /// What a run produced, for the summary.
 #[derive(Debug, Default)]
 struct Counts {
@@ -173,7 +203,47 @@ struct Counts {
     updates: usize,
     predicted: usize,
     fixes: usize,
-    events: std::collections::BTreeMap<&'static str, usize>,
+    events: BTreeMap<&'static str, usize>,
+    rejected: Rejections,
+    tags: BTreeMap<String, TagCounts>,
+}
+
+/// One tag's records, track updates and rejected or late records.
+#[derive(Debug, Default)]
+struct TagCounts {
+    records: usize,
+    updates: usize,
+    rejected: Rejections,
+}
+
+/// A reason without its numbers (each run of digits, with its decimal point, becomes `#`) and
+/// without the detail after its first `: `, so that reasons of one cause count together:
+/// `outside the χ²(2) validation gate: NIS 14.1 > 13.8` → `outside the χ²(#) validation gate`.
+fn reason_category(reason: &str) -> String {
+    let head = reason.split(": ").next().unwrap_or(reason);
+    let mut category = String::with_capacity(head.len());
+    let mut in_number = false;
+    for c in head.chars() {
+        let numeric = c.is_ascii_digit() || (in_number && c == '.');
+        if numeric && !in_number {
+            category.push('#');
+        } else if !numeric {
+            category.push(c);
+        }
+        in_number = numeric;
+    }
+    category
+}
+
+/// `count kind: category` items, most frequent first.
+fn rejections_line(rejected: &Rejections) -> String {
+    let mut items: Vec<(&(&'static str, String), &usize)> = rejected.iter().collect();
+    items.sort_by(|a, b| b.1.cmp(a.1).then_with(|| a.0.cmp(b.0)));
+    items
+        .iter()
+        .map(|((kind, category), count)| format!("{count} {kind}: {category}"))
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 fn event_type(event: &Event) -> &'static str {
@@ -258,9 +328,29 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
             writeln!(updates_out, "{}", update.to_json_line()).context("writing track updates")?;
             counts.updates += 1;
             counts.predicted += usize::from(update.predicted);
+            if let Some(tag) = counts.tags.get_mut(&*update.tag) {
+                tag.updates += 1;
+            }
         }
         for event in &out.events {
             *counts.events.entry(event_type(event)).or_default() += 1;
+            match event {
+                Event::Rejected { tag, kind, reason, .. } => {
+                    let key = (*kind, reason_category(reason));
+                    *counts.rejected.entry(key.clone()).or_default() += 1;
+                    if let Some(tag) = counts.tags.get_mut(&**tag) {
+                        *tag.rejected.entry(key).or_default() += 1;
+                    }
+                }
+                Event::Late { tag, kind, .. } => {
+                    if let Some(tag) = counts.tags.get_mut(&**tag) {
+                        *tag.rejected
+                            .entry((*kind, "late (after the re-ordering window)".into()))
+                            .or_default() += 1;
+                    }
+                }
+                _ => {}
+            }
             if let Some(w) = events_out.as_mut() {
                 writeln!(w, "{}", event.to_json_line()).context("writing events")?;
             }
@@ -280,6 +370,7 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
             (Some(map), Some(position_m)) => map.correct_record(&record, *position_m),
             _ => record,
         };
+        counts.tags.entry(record.tag.clone()).or_default().records += 1;
         tracker.push(record, out)?;
         counts.records += 1;
         Ok(())
@@ -323,5 +414,34 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
             events.join(", ")
         }
     );
-    Ok(())
+    if !counts.rejected.is_empty() {
+        eprintln!("rejected by reason: {}", rejections_line(&counts.rejected));
+    }
+    untracked_tags(&counts)
+}
+
+/// Names every tag that had records but no track output, with its rejected and late records
+/// by reason. Anonymous detections (tag `*`) are tracked under ids of their own and are not
+/// checked.
+///
+/// # Errors
+/// [`UntrackedTags`] when there is such a tag.
+fn untracked_tags(counts: &Counts) -> anyhow::Result<()> {
+    let untracked: Vec<(&String, &TagCounts)> = counts
+        .tags
+        .iter()
+        .filter(|(tag, c)| tag.as_str() != ANONYMOUS_TAG && c.records > 0 && c.updates == 0)
+        .collect();
+    if untracked.is_empty() {
+        return Ok(());
+    }
+    for (tag, c) in &untracked {
+        let rejected = if c.rejected.is_empty() {
+            "none rejected".to_string()
+        } else {
+            format!("rejected {}", rejections_line(&c.rejected))
+        };
+        eprintln!("no track for tag {tag}: {} records, {rejected}", c.records);
+    }
+    Err(UntrackedTags(untracked.len()).into())
 }

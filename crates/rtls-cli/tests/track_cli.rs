@@ -148,3 +148,122 @@ fn track_errors_name_the_file_line_and_field() {
     let output = rtls(&["track", "--site", &site, "--input", &input, "--filter", "kf", "--quiet"]);
     assert!(String::from_utf8_lossy(&output.stderr).contains("needs --filter ekf or ukf"));
 }
+
+#[test]
+fn a_tag_with_records_but_no_track_is_named_and_the_exit_status_is_3() {
+    let dir = temp_dir("untracked");
+    let (site, input, _) = inputs(&dir);
+    // a second tag heard by one anchor only: its readings never initialise a track
+    let mut lines: Vec<(f64, String)> = std::fs::read_to_string(&input)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let value: serde_json::Value = serde_json::from_str(l).unwrap();
+            (value["t"].as_f64().unwrap(), l.to_string())
+        })
+        .collect();
+    for k in 0..60 {
+        let t = k as f64 * 0.25 + 0.01;
+        lines.push((
+            t,
+            format!(
+                "{{\"t\": {t}, \"tag\": \"ghost\", \"kind\": \"range\", \"anchor\": \"A1\", \"range_m\": {}}}",
+                5.0 + 0.01 * k as f64
+            ),
+        ));
+    }
+    lines.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let text: Vec<String> = lines.into_iter().map(|(_, l)| l).collect();
+    std::fs::write(&input, text.join("\n")).unwrap();
+    let tracks = dir.join("tracks.jsonl").display().to_string();
+    let output = rtls(&[
+        "track", "--site", &site, "--input", &input, "--output", &tracks, "--quiet",
+    ]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(3), "{stderr}");
+    // the tracked tag's output is still written, and the summary comes first
+    assert!(std::fs::read_to_string(&tracks).unwrap().lines().count() >= 147);
+    assert!(stderr.starts_with("210 records,"), "{stderr}");
+    assert!(
+        stderr.contains("rejected by reason: ") && stderr.contains("range: # reading(s) expired"),
+        "{stderr}"
+    );
+    let line = stderr
+        .lines()
+        .find(|l| l.starts_with("no track for tag ghost: 60 records, rejected "))
+        .unwrap_or_else(|| panic!("{stderr}"));
+    assert!(
+        line.contains("reading(s) expired before enough anchors could initialise the track"),
+        "{line}"
+    );
+    assert!(!stderr.contains("no track for tag w:"), "{stderr}");
+    assert!(stderr.contains("1 tag(s) had records but no track output"), "{stderr}");
+    // the exit status is documented in the command's help
+    let help = rtls(&["track", "--help"]);
+    assert!(String::from_utf8_lossy(&help.stdout).contains("Exit status"));
+}
+
+#[test]
+fn fix_then_filter_with_odometry_and_an_imm_tracks_the_whole_file() {
+    let dir = temp_dir("odometry");
+    let (site, input, _) = inputs(&dir);
+    // odometry between the ranges (speed 1 m/s east; at a standstill for the first second)
+    let mut lines: Vec<String> = std::fs::read_to_string(&input)
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    let mut with_odometry = Vec::new();
+    for (k, line) in lines.drain(..).enumerate() {
+        with_odometry.push(line);
+        if k % 4 == 3 {
+            let t = k as f64 * 0.1 + 0.05;
+            let speed = if t < 1.0 { 0.0 } else { 1.0 };
+            with_odometry.push(format!(
+                "{{\"t\": {t}, \"tag\": \"w\", \"kind\": \"odometry\", \"speed_mps\": {speed}, \"heading_rad\": 0.0, \
+                 \"speed_std_mps\": 0.05, \"heading_std_rad\": 0.0}}"
+            ));
+        }
+    }
+    std::fs::write(&input, with_odometry.join("\n")).unwrap();
+    // fix-then-filter: the four round-robin ranges of 0.3 s make one epoch
+    std::fs::write(
+        &site,
+        SITE.replace("reorder_window_s = 0.2", "reorder_window_s = 0.2\nepoch_s = 0.35"),
+    )
+    .unwrap();
+    let events = dir.join("events.jsonl").display().to_string();
+    for motion_model in ["cv", "imm"] {
+        let output = rtls(&[
+            "track",
+            "--site",
+            &site,
+            "--input",
+            &input,
+            "--pipeline",
+            "fix-then-filter",
+            "--filter",
+            "kf",
+            "--motion-model",
+            motion_model,
+            "--events",
+            &events,
+            "--quiet",
+        ]);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{motion_model}: {stderr}");
+        let events = std::fs::read_to_string(&events).unwrap();
+        assert!(!events.contains("positive definite"), "{motion_model}: {events}");
+        assert!(!events.contains("backwards"), "{motion_model}: {events}");
+        let tracks: Vec<serde_json::Value> = String::from_utf8_lossy(&output.stdout)
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        let last = tracks.last().unwrap();
+        // an epoch's fix is dated at its last reading but solved from 0.3 s of walking
+        assert!(
+            (last["x"].as_f64().unwrap() - 16.9).abs() < 0.5,
+            "{motion_model}: {last}"
+        );
+    }
+}

@@ -6,11 +6,13 @@ use std::sync::Arc;
 
 use super::alarms::position_of;
 use super::anchors::{AnchorReading, Anchors};
-use super::epoch::{anchor_reading, close_due_epoch, raw_fix};
+use super::direct::direct_measurement;
+use super::divergence::{divergence, reset, reset_if_diverged, SiteBounds};
+use super::epoch::{anchor_reading, close_due_epoch};
 use super::output::{Event, Output, UpdateSource};
 use super::report::{clear_alarms, coast, report, track_update};
-use super::update::{fix_update, velocity_update};
-use crate::error::Result;
+use super::update::predict;
+use crate::error::{EngineError, Result};
 use crate::lifecycle::{Lifecycle, LifecycleEvent, LifecycleSettings, TrackStatus};
 use crate::radio_map::RadioMap;
 use crate::record::Measurement;
@@ -19,7 +21,7 @@ use crate::zones::{Zone, ZoneMonitor};
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter};
 use rtls_estimation::imm::ImmState;
 use rtls_estimation::motion::ConstantVelocity;
-use rtls_estimation::Gaussian;
+use rtls_estimation::{EstimationError, Gaussian};
 
 use super::modes::Manoeuvres;
 use super::noise::NoiseScales;
@@ -57,6 +59,8 @@ pub(crate) struct Shared {
     pub(crate) scheduling: Option<Arc<Scheduling>>,
     /// Adaptive measurement noise (`[tracker.adaptive_noise]`); `None` when disabled.
     pub(crate) adaptive: Option<AdaptiveNoise>,
+    /// The box around the readers that a diverged track's position leaves.
+    pub(crate) bounds: SiteBounds,
 }
 
 /// One tag's track: its state (a value it owns), lifecycle and pending work.
@@ -70,6 +74,9 @@ pub(crate) struct Track<const N: usize> {
     /// initialise the track.
     pub(super) epoch: Vec<(f64, AnchorReading)>,
     pub(super) epoch_start_s: f64,
+    /// Fix-then-filter: direct measurements (fixes, velocities, odometry) held while the
+    /// epoch is open, applied in time order with its fix (see [`super::direct`]).
+    pub(super) deferred: Vec<(f64, Measurement)>,
     /// Last accelerometer sample `(t, a)`.
     pub(super) acceleration: Option<(f64, [f64; 3])>,
     /// An update not yet reported, and what produced it.
@@ -101,6 +108,7 @@ impl<const N: usize> Track<N> {
             lifecycle: None,
             epoch: Vec::new(),
             epoch_start_s: f64::NEG_INFINITY,
+            deferred: Vec::new(),
             acceleration: None,
             unreported: None,
             last_output_s: f64::NEG_INFINITY,
@@ -172,7 +180,12 @@ impl<const N: usize> Core<N> {
         self.index.get(tag).and_then(|&i| self.tracks[i].status())
     }
 
-    /// Applies one in-order record.
+    /// Applies one in-order record. One record never aborts the run: a failure while applying
+    /// it is reported as a `rejected` event naming the error, and a track it leaves diverged
+    /// (see [`divergence`](super::divergence)) restarts from its next fix.
+    ///
+    /// # Errors
+    /// None today; the `Result` is kept for failures that concern the whole tracker.
     pub(crate) fn apply(&mut self, time_s: f64, tag: &str, measurement: &Measurement, out: &mut Output) -> Result<()> {
         let index = match self.index.get(tag) {
             Some(&i) => i,
@@ -186,175 +199,36 @@ impl<const N: usize> Core<N> {
         };
         let track = &mut self.tracks[index];
         let shared = &self.shared;
-        // a later time closes the previous time's work: report it first
-        if track.state.as_ref().is_some_and(|s| time_s > s.time_s()) && track.unreported.is_some() {
-            report(shared, track, &mut self.monitor, out)?;
-        }
-        match measurement {
-            Measurement::Range { .. } | Measurement::Rssi { .. } | Measurement::Tdoa { .. } => {
-                let reading = match shared.anchors.resolve(measurement) {
-                    Ok(Some(reading)) => reading,
-                    Ok(None) => return Ok(()),
-                    Err(reason) => {
-                        out.events
-                            .push(rejected(&track.tag, time_s, measurement.kind(), reason));
-                        return Ok(());
-                    }
-                };
-                anchor_reading(shared, track, time_s, reading, measurement.kind(), out)?;
-            }
-            Measurement::Fix {
-                position_m,
-                covariance_m2,
-            } => {
-                let k = position_m.len();
-                if k < dimensions::<N>() {
-                    let reason = format!("a {k}-D fix cannot update a {}-D track", dimensions::<N>());
-                    out.events.push(rejected(&track.tag, time_s, "fix", reason));
-                } else {
-                    // the tracked axes: the leading D × D block
-                    let d = dimensions::<N>();
-                    let covariance: Vec<f64> = (0..d * d).map(|i| covariance_m2[(i / d) * k + i % d]).collect();
-                    fix_update(shared, track, time_s, &position_m[..d], &covariance, "fix", out)?;
-                }
-            }
-            Measurement::RssiVector { readings } => match &shared.radio_map {
-                None => {
-                    let reason = "no fingerprint radio map is loaded (site [fingerprints])".to_string();
-                    out.events.push(rejected(&track.tag, time_s, "rssi_vector", reason));
-                }
-                Some(map) => match map.locate(readings) {
-                    Ok(fix) => {
-                        let c = fix.covariance_m2;
-                        let covariance = [c[0][0], c[0][1], c[1][0], c[1][1]];
-                        out.fixes
-                            .push(raw_fix(&track.tag, time_s, &fix.position_m, &covariance));
-                        fix_update(shared, track, time_s, &fix.position_m, &covariance, "rssi_vector", out)?;
-                    }
-                    Err(error) => {
-                        let reason = format!("fingerprint fix failed: {error}");
-                        out.events.push(rejected(&track.tag, time_s, "rssi_vector", reason));
-                    }
-                },
-            },
-            Measurement::Velocity {
-                velocity_mps,
-                covariance_m2ps2,
-            } => {
-                let k = velocity_mps.len().min(dimensions::<N>());
-                let covariance: Vec<f64> = match covariance_m2ps2 {
-                    Some(c) => (0..k * k).map(|i| c[(i / k) * velocity_mps.len() + i % k]).collect(),
-                    None => {
-                        let reason = "a velocity needs `covariance_m2ps2`".to_string();
-                        out.events.push(rejected(&track.tag, time_s, "velocity", reason));
-                        return Ok(());
-                    }
-                };
-                velocity_update(shared, track, time_s, &velocity_mps[..k], &covariance, "velocity", out)?;
-            }
-            Measurement::Odometry {
-                speed_mps,
-                heading_rad,
-                speed_std_mps,
-                heading_std_rad,
-            } => {
-                let (Some(speed_std), Some(heading_std)) = (speed_std_mps, heading_std_rad) else {
-                    let reason = "odometry needs `speed_std_mps` and `heading_std_rad`".to_string();
-                    out.events.push(rejected(&track.tag, time_s, "odometry", reason));
-                    return Ok(());
-                };
-                // v = s [cos θ, sin θ]ᵀ, Σ_v = J diag(σ_s², σ_θ²) Jᵀ, J = [[cos θ, −s sin θ], [sin θ, s cos θ]]
-                let (sin, cos) = heading_rad.sin_cos();
-                let (vs, vh) = (speed_std * speed_std, heading_std * heading_std);
-                let s = *speed_mps;
-                let cxx = cos * cos * vs + s * s * sin * sin * vh;
-                let cyy = sin * sin * vs + s * s * cos * cos * vh;
-                let cxy = sin * cos * vs - s * s * sin * cos * vh;
-                let covariance = [cxx.max(1e-9), cxy, cxy, cyy.max(1e-9)];
-                velocity_update(shared, track, time_s, &[s * cos, s * sin], &covariance, "odometry", out)?;
-            }
-            Measurement::Accelerometer { .. } if shared.manoeuvres.is_some() => {
-                let reason = "accelerometer control input is not used with motion_model = \"imm\" (the CA and CT \
-                              modes estimate the acceleration)"
-                    .to_string();
-                out.events.push(rejected(&track.tag, time_s, "accelerometer", reason));
-            }
-            Measurement::Accelerometer { acceleration_mps2, .. } => {
-                let mut a = [0.0; 3];
-                for (axis, value) in acceleration_mps2.iter().enumerate().take(3) {
-                    a[axis] = *value;
-                }
-                track.acceleration = Some((time_s, a));
+        let kind = measurement.kind();
+        if let Err(error) = apply_record(shared, track, &mut self.monitor, time_s, measurement, out) {
+            let numerical = matches!(&error, EngineError::Estimation(e)
+                if !matches!(e, EstimationError::TimeWentBackwards { .. }));
+            if numerical && track.state.is_some() {
+                // the track's own state failed (its prediction or combination): start afresh
+                reset(track, time_s, kind, &format!("{error}"), out);
+            } else {
+                let reason = format!("not applied: {error}");
+                out.events.push(rejected(&track.tag, time_s, kind, reason));
             }
         }
+        reset_if_diverged(&shared.bounds, track, time_s, kind, out);
         Ok(())
     }
 
     /// The periodic clock tick at `now_s`: closes due epochs, reports pending updates, advances
-    /// lifecycles, outputs coasting predictions, deletes dead tracks.
+    /// lifecycles, outputs coasting predictions, deletes dead tracks. A track whose tick fails
+    /// or whose coasting prediction diverges is reported (`rejected`, kind `track`) and
+    /// restarts from its next fix; the other tracks tick on.
+    ///
+    /// # Errors
+    /// None today; the `Result` is kept for failures that concern the whole tracker.
     pub(crate) fn tick(&mut self, now_s: f64, out: &mut Output) -> Result<()> {
         let shared = &self.shared;
-        let interval_s = shared.settings.output_interval_s;
         let mut deleted = false;
         for track in &mut self.tracks {
-            close_due_epoch(shared, track, now_s, out)?;
-            if track.unreported.is_some() && track.state.as_ref().is_some_and(|s| s.time_s() < now_s) {
-                report(shared, track, &mut self.monitor, out)?;
-            }
-            if holds_earlier_readings(shared, track, now_s) {
-                // its fix will be dated before this tick: the lifecycle and the coasting output
-                // wait for it (the epoch closes by the first tick after its window)
-                continue;
-            }
-            let Some(lifecycle) = track.lifecycle.as_mut() else {
-                continue;
-            };
-            let silence_s = now_s - lifecycle.last_update_s();
-            // a track coasts once an update is overdue by more than the output interval
-            if silence_s > interval_s || lifecycle.status() == TrackStatus::Tentative {
-                if let Some(event) = lifecycle.tick(now_s)? {
-                    let position_m = match (event, track.state.as_ref()) {
-                        (LifecycleEvent::Lost, Some(state)) => {
-                            // keep the last estimated position (where the tag was last seen)
-                            let frozen = *state;
-                            let position_m = position_of(&frozen, shared.tag_height_m).0;
-                            track.lost_state = Some(frozen);
-                            position_m
-                        }
-                        (_, Some(state)) => position_of(state, shared.tag_height_m).0,
-                        (_, None) => [0.0; 3],
-                    };
-                    out.events.push(Event::Lifecycle {
-                        tag: Arc::clone(&track.tag),
-                        time_s: now_s,
-                        event,
-                        position_m,
-                    });
-                    if event == LifecycleEvent::Deleted {
-                        for zone_event in self.monitor.remove_tag(&track.tag, now_s)? {
-                            out.events.push(Event::Zone(zone_event));
-                        }
-                        clear_alarms(shared, track, now_s, out);
-                        deleted = true;
-                        continue;
-                    }
-                }
-            }
-            if now_s - track.last_output_s >= interval_s {
-                match track.status() {
-                    Some(TrackStatus::Coasting) => coast(shared, track, now_s, &mut self.monitor, out)?,
-                    Some(TrackStatus::Lost) => {
-                        // the last position, frozen, reported as lost
-                        if let Some(frozen) = &track.lost_state {
-                            let mut update =
-                                track_update(shared, track, frozen, true, TrackStatus::Lost, UpdateSource::Prediction);
-                            update.time_s = now_s;
-                            out.updates.push(update);
-                            track.last_output_s = now_s;
-                        }
-                    }
-                    _ => {}
-                }
+            match tick_track(shared, track, &mut self.monitor, now_s, out) {
+                Ok(gone) => deleted |= gone,
+                Err(error) => reset(track, now_s, "track", &format!("{error}"), out),
             }
         }
         if deleted {
@@ -372,11 +246,155 @@ impl<const N: usize> Core<N> {
     /// End of input: closes every epoch and reports every pending update.
     pub(crate) fn flush(&mut self, out: &mut Output) -> Result<()> {
         for track in &mut self.tracks {
-            close_due_epoch(&self.shared, track, f64::INFINITY, out)?;
-            if track.unreported.is_some() {
-                report(&self.shared, track, &mut self.monitor, out)?;
+            let flushed = close_due_epoch(&self.shared, track, f64::INFINITY, out).and_then(|()| {
+                if reset_if_diverged(&self.shared.bounds, track, track.epoch_start_s, "epoch", out) {
+                    return Ok(());
+                }
+                match track.unreported {
+                    Some(_) => report(&self.shared, track, &mut self.monitor, out),
+                    None => Ok(()),
+                }
+            });
+            if let Err(error) = flushed {
+                let time_s = track.state.as_ref().map_or(track.epoch_start_s, Gaussian::time_s);
+                reset(track, time_s, "track", &format!("{error}"), out);
             }
         }
         Ok(())
+    }
+}
+
+/// What [`Core::apply`] does with one record; its errors are the record's.
+fn apply_record<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    monitor: &mut ZoneMonitor,
+    time_s: f64,
+    measurement: &Measurement,
+    out: &mut Output,
+) -> Result<()> {
+    // a later time closes the previous time's work: report it first
+    if track.state.as_ref().is_some_and(|s| time_s > s.time_s()) && track.unreported.is_some() {
+        report(shared, track, monitor, out)?;
+    }
+    match measurement {
+        Measurement::Range { .. } | Measurement::Rssi { .. } | Measurement::Tdoa { .. } => {
+            let reading = match shared.anchors.resolve(measurement) {
+                Ok(Some(reading)) => reading,
+                Ok(None) => return Ok(()),
+                Err(reason) => {
+                    out.events
+                        .push(rejected(&track.tag, time_s, measurement.kind(), reason));
+                    return Ok(());
+                }
+            };
+            anchor_reading(shared, track, time_s, reading, measurement.kind(), out)
+        }
+        // the control input of the CV model (and of the IMM's CV mode) for the next
+        // predictions, up to ACCELERATION_HOLD_S
+        Measurement::Accelerometer { acceleration_mps2, .. } => {
+            let mut a = [0.0; 3];
+            for (axis, value) in acceleration_mps2.iter().enumerate().take(3) {
+                a[axis] = *value;
+            }
+            track.acceleration = Some((time_s, a));
+            Ok(())
+        }
+        _ => direct_measurement(shared, track, time_s, measurement, out),
+    }
+}
+
+/// One track's part of [`Core::tick`]; returns `true` when the track was deleted.
+fn tick_track<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    monitor: &mut ZoneMonitor,
+    now_s: f64,
+    out: &mut Output,
+) -> Result<bool> {
+    let interval_s = shared.settings.output_interval_s;
+    close_due_epoch(shared, track, now_s, out)?;
+    if reset_if_diverged(&shared.bounds, track, now_s, "epoch", out) {
+        return Ok(false);
+    }
+    if track.unreported.is_some() && track.state.as_ref().is_some_and(|s| s.time_s() < now_s) {
+        report(shared, track, monitor, out)?;
+    }
+    if holds_earlier_readings(shared, track, now_s) {
+        // its fix will be dated before this tick: the lifecycle and the coasting output
+        // wait for it (the epoch closes by the first tick after its window)
+        return Ok(false);
+    }
+    let Some(lifecycle) = track.lifecycle.as_mut() else {
+        return Ok(false);
+    };
+    let silence_s = now_s - lifecycle.last_update_s();
+    // a track coasts once an update is overdue by more than the output interval
+    if silence_s > interval_s || lifecycle.status() == TrackStatus::Tentative {
+        if let Some(event) = lifecycle.tick(now_s)? {
+            let position_m = match (event, track.state.as_ref()) {
+                (LifecycleEvent::Lost, Some(state)) => {
+                    // keep the last estimated position (where the tag was last seen)
+                    let frozen = *state;
+                    let position_m = position_of(&frozen, shared.tag_height_m).0;
+                    track.lost_state = Some(frozen);
+                    position_m
+                }
+                (_, Some(state)) => position_of(state, shared.tag_height_m).0,
+                (_, None) => [0.0; 3],
+            };
+            out.events.push(Event::Lifecycle {
+                tag: Arc::clone(&track.tag),
+                time_s: now_s,
+                event,
+                position_m,
+            });
+            if event == LifecycleEvent::Deleted {
+                for zone_event in monitor.remove_tag(&track.tag, now_s)? {
+                    out.events.push(Event::Zone(zone_event));
+                }
+                clear_alarms(shared, track, now_s, out);
+                return Ok(true);
+            }
+        }
+    }
+    if now_s - track.last_output_s >= interval_s {
+        match track.status() {
+            Some(TrackStatus::Coasting) => coast_if_sound(shared, track, now_s, monitor, out)?,
+            Some(TrackStatus::Lost) => {
+                // the last position, frozen, reported as lost
+                if let Some(frozen) = &track.lost_state {
+                    let mut update =
+                        track_update(shared, track, frozen, true, TrackStatus::Lost, UpdateSource::Prediction);
+                    update.time_s = now_s;
+                    out.updates.push(update);
+                    track.last_output_s = now_s;
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(false)
+}
+
+/// Outputs the coasting prediction of `track` at `now_s`, unless it has diverged: then the
+/// track is reported and reset, and nothing is output.
+fn coast_if_sound<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    now_s: f64,
+    monitor: &mut ZoneMonitor,
+    out: &mut Output,
+) -> Result<()> {
+    let Some(state) = track.state.as_ref() else {
+        return Ok(());
+    };
+    let prior = predict(shared, track, state, now_s)?;
+    match divergence(&shared.bounds, &prior.state, prior.modes.as_ref()) {
+        Some(reason) => {
+            reset(track, now_s, "track", &format!("coasting prediction: {reason}"), out);
+            Ok(())
+        }
+        None => coast(shared, track, now_s, monitor, out),
     }
 }

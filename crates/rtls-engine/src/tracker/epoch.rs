@@ -8,6 +8,7 @@ use rtls_estimation::Gaussian;
 
 use super::anchors::AnchorReading;
 use super::core::{dimensions, rejected, Shared, Track};
+use super::direct::apply_deferred;
 use super::output::{Output, RawFix};
 use super::solve::{solve_epoch, EpochFix};
 use super::update::{coupled_update, fix_update};
@@ -144,6 +145,8 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
     let Some(&(time_s, _)) = epoch.last() else {
         return Ok(());
     };
+    // direct measurements held while the epoch was open: those before its fix come first
+    apply_deferred(shared, track, time_s, out)?;
     let readings: Vec<AnchorReading> = epoch.iter().map(|(_, r)| *r).collect();
     // a lost track's state is too stale to start the solver from
     let guess = track.state.as_ref().filter(|_| !track.is_lost());
@@ -157,7 +160,8 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
         }
         Err(reason) => out.events.push(rejected(&track.tag, time_s, "epoch", reason)),
     }
-    Ok(())
+    // and those at or after it
+    apply_deferred(shared, track, f64::INFINITY, out)
 }
 
 /// An epoch's raw fix, naming the solver's method.

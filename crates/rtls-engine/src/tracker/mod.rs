@@ -20,8 +20,10 @@
 //!   Markov chain. The track's reported state is the modes' moment-matched combination; every
 //!   update names the most probable mode (`mode`), and [`Event::ModelSwitch`] reports when it
 //!   changes (anti-flap: the new mode needs `switch_probability`). Anchor readings update each
-//!   mode by an EKF step in its own layout; accelerometer samples are refused (the manoeuvre
-//!   modes estimate the acceleration).
+//!   mode by an EKF step in its own layout; an accelerometer sample is the CV mode's control
+//!   input, as for the single CV model (the CA and CT modes estimate the acceleration
+//!   themselves). The turn rate is kept within ±π rad/s (half a turn per second): beyond
+//!   that the CT mode is drifting where the position does not observe it, not turning.
 //!
 //! # Time, order and output
 //! Records pass a re-ordering window (`reorder_window_s`); later ones are reported as
@@ -44,12 +46,21 @@
 //! (seed 000's predictive alarm); entering a zone without a working reader gives
 //! [`Event::NoCoverage`].
 //!
+//! In fix-then-filter, a fix, fingerprint scan, velocity or odometry record that arrives while
+//! the tag's epoch is open is held and applied in time order with the epoch's fix (which is
+//! dated at the epoch's last reading) when the epoch closes.
+//!
 //! # Errors
 //! A measurement that cannot be used (unknown or broken reader, no noise level, outside the
 //! gate, an epoch without enough anchors, a failed update) is reported as [`Event::Rejected`]
 //! with the reason; [`Tracker::check_record`] lets a file reader turn unknown reader ids into
-//! errors naming the file, line and field first. `Err` is returned only for settings the
-//! tracker cannot run with and for time going backwards through the API.
+//! errors naming the file, line and field first. One record never aborts the run: any failure
+//! while applying it is a rejected event naming the error. A track whose state or covariance
+//! becomes non-finite, whose position covariance trace exceeds (10 km)², or whose position
+//! leaves the readers' box by more than 10 km has diverged: a rejected event whose reason
+//! starts with `track diverged` (kind `track` when a clock tick finds it) reports it, and the
+//! track restarts from its next fix. `Err` is returned only for settings the tracker cannot
+//! run with and for a non-finite time through the API.
 //!
 //! # Example
 //! ```
@@ -101,6 +112,8 @@ mod alarms;
 mod anchors;
 mod anonymous;
 mod core;
+mod direct;
+mod divergence;
 mod epoch;
 pub(crate) mod models;
 mod modes;
@@ -115,6 +128,8 @@ mod tests;
 mod tests_anonymous;
 #[cfg(test)]
 mod tests_imm;
+#[cfg(test)]
+mod tests_robust;
 #[cfg(test)]
 mod tests_schedule;
 #[cfg(test)]
@@ -249,6 +264,7 @@ impl Tracker {
             } else {
                 None
             },
+            bounds: divergence::SiteBounds::new(site),
         };
         let monitor = site.zone_monitor()?;
         let tracks = if settings.dimensions == 3 {
@@ -319,7 +335,9 @@ impl Tracker {
     /// [`Event::Rejected`] with the reason, at the newest accepted time (0 before any).
     ///
     /// # Errors
-    /// Numerical failures of the lifecycle or zone monitor.
+    /// A non-finite or implausible time is a [`Event::Rejected`] (see `max_time_jump_s`);
+    /// failures of the anonymous detections' front end are errors. A record that cannot be
+    /// applied to a tag's track is a [`Event::Rejected`], not an error.
     pub fn push(&mut self, record: Record, out: &mut Output) -> Result<()> {
         if let Err(reason) = self.time_gate.check(record.time_s) {
             out.events.push(Event::Rejected {

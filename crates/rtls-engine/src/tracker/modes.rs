@@ -31,6 +31,13 @@ use crate::site::TrackerSettings;
 /// ((m/s²)², i.e. σ = 1 m/s²) and the turn rate ((rad/s)², σ = 1 rad/s).
 const MISSING_VARIANCE: f64 = 1.0;
 
+/// The largest turn rate the coordinated-turn mode may hold, rad/s: half a turn per second.
+/// A walking person turns a corner at about 1 rad/s and a mine vehicle at well under 0.5 rad/s;
+/// a rate beyond this is not a manoeuvre but the mode drifting where the position does not
+/// observe `ω` (coasting, straight motion), and it is clamped (see
+/// [`ModeEstimate::bound_component`]).
+pub(crate) const MAX_TURN_RATE_RAD_S: f64 = core::f64::consts::PI;
+
 /// The IMM of the tracker and what it needs to report modes.
 #[derive(Debug)]
 pub(crate) struct Manoeuvres {
@@ -145,7 +152,47 @@ impl Manoeuvres {
     /// # Errors
     /// [`EstimationError::TimeWentBackwards`]; a mode's prediction errors.
     pub(crate) fn predict(&self, modes: &ImmState, time_s: f64) -> rtls_estimation::Result<ImmState> {
-        self.imm.predict(modes, time_s)
+        self.bounded(self.imm.predict(modes, time_s)?)
+    }
+
+    /// [`Manoeuvres::predict`] with a measured acceleration `u` (m/s², one entry per axis) held
+    /// over the step as the CV mode's control input, as the single CV model uses it: for a
+    /// linear model the control enters the mean only,
+    /// ```text
+    /// x⁻_CV = F x⁰_CV + B u,   B_axis = [T²/2, T]ᵀ,   P⁻_CV = F P⁰_CV Fᵀ + Q
+    /// ```
+    /// so it is added to the CV mode's mode-matched prediction. The CA and CT modes keep
+    /// estimating the acceleration themselves (an accelerometer is not a measurement in their
+    /// likelihoods, which would make the modes' likelihoods incomparable).
+    ///
+    /// # Errors
+    /// As [`Manoeuvres::predict`].
+    pub(crate) fn predict_with_control(
+        &self,
+        modes: &ImmState,
+        time_s: f64,
+        u: &[f64],
+    ) -> rtls_estimation::Result<ImmState> {
+        let dt = time_s - modes.time_s();
+        let mut predicted = self.imm.predict(modes, time_s)?;
+        if let Some(cv) = predicted.estimates_mut().first_mut() {
+            for (axis, a) in u.iter().enumerate().take(self.layout.len() / 2) {
+                // B_axis u = [T²/2, T]ᵀ u
+                cv.mean[2 * axis] += 0.5 * dt * dt * a;
+                cv.mean[2 * axis + 1] += dt * a;
+            }
+        }
+        self.bounded(predicted)
+    }
+
+    /// The modes with the coordinated turn's rate inside ±[`MAX_TURN_RATE_RAD_S`].
+    fn bounded(&self, mut modes: ImmState) -> rtls_estimation::Result<ImmState> {
+        for (mode, estimate) in self.imm.modes().iter().zip(modes.estimates_mut()) {
+            if let Some(index) = mode.layout().index_of(Component::TurnRate) {
+                estimate.bound_component(index, MAX_TURN_RATE_RAD_S)?;
+            }
+        }
+        Ok(modes)
     }
 
     /// The moment-matched CV state `x̂ = Σⱼ μⱼ x̂ⱼ`, `P = Σⱼ μⱼ [Pⱼ + (x̂ⱼ − x̂)(·)ᵀ]`.
@@ -180,7 +227,7 @@ impl Manoeuvres {
             DVector::from_column_slice(value),
             NoiseCovariance::full(DMatrix::from_row_slice(k, k, covariance))?,
         )?;
-        Ok(self.imm.update_components(prior, &observation)?.state)
+        self.bounded(self.imm.update_components(prior, &observation)?.state)
     }
 
     /// Every mode updated with one anchor reading `z` by an EKF step in its own layout.
@@ -194,10 +241,11 @@ impl Manoeuvres {
         model: &AnchorMeasurement,
         z: f64,
     ) -> rtls_estimation::Result<ImmState> {
-        Ok(self
-            .imm
-            .update_with(prior, |mode, estimate| scalar_update(mode.layout(), estimate, model, z))?
-            .state)
+        self.bounded(
+            self.imm
+                .update_with(prior, |mode, estimate| scalar_update(mode.layout(), estimate, model, z))?
+                .state,
+        )
     }
 
     /// The mode to report after `modes`, given the one reported so far: the most probable
@@ -296,6 +344,53 @@ mod tests {
             }
         }
         assert!((update.nis - reference.nis).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_turn_rate_stays_within_its_physical_bound() {
+        let text = crate::tracker::tests::site_text("tightly-coupled", "ekf", "")
+            .replace("motion_model = \"cv\"", "motion_model = \"imm\"");
+        let site = crate::site::Site::from_toml_str(&text, "imm.toml").unwrap();
+        let manoeuvres = Manoeuvres::new(&site.tracker).unwrap();
+        let start = Gaussian::new(Vector::<4>::new(5.0, 1.0, 5.0, 0.0), Matrix::<4>::identity(), 0.0).unwrap();
+        let mut modes = manoeuvres.start(&start).unwrap();
+        // a CT estimate that has drifted to 40 rad/s with a (20 rad/s)² variance
+        let ct = &mut modes.estimates_mut()[2];
+        ct.mean[4] = 40.0;
+        ct.covariance[(4, 4)] = 400.0;
+        ct.covariance[(0, 4)] = 3.0;
+        ct.covariance[(4, 0)] = 3.0;
+        for predicted in [
+            manoeuvres.predict(&modes, 0.5).unwrap(),
+            manoeuvres.predict_with_control(&modes, 0.5, &[0.2, 0.0]).unwrap(),
+        ] {
+            let ct = &predicted.estimates()[2];
+            assert!(ct.mean[4].abs() <= MAX_TURN_RATE_RAD_S, "{}", ct.mean[4]);
+            assert!(ct.covariance[(4, 4)] <= MAX_TURN_RATE_RAD_S.powi(2) * (1.0 + 1e-12));
+            assert!(ct.covariance.clone().cholesky().is_some());
+        }
+    }
+
+    #[test]
+    fn the_accelerometer_moves_only_the_cv_modes_prediction() {
+        let text = crate::tracker::tests::site_text("tightly-coupled", "ekf", "")
+            .replace("motion_model = \"cv\"", "motion_model = \"imm\"");
+        let site = crate::site::Site::from_toml_str(&text, "imm.toml").unwrap();
+        let manoeuvres = Manoeuvres::new(&site.tracker).unwrap();
+        let start = Gaussian::new(Vector::<4>::new(5.0, 1.0, 5.0, 0.0), Matrix::<4>::identity(), 0.0).unwrap();
+        let modes = manoeuvres.start(&start).unwrap();
+        let free = manoeuvres.predict(&modes, 2.0).unwrap();
+        let driven = manoeuvres.predict_with_control(&modes, 2.0, &[0.5, -0.25]).unwrap();
+        // CV: x += T²/2 u, v += T u (T = 2 s); covariances unchanged
+        let (f, d) = (&free.estimates()[0], &driven.estimates()[0]);
+        let expected = [2.0 * 0.5, 2.0 * 0.5, 2.0 * -0.25, 2.0 * -0.25];
+        for (i, shift) in expected.iter().enumerate() {
+            assert!((d.mean[i] - f.mean[i] - shift).abs() < 1e-12, "entry {i}");
+        }
+        assert_eq!(d.covariance, f.covariance);
+        // CA and CT are not driven
+        assert_eq!(driven.estimates()[1], free.estimates()[1]);
+        assert_eq!(driven.estimates()[2], free.estimates()[2]);
     }
 
     #[test]

@@ -36,21 +36,29 @@ pub(super) fn predict<const N: usize>(
     state: &Gaussian<N>,
     time_s: f64,
 ) -> Result<Prior<N>> {
+    let held = track
+        .acceleration
+        .filter(|(t, _)| time_s - t <= ACCELERATION_HOLD_S)
+        .map(|(_, a)| a);
     if let (Some(manoeuvres), Some(modes)) = (&shared.manoeuvres, &track.modes) {
-        let modes = manoeuvres.predict(modes, time_s)?;
+        // the CV mode takes the accelerometer as its control input, like the single CV model
+        let modes = match held {
+            Some(a) => manoeuvres.predict_with_control(modes, time_s, &a[..dimensions::<N>()])?,
+            None => manoeuvres.predict(modes, time_s)?,
+        };
         return Ok(Prior {
             state: manoeuvres.combined(&modes)?,
             modes: Some(modes),
         });
     }
-    let state = match track.acceleration {
-        Some((t, a)) if time_s - t <= ACCELERATION_HOLD_S => {
+    let state = match held {
+        Some(a) => {
             let u = DVector::from_iterator(dimensions::<N>(), a.iter().copied().take(dimensions::<N>()));
             shared
                 .kf
                 .predict_with_control(state, &shared.aided_motion, &u, time_s)?
         }
-        _ => shared.kf.predict(state, &shared.motion, time_s)?,
+        None => shared.kf.predict(state, &shared.motion, time_s)?,
     };
     Ok(Prior { state, modes: None })
 }

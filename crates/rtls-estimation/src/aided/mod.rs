@@ -5,10 +5,13 @@
 //!   `[x, vx, y, vy]`, the accelerometer as control input, its noise propagated into `Q`.
 //! - [`OdometryErrorModel`]: speed + heading with speed error, heading noise and heading drift,
 //!   turned into a velocity measurement ([`position_velocity_observation`], seed 004 eq. (9))
-//!   or a control input ([`OdometryDeadReckoning`]).
+//!   or a control input ([`OdometryDeadReckoning`]); [`odometry_velocity`]: one record's
+//!   speed and heading with their standard deviations as a positive definite velocity
+//!   measurement (standstill included).
 
 mod accelerometer;
 mod odometry;
+mod odometry_covariance;
 
 pub use accelerometer::{
     AccelerometerSample, DeadReckoning, ModelOrder, PositionStep, PrintedAccelerometerModel, TextbookAccelerometerModel,
@@ -17,3 +20,4 @@ pub use odometry::{
     position_velocity_observation, HeadingBias, HeadingBiasEstimator, OdometryDeadReckoning, OdometryErrorModel,
     OdometryReading,
 };
+pub use odometry_covariance::{odometry_velocity, ODOMETRY_VELOCITY_FLOOR_MPS};

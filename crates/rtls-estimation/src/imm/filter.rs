@@ -26,6 +26,14 @@ impl ImmState {
         &self.estimates
     }
 
+    /// The mode-conditioned estimates, to change in place (a known control input added to one
+    /// mode's prediction, a state component bounded with [`ModeEstimate::bound_component`]);
+    /// the probabilities and the time stay as they are.
+    #[must_use]
+    pub fn estimates_mut(&mut self) -> &mut [ModeEstimate] {
+        &mut self.estimates
+    }
+
     /// The mode probabilities `μⱼ` (sum to 1): posterior after an update, predicted `c̄ⱼ` after
     /// a prediction.
     #[must_use]

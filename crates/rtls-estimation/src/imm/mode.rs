@@ -23,6 +23,73 @@ pub struct ModeEstimate {
 }
 
 impl ModeEstimate {
+    /// Keeps entry `index` physically plausible: a mean beyond `±max_abs` is clamped to it,
+    /// and a variance beyond `max_abs²` is brought down to it by scaling the entry's row and
+    /// column,
+    /// ```text
+    /// x̂ᵢ  ← clamp(x̂ᵢ, −m, m)
+    /// k   = min(1, m / √Pᵢᵢ)
+    /// P   ← D P D,   D = diag(1, …, k (at i), …, 1)
+    /// ```
+    /// which keeps `P` symmetric positive semi-definite (a congruence) and the other entries'
+    /// variances unchanged. Used for a turn rate `ω`, which the position observes only through
+    /// the curvature of the track: while a track coasts or its motion is straight, nothing
+    /// holds `ω` and a coordinated-turn mode can drift to rates no target has.
+    ///
+    /// Returns `true` when anything changed.
+    ///
+    /// # Units
+    /// Those of the entry (`max_abs` in rad/s for a turn rate).
+    ///
+    /// # Errors
+    /// [`EstimationError::InvalidParameter`] for an `index` outside the estimate or a
+    /// `max_abs` that is not positive and finite.
+    ///
+    /// # Example
+    /// ```
+    /// use rtls_estimation::imm::ModeEstimate;
+    /// use nalgebra::{DMatrix, DVector};
+    /// let mut estimate = ModeEstimate {
+    ///     mean: DVector::from_vec(vec![1.0, 40.0]),
+    ///     covariance: DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 2.0, 100.0]),
+    /// };
+    /// assert!(estimate.bound_component(1, 2.0)?);
+    /// assert_eq!(estimate.mean[1], 2.0);
+    /// assert!((estimate.covariance[(1, 1)] - 4.0).abs() < 1e-12);
+    /// assert!((estimate.covariance[(0, 1)] - 0.4).abs() < 1e-12);
+    /// # Ok::<(), rtls_estimation::EstimationError>(())
+    /// ```
+    pub fn bound_component(&mut self, index: usize, max_abs: f64) -> Result<bool> {
+        if index >= self.mean.len() || index >= self.covariance.nrows() {
+            return Err(EstimationError::InvalidParameter {
+                name: "index",
+                reason: "the bounded entry must be inside the estimate",
+            });
+        }
+        if !(max_abs.is_finite() && max_abs > 0.0) {
+            return Err(EstimationError::InvalidParameter {
+                name: "max_abs",
+                reason: "the bound must be positive and finite",
+            });
+        }
+        let mut changed = false;
+        // x̂ᵢ ← clamp(x̂ᵢ, −m, m)
+        let clamped = self.mean[index].clamp(-max_abs, max_abs);
+        if clamped != self.mean[index] {
+            self.mean[index] = clamped;
+            changed = true;
+        }
+        let variance = self.covariance[(index, index)];
+        if variance > max_abs * max_abs {
+            // k = m / √Pᵢᵢ; P ← D P D
+            let k = max_abs / crate::math::sqrt(variance);
+            self.covariance.row_mut(index).scale_mut(k);
+            self.covariance.column_mut(index).scale_mut(k);
+            changed = true;
+        }
+        Ok(changed)
+    }
+
     /// The estimate of a statically sized [`Gaussian`] (its time is kept by the IMM state).
     #[must_use]
     pub fn from_gaussian<const N: usize>(state: &Gaussian<N>) -> Self {
