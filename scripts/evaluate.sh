@@ -35,8 +35,28 @@ print("%-10s %-32s %-44s %7d %7.3f %7.3f %7.3f %7.3f %7s %8s" % tuple(row))' "$d
 # track RUN_DIR NAME INPUT [track flags…] → $RUN_DIR/NAME.tracks.jsonl, NAME.fixes.jsonl, NAME.events.jsonl
 track() {
   local dir=$1 name=$2 input=$3; shift 3
-  "$RTLS" track --site "$dir/site.toml" --input "$dir/$input" --output "$dir/$name.tracks.jsonl" \
-    --events "$dir/$name.events.jsonl" --fixes "$dir/$name.fixes.jsonl" --quiet "$@" 2> "$dir/$name.summary.txt"
+  local site=${SITE:-$dir/site.toml} status=0
+  "$RTLS" track --site "$site" --input "$dir/$input" --output "$dir/$name.tracks.jsonl" \
+    --events "$dir/$name.events.jsonl" --fixes "$dir/$name.fixes.jsonl" --quiet "$@" 2> "$dir/$name.summary.txt" || status=$?
+  # exit status 3: a tag had records but no track (named in the summary); anything else stops here
+  if [ "$status" -eq 3 ]; then echo "note: $dir/$name: $(grep -m1 'no track for tag' "$dir/$name.summary.txt")" >&2
+  elif [ "$status" -ne 0 ]; then cat "$dir/$name.summary.txt" >&2; exit "$status"; fi
+}
+
+# tuned RUN_DIR NAME INPUT [track flags…]: `rtls tune --truth` on the first half of the recording
+# (by truth time), then the whole recording tracked with the tuned site; scored on the second
+# half only (truth-late.csv), with the raw fixes of the same run
+tuned() {
+  local dir=$1 name=$2 input=$3; shift 3
+  local split
+  split=$(python3 -c 'import csv, sys; t = sorted(float(r["t"]) for r in csv.DictReader(open(sys.argv[1]))); print(t[len(t) // 2])' "$dir/truth.csv")
+  python3 -c 'import csv, sys
+rows = list(csv.reader(open(sys.argv[1])))
+w = csv.writer(open(sys.argv[2], "w", newline=""), lineterminator="\n")
+w.writerow(rows[0]); w.writerows(r for r in rows[1:] if float(r[0]) > float(sys.argv[3]))' "$dir/truth.csv" "$dir/truth-late.csv" "$split"
+  "$RTLS" tune --site "$dir/site.toml" --input "$dir/$input" --truth "$dir/truth.csv" --until-s "$split" \
+    --out "$dir/$name.tuned.toml" > "$dir/$name.tune.txt"
+  SITE="$dir/$name.tuned.toml" track "$dir" "$name" "$input" "$@"
 }
 
 printf '%-10s %-32s %-44s %7s %7s %7s %7s %7s %7s %8s\n' dataset run configuration samples RMSE mean median p95 in95 NEES
@@ -84,3 +104,30 @@ d=$OUT/uji/validation
 track "$d" fp measurements.jsonl
 score uji validation "fingerprint WKNN, fix-then-filter KF" "$d/truth.csv" "$d/fp.tracks.jsonl" --max-gap 0
 score uji validation "fingerprint WKNN, raw fixes" "$d/truth.csv" "$d/fp.fixes.jsonl" --max-gap 0
+
+# rtls tune with ground truth on the first half of each recording, scored on the second half
+for run in fast mid; do
+  d=$OUT/lias/$run
+  tuned "$d" tuned-tc "measurements-raw.jsonl" --pipeline tightly-coupled --filter ekf
+  tuned "$d" tuned-ftf "measurements-raw.jsonl" --pipeline fix-then-filter --filter kf
+  score uwb-lias "$run" "tuned (raw ranges), tightly coupled EKF" "$d/truth-late.csv" "$d/tuned-tc.tracks.jsonl"
+  score uwb-lias "$run" "tuned (raw ranges), fix-then-filter KF" "$d/truth-late.csv" "$d/tuned-ftf.tracks.jsonl"
+  score uwb-lias "$run" "tuned (raw ranges), raw fixes" "$d/truth-late.csv" "$d/tuned-ftf.fixes.jsonl"
+done
+for d in "$OUT"/ble/*/; do
+  d=${d%/}; run=$(basename "$d")
+  tuned "$d" tuned-tc measurements.jsonl --pipeline tightly-coupled --filter ekf
+  tuned "$d" tuned-ftf measurements.jsonl --pipeline fix-then-filter --filter kf
+  score ble "$run" "tuned path loss, tightly coupled EKF" "$d/truth-late.csv" "$d/tuned-tc.tracks.jsonl" --max-gap 1
+  score ble "$run" "tuned path loss, fix-then-filter KF" "$d/truth-late.csv" "$d/tuned-ftf.tracks.jsonl" --max-gap 1
+  score ble "$run" "tuned path loss, raw fixes" "$d/truth-late.csv" "$d/tuned-ftf.fixes.jsonl" --max-gap 1
+done
+d=$OUT/labyrinth/labyrinth
+tuned "$d" tuned-odo measurements.jsonl --pipeline tightly-coupled --filter ekf
+tuned "$d" tuned-uwb measurements-uwb-only.jsonl --pipeline tightly-coupled --filter ekf
+score labyrinth labyrinth "tuned, UWB + odometry, tightly coupled EKF" "$d/truth-late.csv" "$d/tuned-odo.tracks.jsonl"
+score labyrinth labyrinth "tuned, UWB only, tightly coupled EKF" "$d/truth-late.csv" "$d/tuned-uwb.tracks.jsonl"
+d=$OUT/uji/validation
+tuned "$d" tuned-fp measurements.jsonl
+score uji validation "tuned σ_a, fingerprint WKNN, KF" "$d/truth-late.csv" "$d/tuned-fp.tracks.jsonl" --max-gap 0
+score uji validation "tuned σ_a, fingerprint WKNN, raw fixes" "$d/truth-late.csv" "$d/tuned-fp.fixes.jsonl" --max-gap 0
