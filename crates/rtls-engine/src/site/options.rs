@@ -91,7 +91,9 @@ pub struct AdaptiveNoiseSettings {
     /// mean over a track's first updates). Long enough that a manoeuvre of a few seconds is the
     /// motion model's to explain, short enough to follow a tag into a noisier area. Default 20.
     pub memory_s: f64,
-    /// The largest scale, a multiple of the stated variance (≥ 1). Default 400 (σ × 20).
+    /// The largest scale, a multiple of the stated variance (≥ 1). Default 25 (σ × 5): larger
+    /// scales let sparse, heavy-tailed fixes (Wi-Fi scans a minute apart) hand the track to the
+    /// motion model.
     pub max_scale: f64,
     /// Correlation time of measurement errors, s (≥ 0; 0 treats every measurement as
     /// independent). A reader's readings (or a class of fixes) closer together than this are
@@ -107,7 +109,7 @@ impl Default for AdaptiveNoiseSettings {
         Self {
             enabled: true,
             memory_s: 20.0,
-            max_scale: 400.0,
+            max_scale: 25.0,
             correlation_s: 0.25,
         }
     }
