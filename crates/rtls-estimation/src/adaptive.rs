@@ -219,7 +219,7 @@ impl AdaptiveNoise {
         let precision = share * share;
         // W = e^(−Δt/τ) W + w (no decay before the first update or for a zero Δt)
         let decay = if elapsed_s.is_finite() && elapsed_s > 0.0 {
-            (-elapsed_s / self.memory_s).exp()
+            libm::exp(-elapsed_s / self.memory_s)
         } else {
             1.0
         };
