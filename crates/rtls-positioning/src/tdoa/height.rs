@@ -154,32 +154,8 @@ impl SlantTdoa {
         covariance_m2: &DMatrix<f64>,
         height_m: f64,
     ) -> Result<Self> {
+        super::problem::check_inputs(stations_m, reference, range_differences_m, 3)?;
         let n = stations_m.len();
-        if n < 3 {
-            return Err(PositioningError::Underdetermined { anchors: n, needed: 3 });
-        }
-        if reference >= n {
-            return Err(PositioningError::InvalidParameter {
-                name: "reference",
-                reason: "the reference index must be below the number of stations",
-            });
-        }
-        if range_differences_m.len() != n - 1 {
-            return Err(PositioningError::DimensionMismatch {
-                what: "range differences (one per non-reference station)",
-                expected: n - 1,
-                found: range_differences_m.len(),
-            });
-        }
-        for (row, s) in stations_m.iter().enumerate() {
-            if let Some(column) = s.iter().position(|v| !v.is_finite()) {
-                return Err(PositioningError::NonFiniteEntry {
-                    what: "station positions (row = station, column = axis)",
-                    row,
-                    column,
-                });
-            }
-        }
         if !(range_differences_m.iter().all(|v| v.is_finite()) && height_m.is_finite()) {
             return Err(PositioningError::NonFinite {
                 what: "range differences or tag height",

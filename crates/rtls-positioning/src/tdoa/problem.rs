@@ -54,40 +54,8 @@ impl<const D: usize> Problem<D> {
         covariance_m2: &DMatrix<f64>,
     ) -> Result<Self> {
         const { assert_dimension::<D>() };
+        check_inputs(stations_m, reference, range_differences_m, D + 1)?;
         let n = stations_m.len();
-        if n < D + 1 {
-            return Err(PositioningError::Underdetermined {
-                anchors: n,
-                needed: D + 1,
-            });
-        }
-        if reference >= n {
-            return Err(PositioningError::InvalidParameter {
-                name: "reference",
-                reason: "the reference index must be below the number of stations",
-            });
-        }
-        if range_differences_m.len() != n - 1 {
-            return Err(PositioningError::DimensionMismatch {
-                what: "range differences (one per non-reference station)",
-                expected: n - 1,
-                found: range_differences_m.len(),
-            });
-        }
-        for (row, s) in stations_m.iter().enumerate() {
-            if let Some(column) = s.iter().position(|v| !v.is_finite()) {
-                return Err(PositioningError::NonFiniteEntry {
-                    what: "station positions (row = station, column = axis)",
-                    row,
-                    column,
-                });
-            }
-        }
-        if !range_differences_m.iter().all(|v| v.is_finite()) {
-            return Err(PositioningError::NonFinite {
-                what: "range differences",
-            });
-        }
         let reference_m = SVector::<f64, D>::from(stations_m[reference]);
         // s_i ← s_i − s_ref
         let others_m: Vec<SVector<f64, D>> = stations_m
@@ -256,6 +224,49 @@ fn check_duplicates<const D: usize>(stations_m: &[[f64; D]], tolerance_m: f64) -
                 });
             }
         }
+    }
+    Ok(())
+}
+
+/// The checks every TDOA solver makes on its inputs, in order: at least `needed` stations
+/// (`Underdetermined`), the reference index, one range difference per non-reference station,
+/// finite stations (`NonFiniteEntry`, naming row and axis) and finite differences.
+pub(super) fn check_inputs<const A: usize>(
+    stations_m: &[[f64; A]],
+    reference: usize,
+    range_differences_m: &[f64],
+    needed: usize,
+) -> Result<()> {
+    let n = stations_m.len();
+    if n < needed {
+        return Err(PositioningError::Underdetermined { anchors: n, needed });
+    }
+    if reference >= n {
+        return Err(PositioningError::InvalidParameter {
+            name: "reference",
+            reason: "the reference index must be below the number of stations",
+        });
+    }
+    if range_differences_m.len() != n - 1 {
+        return Err(PositioningError::DimensionMismatch {
+            what: "range differences (one per non-reference station)",
+            expected: n - 1,
+            found: range_differences_m.len(),
+        });
+    }
+    for (row, s) in stations_m.iter().enumerate() {
+        if let Some(column) = s.iter().position(|v| !v.is_finite()) {
+            return Err(PositioningError::NonFiniteEntry {
+                what: "station positions (row = station, column = axis)",
+                row,
+                column,
+            });
+        }
+    }
+    if !range_differences_m.iter().all(|v| v.is_finite()) {
+        return Err(PositioningError::NonFinite {
+            what: "range differences",
+        });
     }
     Ok(())
 }
