@@ -8,14 +8,18 @@
 //!   or a control input ([`OdometryDeadReckoning`]); [`odometry_velocity`]: one record's
 //!   speed and heading with their standard deviations as a positive definite velocity
 //!   measurement (standstill included).
+//! - [`HeadingModel`]: a heading channel `[ψ, b_g, δ]` driven by a yaw rate, with the gyro's
+//!   bias and an odometer heading's offset estimated against heading references.
 
 mod accelerometer;
+mod heading;
 mod odometry;
 mod odometry_covariance;
 
 pub use accelerometer::{
     AccelerometerSample, DeadReckoning, ModelOrder, PositionStep, PrintedAccelerometerModel, TextbookAccelerometerModel,
 };
+pub use heading::{HeadingModel, HeadingState};
 pub use odometry::{
     position_velocity_observation, HeadingBias, HeadingBiasEstimator, OdometryDeadReckoning, OdometryErrorModel,
     OdometryReading,
