@@ -97,6 +97,7 @@ fn range_round(tags: usize, round: usize) -> Vec<Record> {
                     anchor: id.into(),
                     range_m: ((p[0] - a[0]).powi(2) + (p[1] - a[1]).powi(2)).sqrt(),
                     std_m: None,
+                    anchor_position_m: None,
                 },
             }
         })

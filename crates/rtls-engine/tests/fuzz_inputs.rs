@@ -214,9 +214,41 @@ fn check_record(record: &Record) {
             heading_rad,
             speed_std_mps,
             heading_std_rad,
-        } => [Some(*speed_mps), Some(*heading_rad), *speed_std_mps, *heading_std_rad]
+        } => [Some(*speed_mps), *heading_rad, *speed_std_mps, *heading_std_rad]
             .into_iter()
             .flatten()
+            .collect(),
+        Measurement::YawRate {
+            yaw_rate_radps,
+            std_radps,
+        } => [Some(*yaw_rate_radps), *std_radps].into_iter().flatten().collect(),
+        Measurement::OdometryIncrement {
+            distance_m,
+            yaw_change_rad,
+            interval_s,
+            distance_std_m,
+            yaw_change_std_rad,
+        } => [
+            Some(*distance_m),
+            Some(*yaw_change_rad),
+            Some(*interval_s),
+            *distance_std_m,
+            *yaw_change_std_rad,
+        ]
+        .into_iter()
+        .flatten()
+        .collect(),
+        Measurement::Imu {
+            acceleration_mps2,
+            angular_rate_radps,
+            std_mps2,
+            std_radps,
+        } => acceleration_mps2
+            .iter()
+            .chain(angular_rate_radps)
+            .copied()
+            .chain(*std_mps2)
+            .chain(*std_radps)
             .collect(),
         Measurement::Velocity {
             velocity_mps,

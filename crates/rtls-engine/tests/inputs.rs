@@ -70,6 +70,7 @@ fn range(time_s: f64, anchor: &str, range_m: f64, std_m: Option<f64>) -> Record 
             anchor: anchor.into(),
             range_m,
             std_m,
+            anchor_position_m: None,
         },
     }
 }

@@ -300,8 +300,9 @@ fn integrate(odometry: &[OdometryLine], initial_heading_rad: f64) -> Integrated 
             tag: TAG.to_string(),
             measurement: Measurement::Odometry {
                 speed_mps: v.abs(),
-                heading_rad: (direction + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                    - std::f64::consts::PI,
+                heading_rad: Some(
+                    (direction + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI,
+                ),
                 speed_std_mps: Some(speed_std),
                 heading_std_rad: Some(heading_var_rad2.sqrt()),
             },
@@ -405,6 +406,7 @@ pub(super) fn import(dataset_dir: &Path, out_dir: &Path) -> Result<Vec<ImportedR
                 anchor: r.anchor.clone(),
                 range_m: r.range_m,
                 std_m: Some(r.variance_m2.sqrt()),
+                anchor_position_m: None,
             },
         })
         .collect();

@@ -227,6 +227,7 @@ fn build_records(rows: &[UwbRow], times_s: &[f64], calibration: &Calibration) ->
                     anchor: ANCHORS[pair_anchor(pair)].0.to_string(),
                     range_m,
                     std_m: None,
+                    anchor_position_m: None,
                 },
             };
             out.corrected.push(record(corrected_m));

@@ -11,21 +11,24 @@ use crate::error::{EngineError, Result};
 /// | --- | --- | --- |
 /// | `t` | all | time, s |
 /// | `tag` | all | tag id |
-/// | `kind` | all | `range`, `rssi`, `tdoa`, `rssi_vector`, `fix`, `accelerometer`, `odometry`, `velocity` |
+/// | `kind` | all | `range`, `rssi`, `tdoa`, `rssi_vector`, `fix`, `accelerometer`, `odometry`, `velocity`, `yaw_rate`, `odometry_increment`, `imu` |
 /// | `anchor` | range, rssi, tdoa | anchor id |
 /// | `reference` | tdoa | reference anchor id |
-/// | `value` | range (m), rssi (dBm), tdoa (range difference, m), odometry (speed, m/s) | the scalar |
-/// | `std` | range, tdoa (m), accelerometer (m/s²), odometry (speed, m/s) | optional 1σ of `value` / `x,y,z` |
-/// | `heading` | odometry | heading, rad |
-/// | `heading_std` | odometry | optional 1σ of the heading, rad |
-/// | `x`, `y`, `z` | fix (m), accelerometer (m/s²), velocity (m/s) | vector; `z` empty for 2-D |
+/// | `value` | range (m), rssi (dBm), tdoa (range difference, m), odometry (speed, m/s), yaw_rate (rad/s), odometry_increment (distance, m) | the scalar |
+/// | `std` | range, tdoa (m), accelerometer, imu (m/s²), odometry (speed, m/s), yaw_rate (rad/s), odometry_increment (distance, m) | optional 1σ of `value` / `x,y,z` |
+/// | `heading` | odometry (heading, optional), odometry_increment (change of heading, required) | rad |
+/// | `heading_std` | odometry, odometry_increment | optional 1σ of `heading`, rad |
+/// | `x`, `y`, `z` | fix (m), accelerometer, imu (m/s²), velocity (m/s), range (the anchor's position, m, optional) | vector; `z` empty for 2-D |
 /// | `covariance` | fix (m², required), velocity ((m/s)², optional) | `D × D` row-major, `;`-separated |
 /// | `readings` | rssi_vector | `anchor=rssi_dbm;anchor=rssi_dbm;…` |
+/// | `interval` | odometry_increment | the increment's interval, s |
+/// | `rate` | imu | angular rate `z` or `x;y;z`, rad/s |
+/// | `rate_std` | imu | optional 1σ of each rate, rad/s |
 ///
 /// A file's header must contain `t`, `tag` and `kind`; the other columns may be left out (they
 /// read as empty). Unknown and repeated column names are errors, and so is a non-empty cell in a
 /// column the row's kind does not use.
-pub const CSV_COLUMNS: [&str; 14] = [
+pub const CSV_COLUMNS: [&str; 17] = [
     "t",
     "tag",
     "kind",
@@ -40,6 +43,9 @@ pub const CSV_COLUMNS: [&str; 14] = [
     "z",
     "covariance",
     "readings",
+    "interval",
+    "rate",
+    "rate_std",
 ];
 
 const T: usize = 0;
@@ -56,6 +62,9 @@ const Y: usize = 10;
 const Z: usize = 11;
 const COVARIANCE: usize = 12;
 const READINGS: usize = 13;
+const INTERVAL: usize = 14;
+const RATE: usize = 15;
+const RATE_STD: usize = 16;
 
 /// Reads CSV records from any buffered reader, one `Result<Record>` per data row.
 ///
@@ -309,6 +318,23 @@ impl Cells<'_> {
         Ok(vector)
     }
 
+    /// `x, y` and an optional `z`, or nothing when `x` and `y` are empty.
+    fn optional_vector(&mut self, kind: &str) -> core::result::Result<Option<Vec<f64>>, Invalid> {
+        if self.values[X].is_empty() && self.values[Y].is_empty() && self.values[Z].is_empty() {
+            self.used[X] = true;
+            self.used[Y] = true;
+            self.used[Z] = true;
+            return Ok(None);
+        }
+        self.vector(kind).map(Some)
+    }
+
+    /// A required `;`-separated list of numbers.
+    fn list(&mut self, column: usize, kind: &str) -> core::result::Result<Vec<f64>, Invalid> {
+        let text = self.required_text(column, kind)?;
+        text.split(';').map(|n| number(CSV_COLUMNS[column], n.trim())).collect()
+    }
+
     fn covariance(&mut self) -> core::result::Result<Option<Vec<f64>>, Invalid> {
         self.text(COVARIANCE)
             .map(|text| text.split(';').map(|n| number("covariance", n.trim())).collect())
@@ -367,6 +393,7 @@ fn parse_row(cells: &mut Cells<'_>) -> core::result::Result<Record, Invalid> {
             anchor: cells.required_text(ANCHOR, k)?,
             range_m: cells.required_number(VALUE, k)?,
             std_m: cells.number(STD)?,
+            anchor_position_m: cells.optional_vector(k)?,
         },
         "rssi" => Measurement::Rssi {
             anchor: cells.required_text(ANCHOR, k)?,
@@ -391,7 +418,7 @@ fn parse_row(cells: &mut Cells<'_>) -> core::result::Result<Record, Invalid> {
         },
         "odometry" => Measurement::Odometry {
             speed_mps: cells.required_number(VALUE, k)?,
-            heading_rad: cells.required_number(HEADING, k)?,
+            heading_rad: cells.number(HEADING)?,
             speed_std_mps: cells.number(STD)?,
             heading_std_rad: cells.number(HEADING_STD)?,
         },
@@ -399,10 +426,30 @@ fn parse_row(cells: &mut Cells<'_>) -> core::result::Result<Record, Invalid> {
             velocity_mps: cells.vector(k)?,
             covariance_m2ps2: cells.covariance()?,
         },
+        "yaw_rate" => Measurement::YawRate {
+            yaw_rate_radps: cells.required_number(VALUE, k)?,
+            std_radps: cells.number(STD)?,
+        },
+        "odometry_increment" => Measurement::OdometryIncrement {
+            distance_m: cells.required_number(VALUE, k)?,
+            yaw_change_rad: cells.required_number(HEADING, k)?,
+            interval_s: cells.required_number(INTERVAL, k)?,
+            distance_std_m: cells.number(STD)?,
+            yaw_change_std_rad: cells.number(HEADING_STD)?,
+        },
+        "imu" => Measurement::Imu {
+            acceleration_mps2: cells.vector(k)?,
+            angular_rate_radps: cells.list(RATE, k)?,
+            std_mps2: cells.number(STD)?,
+            std_radps: cells.number(RATE_STD)?,
+        },
         _ => {
             return Err(Invalid::new(
                 "kind",
-                format!("unknown kind `{kind}`; expected one of range, rssi, tdoa, rssi_vector, fix, accelerometer, odometry, velocity"),
+                format!(
+                    "unknown kind `{kind}`; expected one of range, rssi, tdoa, rssi_vector, fix, accelerometer, \
+                     odometry, velocity, yaw_rate, odometry_increment, imu"
+                ),
             ));
         }
     };
@@ -414,12 +461,12 @@ fn parse_row(cells: &mut Cells<'_>) -> core::result::Result<Record, Invalid> {
     };
     record
         .check()
-        .map_err(|invalid| Invalid::new(csv_column(&invalid.field), invalid.reason))?;
+        .map_err(|invalid| Invalid::new(csv_column(&invalid.field, k), invalid.reason))?;
     Ok(record)
 }
 
 /// The CSV column that holds a JSON key (`position_m[2]` → `z`, `readings[1].anchor` → `readings`).
-fn csv_column(json_field: &str) -> &'static str {
+fn csv_column(json_field: &str, kind: &str) -> &'static str {
     let (base, index) = match json_field.split_once('[') {
         Some((base, rest)) => (base, rest.split(']').next().and_then(|i| i.parse::<usize>().ok())),
         None => (json_field, None),
@@ -429,11 +476,15 @@ fn csv_column(json_field: &str) -> &'static str {
         "tag" => "tag",
         "anchor" => "anchor",
         "reference" => "reference",
-        "range_m" | "rssi_dbm" | "range_difference_m" | "speed_mps" => "value",
-        "std_m" | "std_mps2" | "speed_std_mps" => "std",
-        "heading_rad" => "heading",
-        "heading_std_rad" => "heading_std",
-        "position_m" | "acceleration_mps2" | "velocity_mps" => match index {
+        "range_m" | "rssi_dbm" | "range_difference_m" | "speed_mps" | "yaw_rate_radps" | "distance_m" => "value",
+        "std_m" | "std_mps2" | "speed_std_mps" | "distance_std_m" => "std",
+        "heading_rad" | "yaw_change_rad" => "heading",
+        "heading_std_rad" | "yaw_change_std_rad" => "heading_std",
+        "interval_s" => "interval",
+        "angular_rate_radps" => "rate",
+        "std_radps" if kind == "imu" => "rate_std",
+        "std_radps" => "std",
+        "position_m" | "acceleration_mps2" | "velocity_mps" | "anchor_position_m" => match index {
             Some(0) => "x",
             Some(1) => "y",
             Some(2) => "z",
@@ -458,7 +509,7 @@ fn csv_column(json_field: &str) -> &'static str {
 ///     tag: "cart-4".into(),
 ///     measurement: Measurement::Fix { position_m: vec![3.5, -1.0], covariance_m2: vec![0.04, 0.0, 0.0, 0.04] },
 /// };
-/// assert_eq!(to_csv_row(&record).join(","), "2,cart-4,fix,,,,,,,3.5,-1,,0.04;0;0;0.04,");
+/// assert_eq!(to_csv_row(&record).join(","), "2,cart-4,fix,,,,,,,3.5,-1,,0.04;0;0;0.04,,,,");
 /// ```
 #[must_use]
 pub fn to_csv_row(record: &Record) -> [String; CSV_COLUMNS.len()] {
@@ -474,10 +525,18 @@ pub fn to_csv_row(record: &Record) -> [String; CSV_COLUMNS.len()] {
         }
     };
     match &record.measurement {
-        Measurement::Range { anchor, range_m, std_m } => {
+        Measurement::Range {
+            anchor,
+            range_m,
+            std_m,
+            anchor_position_m,
+        } => {
             row[ANCHOR].clone_from(anchor);
             row[VALUE] = number(*range_m);
             row[STD] = std_m.map(number).unwrap_or_default();
+            if let Some(position) = anchor_position_m {
+                vector(&mut row, position);
+            }
         }
         Measurement::Rssi { anchor, rssi_dbm } => {
             row[ANCHOR].clone_from(anchor);
@@ -522,7 +581,7 @@ pub fn to_csv_row(record: &Record) -> [String; CSV_COLUMNS.len()] {
             heading_std_rad,
         } => {
             row[VALUE] = number(*speed_mps);
-            row[HEADING] = number(*heading_rad);
+            row[HEADING] = heading_rad.map(number).unwrap_or_default();
             row[STD] = speed_std_mps.map(number).unwrap_or_default();
             row[HEADING_STD] = heading_std_rad.map(number).unwrap_or_default();
         }
@@ -532,6 +591,37 @@ pub fn to_csv_row(record: &Record) -> [String; CSV_COLUMNS.len()] {
         } => {
             vector(&mut row, velocity_mps);
             row[COVARIANCE] = covariance_m2ps2.as_deref().map(join).unwrap_or_default();
+        }
+        Measurement::YawRate {
+            yaw_rate_radps,
+            std_radps,
+        } => {
+            row[VALUE] = number(*yaw_rate_radps);
+            row[STD] = std_radps.map(number).unwrap_or_default();
+        }
+        Measurement::OdometryIncrement {
+            distance_m,
+            yaw_change_rad,
+            interval_s,
+            distance_std_m,
+            yaw_change_std_rad,
+        } => {
+            row[VALUE] = number(*distance_m);
+            row[HEADING] = number(*yaw_change_rad);
+            row[INTERVAL] = number(*interval_s);
+            row[STD] = distance_std_m.map(number).unwrap_or_default();
+            row[HEADING_STD] = yaw_change_std_rad.map(number).unwrap_or_default();
+        }
+        Measurement::Imu {
+            acceleration_mps2,
+            angular_rate_radps,
+            std_mps2,
+            std_radps,
+        } => {
+            vector(&mut row, acceleration_mps2);
+            row[RATE] = join(angular_rate_radps);
+            row[STD] = std_mps2.map(number).unwrap_or_default();
+            row[RATE_STD] = std_radps.map(number).unwrap_or_default();
         }
     }
     row

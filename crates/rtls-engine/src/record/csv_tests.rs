@@ -1,7 +1,8 @@
 use super::*;
 use crate::record::tests::located;
 
-const HEADER: &str = "t,tag,kind,anchor,reference,value,std,heading,heading_std,x,y,z,covariance,readings";
+const HEADER: &str =
+    "t,tag,kind,anchor,reference,value,std,heading,heading_std,x,y,z,covariance,readings,interval,rate,rate_std";
 
 fn header_error(text: &str) -> (usize, String) {
     let error = CsvRecords::from_text(text, "in.csv").unwrap_err();
@@ -12,7 +13,9 @@ fn header_error(text: &str) -> (usize, String) {
 
 /// The (line, column) of the error of the single data row `row` under the full header.
 fn row_error(row: &str) -> (usize, String) {
-    let text = format!("{HEADER}\n{row}\n");
+    // the rows below spell out the first 14 columns; the last three (interval, rate, rate_std)
+    // are empty
+    let text = format!("{HEADER}\n{row},,,\n");
     let mut records = CsvRecords::from_text(&text, "in.csv").unwrap();
     let error = records.next().unwrap().unwrap_err();
     let (file, line, field) = located(&error);
@@ -67,7 +70,8 @@ fn missing_cells_name_the_column() {
     assert_eq!(row_error("1,a,rssi,,,-70,,,,,,,,"), (2, "anchor".into()));
     assert_eq!(row_error("1,a,range,R1,,,,,,,,,,"), (2, "value".into()));
     assert_eq!(row_error("1,a,tdoa,R1,,3,,,,,,,,"), (2, "reference".into()));
-    assert_eq!(row_error("1,a,odometry,,,3,,,,,,,,"), (2, "heading".into()));
+    assert_eq!(row_error("1,a,odometry_increment,,,3,,,,,,,,"), (2, "heading".into()));
+    assert_eq!(row_error("1,a,imu,,,,,,,1,2,,,"), (2, "rate".into()));
     assert_eq!(row_error("1,a,fix,,,,,,,1,,,1;0;0;1,"), (2, "y".into()));
     assert_eq!(row_error("1,a,fix,,,,,,,1,2,,,"), (2, "covariance".into()));
     assert_eq!(row_error("1,a,rssi_vector,,,,,,,,,,,"), (2, "readings".into()));
@@ -88,7 +92,7 @@ fn validation_errors_name_the_csv_column() {
     assert_eq!(row_error("1,a,range,R1,,nan,,,,,,,,"), (2, "value".into()));
     assert_eq!(row_error("1e16,a,range,R1,,4,,,,,,,,"), (2, "t".into()));
     // Wi-Fi FTM/RTT gives negative ranges for close devices: finite ones are accepted
-    let text = format!("{HEADER}\n1,a,range,R1,,-0.4,,,,,,,,\n");
+    let text = format!("{HEADER}\n1,a,range,R1,,-0.4,,,,,,,,,,,\n");
     assert!(CsvRecords::from_text(&text, "in.csv").unwrap().next().unwrap().is_ok());
     assert_eq!(row_error("1,a,range,R1,,4,-1,,,,,,,"), (2, "std".into()));
     assert_eq!(row_error("1,a,tdoa,R1,R1,3,,,,,,,,"), (2, "reference".into()));
@@ -109,13 +113,13 @@ fn unknown_kind_is_an_error() {
 
 #[test]
 fn short_rows_are_errors_and_reading_continues() {
-    let text = format!("{HEADER}\n# comment\n\n1,a,rssi,R1\n2,a,rssi,R1,,-70,,,,,,,,\n");
+    let text = format!("{HEADER}\n# comment\n\n1,a,rssi,R1\n2,a,rssi,R1,,-70,,,,,,,,,,,\n");
     let results: Vec<Result<Record>> = CsvRecords::from_text(&text, "in.csv").unwrap().collect();
     assert_eq!(results.len(), 2);
     let error = results[0].as_ref().unwrap_err();
     assert_eq!(located(error), ("in.csv", 4, "-"));
     assert!(
-        error.to_string().contains("row has 4 cells but the header has 14"),
+        error.to_string().contains("row has 4 cells but the header has 17"),
         "{error}"
     );
     assert_eq!(results[1].as_ref().unwrap().time_s, 2.0);
@@ -153,8 +157,8 @@ fn every_kind_is_written_in_its_own_columns() {
 #[test]
 fn non_utf8_rows_are_errors_and_reading_continues() {
     let mut bytes = format!("{HEADER}\n").into_bytes();
-    bytes.extend_from_slice(b"1,\xff,rssi,R1,,-70,,,,,,,,\n");
-    bytes.extend_from_slice(b"2,a,rssi,R1,,-70,,,,,,,,\n");
+    bytes.extend_from_slice(b"1,\xff,rssi,R1,,-70,,,,,,,,,,,\n");
+    bytes.extend_from_slice(b"2,a,rssi,R1,,-70,,,,,,,,,,,\n");
     let results: Vec<Result<Record>> = CsvRecords::new(bytes.as_slice(), "bin.csv").unwrap().collect();
     assert_eq!(results.len(), 2);
     let error = results[0].as_ref().unwrap_err();

@@ -81,6 +81,15 @@ wire! {
     heading_std_rad: f64,
     velocity_mps: Vec<f64>,
     covariance_m2ps2: Vec<f64>,
+    anchor_position_m: Vec<f64>,
+    yaw_rate_radps: f64,
+    std_radps: f64,
+    distance_m: f64,
+    yaw_change_rad: f64,
+    interval_s: f64,
+    distance_std_m: f64,
+    yaw_change_std_rad: f64,
+    angular_rate_radps: Vec<f64>,
 }
 
 /// Reads a [`Wire`] and leaves in `key` the key being read when an error occurred.
@@ -97,7 +106,7 @@ impl<'de> DeserializeSeed<'de> for WireSeed<'_> {
 }
 
 /// The kinds, as written in the `kind` field.
-const KINDS: [&str; 8] = [
+const KINDS: [&str; 11] = [
     "range",
     "rssi",
     "tdoa",
@@ -106,6 +115,9 @@ const KINDS: [&str; 8] = [
     "accelerometer",
     "odometry",
     "velocity",
+    "yaw_rate",
+    "odometry_increment",
+    "imu",
 ];
 
 /// Takes a required key out of the wire form.
@@ -126,6 +138,7 @@ impl Wire {
                 anchor: required(&mut self.anchor, "anchor", k)?,
                 range_m: required(&mut self.range_m, "range_m", k)?,
                 std_m: self.std_m.take(),
+                anchor_position_m: self.anchor_position_m.take(),
             },
             "rssi" => Measurement::Rssi {
                 anchor: required(&mut self.anchor, "anchor", k)?,
@@ -150,13 +163,30 @@ impl Wire {
             },
             "odometry" => Measurement::Odometry {
                 speed_mps: required(&mut self.speed_mps, "speed_mps", k)?,
-                heading_rad: required(&mut self.heading_rad, "heading_rad", k)?,
+                heading_rad: self.heading_rad.take(),
                 speed_std_mps: self.speed_std_mps.take(),
                 heading_std_rad: self.heading_std_rad.take(),
             },
             "velocity" => Measurement::Velocity {
                 velocity_mps: required(&mut self.velocity_mps, "velocity_mps", k)?,
                 covariance_m2ps2: self.covariance_m2ps2.take(),
+            },
+            "yaw_rate" => Measurement::YawRate {
+                yaw_rate_radps: required(&mut self.yaw_rate_radps, "yaw_rate_radps", k)?,
+                std_radps: self.std_radps.take(),
+            },
+            "odometry_increment" => Measurement::OdometryIncrement {
+                distance_m: required(&mut self.distance_m, "distance_m", k)?,
+                yaw_change_rad: required(&mut self.yaw_change_rad, "yaw_change_rad", k)?,
+                interval_s: required(&mut self.interval_s, "interval_s", k)?,
+                distance_std_m: self.distance_std_m.take(),
+                yaw_change_std_rad: self.yaw_change_std_rad.take(),
+            },
+            "imu" => Measurement::Imu {
+                acceleration_mps2: required(&mut self.acceleration_mps2, "acceleration_mps2", k)?,
+                angular_rate_radps: required(&mut self.angular_rate_radps, "angular_rate_radps", k)?,
+                std_mps2: self.std_mps2.take(),
+                std_radps: self.std_radps.take(),
             },
             _ => {
                 return Err(Invalid::new(
@@ -184,10 +214,16 @@ impl Wire {
             ..Wire::default()
         };
         match &record.measurement {
-            Measurement::Range { anchor, range_m, std_m } => {
+            Measurement::Range {
+                anchor,
+                range_m,
+                std_m,
+                anchor_position_m,
+            } => {
                 wire.anchor = Some(anchor.clone());
                 wire.range_m = Some(*range_m);
                 wire.std_m = *std_m;
+                wire.anchor_position_m.clone_from(anchor_position_m);
             }
             Measurement::Rssi { anchor, rssi_dbm } => {
                 wire.anchor = Some(anchor.clone());
@@ -226,7 +262,7 @@ impl Wire {
                 heading_std_rad,
             } => {
                 wire.speed_mps = Some(*speed_mps);
-                wire.heading_rad = Some(*heading_rad);
+                wire.heading_rad = *heading_rad;
                 wire.speed_std_mps = *speed_std_mps;
                 wire.heading_std_rad = *heading_std_rad;
             }
@@ -236,6 +272,37 @@ impl Wire {
             } => {
                 wire.velocity_mps = Some(velocity_mps.clone());
                 wire.covariance_m2ps2.clone_from(covariance_m2ps2);
+            }
+            Measurement::YawRate {
+                yaw_rate_radps,
+                std_radps,
+            } => {
+                wire.yaw_rate_radps = Some(*yaw_rate_radps);
+                wire.std_radps = *std_radps;
+            }
+            Measurement::OdometryIncrement {
+                distance_m,
+                yaw_change_rad,
+                interval_s,
+                distance_std_m,
+                yaw_change_std_rad,
+            } => {
+                wire.distance_m = Some(*distance_m);
+                wire.yaw_change_rad = Some(*yaw_change_rad);
+                wire.interval_s = Some(*interval_s);
+                wire.distance_std_m = *distance_std_m;
+                wire.yaw_change_std_rad = *yaw_change_std_rad;
+            }
+            Measurement::Imu {
+                acceleration_mps2,
+                angular_rate_radps,
+                std_mps2,
+                std_radps,
+            } => {
+                wire.acceleration_mps2 = Some(acceleration_mps2.clone());
+                wire.angular_rate_radps = Some(angular_rate_radps.clone());
+                wire.std_mps2 = *std_mps2;
+                wire.std_radps = *std_radps;
             }
         }
         wire

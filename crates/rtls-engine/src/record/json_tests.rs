@@ -19,7 +19,8 @@ fn the_brief_example_parses() {
         Measurement::Range {
             anchor: "R12".into(),
             range_m: 4.21,
-            std_m: Some(0.1)
+            std_m: Some(0.1),
+            anchor_position_m: None,
         }
     );
 }
@@ -70,8 +71,8 @@ fn missing_keys_are_errors_naming_the_key() {
         "covariance_m2"
     );
     assert_eq!(
-        error_field(r#"{"t": 1, "tag": "a", "kind": "odometry", "speed_mps": 1}"#),
-        "heading_rad"
+        error_field(r#"{"t": 1, "tag": "a", "kind": "odometry_increment", "distance_m": 1, "interval_s": 1}"#),
+        "yaw_change_rad"
     );
     assert_eq!(
         error_field(r#"{"t": 1, "tag": "a", "kind": "rssi_vector"}"#),

@@ -1,7 +1,8 @@
 //! Measurement records: what a reader or a tag reports, as it arrives at the manager layer.
 //!
 //! A [`Record`] is a time stamp, a tag id and one [`Measurement`] (range, RSSI, TDOA, RSSI vector,
-//! position fix, accelerometer sample, odometry speed + heading, velocity). Records travel as
+//! position fix, accelerometer sample, odometry speed + heading, velocity, yaw rate, odometry
+//! increment, body-frame IMU sample). Records travel as
 //! JSON Lines ([`parse_json_line`], [`JsonLines`], [`to_json_line`]) or CSV ([`CsvRecords`],
 //! [`to_csv_row`], [`CSV_COLUMNS`]); `docs/FORMATS.md` documents both with a JSON Schema.
 //! Records that arrive out of order are put back in order by a [`Reorderer`], which reports late
@@ -24,6 +25,10 @@ pub use csv_format::{to_csv_row, CsvRecords, CSV_COLUMNS};
 pub use json::{parse_json_line, to_json_line, JsonLines};
 pub use reorder::{Emitted, Reorderer};
 pub use time::{implausible_time, TimeGate, JUMP_CONFIRMATIONS, MAX_ABS_TIME_S};
+
+/// The longest interval of an [`Measurement::OdometryIncrement`], s (1 minute): longer ones are
+/// not increments but gaps.
+pub const MAX_INCREMENT_INTERVAL_S: f64 = 60.0;
 
 /// The longest record line the readers accept, bytes (1 MiB): a longer line is an error for
 /// that line (and is skipped without being held in memory), so a binary or endless input
@@ -160,6 +165,10 @@ pub enum Measurement {
         range_m: f64,
         /// Its standard deviation, m (≥ 0).
         std_m: Option<f64>,
+        /// The anchor's position at the time of the range `[x, y]` or `[x, y, z]` (site frame,
+        /// m), for an anchor that moves (on a vehicle, a drone, another tag); absent: the
+        /// reader's position in the site. A 2-component position keeps the reader's height.
+        anchor_position_m: Option<Vec<f64>>,
     },
     /// Received signal strength at (or from) an anchor.
     Rssi {
@@ -202,12 +211,48 @@ pub enum Measurement {
     Odometry {
         /// Speed, m/s (≥ 0; the direction is the heading).
         speed_mps: f64,
-        /// Heading, rad, counter-clockwise from the site's x axis.
-        heading_rad: f64,
+        /// Heading, rad, counter-clockwise from the site's x axis; absent: the track's heading
+        /// channel supplies it (yaw rates integrated, aligned with the course over ground).
+        heading_rad: Option<f64>,
         /// Speed standard deviation, m/s (≥ 0).
         speed_std_mps: Option<f64>,
         /// Heading standard deviation, rad (≥ 0).
         heading_std_rad: Option<f64>,
+    },
+    /// A yaw rate: a gyro's rate about the vertical, or a vehicle's from its wheels or CAN bus.
+    /// It drives the track's heading channel (with the gyro's bias as a state).
+    YawRate {
+        /// Rate of turn, rad/s, counter-clockwise positive.
+        yaw_rate_radps: f64,
+        /// Its standard deviation, rad/s (≥ 0).
+        std_radps: Option<f64>,
+    },
+    /// An odometry increment over the interval ending at the record's time: distance
+    /// travelled and change of heading (wheel encoders).
+    OdometryIncrement {
+        /// Distance travelled, m (≥ 0).
+        distance_m: f64,
+        /// Change of heading, rad, counter-clockwise positive.
+        yaw_change_rad: f64,
+        /// The interval, s (> 0).
+        interval_s: f64,
+        /// Distance standard deviation, m (≥ 0).
+        distance_std_m: Option<f64>,
+        /// Heading change standard deviation, rad (≥ 0).
+        yaw_change_std_rad: Option<f64>,
+    },
+    /// A body-frame inertial sample: specific force and angular rate in the sensor's axes
+    /// (x forward, y left, z up when mounted level).
+    Imu {
+        /// Specific force `[x, y]` or `[x, y, z]`, m/s² (with `z`, gravity included: at rest
+        /// it reads `[0, 0, 9.81]` when level).
+        acceleration_mps2: Vec<f64>,
+        /// Angular rate `[z]` (about the vertical, sensor level) or `[x, y, z]`, rad/s.
+        angular_rate_radps: Vec<f64>,
+        /// Per-axis specific-force standard deviation, m/s² (≥ 0).
+        std_mps2: Option<f64>,
+        /// Per-axis angular-rate standard deviation, rad/s (≥ 0).
+        std_radps: Option<f64>,
     },
     /// A velocity measurement in the site frame.
     Velocity {
@@ -220,7 +265,8 @@ pub enum Measurement {
 
 impl Measurement {
     /// The kind's name as written in the `kind` field of both formats (`"range"`, `"rssi"`,
-    /// `"tdoa"`, `"rssi_vector"`, `"fix"`, `"accelerometer"`, `"odometry"`, `"velocity"`).
+    /// `"tdoa"`, `"rssi_vector"`, `"fix"`, `"accelerometer"`, `"odometry"`, `"velocity"`,
+    /// `"yaw_rate"`, `"odometry_increment"`, `"imu"`).
     ///
     /// # Examples
     /// ```
@@ -240,6 +286,9 @@ impl Measurement {
             Self::Accelerometer { .. } => "accelerometer",
             Self::Odometry { .. } => "odometry",
             Self::Velocity { .. } => "velocity",
+            Self::YawRate { .. } => "yaw_rate",
+            Self::OdometryIncrement { .. } => "odometry_increment",
+            Self::Imu { .. } => "imu",
         }
     }
 }
@@ -310,9 +359,17 @@ impl Record {
         }
         id("tag", &self.tag)?;
         match &self.measurement {
-            Measurement::Range { anchor, range_m, std_m } => {
+            Measurement::Range {
+                anchor,
+                range_m,
+                std_m,
+                anchor_position_m,
+            } => {
                 id("anchor", anchor)?;
                 finite("range_m", *range_m)?;
+                if let Some(position) = anchor_position_m {
+                    vector("anchor_position_m", position)?;
+                }
                 optional_std("std_m", *std_m)
             }
             Measurement::Rssi { anchor, rssi_dbm } => {
@@ -358,9 +415,59 @@ impl Record {
                 heading_std_rad,
             } => {
                 non_negative("speed_mps", *speed_mps)?;
-                finite("heading_rad", *heading_rad)?;
+                if let Some(heading_rad) = heading_rad {
+                    finite("heading_rad", *heading_rad)?;
+                }
                 optional_std("speed_std_mps", *speed_std_mps)?;
                 optional_std("heading_std_rad", *heading_std_rad)
+            }
+            Measurement::YawRate {
+                yaw_rate_radps,
+                std_radps,
+            } => {
+                finite("yaw_rate_radps", *yaw_rate_radps)?;
+                optional_std("std_radps", *std_radps)
+            }
+            Measurement::OdometryIncrement {
+                distance_m,
+                yaw_change_rad,
+                interval_s,
+                distance_std_m,
+                yaw_change_std_rad,
+            } => {
+                non_negative("distance_m", *distance_m)?;
+                finite("yaw_change_rad", *yaw_change_rad)?;
+                non_negative("interval_s", *interval_s)?;
+                if *interval_s == 0.0 || *interval_s > MAX_INCREMENT_INTERVAL_S {
+                    return Err(Invalid::new(
+                        "interval_s",
+                        format!("{interval_s} s; an increment's interval must be in (0, {MAX_INCREMENT_INTERVAL_S}] s"),
+                    ));
+                }
+                optional_std("distance_std_m", *distance_std_m)?;
+                optional_std("yaw_change_std_rad", *yaw_change_std_rad)
+            }
+            Measurement::Imu {
+                acceleration_mps2,
+                angular_rate_radps,
+                std_mps2,
+                std_radps,
+            } => {
+                vector("acceleration_mps2", acceleration_mps2)?;
+                if !matches!(angular_rate_radps.len(), 1 | 3) {
+                    return Err(Invalid::new(
+                        "angular_rate_radps",
+                        format!(
+                            "has {} components; must have 1 (z, sensor level) or 3 (x, y, z)",
+                            angular_rate_radps.len()
+                        ),
+                    ));
+                }
+                for (i, &w) in angular_rate_radps.iter().enumerate() {
+                    finite(&format!("angular_rate_radps[{i}]"), w)?;
+                }
+                optional_std("std_mps2", *std_mps2)?;
+                optional_std("std_radps", *std_radps)
             }
             Measurement::Velocity {
                 velocity_mps,

@@ -33,6 +33,7 @@ fn range(range_m: f64, std_m: Option<f64>) -> Measurement {
         anchor: "R1".into(),
         range_m,
         std_m,
+        anchor_position_m: None,
     }
 }
 
@@ -100,7 +101,7 @@ fn ranges_are_finite_and_stds_non_negative() {
     );
     let odometry = |speed_mps, heading_rad, speed_std_mps, heading_std_rad| Measurement::Odometry {
         speed_mps,
-        heading_rad,
+        heading_rad: Some(heading_rad),
         speed_std_mps,
         heading_std_rad,
     };
@@ -256,13 +257,13 @@ pub(super) fn sample_measurements() -> Vec<Measurement> {
         },
         Measurement::Odometry {
             speed_mps: 8.3,
-            heading_rad: 1.25,
+            heading_rad: Some(1.25),
             speed_std_mps: Some(0.1),
             heading_std_rad: Some(0.02),
         },
         Measurement::Odometry {
             speed_mps: 0.0,
-            heading_rad: -3.0,
+            heading_rad: Some(-3.0),
             speed_std_mps: None,
             heading_std_rad: None,
         },
@@ -273,6 +274,51 @@ pub(super) fn sample_measurements() -> Vec<Measurement> {
         Measurement::Velocity {
             velocity_mps: vec![0.8, 0.1, 0.0],
             covariance_m2ps2: None,
+        },
+        Measurement::Range {
+            anchor: "rover-2".into(),
+            range_m: 14.25,
+            std_m: Some(0.1),
+            anchor_position_m: Some(vec![3.5, -1.25, 2.0]),
+        },
+        Measurement::Range {
+            anchor: "rover-2".into(),
+            range_m: 14.25,
+            std_m: None,
+            anchor_position_m: Some(vec![3.5, -1.25]),
+        },
+        Measurement::Odometry {
+            speed_mps: 4.5,
+            heading_rad: None,
+            speed_std_mps: Some(0.05),
+            heading_std_rad: None,
+        },
+        Measurement::YawRate {
+            yaw_rate_radps: -0.125,
+            std_radps: Some(0.004),
+        },
+        Measurement::YawRate {
+            yaw_rate_radps: 0.0,
+            std_radps: None,
+        },
+        Measurement::OdometryIncrement {
+            distance_m: 0.42,
+            yaw_change_rad: -0.01,
+            interval_s: 0.1,
+            distance_std_m: Some(0.005),
+            yaw_change_std_rad: None,
+        },
+        Measurement::Imu {
+            acceleration_mps2: vec![0.1, -0.2, 9.79],
+            angular_rate_radps: vec![0.01, -0.02, 0.3],
+            std_mps2: Some(0.05),
+            std_radps: Some(0.003),
+        },
+        Measurement::Imu {
+            acceleration_mps2: vec![0.1, -0.2],
+            angular_rate_radps: vec![0.3],
+            std_mps2: None,
+            std_radps: None,
         },
     ]
 }
@@ -313,8 +359,11 @@ pub(super) fn many_records() -> Vec<Record> {
                 covariance_m2[0] = value + 5.0;
             }
             Measurement::Accelerometer { acceleration_mps2, .. } => acceleration_mps2[1] = value,
-            Measurement::Odometry { heading_rad, .. } => *heading_rad = value,
+            Measurement::Odometry { heading_rad, .. } => *heading_rad = Some(value),
             Measurement::Velocity { velocity_mps, .. } => velocity_mps[0] = value,
+            Measurement::YawRate { yaw_rate_radps, .. } => *yaw_rate_radps = value,
+            Measurement::OdometryIncrement { distance_m, .. } => *distance_m = value,
+            Measurement::Imu { angular_rate_radps, .. } => angular_rate_radps[0] = -value,
         }
         let time_s = 1.7e9 + f64::from(i) * 0.013 + unit;
         let record = Record {
@@ -376,7 +425,7 @@ fn every_jsonl_example_in_formats_md_parses() {
         .flat_map(|b| JsonLines::new(b.as_bytes(), "FORMATS.md"))
         .map(Result::unwrap)
         .collect();
-    assert_eq!(examples.len(), 13);
+    assert_eq!(examples.len(), 18);
     let mut kinds: Vec<&str> = examples.iter().map(|r| r.measurement.kind()).collect();
     kinds.dedup();
     assert_eq!(
@@ -389,7 +438,10 @@ fn every_jsonl_example_in_formats_md_parses() {
             "fix",
             "accelerometer",
             "odometry",
-            "velocity"
+            "velocity",
+            "yaw_rate",
+            "odometry_increment",
+            "imu"
         ]
     );
 }

@@ -47,6 +47,7 @@ fn accepted_keys() -> BTreeSet<String> {
         ("tracker.initiation", fields_of::<Initiation>("")),
         ("tracker.imm", fields_of::<ImmSettings>("")),
         ("tracker.adaptive_noise", fields_of::<AdaptiveNoiseSettings>("")),
+        ("tracker.heading", fields_of::<HeadingSettings>("")),
         ("anonymous", fields_of::<AnonymousTrackerSettings>("")),
         ("anonymous.lifecycle", fields_of::<LifecycleSettings>("")),
         ("scheduling", fields_of::<SchedulingSettings>("")),

@@ -2,7 +2,7 @@
 
 use std::collections::HashMap;
 
-use super::{invalid, keys, ranges, FilterKind, Pipeline, Site, MAX_SITE_BYTES};
+use super::{invalid, keys, platform, ranges, FilterKind, Pipeline, Site, MAX_SITE_BYTES};
 use crate::error::{EngineError, Result};
 use crate::zones::Shape;
 
@@ -16,6 +16,11 @@ pub(super) fn load(text: &str, file: &str) -> Result<Site> {
         });
     }
     let mut site: Site = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
+    if site.tracker.platform.is_some() {
+        // the keys the file wrote win over the platform's defaults
+        let table: toml::Table = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
+        platform::apply(&mut site.tracker, table.get("tracker").and_then(toml::Value::as_table));
+    }
     validate(&mut site, text, file)?;
     Ok(site)
 }

@@ -16,10 +16,12 @@ mod keys;
 mod limits;
 mod load;
 mod options;
+pub mod platform;
 mod ranges;
 
 pub use limits::{read_text_file, MAX_RADIO_MAP_BYTES, MAX_RADIO_MAP_ROWS, MAX_SITE_BYTES, MAX_ZONE_VERTICES};
-pub use options::{AdaptiveNoiseSettings, ImmSettings, SchedulingCell, SchedulingSettings};
+pub use options::{AdaptiveNoiseSettings, HeadingSettings, ImmSettings, SchedulingCell, SchedulingSettings};
+pub use platform::Platform;
 
 use std::path::PathBuf;
 
@@ -79,7 +81,8 @@ pub struct Site {
     /// A fingerprint database to load (only referenced here, not loaded).
     #[serde(default)]
     pub fingerprints: Option<FingerprintDatabase>,
-    /// How tags are tracked.
+    /// How tags are tracked (every key has a default).
+    #[serde(default)]
     pub tracker: TrackerSettings,
     /// Anonymous detections (records with tag `"*"`: ranges or fixes that carry no identity,
     /// like seed 003's ultrasonic echoes) are tracked by the multi-target association of
@@ -306,25 +309,41 @@ pub struct Initiation {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrackerSettings {
-    /// Fix-then-filter or tightly coupled.
+    /// What carries the tags: `walker`, `vehicle` or `robot`; fills the keys left out with that
+    /// platform's defaults ([`platform`](self::platform)). Absent: the generic defaults.
+    #[serde(default)]
+    pub platform: Option<Platform>,
+    /// Fix-then-filter or tightly coupled. Default tightly coupled.
+    #[serde(default = "platform::default_pipeline")]
     pub pipeline: Pipeline,
-    /// Motion model.
+    /// Motion model. Default `cv` (`imm` for a vehicle).
+    #[serde(default = "platform::default_motion_model")]
     pub motion_model: MotionModelKind,
-    /// Filter kind.
+    /// Filter kind. Default `ekf`.
+    #[serde(default = "platform::default_filter")]
     pub filter: FilterKind,
-    /// Process noise: white acceleration (CV, random walk: velocity) std, m/s² (> 0).
+    /// Process noise: white acceleration (CV, random walk: velocity) std, m/s² (> 0). Default 1
+    /// (walker 1, vehicle 2, robot 0.5).
+    #[serde(default = "platform::default_acceleration_noise_std_mps2")]
     pub acceleration_noise_std_mps2: f64,
     /// Probability that a correct measurement falls inside the χ² validation gate, in (0, 1).
+    /// Default 0.999.
+    #[serde(default = "platform::default_gate_probability")]
     pub gate_probability: f64,
-    /// Track confirmation rule.
+    /// Track confirmation rule. Default 3 updates within 5 s.
+    #[serde(default = "platform::default_initiation")]
     pub initiation: Initiation,
     /// After this long without a measurement a track coasts no more and is reported lost, s
-    /// (> 0).
+    /// (> 0). Default 5.
+    #[serde(default = "platform::default_coast_timeout_s")]
     pub coast_timeout_s: f64,
     /// After this long without a measurement a track is deleted, s (≥ `coast_timeout_s`).
+    /// Default 60.
+    #[serde(default = "platform::default_delete_timeout_s")]
     pub delete_timeout_s: f64,
     /// Records up to this much older than the newest are re-ordered; older ones are reported
-    /// late, s (≥ 0).
+    /// late, s (≥ 0). Default 0.5.
+    #[serde(default = "platform::default_reorder_window_s")]
     pub reorder_window_s: f64,
     /// Tracked dimensions: 2 (x, y) or 3 (x, y, z). Default 2.
     #[serde(default = "default_dimensions")]
@@ -356,6 +375,9 @@ pub struct TrackerSettings {
     /// Innovation-based adaptive measurement noise (on by default).
     #[serde(default)]
     pub adaptive_noise: AdaptiveNoiseSettings,
+    /// The heading channel (yaw rates, odometry without heading, IMU samples).
+    #[serde(default)]
+    pub heading: HeadingSettings,
 }
 
 fn default_dimensions() -> u8 {

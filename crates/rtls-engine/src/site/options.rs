@@ -104,6 +104,61 @@ pub struct AdaptiveNoiseSettings {
     pub correlation_s: f64,
 }
 
+/// `[tracker.heading]`: the heading channel of tracks that send yaw rates, odometry without a
+/// heading, odometry increments or body-frame IMU samples (see the tracker's `heading` module and
+/// [`rtls_estimation::aided::HeadingModel`]). State: heading, gyro bias, odometer heading offset.
+/// The defaults suit a MEMS gyro (a phone's, a robot's) and wheel odometry.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HeadingSettings {
+    /// A yaw rate's standard deviation when its record has none, rad/s (> 0). Default 0.005.
+    pub gyro_noise_std_radps: f64,
+    /// Prior standard deviation of the gyro's bias, rad/s (> 0). Default 0.01 (0.6°/s: an
+    /// uncalibrated MEMS gyro).
+    pub gyro_bias_std_radps: f64,
+    /// Random walk of the gyro's bias, rad/s/√s (> 0). Default 1e-4.
+    pub gyro_bias_random_walk_radps_per_sqrt_s: f64,
+    /// Without a yaw rate the heading is a random walk of this density, rad/√s (> 0). Default
+    /// 0.3 (a vehicle or walker can turn a right angle in a few seconds).
+    pub heading_random_walk_rad_per_sqrt_s: f64,
+    /// Random walk (drift) of an odometer heading's offset from the true heading, rad/√s (> 0).
+    /// Default 0.005 (about 20° in an hour, seed 004's gyro drift).
+    pub odometer_drift_rad_per_sqrt_s: f64,
+    /// Prior standard deviation of an odometer heading's offset, rad (> 0). Default 0.05:
+    /// odometry headings are in the site frame (`docs/FORMATS.md`), up to a few degrees.
+    pub odometer_offset_std_rad: f64,
+    /// Whether the track's course over ground is its heading (a vehicle, a robot, a sensor
+    /// carried facing forward). Default true; false for a sensor whose axes are not the
+    /// direction of travel (then headings come from odometry records only).
+    pub course_is_heading: bool,
+    /// The course is used as a heading reference from this speed on, m/s (> 0). Default 0.5.
+    pub course_min_speed_mps: f64,
+    /// Standard deviation of the heading about the course (side slip, crabbing, gait), rad
+    /// (> 0). Default 0.05.
+    pub course_heading_std_rad: f64,
+    /// Whether an IMU's horizontal specific force, rotated into the site frame by the heading,
+    /// drives the prediction as a control input. Default false: an uncalibrated
+    /// accelerometer's bias and tilt leak into velocity faster than the CV model's noise allows.
+    pub imu_acceleration: bool,
+}
+
+impl Default for HeadingSettings {
+    fn default() -> Self {
+        Self {
+            gyro_noise_std_radps: 0.005,
+            gyro_bias_std_radps: 0.01,
+            gyro_bias_random_walk_radps_per_sqrt_s: 1e-4,
+            heading_random_walk_rad_per_sqrt_s: 0.3,
+            odometer_drift_rad_per_sqrt_s: 0.005,
+            odometer_offset_std_rad: 0.05,
+            course_is_heading: true,
+            course_min_speed_mps: 0.5,
+            course_heading_std_rad: 0.05,
+            imu_acceleration: false,
+        }
+    }
+}
+
 impl Default for AdaptiveNoiseSettings {
     fn default() -> Self {
         Self {

@@ -114,6 +114,11 @@ const TURN_NOISE_RADPS2: Bounds = Bounds::closed(1e-6, 100.0, "rad/s²");
 const MEMORY_S: Bounds = Bounds::closed(1e-3, 1e6, "s");
 const NOISE_SCALE: Bounds = Bounds::closed(1.0, 1e6, "(multiple of the stated variance)");
 const CORRELATION_S: Bounds = Bounds::closed(0.0, 3600.0, "s");
+const RATE_STD_RADPS: Bounds = Bounds::closed(1e-7, 10.0, "rad/s");
+const RATE_RANDOM_WALK: Bounds = Bounds::closed(1e-9, 1.0, "rad/s/√s");
+const ANGLE_RANDOM_WALK: Bounds = Bounds::closed(1e-7, 10.0, "rad/√s");
+const ANGLE_STD_RAD: Bounds = Bounds::closed(1e-5, 3.2, "rad");
+const SPEED_MPS: Bounds = Bounds::closed(1e-3, 100.0, "m/s");
 const DELETE_TIMEOUT_MAX_S: f64 = 604_800.0;
 const TOLERANCE_M: Bounds = Bounds::closed(0.0, 1000.0, "m");
 const DELAY_S: Bounds = Bounds::closed(0.0, 86_400.0, "s");
@@ -367,6 +372,47 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
         adaptive.correlation_s,
         CORRELATION_S,
     ));
+    let heading = &t.heading;
+    for (key, value, bounds) in [
+        (
+            "heading.gyro_noise_std_radps",
+            heading.gyro_noise_std_radps,
+            RATE_STD_RADPS,
+        ),
+        (
+            "heading.gyro_bias_std_radps",
+            heading.gyro_bias_std_radps,
+            RATE_STD_RADPS,
+        ),
+        (
+            "heading.gyro_bias_random_walk_radps_per_sqrt_s",
+            heading.gyro_bias_random_walk_radps_per_sqrt_s,
+            RATE_RANDOM_WALK,
+        ),
+        (
+            "heading.heading_random_walk_rad_per_sqrt_s",
+            heading.heading_random_walk_rad_per_sqrt_s,
+            ANGLE_RANDOM_WALK,
+        ),
+        (
+            "heading.odometer_drift_rad_per_sqrt_s",
+            heading.odometer_drift_rad_per_sqrt_s,
+            ANGLE_RANDOM_WALK,
+        ),
+        (
+            "heading.odometer_offset_std_rad",
+            heading.odometer_offset_std_rad,
+            ANGLE_STD_RAD,
+        ),
+        ("heading.course_min_speed_mps", heading.course_min_speed_mps, SPEED_MPS),
+        (
+            "heading.course_heading_std_rad",
+            heading.course_heading_std_rad,
+            ANGLE_STD_RAD,
+        ),
+    ] {
+        out.push(within(at(key), value, bounds));
+    }
 }
 
 #[cfg(test)]

@@ -359,10 +359,16 @@ impl SurveyMap {
     pub fn correct_record(&self, record: &Record, position_m: [f64; 2]) -> Record {
         let bias = |reader: &str, kind| self.correction(reader, kind, position_m).map_or(0.0, |c| c.bias);
         let measurement = match &record.measurement {
-            Measurement::Range { anchor, range_m, std_m } => Measurement::Range {
+            Measurement::Range {
+                anchor,
+                range_m,
+                std_m,
+                anchor_position_m,
+            } => Measurement::Range {
                 anchor: anchor.clone(),
                 range_m: (range_m - bias(anchor, ResidualKind::Range)).max(0.0),
                 std_m: *std_m,
+                anchor_position_m: anchor_position_m.clone(),
             },
             Measurement::Rssi { anchor, rssi_dbm } => Measurement::Rssi {
                 anchor: anchor.clone(),

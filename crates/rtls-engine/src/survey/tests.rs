@@ -67,6 +67,7 @@ fn range(anchor: &str, range_m: f64) -> Measurement {
         anchor: anchor.into(),
         range_m,
         std_m: None,
+        anchor_position_m: None,
     }
 }
 

@@ -45,9 +45,11 @@ impl Anchor {
 /// A resolved anchor measurement: anchor indices, bias-corrected value and its variance.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum AnchorReading {
-    /// Bias-corrected range `r − b` (m), variance m².
+    /// Bias-corrected range `r − b` (m), variance m², to the anchor at `position_m` (the
+    /// reader's site position, or the record's for a moving anchor).
     Range {
         anchor: usize,
+        position_m: [f64; 3],
         range_m: f64,
         variance_m2: f64,
     },
@@ -132,14 +134,27 @@ impl Anchors {
     /// `std_m` in the record and no `radio.range` / `radio.path_loss` in the site).
     pub(crate) fn resolve(&self, measurement: &Measurement) -> Result<Option<AnchorReading>, String> {
         match measurement {
-            Measurement::Range { anchor, range_m, std_m } => {
+            Measurement::Range {
+                anchor,
+                range_m,
+                std_m,
+                anchor_position_m,
+            } => {
                 let index = self.working(anchor)?;
                 let a = &self.list[index];
+                // a moving anchor's position in the record; a 2-D one keeps the reader's height
+                let position_m = match anchor_position_m.as_deref() {
+                    Some([x, y]) => [*x, *y, a.position_m[2]],
+                    Some([x, y, z]) => [*x, *y, *z],
+                    Some(_) => return Err("`anchor_position_m` must have 2 or 3 components".to_string()),
+                    None => a.position_m,
+                };
                 let std_m = std_m.or(a.range_std_m).ok_or_else(|| {
                     format!("no range noise: give `std_m` in the record or `radio.range` for reader `{anchor}`")
                 })?;
                 Ok(Some(AnchorReading::Range {
                     anchor: index,
+                    position_m,
                     // r − b
                     range_m: range_m - a.range_bias_m,
                     variance_m2: floor_variance(std_m * std_m),

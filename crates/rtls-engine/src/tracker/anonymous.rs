@@ -73,10 +73,10 @@ impl AnonymousFront {
             Measurement::Range { .. } => match anchors.resolve(measurement) {
                 Ok(Some(AnchorReading::Range {
                     anchor,
+                    position_m: a,
                     range_m,
                     variance_m2,
                 })) => {
-                    let a = anchors.get(anchor).position_m;
                     // planar range: √(r² − (a_z − h)²)
                     let dz = a[2] - self.tag_height_m;
                     // a negative range (Wi-Fi FTM/RTT next to the responder) is about 0

@@ -23,10 +23,12 @@ use rtls_estimation::imm::ImmState;
 use rtls_estimation::motion::ConstantVelocity;
 use rtls_estimation::{EstimationError, Gaussian};
 
+use super::heading::HeadingChannel;
 use super::modes::Manoeuvres;
 use super::noise::NoiseScales;
 use super::schedule::{Scheduling, TrackSchedule};
 use rtls_estimation::adaptive::AdaptiveNoise;
+use rtls_estimation::aided::HeadingModel;
 
 /// An accelerometer sample drives the prediction (zero-order hold) for at most this long, s.
 pub(super) const ACCELERATION_HOLD_S: f64 = 1.0;
@@ -61,6 +63,8 @@ pub(crate) struct Shared {
     pub(crate) adaptive: Option<AdaptiveNoise>,
     /// The box around the readers that a diverged track's position leaves.
     pub(crate) bounds: SiteBounds,
+    /// The heading channel's model (`[tracker.heading]`).
+    pub(crate) heading_model: HeadingModel,
 }
 
 /// One tag's track: its state (a value it owns), lifecycle and pending work.
@@ -98,6 +102,8 @@ pub(crate) struct Track<const N: usize> {
     pub(super) rejection_rate: f64,
     /// Gated updates since the track (re)started.
     pub(super) gated_updates: u32,
+    /// Heading, gyro bias and odometer offset, for yaw rates, odometry and IMU samples.
+    pub(super) heading: HeadingChannel,
 }
 
 impl<const N: usize> Track<N> {
@@ -120,6 +126,7 @@ impl<const N: usize> Track<N> {
             noise: NoiseScales::default(),
             rejection_rate: 0.0,
             gated_updates: 0,
+            heading: HeadingChannel::default(),
         }
     }
 
@@ -174,6 +181,14 @@ impl<const N: usize> Core<N> {
 
     pub(crate) fn track_count(&self) -> usize {
         self.tracks.len()
+    }
+
+    /// The heading channel of `tag`'s track (tests).
+    #[cfg(test)]
+    pub(crate) fn heading_state(&self, tag: &str) -> Option<rtls_estimation::aided::HeadingState> {
+        self.index
+            .get(tag)
+            .and_then(|&i| self.tracks[i].heading.state().copied())
     }
 
     pub(crate) fn status(&self, tag: &str) -> Option<TrackStatus> {

@@ -7,10 +7,9 @@
 //! fix, then the others. Applied at once, it would move the state past the fix's time, and the
 //! fix's prediction would go backwards in time.
 
-use rtls_estimation::aided::odometry_velocity;
-
 use super::core::{dimensions, rejected, Shared, Track};
 use super::epoch::raw_fix;
+use super::heading;
 use super::output::Output;
 use super::update::{fix_update, velocity_update};
 use crate::error::Result;
@@ -126,24 +125,45 @@ pub(super) fn apply_direct<const N: usize>(
             heading_rad,
             speed_std_mps,
             heading_std_rad,
-        } => {
-            let (Some(speed_std), Some(heading_std)) = (speed_std_mps, heading_std_rad) else {
-                let reason = "odometry needs `speed_std_mps` and `heading_std_rad`".to_string();
-                out.events.push(rejected(&track.tag, time_s, "odometry", reason));
-                return Ok(());
-            };
-            match odometry_velocity(*speed_mps, *heading_rad, *speed_std, *heading_std) {
-                Ok((v, r)) => {
-                    let covariance = [r[(0, 0)], r[(0, 1)], r[(1, 0)], r[(1, 1)]];
-                    velocity_update(shared, track, time_s, &[v[0], v[1]], &covariance, "odometry", out)
-                }
-                Err(error) => {
-                    let reason = format!("odometry cannot be used: {error}");
-                    out.events.push(rejected(&track.tag, time_s, "odometry", reason));
-                    Ok(())
-                }
-            }
-        }
+        } => heading::odometry(
+            shared,
+            track,
+            time_s,
+            *speed_mps,
+            *heading_rad,
+            *speed_std_mps,
+            *heading_std_rad,
+            "odometry",
+            out,
+        ),
+        Measurement::YawRate {
+            yaw_rate_radps,
+            std_radps,
+        } => heading::yaw_rate(shared, track, time_s, *yaw_rate_radps, *std_radps),
+        Measurement::OdometryIncrement {
+            distance_m,
+            yaw_change_rad,
+            interval_s,
+            distance_std_m,
+            yaw_change_std_rad,
+        } => heading::increment(
+            shared,
+            track,
+            time_s,
+            *distance_m,
+            *yaw_change_rad,
+            *interval_s,
+            *distance_std_m,
+            *yaw_change_std_rad,
+            "odometry_increment",
+            out,
+        ),
+        Measurement::Imu {
+            acceleration_mps2,
+            angular_rate_radps,
+            std_radps,
+            ..
+        } => heading::imu(shared, track, time_s, acceleration_mps2, angular_rate_radps, *std_radps),
         Measurement::Range { .. }
         | Measurement::Rssi { .. }
         | Measurement::Tdoa { .. }

@@ -11,7 +11,15 @@
 //!
 //! In both, `fix` records and fingerprint scans (`rssi_vector`, located in the site's radio map)
 //! update the position, `velocity` and `odometry` (speed + heading) the velocity, and an
-//! `accelerometer` sample drives the prediction for up to 1 s (seed 002).
+//! `accelerometer` sample drives the prediction for up to 1 s (seed 002). A range may carry its
+//! anchor's position (`anchor_position_m`, a moving anchor).
+//!
+//! # Heading (`[tracker.heading]`)
+//! Each track keeps a heading channel — heading, gyro bias, odometer heading offset
+//! ([`rtls_estimation::aided::HeadingModel`]). `yaw_rate`, `odometry_increment` and body-frame
+//! `imu` samples drive it; odometry headings and the course over ground (chords between the
+//! track's positions after fixes) align it and calibrate the biases; a speed without a heading
+//! (`odometry` without `heading_rad`, an increment's distance) becomes a velocity along it.
 //!
 //! # Motion models (`tracker.motion_model`)
 //! - **cv**: constant velocity with white acceleration `σ_a` (seed 000).
@@ -115,6 +123,7 @@ mod core;
 mod direct;
 mod divergence;
 mod epoch;
+mod heading;
 pub(crate) mod models;
 mod modes;
 mod noise;
@@ -126,6 +135,8 @@ mod solve;
 mod tests;
 #[cfg(test)]
 mod tests_anonymous;
+#[cfg(test)]
+mod tests_heading;
 #[cfg(test)]
 mod tests_imm;
 #[cfg(test)]
@@ -142,6 +153,7 @@ pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
 pub(crate) use schedule::scheduling_layout;
 
 use rtls_estimation::adaptive::AdaptiveNoise;
+use rtls_estimation::aided::HeadingModel;
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, SigmaPointParameters, UnscentedKalmanFilter};
 use rtls_estimation::motion::{ConstantVelocity, ProcessNoise};
 use rtls_estimation::stats::chi_square_quantile;
@@ -265,6 +277,13 @@ impl Tracker {
                 None
             },
             bounds: divergence::SiteBounds::new(site),
+            heading_model: HeadingModel::new(
+                settings.heading.gyro_bias_std_radps,
+                settings.heading.gyro_bias_random_walk_radps_per_sqrt_s,
+                settings.heading.heading_random_walk_rad_per_sqrt_s,
+                settings.heading.odometer_drift_rad_per_sqrt_s,
+                settings.heading.odometer_offset_std_rad,
+            )?,
         };
         let monitor = site.zone_monitor()?;
         let tracks = if settings.dimensions == 3 {
@@ -285,6 +304,15 @@ impl Tracker {
             output_interval_s: settings.output_interval_s,
             now_s: f64::NEG_INFINITY,
         })
+    }
+
+    /// The heading channel of `tag`'s track (tests).
+    #[cfg(test)]
+    pub(crate) fn heading_state(&self, tag: &str) -> Option<rtls_estimation::aided::HeadingState> {
+        match &self.tracks {
+            Tracks::Planar(core) => core.heading_state(tag),
+            Tracks::Spatial(core) => core.heading_state(tag),
+        }
     }
 
     /// Adds the fingerprint radio map that `rssi_vector` records are located in.

@@ -104,16 +104,18 @@ fn epoch_ranges<const D: usize>(
     anchors: &Anchors,
     readings: &[AnchorReading],
     tag_height_m: f64,
-) -> Result<Vec<(usize, f64, f64)>, String> {
-    // per anchor: Σ wᵢ rᵢ and Σ wᵢ with wᵢ = 1/σᵢ²
-    let mut sums: Vec<(usize, f64, f64)> = Vec::new();
+) -> Result<Vec<EpochRange>, String> {
+    // per anchor position: Σ wᵢ rᵢ and Σ wᵢ with wᵢ = 1/σᵢ² (a moving anchor's ranges from
+    // different places are different stations)
+    let mut sums: Vec<EpochRange> = Vec::new();
     for reading in readings {
-        let (anchor, range_m, variance_m2) = match *reading {
+        let (anchor, position_m, range_m, variance_m2) = match *reading {
             AnchorReading::Range {
                 anchor,
+                position_m,
                 range_m,
                 variance_m2,
-            } => (anchor, range_m, variance_m2),
+            } => (anchor, position_m, range_m, variance_m2),
             AnchorReading::Rssi {
                 anchor, rssi_dbm, law, ..
             } => {
@@ -124,34 +126,64 @@ fn epoch_ranges<const D: usize>(
                     .estimate_distance_m(rssi_dbm, DistanceEstimate::Median)
                     .map_err(|e| e.to_string())?;
                 let sigma = law.range_std_m(d).map_err(|e| e.to_string())?;
-                (anchor, d, (sigma * sigma).max(1e-6))
+                (anchor, anchors.get(anchor).position_m, d, (sigma * sigma).max(1e-6))
             }
             AnchorReading::Tdoa { .. } => continue,
         };
         let weight = 1.0 / variance_m2;
-        match sums.iter_mut().find(|(a, _, _)| *a == anchor) {
+        match sums
+            .iter_mut()
+            .find(|e| e.anchor == anchor && e.position_m == position_m)
+        {
             Some(entry) => {
-                entry.1 += weight * range_m;
-                entry.2 += weight;
+                entry.range_m += weight * range_m;
+                entry.variance_m2 += weight;
             }
-            None => sums.push((anchor, weight * range_m, weight)),
+            None => sums.push(EpochRange {
+                anchor,
+                position_m,
+                range_m: weight * range_m,
+                variance_m2: weight,
+            }),
         }
     }
     let mut out = Vec::with_capacity(sums.len());
-    for (anchor, weighted_sum, weight_sum) in sums {
+    for sum in sums {
         // r̄ = Σ wᵢ rᵢ / Σ wᵢ, σ̄² = 1 / Σ wᵢ
-        let (range_m, variance_m2) = (weighted_sum / weight_sum, 1.0 / weight_sum);
+        let (range_m, variance_m2) = (sum.range_m / sum.variance_m2, 1.0 / sum.variance_m2);
         if D == 2 {
             // h = √(r² − Δz²), σ_h = σ_r · r/h (floored at the anchor's foot)
-            let dz = anchors.get(anchor).position_m[2] - tag_height_m;
-            let h = horizontal_range(range_m, variance_m2, dz)
-                .map_err(|e| format!("range to anchor `{}` cannot be projected: {e}", anchors.get(anchor).id))?;
-            out.push((anchor, h.range_m, h.variance_m2));
+            let dz = sum.position_m[2] - tag_height_m;
+            let h = horizontal_range(range_m, variance_m2, dz).map_err(|e| {
+                format!(
+                    "range to anchor `{}` cannot be projected: {e}",
+                    anchors.get(sum.anchor).id
+                )
+            })?;
+            out.push(EpochRange {
+                range_m: h.range_m,
+                variance_m2: h.variance_m2,
+                ..sum
+            });
         } else {
-            out.push((anchor, range_m, variance_m2));
+            out.push(EpochRange {
+                range_m,
+                variance_m2,
+                ..sum
+            });
         }
     }
     Ok(out)
+}
+
+/// One station of an epoch's range fix: the anchor, its position (m), the combined range (m)
+/// and its variance (m²). While summing, `range_m` holds `Σ wᵢ rᵢ` and `variance_m2` `Σ wᵢ`.
+#[derive(Debug, Clone, Copy)]
+struct EpochRange {
+    anchor: usize,
+    position_m: [f64; 3],
+    range_m: f64,
+    variance_m2: f64,
 }
 
 /// Weighted multilateration over the epoch's ranges and RSSI-derived ranges.
@@ -162,10 +194,10 @@ fn range_fix<const D: usize>(
     guess_m: Option<SVector<f64, D>>,
 ) -> Result<EpochFix<D>, String> {
     let per_anchor = epoch_ranges::<D>(anchors, readings, tag_height_m)?;
-    let indices: Vec<usize> = per_anchor.iter().map(|(a, _, _)| *a).collect();
-    let positions: Vec<[f64; D]> = indices.iter().map(|&a| axes::<D>(&anchors.get(a).position_m)).collect();
-    let ranges: Vec<f64> = per_anchor.iter().map(|(_, r, _)| *r).collect();
-    let variances: Vec<f64> = per_anchor.iter().map(|(_, _, v)| *v).collect();
+    let indices: Vec<(usize, [f64; 3])> = per_anchor.iter().map(|e| (e.anchor, e.position_m)).collect();
+    let positions: Vec<[f64; D]> = per_anchor.iter().map(|e| axes::<D>(&e.position_m)).collect();
+    let ranges: Vec<f64> = per_anchor.iter().map(|e| e.range_m).collect();
+    let variances: Vec<f64> = per_anchor.iter().map(|e| e.variance_m2).collect();
     match multilaterate::<D>(&positions, &ranges, &variances, guess_m, &OPTIONS) {
         Ok(fix) => Ok(EpochFix {
             fix: fix.fix,
@@ -186,14 +218,14 @@ fn range_fix<const D: usize>(
 
 /// ` (anchors `A` and `B` share one position …, counted once)` for every pair of the epoch's
 /// anchors at one position on the tracked axes, or an empty string.
-fn co_located_note<const D: usize>(anchors: &Anchors, indices: &[usize]) -> String {
+fn co_located_note<const D: usize>(anchors: &Anchors, stations: &[(usize, [f64; 3])]) -> String {
     let mut pairs = Vec::new();
-    for (k, &first) in indices.iter().enumerate() {
-        for &second in &indices[k + 1..] {
+    for (k, &(first, first_m)) in stations.iter().enumerate() {
+        for &(second, second_m) in &stations[k + 1..] {
             let (a, b) = (anchors.get(first), anchors.get(second));
-            let apart_m = axes::<D>(&a.position_m)
+            let apart_m = axes::<D>(&first_m)
                 .iter()
-                .zip(axes::<D>(&b.position_m))
+                .zip(axes::<D>(&second_m))
                 .map(|(x, y)| (x - y).powi(2))
                 .sum::<f64>()
                 .sqrt();
@@ -284,7 +316,10 @@ fn tdoa_fix<const D: usize>(
     } else {
         chan_taylor::<D>(&planar, 0, &differences, &covariance).map(|fix| inflated(fix, &planar, &group))
     }
-    .map_err(|e| format!("TDOA solution failed: {e}{}", co_located_note::<D>(anchors, &indices)))?;
+    .map_err(|e| {
+        let stations: Vec<(usize, [f64; 3])> = indices.iter().map(|&a| (a, anchors.get(a).position_m)).collect();
+        format!("TDOA solution failed: {e}{}", co_located_note::<D>(anchors, &stations))
+    })?;
     fix.check_plausible(&planar, 0.0)
         .map_err(|e| format!("TDOA fix refused: {e}"))?;
     Ok(EpochFix { fix, method: "tdoa" })

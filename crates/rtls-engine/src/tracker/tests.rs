@@ -103,6 +103,7 @@ pub(super) fn range_records(seconds: f64, seed: u64, path: fn(f64) -> [f64; 2]) 
                     anchor: id.into(),
                     range_m: slant(path(t), a) + 0.2 + noise.sample(&mut rng),
                     std_m: None,
+                    anchor_position_m: None,
                 },
             });
         }
@@ -392,6 +393,7 @@ fn unusable_measurements_are_reported_with_the_reason() {
             anchor: "X".into(),
             range_m: 3.0,
             std_m: None,
+            anchor_position_m: None,
         },
     });
     // a gross outlier once confirmed
@@ -402,6 +404,7 @@ fn unusable_measurements_are_reported_with_the_reason() {
             anchor: "A1".into(),
             range_m: 50.0,
             std_m: None,
+            anchor_position_m: None,
         },
     });
     records.push(Record {
@@ -455,7 +458,7 @@ fn fixes_velocities_and_odometry_update_the_track() {
             tag: "r1".into(),
             measurement: Measurement::Odometry {
                 speed_mps: (0.8f64 * 0.8 + 0.5 * 0.5).sqrt(),
-                heading_rad: 0.5f64.atan2(0.8),
+                heading_rad: Some(0.5f64.atan2(0.8)),
                 speed_std_mps: Some(0.02),
                 heading_std_rad: Some(0.02),
             },
@@ -620,6 +623,7 @@ fn three_dimensional_tracks_use_the_spatial_geometry() {
                 anchor: id.into(),
                 range_m: d + 0.2 + noise.sample(&mut rng),
                 std_m: Some(0.05),
+                anchor_position_m: None,
             },
         });
     }

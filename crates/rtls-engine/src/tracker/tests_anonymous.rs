@@ -44,6 +44,7 @@ fn anonymous_records(seconds: f64, seed: u64) -> Vec<Record> {
                         anchor: id.into(),
                         range_m: slant(p, a) + 0.2 + noise.sample(&mut rng),
                         std_m: Some(0.05),
+                        anchor_position_m: None,
                     },
                 });
                 continue;

@@ -84,6 +84,7 @@ fn random_records(rng: &mut ChaCha8Rng, anchors: &[[f64; 3]], seconds: f64) -> V
                         anchor: format!("A{i}"),
                         range_m,
                         std_m: None,
+                        anchor_position_m: None,
                     },
                 });
             }
@@ -95,7 +96,7 @@ fn random_records(rng: &mut ChaCha8Rng, anchors: &[[f64; 3]], seconds: f64) -> V
                     } else {
                         rng.gen_range(0.0..3.0)
                     },
-                    heading_rad: rng.gen_range(-4.0..4.0),
+                    heading_rad: Some(rng.gen_range(-4.0..4.0)),
                     speed_std_mps: Some(if rng.gen_bool(0.2) { 0.0 } else { 0.1 }),
                     heading_std_rad: Some(if rng.gen_bool(0.3) { 0.0 } else { 0.05 }),
                 },
@@ -225,11 +226,11 @@ fn odometry_records(seconds: f64, offset_s: f64, standstill: bool) -> Vec<Record
                 } else {
                     (0.8_f64.powi(2) + 0.25).sqrt()
                 },
-                heading_rad: if standstill {
+                heading_rad: Some(if standstill {
                     0.37 * k as f64
                 } else {
                     0.5_f64.atan2(0.8)
-                },
+                }),
                 speed_std_mps: Some(0.05),
                 heading_std_rad: Some(if standstill { 0.05 } else { 0.0 }),
             },

@@ -63,6 +63,7 @@ fn ranges(anchors: &[(&str, [f64; 3])], tag: [f64; 3]) -> Vec<AnchorReading> {
             anchor,
             range_m: slant(tag, *a),
             variance_m2: 0.01,
+            position_m: *a,
         })
         .collect()
 }
@@ -106,6 +107,7 @@ fn records(anchors: &[(&str, [f64; 3])], tag: [f64; 3], seconds: f64) -> Vec<Rec
                     anchor: id.into(),
                     range_m: slant(tag, a),
                     std_m: None,
+                    anchor_position_m: None,
                 },
             }
         })
@@ -230,20 +232,26 @@ fn projected_ranges_carry_the_propagated_variance() {
         anchor: 0,
         range_m: 2.5,
         variance_m2: 0.01,
+        position_m: anchors.get(0).position_m,
     };
     let projected = epoch_ranges::<2>(&anchors, &[reading], 1.0).unwrap();
-    assert!((projected[0].1 - 2.0).abs() < 1e-12);
-    assert!((projected[0].2 - 0.125_f64.powi(2)).abs() < 1e-12);
+    assert!((projected[0].range_m - 2.0).abs() < 1e-12);
+    assert!((projected[0].variance_m2 - 0.125_f64.powi(2)).abs() < 1e-12);
     // a range shorter than the height difference: h = 0, σ_h² = r⁺ σ_r = 1.5 · 0.1, finite
     for range_m in [1.4, 0.0, -0.3] {
         let reading = AnchorReading::Range {
             anchor: 0,
             range_m,
             variance_m2: 0.01,
+            position_m: anchors.get(0).position_m,
         };
         let projected = epoch_ranges::<2>(&anchors, &[reading], 1.0).unwrap();
-        assert_eq!(projected[0].1, 0.0);
-        assert!((projected[0].2 - 0.15).abs() < 1e-12, "{range_m}: {}", projected[0].2);
+        assert_eq!(projected[0].range_m, 0.0);
+        assert!(
+            (projected[0].variance_m2 - 0.15).abs() < 1e-12,
+            "{range_m}: {}",
+            projected[0].variance_m2
+        );
     }
 }
 
@@ -274,8 +282,9 @@ fn negative_ranges_are_measurements_not_errors() {
         anchor: 0,
         range_m: -0.2,
         variance_m2: 0.01,
+        position_m: anchors.get(0).position_m,
     };
-    assert_eq!(epoch_ranges::<2>(&anchors, &[reading], 1.0).unwrap()[0].1, -0.2);
+    assert_eq!(epoch_ranges::<2>(&anchors, &[reading], 1.0).unwrap()[0].range_m, -0.2);
 }
 
 #[test]
@@ -352,6 +361,7 @@ fn random_epochs_give_bounded_fixes_or_reasons() {
                     anchor,
                     range_m: value(&mut rng),
                     variance_m2,
+                    position_m: table.get(anchor).position_m,
                 }
             } else {
                 AnchorReading::Tdoa {

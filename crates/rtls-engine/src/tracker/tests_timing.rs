@@ -160,6 +160,7 @@ fn a_tick_inside_an_open_epoch_waits_for_its_fix() {
                     anchor: ANCHORS[i].0.into(),
                     range_m: slant(path(t), ANCHORS[i].1) + 0.2,
                     std_m: None,
+                    anchor_position_m: None,
                 },
             })
             .collect()

@@ -104,6 +104,14 @@ pub(super) fn accept<const N: usize>(
         return Ok(());
     }
     let position_m = position_of(&updated.state, shared.tag_height_m).0;
+    if matches!(source, UpdateSource::Fix | UpdateSource::Anchors) {
+        let p = updated.state.covariance();
+        track.heading.position_updated(
+            time_s,
+            [position_m[0], position_m[1]],
+            [p[(0, 0)], p[(0, 2)], p[(2, 2)]],
+        );
+    }
     track.state = Some(updated.state);
     track.lost_state = None;
     if let Some(modes) = modes {
@@ -409,16 +417,12 @@ pub(super) fn coupled_update<const N: usize>(
     let scale = inflation * track.noise.scale(class);
     let (model, z, stated_variance) = match reading {
         AnchorReading::Range {
-            anchor,
+            position_m,
             range_m,
             variance_m2,
+            ..
         } => (
-            AnchorMeasurement::new(
-                shared.anchors.get(anchor).position_m,
-                shared.tag_height_m,
-                AnchorLaw::Range,
-                scale * variance_m2,
-            ),
+            AnchorMeasurement::new(position_m, shared.tag_height_m, AnchorLaw::Range, scale * variance_m2),
             range_m,
             variance_m2,
         ),

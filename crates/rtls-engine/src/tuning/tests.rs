@@ -52,6 +52,7 @@ fn recording(seconds: f64) -> (Site, Vec<Record>, Vec<TruthSample>) {
                 anchor: anchor.into(),
                 range_m: d + biases[index] + noise.sample(&mut rng),
                 std_m: None,
+                anchor_position_m: None,
             },
         });
     }

@@ -79,7 +79,7 @@ fn real_dataset_imports_with_valid_files_and_plausible_odometry() {
                 heading_rad,
                 heading_std_rad,
                 ..
-            } => Some((r.time_s, speed_mps, heading_rad, heading_std_rad.unwrap())),
+            } => Some((r.time_s, speed_mps, heading_rad.unwrap(), heading_std_rad.unwrap())),
             _ => None,
         })
         .collect();
@@ -136,7 +136,12 @@ fn integration_follows_the_formulas_on_a_hand_made_track() {
             heading_rad,
             speed_std_mps,
             heading_std_rad,
-        } => (speed_mps, heading_rad, speed_std_mps.unwrap(), heading_std_rad.unwrap()),
+        } => (
+            speed_mps,
+            heading_rad.unwrap(),
+            speed_std_mps.unwrap(),
+            heading_std_rad.unwrap(),
+        ),
         _ => panic!("not odometry"),
     };
     let (v0, h0, s0, hs0) = heading(0);

@@ -1,0 +1,464 @@
+//! The track's heading channel ([`HeadingModel`]: heading `ψ`, gyro bias `b_g`, odometer
+//! heading offset `δ`) and the records that use it: `yaw_rate`, `odometry` (with or without a
+//! heading), `odometry_increment` and body-frame `imu` samples.
+//!
+//! - A **yaw rate** (a `yaw_rate` record, an increment's change of heading over its interval,
+//!   an IMU's rate about the vertical) is held until the next one and integrated into `ψ`,
+//!   minus the estimated bias.
+//! - **Heading references** calibrate the channel: an odometer's heading (`z = ψ + δ`) and,
+//!   with `course_is_heading` (a vehicle, a robot, a walker carrying the sensor facing forward),
+//!   the course over ground: the direction of the chord between two of the track's positions
+//!   after position updates (fixes or anchor measurements), at least
+//!   [`COURSE_MIN_INTERVAL_S`] apart and far enough apart that the chord's direction is known
+//!   to [`MAX_HEADING_STD_RAD`]. A chord's direction is the heading at its middle when the
+//!   rate of turn is constant, so it is carried to the present by the yaw rates integrated
+//!   since (`z = atan2(Δy, Δx) + θ_now − (θ₁ + θ₂)/2`, `θ` the integrated bias-corrected rate).
+//!   Chords do not overlap, and their variance is ×[`COURSE_VARIANCE_INFLATION`] (the
+//!   positions are filtered, so they carry some of the odometry the heading produced). The
+//!   track's velocity is not used: it holds the odometry's own heading, and the loop would
+//!   confirm any heading error.
+//! - A **speed** (`odometry`, an increment's distance over its interval) becomes a velocity
+//!   along `ψ̂` with the heading's variance ([`odometry_velocity`]) once the channel is aligned
+//!   (`σ_ψ ≤` [`MAX_HEADING_STD_RAD`]); before that it is rejected with the reason.
+//! - A body-frame **IMU** sample gives the rate about the vertical, `ω·û` with `û` the
+//!   low-passed specific force (gravity; the sensor may be tilted) when it has three axes, else
+//!   its `z` rate (sensor level). Its horizontal specific force, rotated by `ψ̂` into the site
+//!   frame, drives the CV prediction only with `imu_acceleration = true` (an uncalibrated
+//!   accelerometer's bias and tilt leakage integrate into velocity errors the CV model's noise
+//!   does not cover).
+//!
+//! The channel starts unaligned (`ψ = 0 ± π`): the first reference aligns it; rates before
+//! that still integrate, so the heading changes they measured are kept.
+//!
+//! # References
+//! Groves (2013) §14.1, §16.2; seed 004 (odometry with heading drift).
+
+use rtls_estimation::aided::{odometry_velocity, HeadingModel, HeadingState};
+
+use super::core::{rejected, Shared, Track};
+use super::output::Output;
+use super::update::velocity_update;
+use crate::error::Result;
+
+/// A speed is turned into a velocity only when the heading's std is at most this, rad (20°):
+/// beyond it the linearised velocity covariance no longer describes the error.
+pub(super) const MAX_HEADING_STD_RAD: f64 = 0.35;
+
+/// The course over ground's variance is multiplied by this before it updates the heading (the
+/// track's velocity already holds the odometry the heading produced).
+pub(super) const COURSE_VARIANCE_INFLATION: f64 = 4.0;
+
+/// A held yaw rate is integrated for at most this long after its sample, s; later the heading
+/// is a random walk.
+const RATE_HOLD_S: f64 = 1.0;
+
+/// A course chord spans at least this long, s.
+pub(super) const COURSE_MIN_INTERVAL_S: f64 = 1.0;
+
+/// A chord that has not grown long enough within this long starts again, s (slow motion).
+const COURSE_MAX_INTERVAL_S: f64 = 10.0;
+
+/// Heading references more than this many standard deviations from the channel are not used.
+const GATE_SIGMAS: f64 = 4.0;
+
+/// Time constant of the gravity estimate (low-passed specific force), s.
+const GRAVITY_TIME_CONSTANT_S: f64 = 1.0;
+
+/// Standard gravity, m/s².
+const GRAVITY_MPS2: f64 = 9.806_65;
+
+/// A track's heading channel and what it holds between records.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct HeadingChannel {
+    state: Option<HeadingState>,
+    /// The last yaw rate `(t, ω rad/s, σ_ω² (rad/s)²)`, held until the next.
+    rate: Option<(f64, f64, f64)>,
+    /// The chord's start: a position after a position update.
+    chord_start: Option<CoursePoint>,
+    /// The latest position after a position update.
+    chord_end: Option<CoursePoint>,
+    /// `θ`: the heading changes since the channel started, rad — the bias-corrected yaw rate
+    /// integrated, or without a recent rate the odometer heading's changes; never corrected by
+    /// references.
+    integrated_rad: f64,
+    /// The previous odometer heading, rad.
+    odometer_heading_rad: Option<f64>,
+    /// Low-passed specific force in the sensor's axes `(t, f)`, m/s².
+    gravity: Option<(f64, [f64; 3])>,
+}
+
+/// A track position after a position update, for the course chord.
+#[derive(Debug, Clone, Copy)]
+struct CoursePoint {
+    time_s: f64,
+    position_m: [f64; 2],
+    /// Position covariance `[P_xx, P_xy, P_yy]`, m².
+    covariance_m2: [f64; 3],
+    /// `θ` at that time, rad.
+    integrated_rad: f64,
+}
+
+impl HeadingChannel {
+    /// Notes the track's position after a position update (fix or anchor measurement).
+    pub(super) fn position_updated(&mut self, time_s: f64, position_m: [f64; 2], covariance_m2: [f64; 3]) {
+        let point = CoursePoint {
+            time_s,
+            position_m,
+            covariance_m2,
+            integrated_rad: self.integrated_rad,
+        };
+        if self
+            .chord_start
+            .is_none_or(|start| time_s - start.time_s > COURSE_MAX_INTERVAL_S)
+        {
+            self.chord_start = Some(point);
+            self.chord_end = None;
+        } else {
+            self.chord_end = Some(point);
+        }
+    }
+
+    /// `(ψ̂, σ_ψ)` when the channel is aligned.
+    pub(super) fn heading(&self) -> Option<(f64, f64)> {
+        let state = self.state.as_ref()?;
+        let std = state.heading_variance_rad2().sqrt();
+        (std <= MAX_HEADING_STD_RAD).then(|| (state.heading_rad(), std))
+    }
+
+    /// The channel's state (tests).
+    #[cfg(test)]
+    pub(super) fn state(&self) -> Option<&HeadingState> {
+        self.state.as_ref()
+    }
+}
+
+/// Predicts the channel to `time_s` with the held rate (a random walk without a recent one),
+/// starting it unaligned if it has no state.
+fn advance<const N: usize>(model: &HeadingModel, track: &mut Track<N>, time_s: f64) -> Result<()> {
+    let channel = &mut track.heading;
+    let state = match channel.state {
+        Some(state) => state,
+        // ψ = 0 ± π: unaligned; the first reference sets it
+        None => model.start(time_s, 0.0, core::f64::consts::PI * core::f64::consts::PI)?,
+    };
+    if time_s <= state.time_s() {
+        channel.state = Some(state);
+        return Ok(());
+    }
+    let rate = channel
+        .rate
+        .filter(|(t, _, _)| time_s - t <= RATE_HOLD_S)
+        .map(|(_, w, v)| (w, v));
+    if let Some((w, _)) = rate {
+        // θ ← θ + (ω − b̂_g) Δt
+        channel.integrated_rad += (w - state.gyro_bias().0) * (time_s - state.time_s());
+    }
+    channel.state = Some(model.propagate(&state, time_s, rate)?);
+    Ok(())
+}
+
+/// Takes the course over ground, the direction of the chord between two positions after
+/// position updates, as a heading reference when `course_is_heading` and the chord is long
+/// enough (see the [module documentation](self)).
+fn observe_course<const N: usize>(shared: &Shared, model: &HeadingModel, track: &mut Track<N>) -> Result<()> {
+    let settings = &shared.settings.heading;
+    let channel = &track.heading;
+    if !settings.course_is_heading {
+        return Ok(());
+    }
+    let (Some(start), Some(end), Some(heading)) = (channel.chord_start, channel.chord_end, channel.state) else {
+        return Ok(());
+    };
+    let duration_s = end.time_s - start.time_s;
+    let (dx, dy) = (
+        end.position_m[0] - start.position_m[0],
+        end.position_m[1] - start.position_m[1],
+    );
+    let length_m = dx.hypot(dy);
+    if duration_s < COURSE_MIN_INTERVAL_S || length_m < settings.course_min_speed_mps * duration_s {
+        return Ok(());
+    }
+    // σ²_chord = u⊥ᵀ (P₁ + P₂) u⊥ / d²,  u⊥ = (−Δy, Δx)/d
+    let (ux, uy) = (-dy / length_m, dx / length_m);
+    let [axx, axy, ayy] = start.covariance_m2;
+    let [bxx, bxy, byy] = end.covariance_m2;
+    let across = ux * ux * (axx + bxx) + 2.0 * ux * uy * (axy + bxy) + uy * uy * (ayy + byy);
+    let chord_variance = across / (length_m * length_m);
+    // R = c σ²_chord + σ_slip²
+    let slip = settings.course_heading_std_rad;
+    let variance = COURSE_VARIANCE_INFLATION * chord_variance + slip * slip;
+    if !(variance.is_finite() && variance > 0.0 && variance.sqrt() <= MAX_HEADING_STD_RAD) {
+        return Ok(());
+    }
+    // z = atan2(Δy, Δx) + θ_now − (θ₁ + θ₂)/2
+    let turned = channel.integrated_rad - 0.5 * (start.integrated_rad + end.integrated_rad);
+    let course = dy.atan2(dx) + turned;
+    if let Some(updated) = model.observe_heading(&heading, course, variance, GATE_SIGMAS)? {
+        track.heading.state = Some(updated);
+    }
+    // the next chord starts where this one ended: chords do not share information
+    track.heading.chord_start = Some(end);
+    track.heading.chord_end = None;
+    Ok(())
+}
+
+/// Brings the channel to `time_s` and takes the course if due.
+fn prepare<const N: usize>(shared: &Shared, track: &mut Track<N>, time_s: f64) -> Result<()> {
+    let model = &shared.heading_model;
+    advance(model, track, time_s)?;
+    observe_course(shared, model, track)
+}
+
+/// Holds a yaw rate `ω` (rad/s) with variance `σ²` measured at `time_s`.
+fn hold_rate<const N: usize>(track: &mut Track<N>, time_s: f64, rate_radps: f64, variance: f64) {
+    track.heading.rate = Some((time_s, rate_radps, variance));
+}
+
+/// A `yaw_rate` record.
+///
+/// # Errors
+/// Numerical failures of the channel (non-finite values).
+pub(super) fn yaw_rate<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    rate_radps: f64,
+    std_radps: Option<f64>,
+) -> Result<()> {
+    prepare(shared, track, time_s)?;
+    let std = std_radps.unwrap_or(shared.settings.heading.gyro_noise_std_radps);
+    hold_rate(track, time_s, rate_radps, std * std);
+    Ok(())
+}
+
+/// An `odometry` record: a speed along the record's heading (an odometer heading, whose offset
+/// the channel estimates) or, without one, along the channel's heading.
+///
+/// # Errors
+/// Numerical failures of the channel or of the velocity update.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn odometry<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    speed_mps: f64,
+    heading_rad: Option<f64>,
+    speed_std_mps: Option<f64>,
+    heading_std_rad: Option<f64>,
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let Some(speed_std) = speed_std_mps else {
+        let reason = "odometry needs `speed_std_mps`".to_string();
+        out.events.push(rejected(&track.tag, time_s, kind, reason));
+        return Ok(());
+    };
+    prepare(shared, track, time_s)?;
+    if let Some(heading) = heading_rad {
+        let Some(heading_std) = heading_std_rad else {
+            let reason = "odometry with `heading_rad` needs `heading_std_rad`".to_string();
+            out.events.push(rejected(&track.tag, time_s, kind, reason));
+            return Ok(());
+        };
+        // without a yaw rate, the odometer's heading changes are the heading changes:
+        // θ ← θ + wrap(z − z_prev)
+        let rate_fresh = track.heading.rate.is_some_and(|(t, _, _)| time_s - t <= RATE_HOLD_S);
+        if let (false, Some(previous)) = (rate_fresh, track.heading.odometer_heading_rad) {
+            track.heading.integrated_rad += rtls_estimation::wrap_angle(heading - previous);
+        }
+        track.heading.odometer_heading_rad = Some(heading);
+        // z = ψ + δ + v; a zero std is floored (a heading is never exact)
+        let variance = heading_std.max(1e-4).powi(2);
+        if let Some(state) = track.heading.state {
+            match shared
+                .heading_model
+                .observe_odometer_heading(&state, heading, variance, GATE_SIGMAS)?
+            {
+                Some(updated) => track.heading.state = Some(updated),
+                None if track.heading.heading().is_some() => {
+                    let (psi, std) = track.heading.heading().unwrap_or_default();
+                    let reason = format!(
+                        "odometer heading {heading:.3} rad is more than {GATE_SIGMAS} σ from the track's \
+                         heading {psi:.3} ± {std:.3} rad (offset included)"
+                    );
+                    out.events.push(rejected(&track.tag, time_s, kind, reason));
+                    return Ok(());
+                }
+                None => {}
+            }
+        }
+    }
+    speed_update(shared, track, time_s, speed_mps, speed_std, 0.0, kind, out)
+}
+
+/// A speed `s ± σ_s` along the channel's heading, turned back by `lag_rad` (an increment's
+/// mean direction is half its change of heading behind its end).
+#[allow(clippy::too_many_arguments)]
+fn speed_update<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    speed_mps: f64,
+    speed_std_mps: f64,
+    lag_rad: f64,
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let Some((heading, heading_std)) = track.heading.heading() else {
+        let std = track
+            .heading
+            .state
+            .map_or(f64::INFINITY, |s| s.heading_variance_rad2().sqrt());
+        let reason = format!(
+            "the heading is not known well enough to turn the speed into a velocity (σ {:.0}° > {:.0}°): give \
+             `heading_rad`, or let the track move at ≥ {} m/s so its course aligns the heading",
+            std.to_degrees(),
+            MAX_HEADING_STD_RAD.to_degrees(),
+            shared.settings.heading.course_min_speed_mps
+        );
+        out.events.push(rejected(&track.tag, time_s, kind, reason));
+        return Ok(());
+    };
+    match odometry_velocity(speed_mps, heading - lag_rad, speed_std_mps, heading_std) {
+        Ok((v, r)) => {
+            // the horizontal velocity (in 3-D the vertical one is left to the other sensors)
+            let covariance = [r[(0, 0)], r[(0, 1)], r[(1, 0)], r[(1, 1)]];
+            velocity_update(shared, track, time_s, &[v[0], v[1]], &covariance, kind, out)
+        }
+        Err(error) => {
+            let reason = format!("odometry cannot be used: {error}");
+            out.events.push(rejected(&track.tag, time_s, kind, reason));
+            Ok(())
+        }
+    }
+}
+
+/// An `odometry_increment` record: distance `d` and change of heading `Δψ` over `T` ending at
+/// `time_s` — a yaw rate `Δψ/T` over the interval and a speed `d/T` along its mean heading.
+///
+/// # Errors
+/// Numerical failures of the channel or of the velocity update.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn increment<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    distance_m: f64,
+    yaw_change_rad: f64,
+    interval_s: f64,
+    distance_std_m: Option<f64>,
+    yaw_change_std_rad: Option<f64>,
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let Some(distance_std) = distance_std_m else {
+        let reason = "an odometry increment needs `distance_std_m`".to_string();
+        out.events.push(rejected(&track.tag, time_s, kind, reason));
+        return Ok(());
+    };
+    // the interval's start: up to there the previous rate holds
+    let start_s = time_s - interval_s;
+    if track.heading.state.is_some_and(|s| start_s > s.time_s()) {
+        advance(&shared.heading_model, track, start_s)?;
+    }
+    // ω = Δψ / T, σ_ω = σ_Δψ / T
+    let rate = yaw_change_rad / interval_s;
+    let rate_std = yaw_change_std_rad.map_or(shared.settings.heading.gyro_noise_std_radps, |s| s / interval_s);
+    hold_rate(
+        track,
+        start_s.max(track.heading.rate.map_or(start_s, |r| r.0)),
+        rate,
+        rate_std * rate_std,
+    );
+    prepare(shared, track, time_s)?;
+    // s = d / T, σ_s = σ_d / T, along ψ̂ − Δψ/2
+    let speed = distance_m / interval_s;
+    let speed_std = distance_std / interval_s;
+    speed_update(shared, track, time_s, speed, speed_std, yaw_change_rad / 2.0, kind, out)
+}
+
+/// An `imu` record: the rate about the vertical into the channel; with `imu_acceleration`, the
+/// horizontal specific force rotated into the site frame as the CV model's control input.
+///
+/// # Errors
+/// Numerical failures of the channel.
+pub(super) fn imu<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    acceleration_mps2: &[f64],
+    angular_rate_radps: &[f64],
+    std_radps: Option<f64>,
+) -> Result<()> {
+    let (vertical_rate, forward_left) = body_to_level(track, time_s, acceleration_mps2, angular_rate_radps);
+    prepare(shared, track, time_s)?;
+    let std = std_radps.unwrap_or(shared.settings.heading.gyro_noise_std_radps);
+    hold_rate(track, time_s, vertical_rate, std * std);
+    if shared.settings.heading.imu_acceleration {
+        if let (Some((heading, _)), Some([forward, left])) = (track.heading.heading(), forward_left) {
+            // a = R(ψ) [a_fwd, a_left]ᵀ
+            let (sin, cos) = heading.sin_cos();
+            let a = [cos * forward - sin * left, sin * forward + cos * left, 0.0];
+            track.acceleration = Some((time_s, a));
+        }
+    }
+    Ok(())
+}
+
+/// The rate about the vertical (rad/s) and the horizontal specific force `[forward, left]`
+/// (m/s²) of a body-frame sample.
+///
+/// With three axes of both: `û = ĝ/‖ĝ‖` from the low-passed specific force, `ω_v = ω·û`,
+/// `x_h = (x_b − (x_b·û)û)/‖…‖`, `y_h = û × x_h`, `f_fwd = f·x_h`, `f_left = f·y_h`.
+/// Otherwise the sensor is taken level: `ω_v = ω_z`, `[f_x, f_y]`.
+fn body_to_level<const N: usize>(
+    track: &mut Track<N>,
+    time_s: f64,
+    acceleration_mps2: &[f64],
+    angular_rate_radps: &[f64],
+) -> (f64, Option<[f64; 2]>) {
+    let rate_z = angular_rate_radps[angular_rate_radps.len() - 1];
+    let ([fx, fy, fz], [wx, wy, wz]) = match (acceleration_mps2, angular_rate_radps) {
+        ([fx, fy, fz], [wx, wy, wz]) => ([*fx, *fy, *fz], [*wx, *wy, *wz]),
+        _ => return (rate_z, Some([acceleration_mps2[0], acceleration_mps2[1]])),
+    };
+    // ĝ ← ĝ + α (f − ĝ),  α = min(1, Δt / τ)
+    let f = [fx, fy, fz];
+    let g = match track.heading.gravity {
+        Some((t, g)) => {
+            let alpha = ((time_s - t) / GRAVITY_TIME_CONSTANT_S).clamp(0.0, 1.0);
+            [
+                g[0] + alpha * (f[0] - g[0]),
+                g[1] + alpha * (f[1] - g[1]),
+                g[2] + alpha * (f[2] - g[2]),
+            ]
+        }
+        None => f,
+    };
+    track.heading.gravity = Some((time_s, g));
+    let norm = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+    if !(0.5 * GRAVITY_MPS2..=1.5 * GRAVITY_MPS2).contains(&norm) {
+        // no gravity to level with (free fall, a bad axis): take the sensor level
+        return (wz, Some([fx, fy]));
+    }
+    let up = [g[0] / norm, g[1] / norm, g[2] / norm];
+    // ω_v = ω · û
+    let vertical_rate = wx * up[0] + wy * up[1] + wz * up[2];
+    // x_h = x_b − (x_b·û) û, normalised
+    let xh = [1.0 - up[0] * up[0], -up[0] * up[1], -up[0] * up[2]];
+    let xh_norm = (xh[0] * xh[0] + xh[1] * xh[1] + xh[2] * xh[2]).sqrt();
+    if xh_norm < 0.1 {
+        // the sensor's x axis points (nearly) up: no forward direction
+        return (vertical_rate, None);
+    }
+    let xh = [xh[0] / xh_norm, xh[1] / xh_norm, xh[2] / xh_norm];
+    // y_h = û × x_h
+    let yh = [
+        up[1] * xh[2] - up[2] * xh[1],
+        up[2] * xh[0] - up[0] * xh[2],
+        up[0] * xh[1] - up[1] * xh[0],
+    ];
+    let forward = f[0] * xh[0] + f[1] * xh[1] + f[2] * xh[2];
+    let left = f[0] * yh[0] + f[1] * yh[1] + f[2] * yh[2];
+    (vertical_rate, Some([forward, left]))
+}
