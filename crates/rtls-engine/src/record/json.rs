@@ -326,7 +326,7 @@ impl Wire {
 ///
 /// let text = r#"{"t": 12.5, "tag": "miner-017", "kind": "range", "anchor": "R12", "range_m": 4.21, "std_m": 0.1}"#;
 /// let record = parse_json_line(text, "input.jsonl", 1).unwrap();
-/// assert_eq!(record.measurement, Measurement::Range { anchor: "R12".into(), range_m: 4.21, std_m: Some(0.1) });
+/// assert_eq!(record.measurement, Measurement::Range { anchor: "R12".into(), range_m: 4.21, std_m: Some(0.1), anchor_position_m: None });
 ///
 /// let error = parse_json_line(r#"{"t": 1, "tag": "a", "kind": "rssi", "rssi": -70}"#, "input.jsonl", 2).unwrap_err();
 /// assert!(error.to_string().starts_with("input.jsonl:2: field `rssi`: unknown field"));

@@ -106,7 +106,7 @@ pub(crate) fn read_line(
 /// let record = Record {
 ///     time_s: 12.5,
 ///     tag: "miner-017".into(),
-///     measurement: Measurement::Range { anchor: "R12".into(), range_m: 4.21, std_m: Some(0.1) },
+///     measurement: Measurement::Range { anchor: "R12".into(), range_m: 4.21, std_m: Some(0.1), anchor_position_m: None },
 /// };
 /// assert!(record.validate("input.jsonl", 1).is_ok());
 /// ```
@@ -344,7 +344,7 @@ impl Record {
     /// let record = Record {
     ///     time_s: 3.0,
     ///     tag: "robot-2".into(),
-    ///     measurement: Measurement::Range { anchor: "U1".into(), range_m: 1.0, std_m: Some(-0.1) },
+    ///     measurement: Measurement::Range { anchor: "U1".into(), range_m: 1.0, std_m: Some(-0.1), anchor_position_m: None },
     /// };
     /// let error = record.validate("log.jsonl", 7).unwrap_err();
     /// assert!(error.to_string().starts_with("log.jsonl:7: field `std_m`"));

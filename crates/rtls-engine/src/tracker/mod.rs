@@ -101,7 +101,7 @@
 //!     let a = site.reader(anchor).unwrap().position_xyz_m();
 //!     let range_m = ((truth[0] - a[0]).powi(2) + (truth[1] - a[1]).powi(2)).sqrt();
 //!     let record = Record { time_s: t, tag: "w1".into(),
-//!                           measurement: Measurement::Range { anchor: anchor.into(), range_m, std_m: None } };
+//!                           measurement: Measurement::Range { anchor: anchor.into(), range_m, std_m: None, anchor_position_m: None } };
 //!     tracker.push(record, &mut out)?;
 //! }
 //! tracker.finish(&mut out)?;

@@ -59,7 +59,7 @@
 //!     let a = site.reader(anchor).unwrap().position_xyz_m();
 //!     let p = [2.0 + 0.5 * t, 5.0];
 //!     let range_m = ((p[0] - a[0]).powi(2) + (p[1] - a[1]).powi(2)).sqrt();
-//!     Record { time_s: t, tag: "w".into(), measurement: Measurement::Range { anchor: anchor.into(), range_m, std_m: None } }
+//!     Record { time_s: t, tag: "w".into(), measurement: Measurement::Range { anchor: anchor.into(), range_m, std_m: None, anchor_position_m: None } }
 //! }).collect();
 //! let tuned = tune(&site, None, &records, None, &TuningSettings::default())?;
 //! assert!(tuned.acceleration_noise_std_mps2 < 0.5); // a steady walk: a quieter model fits better
