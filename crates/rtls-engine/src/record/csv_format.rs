@@ -11,14 +11,14 @@ use crate::error::{EngineError, Result};
 /// | --- | --- | --- |
 /// | `t` | all | time, s |
 /// | `tag` | all | tag id |
-/// | `kind` | all | `range`, `rssi`, `tdoa`, `rssi_vector`, `fix`, `accelerometer`, `odometry`, `velocity` |
-/// | `anchor` | range, rssi, tdoa | anchor id |
+/// | `kind` | all | `range`, `rssi`, `tdoa`, `rssi_vector`, `fix`, `accelerometer`, `odometry`, `velocity`, `pseudorange` |
+/// | `anchor` | range, rssi, tdoa, pseudorange (the satellite) | anchor (satellite) id |
 /// | `reference` | tdoa | reference anchor id |
-/// | `value` | range (m), rssi (dBm), tdoa (range difference, m), odometry (speed, m/s) | the scalar |
-/// | `std` | range, tdoa (m), accelerometer (m/s²), odometry (speed, m/s) | optional 1σ of `value` / `x,y,z` |
+/// | `value` | range (m), rssi (dBm), tdoa (range difference, m), odometry (speed, m/s), pseudorange (m) | the scalar |
+/// | `std` | range, tdoa, pseudorange (m), accelerometer (m/s²), odometry (speed, m/s) | optional 1σ of `value` / `x,y,z` |
 /// | `heading` | odometry | heading, rad |
 /// | `heading_std` | odometry | optional 1σ of the heading, rad |
-/// | `x`, `y`, `z` | fix (m), accelerometer (m/s²), velocity (m/s) | vector; `z` empty for 2-D |
+/// | `x`, `y`, `z` | fix (m), accelerometer (m/s²), velocity (m/s), pseudorange (satellite ECEF, m, all three) | vector; `z` empty for 2-D |
 /// | `covariance` | fix (m², required), velocity ((m/s)², optional) | `D × D` row-major, `;`-separated |
 /// | `readings` | rssi_vector | `anchor=rssi_dbm;anchor=rssi_dbm;…` |
 ///
@@ -399,10 +399,23 @@ fn parse_row(cells: &mut Cells<'_>) -> core::result::Result<Record, Invalid> {
             velocity_mps: cells.vector(k)?,
             covariance_m2ps2: cells.covariance()?,
         },
+        "pseudorange" => Measurement::Pseudorange {
+            satellite: cells.required_text(ANCHOR, k)?,
+            satellite_position_m: [
+                cells.required_number(X, k)?,
+                cells.required_number(Y, k)?,
+                cells.required_number(Z, k)?,
+            ],
+            pseudorange_m: cells.required_number(VALUE, k)?,
+            std_m: cells.number(STD)?,
+        },
         _ => {
             return Err(Invalid::new(
                 "kind",
-                format!("unknown kind `{kind}`; expected one of range, rssi, tdoa, rssi_vector, fix, accelerometer, odometry, velocity"),
+                format!(
+                    "unknown kind `{kind}`; expected one of range, rssi, tdoa, rssi_vector, fix, accelerometer, \
+                     odometry, velocity, pseudorange"
+                ),
             ));
         }
     };
@@ -427,13 +440,13 @@ fn csv_column(json_field: &str) -> &'static str {
     match base {
         "t" => "t",
         "tag" => "tag",
-        "anchor" => "anchor",
+        "anchor" | "satellite" => "anchor",
         "reference" => "reference",
-        "range_m" | "rssi_dbm" | "range_difference_m" | "speed_mps" => "value",
+        "range_m" | "rssi_dbm" | "range_difference_m" | "speed_mps" | "pseudorange_m" => "value",
         "std_m" | "std_mps2" | "speed_std_mps" => "std",
         "heading_rad" => "heading",
         "heading_std_rad" => "heading_std",
-        "position_m" | "acceleration_mps2" | "velocity_mps" => match index {
+        "position_m" | "acceleration_mps2" | "velocity_mps" | "satellite_position_m" => match index {
             Some(0) => "x",
             Some(1) => "y",
             Some(2) => "z",
@@ -532,6 +545,17 @@ pub fn to_csv_row(record: &Record) -> [String; CSV_COLUMNS.len()] {
         } => {
             vector(&mut row, velocity_mps);
             row[COVARIANCE] = covariance_m2ps2.as_deref().map(join).unwrap_or_default();
+        }
+        Measurement::Pseudorange {
+            satellite,
+            satellite_position_m,
+            pseudorange_m,
+            std_m,
+        } => {
+            row[ANCHOR].clone_from(satellite);
+            vector(&mut row, satellite_position_m);
+            row[VALUE] = number(*pseudorange_m);
+            row[STD] = std_m.map(number).unwrap_or_default();
         }
     }
     row

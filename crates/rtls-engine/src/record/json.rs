@@ -81,6 +81,9 @@ wire! {
     heading_std_rad: f64,
     velocity_mps: Vec<f64>,
     covariance_m2ps2: Vec<f64>,
+    satellite: String,
+    satellite_position_m: Vec<f64>,
+    pseudorange_m: f64,
 }
 
 /// Reads a [`Wire`] and leaves in `key` the key being read when an error occurred.
@@ -97,7 +100,7 @@ impl<'de> DeserializeSeed<'de> for WireSeed<'_> {
 }
 
 /// The kinds, as written in the `kind` field.
-const KINDS: [&str; 8] = [
+const KINDS: [&str; 9] = [
     "range",
     "rssi",
     "tdoa",
@@ -106,7 +109,21 @@ const KINDS: [&str; 8] = [
     "accelerometer",
     "odometry",
     "velocity",
+    "pseudorange",
 ];
+
+/// An ECEF position: exactly three components.
+fn ecef(values: Vec<f64>) -> core::result::Result<[f64; 3], Invalid> {
+    <[f64; 3]>::try_from(values.as_slice()).map_err(|_| {
+        Invalid::new(
+            "satellite_position_m",
+            format!(
+                "has {} components; must have 3 (x, y, z in WGS-84 ECEF, m)",
+                values.len()
+            ),
+        )
+    })
+}
 
 /// Takes a required key out of the wire form.
 fn required<T>(value: &mut Option<T>, key: &str, kind: &str) -> core::result::Result<T, Invalid> {
@@ -157,6 +174,12 @@ impl Wire {
             "velocity" => Measurement::Velocity {
                 velocity_mps: required(&mut self.velocity_mps, "velocity_mps", k)?,
                 covariance_m2ps2: self.covariance_m2ps2.take(),
+            },
+            "pseudorange" => Measurement::Pseudorange {
+                satellite: required(&mut self.satellite, "satellite", k)?,
+                satellite_position_m: ecef(required(&mut self.satellite_position_m, "satellite_position_m", k)?)?,
+                pseudorange_m: required(&mut self.pseudorange_m, "pseudorange_m", k)?,
+                std_m: self.std_m.take(),
             },
             _ => {
                 return Err(Invalid::new(
@@ -236,6 +259,17 @@ impl Wire {
             } => {
                 wire.velocity_mps = Some(velocity_mps.clone());
                 wire.covariance_m2ps2.clone_from(covariance_m2ps2);
+            }
+            Measurement::Pseudorange {
+                satellite,
+                satellite_position_m,
+                pseudorange_m,
+                std_m,
+            } => {
+                wire.satellite = Some(satellite.clone());
+                wire.satellite_position_m = Some(satellite_position_m.to_vec());
+                wire.pseudorange_m = Some(*pseudorange_m);
+                wire.std_m = *std_m;
             }
         }
         wire
