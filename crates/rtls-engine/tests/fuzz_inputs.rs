@@ -19,7 +19,7 @@ use rtls_engine::EngineError;
 const SITE: &str = include_str!("../../../examples/site.toml");
 const RADIO_MAP: &str = include_str!("../../../examples/radio-map.csv");
 
-const JSON_SEEDS: [&str; 8] = [
+const JSON_SEEDS: [&str; 9] = [
     r#"{"t": 12.5, "tag": "m1", "kind": "range", "anchor": "A1", "range_m": 4.21, "std_m": 0.1}"#,
     r#"{"t": 12.6, "tag": "m1", "kind": "rssi", "anchor": "B1", "rssi_dbm": -71.5}"#,
     r#"{"t": 12.7, "tag": "m1", "kind": "tdoa", "anchor": "A2", "reference": "A1", "range_difference_m": -3.42, "std_m": 0.3}"#,
@@ -28,6 +28,7 @@ const JSON_SEEDS: [&str; 8] = [
     r#"{"t": 13.0, "tag": "m1", "kind": "accelerometer", "acceleration_mps2": [0.12, -0.03], "std_mps2": 0.05}"#,
     r#"{"t": 13.1, "tag": "m1", "kind": "odometry", "speed_mps": 8.3, "heading_rad": 1.5708, "speed_std_mps": 0.1, "heading_std_rad": 0.02}"#,
     r#"{"t": 13.2, "tag": "m1", "kind": "velocity", "velocity_mps": [1.0, 0.5], "covariance_m2ps2": [0.01, 0.0, 0.0, 0.01]}"#,
+    r#"{"t": 13.3, "tag": "m1", "kind": "pseudorange", "satellite": "G05", "satellite_position_m": [15600000.0, 7540000.0, 20140000.0], "pseudorange_m": 21312456.783, "std_m": 3.0}"#,
 ];
 
 const CSV_SEED: &str = "t,tag,kind,anchor,reference,value,std,heading,heading_std,x,y,z,covariance,readings
@@ -39,6 +40,7 @@ const CSV_SEED: &str = "t,tag,kind,anchor,reference,value,std,heading,heading_st
 13.0,m1,accelerometer,,,,0.05,,,0.12,-0.03,,,
 13.1,m1,odometry,,,8.3,0.1,1.5708,0.02,,,,,
 13.2,m1,velocity,,,,,,,1,0.5,,0.01;0;0;0.01,
+13.3,m1,pseudorange,G05,,21312456.783,3.0,,,15600000,7540000,20140000,,
 ";
 
 /// Replacements for a number: huge, tiny, not finite, negative, not a number at all.
@@ -257,6 +259,17 @@ fn check_record(record: &Record) {
             .iter()
             .chain(covariance_m2ps2.iter().flatten())
             .copied()
+            .collect(),
+        Measurement::Pseudorange {
+            satellite_position_m,
+            pseudorange_m,
+            std_m,
+            ..
+        } => satellite_position_m
+            .iter()
+            .copied()
+            .chain([*pseudorange_m])
+            .chain(*std_m)
             .collect(),
     };
     assert!(numbers.iter().all(|v| v.is_finite()), "{record:?}");

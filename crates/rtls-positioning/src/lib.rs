@@ -36,6 +36,10 @@
 //!   Euclidean / Manhattan / Sørensen), global KNN and WKNN with building and floor votes
 //!   ([`fingerprint::Knn`]) and seed 002's L-WKNN with a precomputed per-anchor spatial index
 //!   ([`fingerprint::LocalWknn`]).
+//! - [`gnss`] — GNSS pseudoranges: WGS-84 geodetic ↔ ECEF ↔ local ENU, the Earth-rotation
+//!   (Sagnac) correction, elevation-dependent noise and the pseudorange point solver (position
+//!   and receiver clock bias, an optional clock prior, joint covariance, DOP and RAIM-style
+//!   fault exclusion).
 //! - [`calibrate_fix_noise`] — the observation covariance `U` of any method from its errors
 //!   at known points.
 //!
@@ -97,6 +101,7 @@
 mod error;
 pub mod fingerprint;
 mod fix;
+pub mod gnss;
 pub(crate) mod linalg;
 pub mod multilateration;
 pub mod pathloss;

@@ -11,14 +11,14 @@ use crate::error::{EngineError, Result};
 /// | --- | --- | --- |
 /// | `t` | all | time, s |
 /// | `tag` | all | tag id |
-/// | `kind` | all | `range`, `rssi`, `tdoa`, `rssi_vector`, `fix`, `accelerometer`, `odometry`, `velocity`, `yaw_rate`, `odometry_increment`, `imu` |
-/// | `anchor` | range, rssi, tdoa | anchor id |
+/// | `kind` | all | `range`, `rssi`, `tdoa`, `rssi_vector`, `fix`, `accelerometer`, `odometry`, `velocity`, `yaw_rate`, `odometry_increment`, `imu`, `pseudorange` |
+/// | `anchor` | range, rssi, tdoa, pseudorange (the satellite) | anchor (satellite) id |
 /// | `reference` | tdoa | reference anchor id |
-/// | `value` | range (m), rssi (dBm), tdoa (range difference, m), odometry (speed, m/s), yaw_rate (rad/s), odometry_increment (distance, m) | the scalar |
-/// | `std` | range, tdoa (m), accelerometer, imu (m/s²), odometry (speed, m/s), yaw_rate (rad/s), odometry_increment (distance, m) | optional 1σ of `value` / `x,y,z` |
+/// | `value` | range (m), rssi (dBm), tdoa (range difference, m), odometry (speed, m/s), yaw_rate (rad/s), odometry_increment (distance, m), pseudorange (m) | the scalar |
+/// | `std` | range, tdoa, pseudorange (m), accelerometer, imu (m/s²), odometry (speed, m/s), yaw_rate (rad/s), odometry_increment (distance, m) | optional 1σ of `value` / `x,y,z` |
 /// | `heading` | odometry (heading, optional), odometry_increment (change of heading, required) | rad |
 /// | `heading_std` | odometry, odometry_increment | optional 1σ of `heading`, rad |
-/// | `x`, `y`, `z` | fix (m), accelerometer, imu (m/s²), velocity (m/s), range (the anchor's position, m, optional) | vector; `z` empty for 2-D |
+/// | `x`, `y`, `z` | fix (m), accelerometer, imu (m/s²), velocity (m/s), range (the anchor's position, m, optional), pseudorange (satellite ECEF, m, all three) | vector; `z` empty for 2-D |
 /// | `covariance` | fix (m², required), velocity ((m/s)², optional) | `D × D` row-major, `;`-separated |
 /// | `readings` | rssi_vector | `anchor=rssi_dbm;anchor=rssi_dbm;…` |
 /// | `interval` | odometry_increment | the increment's interval, s |
@@ -443,12 +443,22 @@ fn parse_row(cells: &mut Cells<'_>) -> core::result::Result<Record, Invalid> {
             std_mps2: cells.number(STD)?,
             std_radps: cells.number(RATE_STD)?,
         },
+        "pseudorange" => Measurement::Pseudorange {
+            satellite: cells.required_text(ANCHOR, k)?,
+            satellite_position_m: [
+                cells.required_number(X, k)?,
+                cells.required_number(Y, k)?,
+                cells.required_number(Z, k)?,
+            ],
+            pseudorange_m: cells.required_number(VALUE, k)?,
+            std_m: cells.number(STD)?,
+        },
         _ => {
             return Err(Invalid::new(
                 "kind",
                 format!(
                     "unknown kind `{kind}`; expected one of range, rssi, tdoa, rssi_vector, fix, accelerometer, \
-                     odometry, velocity, yaw_rate, odometry_increment, imu"
+                     odometry, velocity, yaw_rate, odometry_increment, imu, pseudorange"
                 ),
             ));
         }
@@ -474,9 +484,10 @@ fn csv_column(json_field: &str, kind: &str) -> &'static str {
     match base {
         "t" => "t",
         "tag" => "tag",
-        "anchor" => "anchor",
+        "anchor" | "satellite" => "anchor",
         "reference" => "reference",
-        "range_m" | "rssi_dbm" | "range_difference_m" | "speed_mps" | "yaw_rate_radps" | "distance_m" => "value",
+        "range_m" | "rssi_dbm" | "range_difference_m" | "speed_mps" | "yaw_rate_radps" | "distance_m"
+        | "pseudorange_m" => "value",
         "std_m" | "std_mps2" | "speed_std_mps" | "distance_std_m" => "std",
         "heading_rad" | "yaw_change_rad" => "heading",
         "heading_std_rad" | "yaw_change_std_rad" => "heading_std",
@@ -484,12 +495,14 @@ fn csv_column(json_field: &str, kind: &str) -> &'static str {
         "angular_rate_radps" => "rate",
         "std_radps" if kind == "imu" => "rate_std",
         "std_radps" => "std",
-        "position_m" | "acceleration_mps2" | "velocity_mps" | "anchor_position_m" => match index {
-            Some(0) => "x",
-            Some(1) => "y",
-            Some(2) => "z",
-            _ => "x,y,z",
-        },
+        "position_m" | "acceleration_mps2" | "velocity_mps" | "anchor_position_m" | "satellite_position_m" => {
+            match index {
+                Some(0) => "x",
+                Some(1) => "y",
+                Some(2) => "z",
+                _ => "x,y,z",
+            }
+        }
         "covariance_m2" | "covariance_m2ps2" => "covariance",
         "readings" => "readings",
         _ => "-",
@@ -622,6 +635,17 @@ pub fn to_csv_row(record: &Record) -> [String; CSV_COLUMNS.len()] {
             row[RATE] = join(angular_rate_radps);
             row[STD] = std_mps2.map(number).unwrap_or_default();
             row[RATE_STD] = std_radps.map(number).unwrap_or_default();
+        }
+        Measurement::Pseudorange {
+            satellite,
+            satellite_position_m,
+            pseudorange_m,
+            std_m,
+        } => {
+            row[ANCHOR].clone_from(satellite);
+            vector(&mut row, satellite_position_m);
+            row[VALUE] = number(*pseudorange_m);
+            row[STD] = std_m.map(number).unwrap_or_default();
         }
     }
     row

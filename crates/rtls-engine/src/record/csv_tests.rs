@@ -75,6 +75,20 @@ fn missing_cells_name_the_column() {
     assert_eq!(row_error("1,a,fix,,,,,,,1,,,1;0;0;1,"), (2, "y".into()));
     assert_eq!(row_error("1,a,fix,,,,,,,1,2,,,"), (2, "covariance".into()));
     assert_eq!(row_error("1,a,rssi_vector,,,,,,,,,,,"), (2, "readings".into()));
+    assert_eq!(
+        row_error("1,a,pseudorange,,,2.2e7,,,,1.5e7,7e6,,,"),
+        (2, "anchor".into())
+    );
+    assert_eq!(row_error("1,a,pseudorange,G05,,2.2e7,,,,1.5e7,7e6,,,"), (2, "z".into()));
+    assert_eq!(
+        row_error("1,a,pseudorange,G05,,,,,,1.5e7,7e6,2e7,,"),
+        (2, "value".into())
+    );
+    // a satellite position in km is named by its columns
+    assert_eq!(
+        row_error("1,a,pseudorange,G05,,2.2e7,,,,1.5e4,7e3,2e4,,"),
+        (2, "x,y,z".into())
+    );
 }
 
 #[test]

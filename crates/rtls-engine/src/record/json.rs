@@ -90,6 +90,9 @@ wire! {
     distance_std_m: f64,
     yaw_change_std_rad: f64,
     angular_rate_radps: Vec<f64>,
+    satellite: String,
+    satellite_position_m: Vec<f64>,
+    pseudorange_m: f64,
 }
 
 /// Reads a [`Wire`] and leaves in `key` the key being read when an error occurred.
@@ -106,7 +109,7 @@ impl<'de> DeserializeSeed<'de> for WireSeed<'_> {
 }
 
 /// The kinds, as written in the `kind` field.
-const KINDS: [&str; 11] = [
+const KINDS: [&str; 12] = [
     "range",
     "rssi",
     "tdoa",
@@ -118,7 +121,21 @@ const KINDS: [&str; 11] = [
     "yaw_rate",
     "odometry_increment",
     "imu",
+    "pseudorange",
 ];
+
+/// An ECEF position: exactly three components.
+fn ecef(values: Vec<f64>) -> core::result::Result<[f64; 3], Invalid> {
+    <[f64; 3]>::try_from(values.as_slice()).map_err(|_| {
+        Invalid::new(
+            "satellite_position_m",
+            format!(
+                "has {} components; must have 3 (x, y, z in WGS-84 ECEF, m)",
+                values.len()
+            ),
+        )
+    })
+}
 
 /// Takes a required key out of the wire form.
 fn required<T>(value: &mut Option<T>, key: &str, kind: &str) -> core::result::Result<T, Invalid> {
@@ -187,6 +204,12 @@ impl Wire {
                 angular_rate_radps: required(&mut self.angular_rate_radps, "angular_rate_radps", k)?,
                 std_mps2: self.std_mps2.take(),
                 std_radps: self.std_radps.take(),
+            },
+            "pseudorange" => Measurement::Pseudorange {
+                satellite: required(&mut self.satellite, "satellite", k)?,
+                satellite_position_m: ecef(required(&mut self.satellite_position_m, "satellite_position_m", k)?)?,
+                pseudorange_m: required(&mut self.pseudorange_m, "pseudorange_m", k)?,
+                std_m: self.std_m.take(),
             },
             _ => {
                 return Err(Invalid::new(
@@ -303,6 +326,17 @@ impl Wire {
                 wire.angular_rate_radps = Some(angular_rate_radps.clone());
                 wire.std_mps2 = *std_mps2;
                 wire.std_radps = *std_radps;
+            }
+            Measurement::Pseudorange {
+                satellite,
+                satellite_position_m,
+                pseudorange_m,
+                std_m,
+            } => {
+                wire.satellite = Some(satellite.clone());
+                wire.satellite_position_m = Some(satellite_position_m.to_vec());
+                wire.pseudorange_m = Some(*pseudorange_m);
+                wire.std_m = *std_m;
             }
         }
         wire

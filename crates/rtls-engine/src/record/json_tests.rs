@@ -86,6 +86,22 @@ fn missing_keys_are_errors_naming_the_key() {
         error_field(r#"{"t": 1, "tag": "a", "kind": "accelerometer"}"#),
         "acceleration_mps2"
     );
+    assert_eq!(
+        error_field(r#"{"t": 1, "tag": "a", "kind": "pseudorange", "satellite": "G05", "pseudorange_m": 2.2e7}"#),
+        "satellite_position_m"
+    );
+    assert_eq!(
+        error_field(
+            r#"{"t": 1, "tag": "a", "kind": "pseudorange", "satellite": "G05", "satellite_position_m": [1.5e7, 7e6], "pseudorange_m": 2.2e7}"#
+        ),
+        "satellite_position_m"
+    );
+    assert_eq!(
+        error_field(
+            r#"{"t": 1, "tag": "a", "kind": "pseudorange", "anchor": "G05", "satellite_position_m": [1.5e7, 7e6, 2e7], "pseudorange_m": 2.2e7}"#
+        ),
+        "satellite"
+    );
 }
 
 #[test]

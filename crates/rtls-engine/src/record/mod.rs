@@ -2,7 +2,7 @@
 //!
 //! A [`Record`] is a time stamp, a tag id and one [`Measurement`] (range, RSSI, TDOA, RSSI vector,
 //! position fix, accelerometer sample, odometry speed + heading, velocity, yaw rate, odometry
-//! increment, body-frame IMU sample). Records travel as
+//! increment, body-frame IMU sample, GNSS pseudorange). Records travel as
 //! JSON Lines ([`parse_json_line`], [`JsonLines`], [`to_json_line`]) or CSV ([`CsvRecords`],
 //! [`to_csv_row`], [`CSV_COLUMNS`]); `docs/FORMATS.md` documents both with a JSON Schema.
 //! Records that arrive out of order are put back in order by a [`Reorderer`], which reports late
@@ -29,6 +29,13 @@ pub use time::{implausible_time, TimeGate, JUMP_CONFIRMATIONS, MAX_ABS_TIME_S};
 /// The longest interval of an [`Measurement::OdometryIncrement`], s (1 minute): longer ones are
 /// not increments but gaps.
 pub const MAX_INCREMENT_INTERVAL_S: f64 = 60.0;
+/// The smallest distance of a satellite from the Earth's centre a `pseudorange` record may give,
+/// m (just below the Earth's polar radius, 6 356 752 m).
+pub const MIN_SATELLITE_RADIUS_M: f64 = 6.3e6;
+
+/// The largest distance of a satellite from the Earth's centre a `pseudorange` record may give,
+/// m (above every navigation satellite orbit: GEO and IGSO at 42 164 km).
+pub const MAX_SATELLITE_RADIUS_M: f64 = 5.0e7;
 
 /// The longest record line the readers accept, bytes (1 MiB): a longer line is an error for
 /// that line (and is skipped without being held in memory), so a binary or endless input
@@ -261,12 +268,28 @@ pub enum Measurement {
         /// Its covariance, `D × D` row-major, (m/s)².
         covariance_m2ps2: Option<Vec<f64>>,
     },
+    /// A GNSS pseudorange: `ρ = ‖s − p‖ + c δt + v`, the distance to a satellite plus the
+    /// receiver's unknown clock offset (`c δt`, common to every satellite of an epoch).
+    Pseudorange {
+        /// The satellite's id (e.g. `G05`, `E11`).
+        satellite: String,
+        /// The satellite's position in WGS-84 ECEF at the signal's transmit time, m; its
+        /// distance from the Earth's centre lies in
+        /// [[`MIN_SATELLITE_RADIUS_M`], [`MAX_SATELLITE_RADIUS_M`]]. The tracker applies the
+        /// Earth-rotation (Sagnac) correction itself.
+        satellite_position_m: [f64; 3],
+        /// The pseudorange, m, already corrected by the sender for the satellite clock
+        /// (including the relativistic term), the ionosphere and the troposphere.
+        pseudorange_m: f64,
+        /// Its standard deviation, m (≥ 0); absent: the site's elevation-dependent default.
+        std_m: Option<f64>,
+    },
 }
 
 impl Measurement {
     /// The kind's name as written in the `kind` field of both formats (`"range"`, `"rssi"`,
     /// `"tdoa"`, `"rssi_vector"`, `"fix"`, `"accelerometer"`, `"odometry"`, `"velocity"`,
-    /// `"yaw_rate"`, `"odometry_increment"`, `"imu"`).
+    /// `"yaw_rate"`, `"odometry_increment"`, `"imu"`, `"pseudorange"`).
     ///
     /// # Examples
     /// ```
@@ -289,6 +312,7 @@ impl Measurement {
             Self::YawRate { .. } => "yaw_rate",
             Self::OdometryIncrement { .. } => "odometry_increment",
             Self::Imu { .. } => "imu",
+            Self::Pseudorange { .. } => "pseudorange",
         }
     }
 }
@@ -329,7 +353,8 @@ impl Record {
     /// of 2 or 3 components, covariances of matching size that are symmetric and positive
     /// semi-definite, non-empty ids without leading or trailing white space, control characters,
     /// `;` or `=` (so that every id can be written in CSV), TDOA anchor ≠ reference, RSSI vectors
-    /// non-empty without duplicate anchors.
+    /// non-empty without duplicate anchors, satellites between [`MIN_SATELLITE_RADIUS_M`] and
+    /// [`MAX_SATELLITE_RADIUS_M`] from the Earth's centre.
     ///
     /// `file` and `line` name the record's source in the error.
     ///
@@ -479,6 +504,17 @@ impl Record {
                     None => Ok(()),
                 }
             }
+            Measurement::Pseudorange {
+                satellite,
+                satellite_position_m,
+                pseudorange_m,
+                std_m,
+            } => {
+                id("satellite", satellite)?;
+                satellite_position("satellite_position_m", satellite_position_m)?;
+                finite("pseudorange_m", *pseudorange_m)?;
+                optional_std("std_m", *std_m)
+            }
         }
     }
 }
@@ -542,6 +578,25 @@ fn check_readings(readings: &[AnchorReading]) -> Checked {
                 format!("anchor `{}` is listed twice", reading.anchor),
             ));
         }
+    }
+    Ok(())
+}
+
+/// A satellite's ECEF position: finite, between [`MIN_SATELLITE_RADIUS_M`] and
+/// [`MAX_SATELLITE_RADIUS_M`] from the Earth's centre (catches km for m, or a local position).
+fn satellite_position(field: &str, values: &[f64; 3]) -> Checked {
+    for (i, &v) in values.iter().enumerate() {
+        finite(&format!("{field}[{i}]"), v)?;
+    }
+    let radius = values.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if !(MIN_SATELLITE_RADIUS_M..=MAX_SATELLITE_RADIUS_M).contains(&radius) {
+        return Err(Invalid::new(
+            field,
+            format!(
+                "is {radius:.0} m from the Earth's centre; a satellite's WGS-84 ECEF position (m) lies between \
+                 {MIN_SATELLITE_RADIUS_M:e} and {MAX_SATELLITE_RADIUS_M:e} m"
+            ),
+        ));
     }
     Ok(())
 }

@@ -133,6 +133,42 @@ fn tdoa_needs_two_different_anchors() {
     assert!(record(tdoa("S1", "S2", -4.0)).validate("f", 1).is_ok());
 }
 
+fn pseudorange(satellite: &str, satellite_position_m: [f64; 3], pseudorange_m: f64, std_m: Option<f64>) -> Measurement {
+    Measurement::Pseudorange {
+        satellite: satellite.into(),
+        satellite_position_m,
+        pseudorange_m,
+        std_m,
+    }
+}
+
+#[test]
+fn pseudoranges_name_a_satellite_in_orbit() {
+    let orbit = [15_600e3, 7_540e3, 20_140e3];
+    assert!(record(pseudorange("G05", orbit, 2.2e7, Some(3.0)))
+        .validate("f", 1)
+        .is_ok());
+    assert_eq!(rejected_field(pseudorange("", orbit, 2.2e7, None)), "satellite");
+    assert_eq!(
+        rejected_field(pseudorange("G05", orbit, f64::NAN, None)),
+        "pseudorange_m"
+    );
+    assert_eq!(rejected_field(pseudorange("G05", orbit, 2.2e7, Some(-1.0))), "std_m");
+    let nan = [orbit[0], f64::INFINITY, orbit[2]];
+    assert_eq!(
+        rejected_field(pseudorange("G05", nan, 2.2e7, None)),
+        "satellite_position_m[1]"
+    );
+    // km instead of m, a site-frame position, or beyond every orbit
+    for wrong in [[15_600.0, 7_540.0, 20_140.0], [10.0, 20.0, 0.0], [6.0e7, 0.0, 0.0]] {
+        let error = record(pseudorange("G05", wrong, 2.2e7, None))
+            .validate("f", 1)
+            .unwrap_err();
+        assert!(error.to_string().contains("field `satellite_position_m`"), "{error}");
+        assert!(error.to_string().contains("from the Earth's centre"), "{error}");
+    }
+}
+
 #[test]
 fn rssi_vectors_are_non_empty_without_duplicates() {
     assert_eq!(rejected_field(Measurement::RssiVector { readings: vec![] }), "readings");
@@ -216,6 +252,7 @@ fn kind_names_match_the_formats() {
         "accelerometer",
         "odometry",
         "velocity",
+        "pseudorange",
     ] {
         assert!(kinds.contains(&kind), "no sample of {kind}");
     }
@@ -320,6 +357,8 @@ pub(super) fn sample_measurements() -> Vec<Measurement> {
             std_mps2: None,
             std_radps: None,
         },
+        pseudorange("G05", [15_600e3, 7_540e3, 20_140e3], 21_312_456.783, Some(3.0)),
+        pseudorange("E11", [-14_000e3, -19_000e3, 11_000e3], 2.5e7, None),
     ]
 }
 
@@ -343,7 +382,8 @@ pub(super) fn many_records() -> Vec<Record> {
         let unit = (bits >> 11) as f64 / (1_u64 << 53) as f64;
         let scale = 10_f64.powi(i32::try_from(bits % 13).unwrap() - 6);
         let value = unit * scale;
-        let mut sample = sample_measurements()[usize::try_from(bits % 14).unwrap()].clone();
+        let samples = sample_measurements();
+        let mut sample = samples[usize::try_from(bits % samples.len() as u64).unwrap()].clone();
         match &mut sample {
             Measurement::Range { range_m, .. } => *range_m = value,
             Measurement::Rssi { rssi_dbm, .. } => *rssi_dbm = -value,
@@ -364,6 +404,14 @@ pub(super) fn many_records() -> Vec<Record> {
             Measurement::YawRate { yaw_rate_radps, .. } => *yaw_rate_radps = value,
             Measurement::OdometryIncrement { distance_m, .. } => *distance_m = value,
             Measurement::Imu { angular_rate_radps, .. } => angular_rate_radps[0] = -value,
+            Measurement::Pseudorange {
+                satellite_position_m,
+                pseudorange_m,
+                ..
+            } => {
+                *pseudorange_m = 2e7 + value;
+                satellite_position_m[2] = -value;
+            }
         }
         let time_s = 1.7e9 + f64::from(i) * 0.013 + unit;
         let record = Record {
@@ -425,7 +473,7 @@ fn every_jsonl_example_in_formats_md_parses() {
         .flat_map(|b| JsonLines::new(b.as_bytes(), "FORMATS.md"))
         .map(Result::unwrap)
         .collect();
-    assert_eq!(examples.len(), 18);
+    assert_eq!(examples.len(), 20);
     let mut kinds: Vec<&str> = examples.iter().map(|r| r.measurement.kind()).collect();
     kinds.dedup();
     assert_eq!(
@@ -441,7 +489,8 @@ fn every_jsonl_example_in_formats_md_parses() {
             "velocity",
             "yaw_rate",
             "odometry_increment",
-            "imu"
+            "imu",
+            "pseudorange"
         ]
     );
 }

@@ -33,6 +33,8 @@ fn accepted_keys() -> BTreeSet<String> {
     // (path of the table, its fields); a new nested struct needs a line here, a new key does not
     let tables: Vec<(&str, Vec<String>)> = vec![
         ("", fields_of::<Site>("")),
+        ("frame", fields_of::<FrameSettings>("")),
+        ("frame.origin", fields_of::<GeodeticOrigin>("")),
         ("readers[]", fields_of::<Reader>("")),
         ("readers[].radio", fields_of::<Radio>("")),
         ("readers[].radio.path_loss", fields_of::<PathLoss>("")),
@@ -48,6 +50,7 @@ fn accepted_keys() -> BTreeSet<String> {
         ("tracker.imm", fields_of::<ImmSettings>("")),
         ("tracker.adaptive_noise", fields_of::<AdaptiveNoiseSettings>("")),
         ("tracker.heading", fields_of::<HeadingSettings>("")),
+        ("tracker.gnss", fields_of::<GnssSettings>("")),
         ("anonymous", fields_of::<AnonymousTrackerSettings>("")),
         ("anonymous.lifecycle", fields_of::<LifecycleSettings>("")),
         ("scheduling", fields_of::<SchedulingSettings>("")),

@@ -20,7 +20,10 @@ pub mod platform;
 mod ranges;
 
 pub use limits::{read_text_file, MAX_RADIO_MAP_BYTES, MAX_RADIO_MAP_ROWS, MAX_SITE_BYTES, MAX_ZONE_VERTICES};
-pub use options::{AdaptiveNoiseSettings, HeadingSettings, ImmSettings, SchedulingCell, SchedulingSettings};
+pub use options::{
+    AdaptiveNoiseSettings, AlarmSettings, FrameSettings, GeodeticOrigin, GnssSettings, HeadingSettings, ImmSettings,
+    SchedulingCell, SchedulingSettings,
+};
 pub use platform::Platform;
 
 use std::path::PathBuf;
@@ -65,6 +68,9 @@ pub struct Site {
     /// Human-readable site name.
     #[serde(default)]
     pub name: Option<String>,
+    /// Where the site frame lies on the Earth (`[frame]`): needed for GNSS pseudoranges.
+    #[serde(default)]
+    pub frame: Option<FrameSettings>,
     /// Fixed readers, anchors, base stations and access points.
     #[serde(default)]
     pub readers: Vec<Reader>,
@@ -378,6 +384,9 @@ pub struct TrackerSettings {
     /// The heading channel (yaw rates, odometry without heading, IMU samples).
     #[serde(default)]
     pub heading: HeadingSettings,
+    /// GNSS pseudoranges: default noise, fault exclusion and the receiver clock's process.
+    #[serde(default)]
+    pub gnss: GnssSettings,
 }
 
 fn default_dimensions() -> u8 {
@@ -394,46 +403,6 @@ fn default_initial_speed_std_mps() -> f64 {
 
 fn default_max_time_jump_s() -> f64 {
     86_400.0
-}
-
-/// `[alarms]`: predictive hazard alarms (seed 000): a tag's predicted path, with its
-/// uncertainty, is checked against the hazard zones over a horizon.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct AlarmSettings {
-    /// How far ahead the path is predicted, s (> 0). Default 10.
-    #[serde(default = "default_horizon_s")]
-    pub horizon_s: f64,
-    /// Prediction step, s (> 0, ≤ horizon). Default 0.5.
-    #[serde(default = "default_step_s")]
-    pub step_s: f64,
-    /// An alarm is raised when the predicted probability that the tag is inside the zone
-    /// reaches this value within the horizon, in (0, 1). Default 0.5 (the predicted mean path
-    /// enters); lower values warn earlier, counting the growing uncertainty.
-    #[serde(default = "default_entry_probability")]
-    pub entry_probability: f64,
-}
-
-fn default_horizon_s() -> f64 {
-    10.0
-}
-
-fn default_step_s() -> f64 {
-    0.5
-}
-
-fn default_entry_probability() -> f64 {
-    0.5
-}
-
-impl Default for AlarmSettings {
-    fn default() -> Self {
-        Self {
-            horizon_s: default_horizon_s(),
-            step_s: default_step_s(),
-            entry_probability: default_entry_probability(),
-        }
-    }
 }
 
 impl TrackerSettings {

@@ -1,5 +1,5 @@
-//! Optional tracker sections of the site model: `[tracker.imm]`, `[tracker.adaptive_noise]`
-//! and `[scheduling]`.
+//! Optional sections of the site model: `[frame]`, `[tracker.imm]`, `[tracker.adaptive_noise]`,
+//! `[tracker.gnss]`, `[scheduling]` and `[alarms]`.
 
 use serde::Deserialize;
 
@@ -166,6 +166,130 @@ impl Default for AdaptiveNoiseSettings {
             memory_s: 20.0,
             max_scale: 25.0,
             correlation_s: 0.25,
+        }
+    }
+}
+
+/// `[alarms]`: predictive hazard alarms (seed 000): a tag's predicted path, with its
+/// uncertainty, is checked against the hazard zones over a horizon.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AlarmSettings {
+    /// How far ahead the path is predicted, s (> 0). Default 10.
+    #[serde(default = "default_horizon_s")]
+    pub horizon_s: f64,
+    /// Prediction step, s (> 0, ≤ horizon). Default 0.5.
+    #[serde(default = "default_step_s")]
+    pub step_s: f64,
+    /// An alarm is raised when the predicted probability that the tag is inside the zone
+    /// reaches this value within the horizon, in (0, 1). Default 0.5 (the predicted mean path
+    /// enters); lower values warn earlier, counting the growing uncertainty.
+    #[serde(default = "default_entry_probability")]
+    pub entry_probability: f64,
+}
+
+fn default_horizon_s() -> f64 {
+    10.0
+}
+
+fn default_step_s() -> f64 {
+    0.5
+}
+
+fn default_entry_probability() -> f64 {
+    0.5
+}
+
+impl Default for AlarmSettings {
+    fn default() -> Self {
+        Self {
+            horizon_s: default_horizon_s(),
+            step_s: default_step_s(),
+            entry_probability: default_entry_probability(),
+        }
+    }
+}
+
+/// `[frame]`: where the site frame lies on the Earth. Site coordinates are then a local
+/// east-north-up frame about `origin` (`x` east, `y` north, `z` up along the ellipsoid normal,
+/// m), which GNSS pseudoranges need to be solved in the site's coordinates.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameSettings {
+    /// The site frame's origin.
+    pub origin: GeodeticOrigin,
+}
+
+/// A WGS-84 geodetic position: the origin of the site frame.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GeodeticOrigin {
+    /// Geodetic latitude, degrees (−90 to 90, north positive).
+    pub latitude_deg: f64,
+    /// Longitude, degrees (−180 to 180, east positive).
+    pub longitude_deg: f64,
+    /// Height above the WGS-84 ellipsoid (not above sea level), m (−11 000 to 100 000).
+    pub height_m: f64,
+}
+
+impl GeodeticOrigin {
+    /// The origin as `rtls_positioning`'s geodetic position.
+    #[must_use]
+    pub fn geodetic(&self) -> rtls_positioning::gnss::Geodetic {
+        rtls_positioning::gnss::Geodetic {
+            latitude_deg: self.latitude_deg,
+            longitude_deg: self.longitude_deg,
+            height_m: self.height_m,
+        }
+    }
+}
+
+/// `[tracker.gnss]`: GNSS pseudoranges. A tag's pseudoranges of one epoch are solved together
+/// into a fix and a receiver clock bias; each track keeps a two-state clock filter `[b, ḃ]`
+/// (bias and drift, m and m/s) whose prediction is the solver's prior on the bias.
+///
+/// The clock model is the two-state random walk of Brown & Hwang: `ḃ` is a random walk of
+/// spectral density `q_d` and `b` integrates it plus a white frequency noise of density `q_b`:
+/// ```text
+/// Q(Δt) = [[q_b Δt + q_d Δt³/3, q_d Δt²/2], [q_d Δt²/2, q_d Δt]]
+/// ```
+/// A TCXO's Allan-variance coefficients (`h₀ = 2·10⁻¹⁹ s`, `h₋₂ = 2·10⁻²⁰ s⁻¹`) give
+/// `q_b = c² h₀/2 ≈ 0.009 m²/s` and `q_d = c² 2π² h₋₂ ≈ 0.036 m²/s³`; the defaults are about
+/// ten and three times larger, for a smartphone's temperature swings.
+///
+/// # References
+/// R. G. Brown, P. Y. C. Hwang, *Introduction to Random Signals and Applied Kalman Filtering*,
+/// 4th ed., 2012, §9.3 (the clock model and its TCXO coefficients).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GnssSettings {
+    /// A pseudorange's standard deviation at the zenith, for records without `std_m`:
+    /// `σ = σ₀ / sin(max(el, min_elevation_deg))`, m (0.01 to 1000). Default 5 (a smartphone).
+    pub pseudorange_std_m: f64,
+    /// The elevation below which that `σ` stops growing, degrees (0.1 to 90). Default 5.
+    pub min_elevation_deg: f64,
+    /// Probability that an epoch's χ² residual test fails on fault-free pseudoranges (RAIM);
+    /// a failing epoch excludes its worst satellite while redundancy remains (1e-9 to 0.5).
+    /// Default 0.001.
+    pub false_alarm_probability: f64,
+    /// Clock bias white-frequency noise density `q_b`, m²/s (1e-9 to 1e6). Default 0.1.
+    pub clock_bias_noise_m2ps: f64,
+    /// Clock drift random-walk density `q_d`, m²/s³ (1e-9 to 1e6). Default 0.1.
+    pub clock_drift_noise_m2ps3: f64,
+    /// The drift's standard deviation when a track's clock starts, m/s (0.001 to 1e5).
+    /// Default 600 (2 ppm).
+    pub initial_clock_drift_std_mps: f64,
+}
+
+impl Default for GnssSettings {
+    fn default() -> Self {
+        Self {
+            pseudorange_std_m: 5.0,
+            min_elevation_deg: 5.0,
+            false_alarm_probability: 1e-3,
+            clock_bias_noise_m2ps: 0.1,
+            clock_drift_noise_m2ps3: 0.1,
+            initial_clock_drift_std_mps: 600.0,
         }
     }
 }

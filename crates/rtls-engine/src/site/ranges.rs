@@ -131,6 +131,15 @@ const EDGE_MARGIN_M: Bounds = Bounds::closed(0.0, 1000.0, "m");
 const DETECTION_PROBABILITY: Bounds = Bounds::open_closed(0.0, 1.0, "");
 const CLUTTER_DENSITY: Bounds = Bounds::closed(1e-12, 1000.0, "per m² or per m");
 const NOISE_FLOOR_DBM: Bounds = Bounds::closed(-150.0, -30.0, "dBm");
+const LATITUDE_DEG: Bounds = Bounds::closed(-90.0, 90.0, "degrees");
+const LONGITUDE_DEG: Bounds = Bounds::closed(-180.0, 180.0, "degrees");
+const ELLIPSOID_HEIGHT_M: Bounds = Bounds::closed(-11_000.0, 100_000.0, "m");
+const PSEUDORANGE_STD_M: Bounds = Bounds::closed(0.01, 1000.0, "m");
+const MIN_ELEVATION_DEG: Bounds = Bounds::closed(0.1, 90.0, "degrees");
+const FALSE_ALARM_PROBABILITY: Bounds = Bounds::closed(1e-9, 0.5, "");
+const CLOCK_BIAS_NOISE_M2PS: Bounds = Bounds::closed(1e-9, 1e6, "m²/s");
+const CLOCK_DRIFT_NOISE_M2PS3: Bounds = Bounds::closed(1e-9, 1e6, "m²/s³");
+const CLOCK_DRIFT_STD_MPS: Bounds = Bounds::closed(1e-3, 1e5, "m/s");
 const COUNT_MAX: usize = 1000;
 const NEIGHBOURS_MAX: usize = 100;
 const JPDA_EVENTS_MAX: usize = 10_000_000;
@@ -175,6 +184,12 @@ fn count(path: impl Into<String>, value: usize, lo: usize, hi: usize) -> Check {
 /// The range checks of every numeric value of `site`, in file order.
 pub(super) fn checks(site: &Site) -> Vec<Check> {
     let mut out = Vec::new();
+    if let Some(frame) = &site.frame {
+        let o = frame.origin;
+        out.push(within("frame.origin.latitude_deg", o.latitude_deg, LATITUDE_DEG));
+        out.push(within("frame.origin.longitude_deg", o.longitude_deg, LONGITUDE_DEG));
+        out.push(within("frame.origin.height_m", o.height_m, ELLIPSOID_HEIGHT_M));
+    }
     for (i, reader) in site.readers.iter().enumerate() {
         out.push(coordinates(format!("readers[{i}].position_m"), &reader.position_m));
         let Some(radio) = reader.radio else { continue };
@@ -413,6 +428,37 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
     ] {
         out.push(within(at(key), value, bounds));
     }
+    let gnss = &t.gnss;
+    out.push(within(
+        at("gnss.pseudorange_std_m"),
+        gnss.pseudorange_std_m,
+        PSEUDORANGE_STD_M,
+    ));
+    out.push(within(
+        at("gnss.min_elevation_deg"),
+        gnss.min_elevation_deg,
+        MIN_ELEVATION_DEG,
+    ));
+    out.push(within(
+        at("gnss.false_alarm_probability"),
+        gnss.false_alarm_probability,
+        FALSE_ALARM_PROBABILITY,
+    ));
+    out.push(within(
+        at("gnss.clock_bias_noise_m2ps"),
+        gnss.clock_bias_noise_m2ps,
+        CLOCK_BIAS_NOISE_M2PS,
+    ));
+    out.push(within(
+        at("gnss.clock_drift_noise_m2ps3"),
+        gnss.clock_drift_noise_m2ps3,
+        CLOCK_DRIFT_NOISE_M2PS3,
+    ));
+    out.push(within(
+        at("gnss.initial_clock_drift_std_mps"),
+        gnss.initial_clock_drift_std_mps,
+        CLOCK_DRIFT_STD_MPS,
+    ));
 }
 
 #[cfg(test)]

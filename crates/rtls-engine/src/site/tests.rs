@@ -405,3 +405,39 @@ fn zone_event_errors_name_the_key() {
     assert_eq!(error_of(&text).0, line_containing(&text, "dwell_interval_s"));
     assert_eq!(error_of(&with("tolerance_m = 1.0")).1, "zone_events.delay_s");
 }
+
+#[test]
+fn the_frame_origin_and_gnss_settings_are_range_checked() {
+    let example = include_str!("../../../../examples/site.toml");
+    let site = Site::from_toml_str(example, "site.toml").unwrap();
+    let origin = site.frame.unwrap().origin;
+    assert_eq!((origin.latitude_deg, origin.longitude_deg), (47.3769, 8.5417));
+    assert_eq!(site.tracker.gnss, GnssSettings::default());
+    for (from, to, field) in [
+        (
+            "latitude_deg = 47.3769",
+            "latitude_deg = 91.0",
+            "frame.origin.latitude_deg",
+        ),
+        ("height_m = 455.0", "height_m = 4.55e6", "frame.origin.height_m"),
+        (
+            "pseudorange_std_m = 5.0",
+            "pseudorange_std_m = 0.0",
+            "tracker.gnss.pseudorange_std_m",
+        ),
+        (
+            "clock_drift_noise_m2ps3 = 0.1",
+            "clock_drift_noise_m2ps3 = 1e300",
+            "tracker.gnss.clock_drift_noise_m2ps3",
+        ),
+    ] {
+        let error = Site::from_toml_str(&example.replace(from, to), "site.toml").unwrap_err();
+        assert!(error.to_string().contains(&format!("field `{field}`")), "{error}");
+        assert!(error.to_string().contains("outside the allowed range"), "{error}");
+    }
+    // without [frame]: no origin
+    let start = example.find("[frame]").unwrap();
+    let end = start + example[start..].find("\n\n").unwrap();
+    let site = Site::from_toml_str(&format!("{}{}", &example[..start], &example[end..]), "site.toml").unwrap();
+    assert!(site.frame.is_none());
+}

@@ -9,6 +9,7 @@ use super::anchors::{AnchorReading, Anchors};
 use super::direct::direct_measurement;
 use super::divergence::{divergence, reset, reset_if_diverged, SiteBounds};
 use super::epoch::{anchor_reading, close_due_epoch};
+use super::gnss::{close_due_gnss_epoch, pseudorange, GnssTrack};
 use super::output::{Event, Output, UpdateSource};
 use super::report::{clear_alarms, coast, report, track_update};
 use super::update::predict;
@@ -65,6 +66,9 @@ pub(crate) struct Shared {
     pub(crate) bounds: SiteBounds,
     /// The heading channel's model (`[tracker.heading]`).
     pub(crate) heading_model: HeadingModel,
+    /// The site frame as ENU about `[frame] origin`; `None` without an origin (pseudoranges
+    /// are then refused).
+    pub(crate) frame: Option<rtls_positioning::gnss::LocalFrame>,
 }
 
 /// One tag's track: its state (a value it owns), lifecycle and pending work.
@@ -104,6 +108,8 @@ pub(crate) struct Track<const N: usize> {
     pub(super) gated_updates: u32,
     /// Heading, gyro bias and odometer offset, for yaw rates, odometry and IMU samples.
     pub(super) heading: HeadingChannel,
+    /// GNSS: the open pseudorange epoch and the receiver clock filter.
+    pub(super) gnss: GnssTrack,
 }
 
 impl<const N: usize> Track<N> {
@@ -127,6 +133,7 @@ impl<const N: usize> Track<N> {
             rejection_rate: 0.0,
             gated_updates: 0,
             heading: HeadingChannel::default(),
+            gnss: GnssTrack::default(),
         }
     }
 
@@ -148,11 +155,13 @@ pub(crate) struct Core<const N: usize> {
     pub(crate) monitor: ZoneMonitor,
 }
 
-/// Fix-then-filter: whether the track's open epoch holds readings from before `now_s`. Its fix
-/// will carry the epoch's last reading time, so ticking the track at `now_s` first would put
-/// the fix's update behind the tick (time going backwards for the lifecycle).
+/// Whether the track's open fix-then-filter epoch or GNSS epoch (either pipeline) holds readings
+/// from before `now_s`. Its fix will carry the epoch's last reading time, so ticking the track
+/// at `now_s` first would put the fix's update behind the tick (time going backwards for the
+/// lifecycle).
 fn holds_earlier_readings<const N: usize>(shared: &Shared, track: &Track<N>, now_s: f64) -> bool {
-    shared.settings.pipeline == Pipeline::FixThenFilter && track.epoch.last().is_some_and(|&(t, _)| t < now_s)
+    (shared.settings.pipeline == Pipeline::FixThenFilter && track.epoch.last().is_some_and(|&(t, _)| t < now_s))
+        || track.gnss.holds_readings_before(now_s)
 }
 
 /// Tracked dimensions of a CV state of size `N`.
@@ -288,6 +297,8 @@ fn apply_record<const N: usize>(
     measurement: &Measurement,
     out: &mut Output,
 ) -> Result<()> {
+    // a record beyond the open GNSS epoch's window closes it (its fix is dated before this record)
+    close_due_gnss_epoch(shared, track, time_s, out)?;
     // a later time closes the previous time's work: report it first
     if track.state.as_ref().is_some_and(|s| time_s > s.time_s()) && track.unreported.is_some() {
         report(shared, track, monitor, out)?;
@@ -315,6 +326,7 @@ fn apply_record<const N: usize>(
             track.acceleration = Some((time_s, a));
             Ok(())
         }
+        Measurement::Pseudorange { .. } => pseudorange(shared, track, time_s, measurement, out),
         _ => direct_measurement(shared, track, time_s, measurement, out),
     }
 }

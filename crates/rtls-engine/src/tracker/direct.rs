@@ -167,6 +167,7 @@ pub(super) fn apply_direct<const N: usize>(
         Measurement::Range { .. }
         | Measurement::Rssi { .. }
         | Measurement::Tdoa { .. }
-        | Measurement::Accelerometer { .. } => Ok(()),
+        | Measurement::Accelerometer { .. }
+        | Measurement::Pseudorange { .. } => Ok(()),
     }
 }

@@ -9,6 +9,7 @@ use rtls_estimation::Gaussian;
 use super::anchors::AnchorReading;
 use super::core::{dimensions, rejected, Shared, Track};
 use super::direct::apply_deferred;
+use super::gnss::close_due_gnss_epoch;
 use super::output::{Output, RawFix};
 use super::solve::{solve_epoch, EpochFix};
 use super::update::{coupled_update, fix_update};
@@ -88,7 +89,8 @@ pub(super) fn solve<const N: usize>(
     }
 }
 
-/// Closes the open epoch if `now_s` is past its window (fix-then-filter only).
+/// Closes the open epoch if `now_s` is past its window (fix-then-filter only), and the open
+/// GNSS epoch (either pipeline).
 pub(super) fn close_due_epoch<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
@@ -104,7 +106,7 @@ pub(super) fn close_due_epoch<const N: usize>(
     if shared.settings.pipeline == Pipeline::TightlyCoupled {
         expire_initial_readings(shared, track, now_s, "epoch", out);
     }
-    Ok(())
+    close_due_gnss_epoch(shared, track, now_s, out)
 }
 
 /// Tightly coupled, a track (re)initialising: readings older than the confirmation window are

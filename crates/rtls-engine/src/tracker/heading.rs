@@ -253,6 +253,15 @@ pub(super) fn odometry<const N: usize>(
         out.events.push(rejected(&track.tag, time_s, kind, reason));
         return Ok(());
     };
+    if let Some(heading) = heading_rad {
+        // without a yaw rate, the odometer's heading changes are the heading changes (taken
+        // before the course, which θ carries to this record's time): θ ← θ + wrap(z − z_prev)
+        let rate_fresh = track.heading.rate.is_some_and(|(t, _, _)| time_s - t <= RATE_HOLD_S);
+        if let (false, Some(previous)) = (rate_fresh, track.heading.odometer_heading_rad) {
+            track.heading.integrated_rad += rtls_estimation::wrap_angle(heading - previous);
+        }
+        track.heading.odometer_heading_rad = Some(heading);
+    }
     prepare(shared, track, time_s)?;
     if let Some(heading) = heading_rad {
         let Some(heading_std) = heading_std_rad else {
@@ -260,13 +269,6 @@ pub(super) fn odometry<const N: usize>(
             out.events.push(rejected(&track.tag, time_s, kind, reason));
             return Ok(());
         };
-        // without a yaw rate, the odometer's heading changes are the heading changes:
-        // θ ← θ + wrap(z − z_prev)
-        let rate_fresh = track.heading.rate.is_some_and(|(t, _, _)| time_s - t <= RATE_HOLD_S);
-        if let (false, Some(previous)) = (rate_fresh, track.heading.odometer_heading_rad) {
-            track.heading.integrated_rad += rtls_estimation::wrap_angle(heading - previous);
-        }
-        track.heading.odometer_heading_rad = Some(heading);
         // z = ψ + δ + v; a zero std is floored (a heading is never exact)
         let variance = heading_std.max(1e-4).powi(2);
         if let Some(state) = track.heading.state {

@@ -21,6 +21,15 @@
 //! track's positions after fixes) align it and calibrate the biases; a speed without a heading
 //! (`odometry` without `heading_rad`, an increment's distance) becomes a velocity along it.
 //!
+//! GNSS `pseudorange` records are solved per epoch in both pipelines: a pseudorange carries the
+//! receiver clock bias, common to every satellite of the epoch and unknown, so one alone cannot
+//! update the filter without the clock state. A tag's pseudoranges of one epoch (equal time
+//! stamps, or within `epoch_s`) are solved together for position and clock bias in the site's
+//! ENU frame about `[frame] origin` (with fault exclusion), and the fix updates the track like a
+//! position fix (raw fix method `pseudorange`); each track keeps a receiver clock filter
+//! (bias and drift) whose prediction is the solver's prior, so three satellites (two at a known
+//! height) still give a fix. See [`gnss`](self::gnss) for the model.
+//!
 //! # Motion models (`tracker.motion_model`)
 //! - **cv**: constant velocity with white acceleration `σ_a` (seed 000).
 //! - **imm**: interacting multiple models (`[tracker.imm]`): a quiet CV, a constant
@@ -123,6 +132,7 @@ mod core;
 mod direct;
 mod divergence;
 mod epoch;
+mod gnss;
 mod heading;
 pub(crate) mod models;
 mod modes;
@@ -135,6 +145,8 @@ mod solve;
 mod tests;
 #[cfg(test)]
 mod tests_anonymous;
+#[cfg(test)]
+mod tests_gnss;
 #[cfg(test)]
 mod tests_heading;
 #[cfg(test)]
@@ -284,6 +296,10 @@ impl Tracker {
                 settings.heading.odometer_drift_rad_per_sqrt_s,
                 settings.heading.odometer_offset_std_rad,
             )?,
+            frame: site
+                .frame
+                .map(|f| rtls_positioning::gnss::LocalFrame::new(f.origin.geodetic()))
+                .transpose()?,
         };
         let monitor = site.zone_monitor()?;
         let tracks = if settings.dimensions == 3 {

@@ -153,7 +153,7 @@ pub struct RawFix {
     /// Covariance, `D × D` row-major in the first `D²` entries, m².
     pub covariance_m2: [f64; 9],
     /// How an epoch fix was made (`gauss-newton`, `gauss-newton-from-centroid`,
-    /// `weighted-centroid`, `tdoa`); `None` for other fixes (fingerprints).
+    /// `weighted-centroid`, `tdoa`, `pseudorange`); `None` for other fixes (fingerprints).
     pub method: Option<&'static str>,
 }
 
