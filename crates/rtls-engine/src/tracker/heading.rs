@@ -81,8 +81,12 @@ pub(crate) struct HeadingChannel {
     /// integrated, or without a recent rate the odometer heading's changes; never corrected by
     /// references.
     integrated_rad: f64,
-    /// The previous odometer heading, rad.
-    odometer_heading_rad: Option<f64>,
+    /// The time θ was last brought up to, s, and its rate then, rad/s (to carry θ to a
+    /// position update between heading records).
+    integrated_time_s: f64,
+    integrated_rate_radps: f64,
+    /// The previous odometer heading `(t, z)`, s and rad.
+    odometer_heading: Option<(f64, f64)>,
     /// Low-passed specific force in the sensor's axes `(t, f)`, m/s².
     gravity: Option<(f64, [f64; 3])>,
 }
@@ -101,11 +105,13 @@ struct CoursePoint {
 impl HeadingChannel {
     /// Notes the track's position after a position update (fix or anchor measurement).
     pub(super) fn position_updated(&mut self, time_s: f64, position_m: [f64; 2], covariance_m2: [f64; 3]) {
+        // θ(t) = θ + θ̇ (t − t_θ): the heading change up to the update's time
+        let since_s = (time_s - self.integrated_time_s).max(0.0);
         let point = CoursePoint {
             time_s,
             position_m,
             covariance_m2,
-            integrated_rad: self.integrated_rad,
+            integrated_rad: self.integrated_rad + self.integrated_rate_radps * since_s,
         };
         if self
             .chord_start
@@ -151,7 +157,10 @@ fn advance<const N: usize>(model: &HeadingModel, track: &mut Track<N>, time_s: f
         .map(|(_, w, v)| (w, v));
     if let Some((w, _)) = rate {
         // θ ← θ + (ω − b̂_g) Δt
-        channel.integrated_rad += (w - state.gyro_bias().0) * (time_s - state.time_s());
+        let corrected = w - state.gyro_bias().0;
+        channel.integrated_rad += corrected * (time_s - state.time_s());
+        channel.integrated_time_s = time_s;
+        channel.integrated_rate_radps = corrected;
     }
     channel.state = Some(model.propagate(&state, time_s, rate)?);
     Ok(())
@@ -257,10 +266,18 @@ pub(super) fn odometry<const N: usize>(
         // without a yaw rate, the odometer's heading changes are the heading changes (taken
         // before the course, which θ carries to this record's time): θ ← θ + wrap(z − z_prev)
         let rate_fresh = track.heading.rate.is_some_and(|(t, _, _)| time_s - t <= RATE_HOLD_S);
-        if let (false, Some(previous)) = (rate_fresh, track.heading.odometer_heading_rad) {
-            track.heading.integrated_rad += rtls_estimation::wrap_angle(heading - previous);
+        if let (false, Some((previous_s, previous))) = (rate_fresh, track.heading.odometer_heading) {
+            let change = rtls_estimation::wrap_angle(heading - previous);
+            let channel = &mut track.heading;
+            channel.integrated_rad += change;
+            channel.integrated_time_s = time_s;
+            channel.integrated_rate_radps = if time_s > previous_s {
+                change / (time_s - previous_s)
+            } else {
+                0.0
+            };
         }
-        track.heading.odometer_heading_rad = Some(heading);
+        track.heading.odometer_heading = Some((time_s, heading));
     }
     prepare(shared, track, time_s)?;
     if let Some(heading) = heading_rad {
