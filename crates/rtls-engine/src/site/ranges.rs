@@ -126,6 +126,7 @@ const EDGE_MARGIN_M: Bounds = Bounds::closed(0.0, 1000.0, "m");
 const DETECTION_PROBABILITY: Bounds = Bounds::open_closed(0.0, 1.0, "");
 const CLUTTER_DENSITY: Bounds = Bounds::closed(1e-12, 1000.0, "per m² or per m");
 const NOISE_FLOOR_DBM: Bounds = Bounds::closed(-150.0, -30.0, "dBm");
+const FIX_STD_M: Bounds = Bounds::closed(1e-3, 1e4, "m");
 const COUNT_MAX: usize = 1000;
 const NEIGHBOURS_MAX: usize = 100;
 const JPDA_EVENTS_MAX: usize = 10_000_000;
@@ -231,6 +232,9 @@ pub(super) fn checks(site: &Site) -> Vec<Check> {
             db.noise_floor_dbm,
             NOISE_FLOOR_DBM,
         ));
+        if let Some(min_std_m) = db.min_std_m {
+            out.push(within("fingerprints.min_std_m", min_std_m, FIX_STD_M));
+        }
     }
     tracker(site, &mut out);
     if let Some(a) = &site.anonymous {
