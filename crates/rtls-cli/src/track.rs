@@ -173,11 +173,42 @@ pub(crate) fn load_site_file(path: &Path) -> anyhow::Result<(Site, Option<RadioM
             let name = path.display().to_string();
             let text = read_text_file(&path, MAX_RADIO_MAP_BYTES, "radio map")
                 .with_context(|| format!("reading the radio map named by {site_name} [fingerprints]"))?;
-            Some(RadioMap::from_csv_str(&text, &name, &site)?)
+            let started = std::time::Instant::now();
+            let map = RadioMap::from_csv_str(&text, &name, &site)?;
+            eprintln!("{}", radio_map_summary(&name, &map, started.elapsed().as_secs_f64()));
+            Some(map)
         }
         None => None,
     };
     Ok((site, radio_map))
+}
+
+/// One line on a loaded radio map: its size, the fix σ floor in use and where it comes from
+/// (the leave-one-out calibration, the site's `min_std_m` or the spacing floor), and the load
+/// time.
+fn radio_map_summary(name: &str, map: &RadioMap, load_s: f64) -> String {
+    let source = match (map.min_std_override_m(), map.calibration()) {
+        (Some(_), _) => "the site's [fingerprints] min_std_m",
+        (None, Some(_)) => "calibrated",
+        (None, None) => "fewer than 3 distinct positions to cross-validate",
+    };
+    let loo = map
+        .calibration()
+        .map(|c| {
+            format!(
+                "; leave-one-out WKNN over {} points: RMSE {:.2} m, 95 % inside the 95 % ellipse at \
+                 σ_f {:.2} m, mean NEES {:.2}",
+                c.located, c.rmse_m, c.fitted_std_m, c.mean_nees
+            )
+        })
+        .unwrap_or_default();
+    format!(
+        "radio map {name}: {} reference points, fix σ floor {:.2} m ({source}; spacing floor {:.2} m{loo}); \
+         loaded in {load_s:.2} s",
+        map.reference_point_count(),
+        map.min_std_m(),
+        map.spacing_std_m(),
+    )
 }
 
 /// The run finished, but tags with records got no track output (exit status

@@ -29,6 +29,12 @@
 //! against 8.65 m for `k = 1`, 8.00 m for 5, 9.10 m for 13; leave-one-track-out on the BLE
 //! tetam tracks 1.89 m against 2.05 m for `k = 13`), measured by the importers' tests in `rtls-data`.
 //!
+//! # Covariance
+//! The fix covariance is the neighbours' spread plus a floor `σ² I` calibrated on the map when
+//! it is loaded, by leave-one-out cross-validation, so that 95 % of the map's own leave-one-out
+//! errors lie inside their 95 % ellipse ([`RadioMap::locate`], [`FloorCalibration`]); the
+//! site's `[fingerprints] min_std_m` overrides it.
+//!
 //! # References
 //! Seed 002 §1.2 (the offline radio map and WKNN); P. Bahl, V. Padmanabhan, "RADAR",
 //! INFOCOM 2000; J. Torres-Sospedra et al., "Comprehensive analysis of distance and similarity
@@ -42,7 +48,7 @@ pub use csv_text::{radio_map_csv, RadioMapRow};
 use std::collections::HashMap;
 
 use rtls_positioning::fingerprint::{
-    FingerprintDatabase, FingerprintIndex, Knn, SignalRepresentation, SignalSpace, Survey,
+    FingerprintDatabase, FingerprintIndex, Knn, LeaveOneOut, SignalRepresentation, SignalSpace, Survey,
 };
 use rtls_positioning::PositioningError;
 
@@ -54,8 +60,9 @@ use crate::site::Site;
 ///
 /// Holds the reader ids in column order, the reference points (with their floors when the file
 /// has a floor column) represented in a signal space, the number of neighbours `k` and the
-/// variance floor of the fix covariance (see [`RadioMap::locate`]). Reader positions (`x, y`)
-/// come from the site.
+/// variance floor of the fix covariance, calibrated on the map itself by leave-one-out
+/// cross-validation (see [`RadioMap::locate`] and [`RadioMap::calibration`]). Reader positions
+/// (`x, y`) come from the site.
 ///
 /// # Examples
 /// ```
@@ -104,7 +111,40 @@ pub struct RadioMap {
     lines: Vec<usize>,
     index: FingerprintIndex,
     knn: Knn,
+    /// `σ₀² = s²/12`, the spacing floor.
+    spacing_variance_m2: f64,
+    /// The leave-one-out calibration for the present `k` and signal space, when the map has
+    /// enough distinct positions.
+    calibration: Option<FloorCalibration>,
+    /// `[fingerprints] min_std_m` or [`RadioMap::with_min_std_m`].
+    min_std_override_m: Option<f64>,
+    /// The variance floor in use: the override², else `max(σ_f², σ₀²)`, else `σ₀²`.
     min_variance_m2: f64,
+}
+
+/// The leave-one-out calibration of a radio map's fix-noise floor ([`RadioMap::calibration`]):
+/// every reference point (or an even subsample of [`RadioMap::loo_queries`]) located by the
+/// rest of the map, all rows at its position and
+/// floor left out with it (`rtls_positioning::fingerprint::Knn::leave_one_out`).
+///
+/// # Units
+/// m, except the counts and the NEES (dimensionless).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FloorCalibration {
+    /// Reference points used as queries.
+    pub queried: usize,
+    /// Of those, the ones the rest of the map located (the errors below).
+    pub located: usize,
+    /// `√(Σ |x̂_l − P_l|² / S)` over the located queries, m.
+    pub rmse_m: f64,
+    /// `σ_f`, m: with `P_l = C_l + σ_f² I` (`C_l` the neighbours' spread), 95 % of the
+    /// leave-one-out errors lie inside their 95 % ellipse
+    /// (`rtls_positioning::fingerprint::LeaveOneOut::floor_variance_m2`).
+    pub fitted_std_m: f64,
+    /// Mean NEES `(1/S) Σ e_lᵀ (C_l + σ² I)⁻¹ e_l` of the leave-one-out errors with the
+    /// calibrated floor `σ² = max(σ_f², s²/12)` (2 for Gaussian errors; larger when a few
+    /// errors are far out).
+    pub mean_nees: f64,
 }
 
 /// A WKNN fix from [`RadioMap::locate`].
@@ -132,6 +172,23 @@ impl RadioMap {
     /// averaged per location (see the [module docs](self)).
     pub const DEFAULT_NEIGHBOURS: usize = 3;
 
+    /// Most reference points queried by the leave-one-out calibration; a larger map is
+    /// subsampled evenly ([`RadioMap::loo_queries`]).
+    pub const LOO_MAX_QUERIES: usize = 2000;
+
+    /// Fewest reference points queried by the leave-one-out calibration of a map that has
+    /// them, however large: 25 errors beyond the 95 % quantile.
+    pub const LOO_MIN_QUERIES: usize = 500;
+
+    /// The leave-one-out calibration's budget of signal-space distances (queries × rows),
+    /// between the two bounds above: 10⁷ takes ~1.3 s in a release build on UJIIndoorLoc's
+    /// 19 861 individual training scans (500 queries), 0.25 s on its 933 averaged locations.
+    pub const LOO_DISTANCE_BUDGET: usize = 10_000_000;
+
+    /// The probability of the ellipse the floor is calibrated for: a share `p` of the
+    /// leave-one-out errors lies inside the `p` ellipse of the fix covariance.
+    pub const FLOOR_COVERAGE: f64 = 0.95;
+
     /// Parses a radio map CSV (format in the [module docs](self)) for `site`.
     ///
     /// Every reader column must be a reader of `site` (its `x, y` become the anchor position of
@@ -139,7 +196,8 @@ impl RadioMap {
     /// reader columns must be exactly those ids in that order. The map starts with the site's
     /// `[fingerprints]` `neighbours` (default [`RadioMap::DEFAULT_NEIGHBOURS`]), the powed/Sørensen
     /// signal space ([`SignalSpace::powed_sorensen`]) with the site's `noise_floor_dbm` (default
-    /// −104 dBm), and the variance floor `s²/12` (see [`RadioMap::locate`]). At most
+    /// −104 dBm), and the variance floor calibrated by leave-one-out cross-validation, or the
+    /// site's `min_std_m` when set (see [`RadioMap::locate`]). At most
     /// [`MAX_RADIO_MAP_ROWS`](crate::site::MAX_RADIO_MAP_ROWS) reference points are read; read
     /// the file with [`read_text_file`](crate::site::read_text_file) and
     /// [`MAX_RADIO_MAP_BYTES`](crate::site::MAX_RADIO_MAP_BYTES) to bound its size.
@@ -204,8 +262,8 @@ impl RadioMap {
             }
         }
         let index = build_index(&database, space, file, &parsed.lines, &parsed.reader_ids)?;
-        let min_variance_m2 = spacing_variance_m2(database.reference_points_m());
-        Ok(Self {
+        let spacing_variance_m2 = spacing_variance_m2(database.reference_points_m());
+        let map = Self {
             file: file.to_string(),
             reader_ids: parsed.reader_ids,
             columns,
@@ -213,11 +271,60 @@ impl RadioMap {
             lines: parsed.lines,
             index,
             knn: Knn::wknn(neighbours),
-            min_variance_m2,
-        })
+            spacing_variance_m2,
+            calibration: None,
+            min_std_override_m: None,
+            min_variance_m2: spacing_variance_m2,
+        }
+        .calibrated()?;
+        match site.fingerprints.as_ref().and_then(|settings| settings.min_std_m) {
+            Some(min_std_m) => map.with_min_std_m(min_std_m),
+            None => Ok(map),
+        }
     }
 
-    /// The same map with `k` neighbours (WKNN, `w ∝ 1/D`, averaged on the voted floor).
+    /// The map with its floor recalibrated for the present `k` and signal space: leave-one-out
+    /// errors, `σ_f²` by 95 % coverage, floor `max(σ_f², s²/12)` unless overridden.
+    fn calibrated(mut self) -> Result<Self> {
+        let loo: LeaveOneOut = self.knn.leave_one_out(&self.index, self.loo_queries())?;
+        self.calibration = match self.calibration_of(&loo) {
+            Ok(calibration) => calibration,
+            // errors or spreads beyond f64 (reference coordinates near 1e150 m): no calibration,
+            // the spacing floor
+            Err(PositioningError::NonFinite { .. }) => None,
+            Err(other) => return Err(other.into()),
+        };
+        self.min_variance_m2 = match (self.min_std_override_m, &self.calibration) {
+            (Some(std_m), _) => std_m * std_m,
+            (None, Some(calibration)) => {
+                (calibration.fitted_std_m * calibration.fitted_std_m).max(self.spacing_variance_m2)
+            }
+            (None, None) => self.spacing_variance_m2,
+        };
+        Ok(self)
+    }
+
+    /// The calibration from leave-one-out errors; `None` when there are too few of them.
+    fn calibration_of(&self, loo: &LeaveOneOut) -> std::result::Result<Option<FloorCalibration>, PositioningError> {
+        let (Some(fitted_m2), Some(rmse_m)) = (loo.floor_variance_m2(Self::FLOOR_COVERAGE)?, loo.rmse_m()?) else {
+            return Ok(None);
+        };
+        // σ² = max(σ_f², s²/12)
+        let floor_m2 = fitted_m2.max(self.spacing_variance_m2);
+        if !floor_m2.is_finite() {
+            return Err(PositioningError::NonFinite { what: "spacing floor" });
+        }
+        Ok(Some(FloorCalibration {
+            queried: loo.queried(),
+            located: loo.samples().len(),
+            rmse_m,
+            fitted_std_m: fitted_m2.sqrt(),
+            mean_nees: loo.mean_nees(floor_m2)?.unwrap_or(0.0),
+        }))
+    }
+
+    /// The same map with `k` neighbours (WKNN, `w ∝ 1/D`, averaged on the voted floor), its
+    /// floor recalibrated for them.
     ///
     /// # Errors
     /// [`EngineError::InvalidParameter`] (`neighbours`) if `k` is 0.
@@ -232,11 +339,11 @@ impl RadioMap {
             });
         }
         self.knn = Knn::wknn(neighbours);
-        Ok(self)
+        self.calibrated()
     }
 
     /// The same map represented in another signal space (e.g. `SignalSpace::default()`,
-    /// Euclidean on dBm as in seed 002).
+    /// Euclidean on dBm as in seed 002), its floor recalibrated there.
     ///
     /// # Errors
     /// [`EngineError::Positioning`] for invalid representation parameters;
@@ -244,10 +351,12 @@ impl RadioMap {
     /// new floor.
     pub fn with_signal_space(mut self, space: SignalSpace) -> Result<Self> {
         self.index = build_index(&self.database, space, &self.file, &self.lines, &self.reader_ids)?;
-        Ok(self)
+        self.calibrated()
     }
 
-    /// The same map with the variance floor of the fix covariance set to `min_std_m²`.
+    /// The same map with the variance floor of the fix covariance set to `min_std_m²` in place
+    /// of the calibrated one (kept in [`RadioMap::calibration`]); as the site's
+    /// `[fingerprints] min_std_m`.
     ///
     /// # Errors
     /// [`EngineError::InvalidParameter`] (`min_std_m`) unless it is finite and positive (the
@@ -259,6 +368,7 @@ impl RadioMap {
                 reason: "the fix's standard deviation floor must be positive and finite",
             });
         }
+        self.min_std_override_m = Some(min_std_m);
         self.min_variance_m2 = min_std_m * min_std_m;
         Ok(self)
     }
@@ -287,12 +397,52 @@ impl RadioMap {
         *self.index.space()
     }
 
-    /// The standard deviation floor of the fix (m): `√(s²/12)` with `s` the median distance from
-    /// a reference point to its nearest distinct neighbour, unless set by
-    /// [`RadioMap::with_min_std_m`].
+    /// The standard deviation floor of the fix (m), `σ` in [`RadioMap::locate`]: the one set by
+    /// [`RadioMap::with_min_std_m`] (the site's `min_std_m`), else the calibrated
+    /// `max(σ_f, s/√12)` ([`RadioMap::calibration`]), else — on a map with fewer than three
+    /// distinct positions — the spacing floor [`RadioMap::spacing_std_m`].
     #[must_use]
     pub fn min_std_m(&self) -> f64 {
         self.min_variance_m2.sqrt()
+    }
+
+    /// The spacing floor `√(s²/12)` (m), `s` the median distance from a reference point to its
+    /// nearest neighbour at a different position (1 m when all share one position): the lower
+    /// bound of the calibrated floor.
+    #[must_use]
+    pub fn spacing_std_m(&self) -> f64 {
+        self.spacing_variance_m2.sqrt()
+    }
+
+    /// The leave-one-out calibration of the floor for the present `k` and signal space; `None`
+    /// when the map has fewer than three distinct positions or fewer than three reference
+    /// points the rest of the map can locate.
+    #[must_use]
+    pub fn calibration(&self) -> Option<&FloorCalibration> {
+        self.calibration.as_ref()
+    }
+
+    /// The number of reference points the leave-one-out calibration queries:
+    /// `clamp(LOO_DISTANCE_BUDGET / rows, LOO_MIN_QUERIES, LOO_MAX_QUERIES)`, at most all rows.
+    #[must_use]
+    pub fn loo_queries(&self) -> usize {
+        let rows = self.database.reference_point_count();
+        // m = clamp(B / n, m_min, m_max)
+        let queries = (Self::LOO_DISTANCE_BUDGET / rows.max(1)).clamp(Self::LOO_MIN_QUERIES, Self::LOO_MAX_QUERIES);
+        queries.min(rows)
+    }
+
+    /// The floor set by [`RadioMap::with_min_std_m`] or the site's `[fingerprints] min_std_m`
+    /// (m), if any.
+    #[must_use]
+    pub fn min_std_override_m(&self) -> Option<f64> {
+        self.min_std_override_m
+    }
+
+    /// The leave-one-out RMSE of the map's WKNN fixes (m), [`FloorCalibration::rmse_m`].
+    #[must_use]
+    pub fn loo_rmse_m(&self) -> Option<f64> {
+        self.calibration.map(|c| c.rmse_m)
     }
 
     /// The WKNN fix of a scan.
@@ -304,12 +454,25 @@ impl RadioMap {
     /// takes all the weight), floor by weighted vote, position `x̂ = Σ w_l P_l` over the
     /// neighbours on the voted floor.
     ///
-    /// Covariance: `Σ w_l (P_l − x̂)(P_l − x̂)ᵀ + σ₀² I`. The first term is the neighbours'
-    /// spread (zero when one neighbour takes all the weight); `σ₀² = s²/12` is the variance of
-    /// a position uniformly distributed over a square cell of side `s`, the map's median
-    /// reference spacing — the resolution no match can beat — which keeps the covariance
-    /// positive definite. Neither term is a calibrated error: calibrate the tracker's fix noise
-    /// on surveyed points (`rtls_positioning::calibrate_fix_noise`) where accuracy matters.
+    /// Covariance: `P = C + σ² I`, `C = Σ w_l (P_l − x̂)(P_l − x̂)ᵀ` the neighbours' spread
+    /// (zero when one neighbour takes all the weight) and `σ² = max(σ_f², σ₀²)` the floor
+    /// ([`RadioMap::min_std_m`]):
+    /// - `σ_f²` is calibrated when the map is loaded, by leave-one-out cross-validation: each
+    ///   reference point `l` (all of them, or [`RadioMap::loo_queries`] evenly strided) is
+    ///   located by the map without every row at its position and floor, giving the error
+    ///   `e_l = x̂_l − P_l` and spread `C_l`; `σ_f²` is the smallest variance with which 95 % of
+    ///   them lie inside their 95 % ellipse, `e_lᵀ (C_l + σ_f² I)⁻¹ e_l ≤ χ²₂(0.95) = 5.99`
+    ///   (per error the root of a quadratic in `σ²`, then the 95 % quantile; for `C = 0`,
+    ///   `σ_f = r₉₅ / 2.45` with `r₉₅` the 95 % quantile of `|e_l|`). A coverage fit rather than
+    ///   "mean NEES = 2" because fingerprint errors are heavy-tailed and a mean would size
+    ///   every ellipse for the few worst errors;
+    /// - `σ₀² = s²/12` is the variance of a position uniformly distributed over a square cell of
+    ///   side `s`, the map's median reference spacing — the resolution no match can beat — and
+    ///   the lower bound, which also keeps `P` positive definite.
+    ///
+    /// Leave-one-out queries are the map's own rows (averaged scans from the survey devices),
+    /// so live scans from other devices, months later, can be worse than `σ_f` says: check the
+    /// coverage with `rtls eval --truth`, and set `[fingerprints] min_std_m` from it.
     ///
     /// # Errors
     /// [`EngineError::Positioning`] with [`PositioningError::NoCommonAnchors`] if no usable
@@ -353,7 +516,7 @@ impl RadioMap {
         }
         let result = self.knn.locate(&self.index, &query)?;
         let (p, c) = (result.fix.position, result.fix.covariance);
-        // P = Σ w (P_l − x̂)(P_l − x̂)ᵀ + σ₀² I
+        // P = Σ w (P_l − x̂)(P_l − x̂)ᵀ + σ² I
         let covariance_m2 = [
             [c[(0, 0)] + self.min_variance_m2, c[(0, 1)]],
             [c[(1, 0)], c[(1, 1)] + self.min_variance_m2],

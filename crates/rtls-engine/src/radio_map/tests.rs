@@ -277,7 +277,7 @@ fn locate_matches_a_hand_computed_wknn() {
     let scan = [reading("A", -52.0), reading("B", -68.0), reading("C", -73.0)];
     let fix = map.locate(&scan).unwrap();
 
-    // by hand: the 3 smallest Sørensen distances, w ∝ 1/D, x̂ = Σ w P, spread + s²/12
+    // by hand: the 3 smallest Sørensen distances, w ∝ 1/D, x̂ = Σ w P, spread + σ² I
     let mut by_distance: Vec<(f64, [f64; 2])> = fingerprints
         .iter()
         .zip(&points)
@@ -301,7 +301,12 @@ fn locate_matches_a_hand_computed_wknn() {
             }
         }
     }
-    let floor_m2 = 2.0 * 2.0 / 12.0; // grid spacing 2 m
+    // the floor: leave-one-out calibrated, never below s²/12 (grid spacing 2 m)
+    let floor_m2 = map.min_std_m().powi(2);
+    assert!((map.spacing_std_m() - (2.0 * 2.0 / 12.0_f64).sqrt()).abs() < 1e-15);
+    let calibration = map.calibration().unwrap();
+    assert_eq!((calibration.queried, calibration.located), (6, 6));
+    assert_eq!(map.min_std_m(), calibration.fitted_std_m.max(map.spacing_std_m()));
     assert!((fix.position_m[0] - x[0]).abs() < 1e-12 && (fix.position_m[1] - x[1]).abs() < 1e-12);
     for (r, (fix_row, spread_row)) in fix.covariance_m2.iter().zip(&spread).enumerate() {
         for (c, (got, spread)) in fix_row.iter().zip(spread_row).enumerate() {
@@ -309,7 +314,6 @@ fn locate_matches_a_hand_computed_wknn() {
             assert!((got - expected).abs() < 1e-12, "({r},{c})");
         }
     }
-    assert!((map.min_std_m() - (floor_m2).sqrt()).abs() < 1e-15);
     assert_eq!((fix.floor, fix.unused_readings, fix.below_floor_readings), (None, 0, 0));
     // the query is nearest the point (2, 0) in signal space: the fix lies left of x = 3
     assert!(
@@ -325,7 +329,10 @@ fn exact_match_has_the_floor_covariance_and_is_positive_definite() {
     let map = RadioMap::from_csv_str(text, "map.csv", &site(None)).unwrap();
     let fix = map.locate(&[reading("A", -60.0), reading("B", -60.0)]).unwrap();
     assert_eq!(fix.position_m, [0.5, 0.0]);
-    let floor_m2 = 0.5 * 0.5 / 12.0;
+    // three distinct positions: the floor is calibrated, never below s²/12 (s = 0.5 m)
+    let floor_m2 = map.min_std_m().powi(2);
+    assert!(floor_m2 >= 0.5 * 0.5 / 12.0);
+    assert!(map.calibration().is_some());
     assert!((fix.covariance_m2[0][0] - floor_m2).abs() < 1e-15);
     assert!((fix.covariance_m2[1][1] - floor_m2).abs() < 1e-15);
     assert_eq!(fix.covariance_m2[0][1], 0.0);
@@ -444,4 +451,160 @@ fn the_example_and_errors_of_docs_formats_parse_as_quoted() {
     let quoted: String = error.split(';').next().unwrap().to_string();
     let flowed = section.split_whitespace().collect::<Vec<_>>().join(" ");
     assert!(flowed.contains(&format!("``{quoted}; …``")), "{error}");
+}
+
+/// A site with readers A (0, 0), B (10, 0), C (0, 10) and the given `[fingerprints]` lines.
+fn site_with_fingerprints(lines: &str) -> Site {
+    let text = format!(
+        "[[readers]]\nid = \"A\"\nposition_m = [0.0, 0.0]\ntechnology = \"ble\"\n\
+         [[readers]]\nid = \"B\"\nposition_m = [10.0, 0.0]\ntechnology = \"ble\"\n\
+         [[readers]]\nid = \"C\"\nposition_m = [0.0, 10.0]\ntechnology = \"ble\"\n\
+         [fingerprints]\npath = \"radio-map.csv\"\nformat = \"csv\"\n{lines}\n\
+         [tracker]\npipeline = \"fix-then-filter\"\nmotion_model = \"cv\"\nfilter = \"kf\"\n\
+         acceleration_noise_std_mps2 = 1.0\ngate_probability = 0.99\n\
+         initiation = {{ confirm_updates = 1, within_s = 1.0 }}\ncoast_timeout_s = 5.0\n\
+         delete_timeout_s = 60.0\nreorder_window_s = 0.5\n"
+    );
+    Site::from_toml_str(&text, "site.toml").unwrap()
+}
+
+/// One BLE scan at `p` from readers A, B, C: `ρ = −59 − 22 lg(max(d, 1 m))` dBm plus
+/// independent shadowing.
+fn ble_scan(p: [f64; 2], shadowing: &rand_distr::Normal<f64>, rng: &mut rand_chacha::ChaCha8Rng) -> Vec<f64> {
+    use rand_distr::Distribution;
+    [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]]
+        .iter()
+        .map(|a: &[f64; 2]| -59.0 - 22.0 * (p[0] - a[0]).hypot(p[1] - a[1]).max(1.0).log10() + shadowing.sample(rng))
+        .collect()
+}
+
+#[test]
+fn a_dense_map_reports_an_honest_covariance() {
+    use rand::{Rng, SeedableRng};
+    // issue 17: a dense map (0.5 m grid, one 3 dB-shadowed scan per point) and WKNN's spread
+    // plus s²/12 gave σ ≈ 0.2 m against metres of error
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+    let shadowing = rand_distr::Normal::new(0.0, 3.0).unwrap();
+    let readers: Vec<String> = ["A", "B", "C"].map(String::from).to_vec();
+    let rows: Vec<RadioMapRow> = (0..21 * 21)
+        .map(|k| {
+            let p = [0.5 * (k % 21) as f64, 0.5 * (k / 21) as f64];
+            RadioMapRow {
+                position_m: p,
+                floor: None,
+                rssi_dbm: ble_scan(p, &shadowing, &mut rng).into_iter().map(Some).collect(),
+            }
+        })
+        .collect();
+    let text = radio_map_csv(&readers, &rows).unwrap();
+    let map = RadioMap::from_csv_str(&text, "map.csv", &site(None)).unwrap();
+    let calibration = *map.calibration().unwrap();
+    assert_eq!((calibration.queried, calibration.located), (441, 441));
+    assert_eq!(map.loo_queries(), 441);
+    assert!((map.spacing_std_m() - (0.25_f64 / 12.0).sqrt()).abs() < 1e-12);
+    assert!(map.min_std_m() > 5.0 * map.spacing_std_m(), "{calibration:?}");
+    assert_eq!(map.loo_rmse_m(), Some(calibration.rmse_m));
+
+    // independent scans at random points: NEES with the reported covariance, and with the old
+    // one (spread + s²/12)
+    let old_shift = map.spacing_std_m().powi(2) - map.min_std_m().powi(2);
+    let nees = |e: [f64; 2], p: [[f64; 2]; 2]| {
+        let det = p[0][0] * p[1][1] - p[0][1] * p[1][0];
+        (e[0] * e[0] * p[1][1] - 2.0 * e[0] * e[1] * p[0][1] + e[1] * e[1] * p[0][0]) / det
+    };
+    let (mut new, mut old, mut inside, mut squares) = (0.0, 0.0, 0_u32, 0.0);
+    let count = 300;
+    for _ in 0..count {
+        let truth = [rng.gen_range(0.0..10.0), rng.gen_range(0.0..10.0)];
+        let scan: Vec<AnchorReading> = ["A", "B", "C"]
+            .iter()
+            .zip(ble_scan(truth, &shadowing, &mut rng))
+            .map(|(id, rssi)| reading(id, rssi))
+            .collect();
+        let fix = map.locate(&scan).unwrap();
+        let e = [fix.position_m[0] - truth[0], fix.position_m[1] - truth[1]];
+        let p = fix.covariance_m2;
+        let q = nees(e, p);
+        new += q;
+        inside += u32::from(q <= 5.991);
+        old += nees(e, [[p[0][0] + old_shift, p[0][1]], [p[1][0], p[1][1] + old_shift]]);
+        squares += e[0] * e[0] + e[1] * e[1];
+    }
+    let n = f64::from(count);
+    let (new, old, inside, rmse) = (new / n, old / n, f64::from(inside) / n, (squares / n).sqrt());
+    assert!((1.3..3.0).contains(&new), "NEES {new}, {calibration:?}, RMSE {rmse}");
+    assert!((0.88..0.99).contains(&inside), "{inside}");
+    assert!(old > 10.0, "old NEES {old}");
+}
+
+#[test]
+fn repeated_rows_at_one_position_do_not_leak_into_the_calibration() {
+    // 3 × 3 places 2 m apart, each surveyed five times with almost the same fingerprint: a
+    // leave-one-out that kept the copies would find the place itself (error ~0, floor s²/12)
+    let mut text = String::from("x_m,y_m,A,B,C\n");
+    for k in 0..9 {
+        let p = [2.0 * (k % 3) as f64, 2.0 * (k / 3) as f64];
+        for copy in 0..5 {
+            let rssi: Vec<String> = [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]]
+                .iter()
+                .map(|a: &[f64; 2]| {
+                    let d = (p[0] - a[0]).hypot(p[1] - a[1]).max(1.0);
+                    format!("{}", -59.0 - 22.0 * d.log10() + 0.1 * f64::from(copy))
+                })
+                .collect();
+            text.push_str(&format!("{},{},{}\n", p[0], p[1], rssi.join(",")));
+        }
+    }
+    let map = RadioMap::from_csv_str(&text, "map.csv", &site(None)).unwrap();
+    let calibration = map.calibration().unwrap();
+    assert_eq!((calibration.queried, calibration.located), (45, 45));
+    // every place is located from its neighbours, ≥ 2 m / k away; never from its copies
+    assert!(calibration.rmse_m > 0.5, "{calibration:?}");
+    assert!(map.min_std_m() > map.spacing_std_m(), "{calibration:?}");
+}
+
+#[test]
+fn a_tiny_map_falls_back_to_the_spacing_floor() {
+    // two distinct positions (several rows and floors): no calibration, s²/12 with s = 4 m
+    let text = "x_m,y_m,floor,A,B\n0,0,0,-40,-70\n0,0,0,-41,-69\n4,0,0,-70,-40\n0,0,1,-50,-60\n";
+    let map = RadioMap::from_csv_str(text, "map.csv", &site(None)).unwrap();
+    assert!(map.calibration().is_none());
+    assert_eq!(map.loo_rmse_m(), None);
+    assert!((map.min_std_m() - (16.0_f64 / 12.0).sqrt()).abs() < 1e-15);
+    assert!(map.locate(&[reading("A", -45.0)]).is_ok());
+    // one row: the 1 m fallback
+    let map = RadioMap::from_csv_str("x_m,y_m,A\n3,3,-50\n", "map.csv", &site(None)).unwrap();
+    assert_eq!((map.min_std_m(), map.calibration()), (1.0, None));
+    let fix = map.locate(&[reading("A", -45.0)]).unwrap();
+    assert_eq!(fix.covariance_m2, [[1.0, 0.0], [0.0, 1.0]]);
+}
+
+#[test]
+fn the_site_min_std_m_overrides_the_calibrated_floor() {
+    let text = "x_m,y_m,A,B,C\n0,0,-40,-80,-60\n5,0,-60,-60,-70\n10,0,-80,-40,-75\n0,5,-50,-70,-45\n";
+    let calibrated = RadioMap::from_csv_str(text, "map.csv", &site_with_fingerprints("")).unwrap();
+    let set = RadioMap::from_csv_str(text, "map.csv", &site_with_fingerprints("min_std_m = 7.5")).unwrap();
+    assert_eq!(set.min_std_m(), 7.5);
+    // the calibration is still reported, and survives a change of k
+    assert_eq!(set.calibration(), calibrated.calibration());
+    let set = set.with_neighbours(1).unwrap();
+    assert_eq!(set.min_std_m(), 7.5);
+    assert_ne!(set.calibration(), calibrated.calibration());
+    let fix = set
+        .locate(&[reading("A", -40.0), reading("B", -80.0), reading("C", -60.0)])
+        .unwrap();
+    assert_eq!(fix.covariance_m2, [[56.25, 0.0], [0.0, 56.25]]);
+}
+
+#[test]
+fn absurd_coordinates_load_without_a_nan() {
+    // leave-one-out spreads near 1e240 m² overflow the NEES: no calibration, the spacing floor
+    let text = "x_m,y_m,A,B\n0,0,-40,-80\n1e120,0,-60,-60\n-1e120,0,-80,-40\n5,5,-50,-50\n0,1e120,-70,-70\n";
+    let map = RadioMap::from_csv_str(text, "map.csv", &site(None)).unwrap();
+    assert!(map.min_std_m().is_finite() && map.min_std_m() > 0.0);
+    if let Some(calibration) = map.calibration() {
+        assert!(calibration.rmse_m.is_finite() && calibration.mean_nees.is_finite());
+    }
+    let fix = map.locate(&[reading("A", -41.0), reading("B", -79.0)]).unwrap();
+    assert!(fix.covariance_m2.iter().flatten().all(|v| v.is_finite()));
 }

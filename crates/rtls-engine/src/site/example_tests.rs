@@ -131,6 +131,8 @@ fn the_example_and_its_radio_map_load() {
     assert_eq!(map.reader_ids(), ["B1", "B2", "B3"]);
     assert_eq!(map.neighbours(), db.neighbours);
     assert_eq!(map.signal_space().representation.floor_dbm(), db.noise_floor_dbm);
+    assert_eq!(Some(map.min_std_m()), db.min_std_m);
+    assert!(map.calibration().is_some());
     assert!(crate::tracker::Tracker::new(&site).is_ok());
 }
 
@@ -157,12 +159,23 @@ fn the_fingerprint_and_imm_settings_are_read_from_the_site() {
             "acceleration_noise_std_mps2 = 0.7\n# Probability",
         )
         .replace("neighbours = 3\n", "")
-        .replace("noise_floor_dbm = -104.0\n", "");
+        .replace("noise_floor_dbm = -104.0\n", "")
+        .replace("min_std_m = 1.5\n", "");
     let site = Site::from_toml_str(&text, "site.toml").unwrap();
     assert_eq!(site.tracker.imm_cv_acceleration_noise_std_mps2(), 0.7);
     let map = crate::radio_map::RadioMap::from_csv_str(map_text, "radio-map.csv", &site).unwrap();
     assert_eq!(map.neighbours(), 3);
     assert_eq!(map.signal_space().representation.floor_dbm(), -104.0);
+    // min_std_m absent: the leave-one-out floor, never below the spacing floor
+    let calibration = map.calibration().unwrap();
+    assert_eq!(map.min_std_m(), calibration.fitted_std_m.max(map.spacing_std_m()));
+    let error = Site::from_toml_str(&EXAMPLE.replace("min_std_m = 1.5", "min_std_m = 0.0"), "site.toml").unwrap_err();
+    assert!(
+        error
+            .to_string()
+            .contains("field `fingerprints.min_std_m`: 0 is outside the allowed range [0.001, 10000] m"),
+        "{error}"
+    );
     // out of range: named with the value and the range
     let error = Site::from_toml_str(&EXAMPLE.replace("neighbours = 3", "neighbours = 0"), "site.toml").unwrap_err();
     assert!(

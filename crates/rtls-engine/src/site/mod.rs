@@ -250,6 +250,12 @@ pub struct FingerprintDatabase {
     /// count as not heard, and a map cell below it is an error. Default −104.
     #[serde(default = "default_noise_floor_dbm")]
     pub noise_floor_dbm: f64,
+    /// The standard deviation floor of a fingerprint fix, m (0.001 to 10 000), in place of the
+    /// one calibrated on the map by leave-one-out cross-validation
+    /// ([`crate::radio_map::RadioMap::locate`]): the fix covariance is the neighbours' spread
+    /// plus `min_std_m²` on the diagonal. Absent (the default): calibrated.
+    #[serde(default)]
+    pub min_std_m: Option<f64>,
 }
 
 fn default_neighbours() -> usize {

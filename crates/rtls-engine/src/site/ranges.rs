@@ -140,6 +140,7 @@ const FALSE_ALARM_PROBABILITY: Bounds = Bounds::closed(1e-9, 0.5, "");
 const CLOCK_BIAS_NOISE_M2PS: Bounds = Bounds::closed(1e-9, 1e6, "m²/s");
 const CLOCK_DRIFT_NOISE_M2PS3: Bounds = Bounds::closed(1e-9, 1e6, "m²/s³");
 const CLOCK_DRIFT_STD_MPS: Bounds = Bounds::closed(1e-3, 1e5, "m/s");
+const FIX_STD_M: Bounds = Bounds::closed(1e-3, 1e4, "m");
 const COUNT_MAX: usize = 1000;
 const NEIGHBOURS_MAX: usize = 100;
 const JPDA_EVENTS_MAX: usize = 10_000_000;
@@ -251,6 +252,9 @@ pub(super) fn checks(site: &Site) -> Vec<Check> {
             db.noise_floor_dbm,
             NOISE_FLOOR_DBM,
         ));
+        if let Some(min_std_m) = db.min_std_m {
+            out.push(within("fingerprints.min_std_m", min_std_m, FIX_STD_M));
+        }
     }
     tracker(site, &mut out);
     if let Some(a) = &site.anonymous {

@@ -121,13 +121,19 @@ impl FingerprintIndex {
         Ok(heard)
     }
 
+    /// The represented fingerprint of reference point `l` (heard anchors, increasing anchor),
+    /// usable as a query.
+    #[inline]
+    pub(crate) fn represented_row(&self, reference_point: usize) -> &SparseFingerprint {
+        let (row_start, _) = self.database.compressed_rows();
+        &self.represented[row_start[reference_point]..row_start[reference_point + 1]]
+    }
+
     /// Signal-space distance from a represented query to reference point `l`, and whether
     /// they share a heard anchor.
     #[inline]
     pub(crate) fn distance(&self, query: &SparseFingerprint, reference_point: usize) -> (f64, bool) {
-        let (row_start, _) = self.database.compressed_rows();
-        let row = &self.represented[row_start[reference_point]..row_start[reference_point + 1]];
-        sparse_distance(self.space.distance, query, row)
+        sparse_distance(self.space.distance, query, self.represented_row(reference_point))
     }
 }
 

@@ -10,7 +10,10 @@
 //! - [`SignalSpace`]: how readings are represented ([`SignalRepresentation`]; "not heard" is
 //!   `ψ = 0` in all of them) and compared ([`SignalDistance`]);
 //! - [`FingerprintIndex`]: the database represented once in a signal space, which the matchers
-//!   query.
+//!   query;
+//! - [`LeaveOneOut`] ([`Knn::leave_one_out`]): the matcher's errors on its own map, each
+//!   reference point located by the others, and the fix-noise floor that makes the reported
+//!   95 % ellipses hold 95 % of them.
 //!
 //! A query is the measured RSSI vector `&[Option<f64>]` (dBm), one entry per database anchor;
 //! `None` means the anchor was not heard. A query that hears nothing is
@@ -44,12 +47,14 @@
 //! ```
 
 mod anchors;
+mod cross_validation;
 mod database;
 mod index;
 mod knn;
 mod local;
 mod signal;
 
+pub use cross_validation::{LeaveOneOut, LeaveOneOutSample, MIN_DISTINCT_POSITIONS, MIN_LOCATED};
 pub use database::{FingerprintDatabase, Survey};
 pub use index::FingerprintIndex;
 pub use knn::{Knn, Weighting};
@@ -89,7 +94,9 @@ pub struct Neighbour {
 /// `Σ w_l (P_l − x̂)(P_l − x̂)ᵀ` (m²): it says how much the neighbours disagree, is zero when one
 /// neighbour carries all the weight (an exact match, or `n = 1`), and is **not** calibrated.
 /// For a tracking filter, use an observation covariance measured at surveyed points with
-/// [`calibrate_fix_noise`](crate::calibrate_fix_noise), as seed 002 does.
+/// [`calibrate_fix_noise`](crate::calibrate_fix_noise), as seed 002 does, or add to it the
+/// floor calibrated on the map itself ([`Knn::leave_one_out`],
+/// [`LeaveOneOut::floor_variance_m2`]).
 ///
 /// `neighbours` are sorted by increasing signal-space distance (ties by reference-point index);
 /// a neighbour on another floor than the voted one has weight 0 when
