@@ -322,7 +322,7 @@ pub struct Initiation {
 #[serde(deny_unknown_fields)]
 pub struct TrackerSettings {
     /// What carries the tags: `walker`, `vehicle` or `robot`; fills the keys left out with that
-    /// platform's defaults ([`platform`](self::platform)). Absent: the generic defaults.
+    /// platform's defaults ([`platform`]). Absent: the generic defaults.
     #[serde(default)]
     pub platform: Option<Platform>,
     /// Fix-then-filter or tightly coupled. Default tightly coupled.

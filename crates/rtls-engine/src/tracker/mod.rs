@@ -28,7 +28,7 @@
 //! ENU frame about `[frame] origin` (with fault exclusion), and the fix updates the track like a
 //! position fix (raw fix method `pseudorange`); each track keeps a receiver clock filter
 //! (bias and drift) whose prediction is the solver's prior, so three satellites (two at a known
-//! height) still give a fix. See [`gnss`](self::gnss) for the model.
+//! height) still give a fix. The model is documented in the tracker's `gnss` module and in [`rtls_positioning::gnss`].
 //!
 //! # Motion models (`tracker.motion_model`)
 //! - **cv**: constant velocity with white acceleration `σ_a` (seed 000).

@@ -31,6 +31,14 @@ use crate::Gaussian;
 
 /// The heading channel's noise model: an immutable strategy shared by every track.
 ///
+/// State `[ψ, b_g, δ]`: heading (rad), gyro bias (rad/s), odometer heading offset (rad).
+/// ```text
+/// with a yaw rate ω held over Δt:  ψ ← ψ + (ω − b_g) Δt,  F = [[1, −Δt, 0], [0, 1, 0], [0, 0, 1]]
+///   Q = [[σ_ω² Δt² + q_b Δt³/3, −q_b Δt²/2, 0], [−q_b Δt²/2, q_b Δt, 0], [0, 0, q_δ Δt]]
+/// without one:                     Q = diag(q_ψ Δt, q_b Δt, q_δ Δt)
+/// heading reference  z = ψ + v (H = [1, 0, 0]);  odometer heading  z = ψ + δ + v (H = [1, 0, 1])
+/// ```
+///
 /// # Units
 /// Rates in rad/s; random-walk densities in rad/√s (`q = σ²`, variance per second) or
 /// rad/s/√s for the bias.
@@ -124,7 +132,7 @@ impl HeadingModel {
     }
 
     /// Predicts to `time_s`, integrating the yaw rate `(ω, σ_ω²)` (rad/s, (rad/s)²) held since
-    /// the state's time, or as a random walk without one (see the [module](self) equations).
+    /// the state's time, or as a random walk without one (equations in the module documentation, also in [`HeadingModel`]).
     ///
     /// # Errors
     /// [`EstimationError::TimeWentBackwards`] for an earlier time; [`EstimationError::NonFinite`]
