@@ -73,6 +73,8 @@ pub(crate) struct HeadingChannel {
     state: Option<HeadingState>,
     /// The last yaw rate `(t, ω rad/s, σ_ω² (rad/s)²)`, held until the next.
     rate: Option<(f64, f64, f64)>,
+    /// Whether that rate is an odometer heading's change over its interval (not a gyro's).
+    rate_from_odometer: bool,
     /// The chord's start: a position after a position update.
     chord_start: Option<CoursePoint>,
     /// The latest position after a position update.
@@ -151,9 +153,11 @@ fn advance<const N: usize>(model: &HeadingModel, track: &mut Track<N>, time_s: f
         channel.state = Some(state);
         return Ok(());
     }
+    // a gyro's rate holds for RATE_HOLD_S; an odometer's covers exactly its record's interval
+    let from_odometer = channel.rate_from_odometer;
     let rate = channel
         .rate
-        .filter(|(t, _, _)| time_s - t <= RATE_HOLD_S)
+        .filter(|(t, _, _)| from_odometer || time_s - t <= RATE_HOLD_S)
         .map(|(_, w, v)| (w, v));
     if let Some((w, _)) = rate {
         // θ ← θ + (ω − b̂_g) Δt
@@ -221,6 +225,7 @@ fn prepare<const N: usize>(shared: &Shared, track: &mut Track<N>, time_s: f64) -
 /// Holds a yaw rate `ω` (rad/s) with variance `σ²` measured at `time_s`.
 fn hold_rate<const N: usize>(track: &mut Track<N>, time_s: f64, rate_radps: f64, variance: f64) {
     track.heading.rate = Some((time_s, rate_radps, variance));
+    track.heading.rate_from_odometer = false;
 }
 
 /// A `yaw_rate` record.
@@ -263,23 +268,29 @@ pub(super) fn odometry<const N: usize>(
         return Ok(());
     };
     if let Some(heading) = heading_rad {
-        // without a yaw rate, the odometer's heading changes are the heading changes (taken
-        // before the course, which θ carries to this record's time): θ ← θ + wrap(z − z_prev)
-        let rate_fresh = track.heading.rate.is_some_and(|(t, _, _)| time_s - t <= RATE_HOLD_S);
-        if let (false, Some((previous_s, previous))) = (rate_fresh, track.heading.odometer_heading) {
-            let change = rtls_estimation::wrap_angle(heading - previous);
-            let channel = &mut track.heading;
-            channel.integrated_rad += change;
-            channel.integrated_time_s = time_s;
-            channel.integrated_rate_radps = if time_s > previous_s {
-                change / (time_s - previous_s)
-            } else {
-                0.0
-            };
+        // without a gyro, the odometer's heading change since its previous record is the yaw
+        // rate over that interval, ω = wrap(z − z_prev) / Δt (an odometer's relative heading is
+        // good even when its absolute heading drifts); the rate goes in with the gyro bias
+        // added back, ω + b̂_g, so the channel's ψ ← ψ + (ω + b̂_g − b̂_g) Δt follows it
+        let channel = &mut track.heading;
+        let gyro_fresh = !channel.rate_from_odometer && channel.rate.is_some_and(|(t, _, _)| time_s - t <= RATE_HOLD_S);
+        if let (false, Some((previous_s, previous))) = (gyro_fresh, channel.odometer_heading) {
+            if time_s > previous_s {
+                let rate = rtls_estimation::wrap_angle(heading - previous) / (time_s - previous_s);
+                let bias = channel.state.map_or(0.0, |s| s.gyro_bias().0);
+                let std = shared.settings.heading.gyro_noise_std_radps;
+                channel.rate = Some((previous_s, rate + bias, std * std));
+                channel.rate_from_odometer = true;
+            }
         }
-        track.heading.odometer_heading = Some((time_s, heading));
+        channel.odometer_heading = Some((time_s, heading));
     }
     prepare(shared, track, time_s)?;
+    if track.heading.rate_from_odometer {
+        // used for its interval; the next odometry record brings the next one
+        track.heading.rate = None;
+        track.heading.rate_from_odometer = false;
+    }
     if let Some(heading) = heading_rad {
         let Some(heading_std) = heading_std_rad else {
             let reason = "odometry with `heading_rad` needs `heading_std_rad`".to_string();
