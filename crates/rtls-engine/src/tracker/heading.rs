@@ -267,7 +267,17 @@ pub(super) fn odometry<const N: usize>(
         out.events.push(rejected(&track.tag, time_s, kind, reason));
         return Ok(());
     };
-    if let Some(heading) = heading_rad {
+    // the odometer heading and its std, checked before the record touches the channel
+    let odometer = match (heading_rad, heading_std_rad) {
+        (Some(heading), Some(std)) => Some((heading, std)),
+        (Some(_), None) => {
+            let reason = "odometry with `heading_rad` needs `heading_std_rad`".to_string();
+            out.events.push(rejected(&track.tag, time_s, kind, reason));
+            return Ok(());
+        }
+        (None, _) => None,
+    };
+    if let Some((heading, _)) = odometer {
         // without a gyro, the odometer's heading change since its previous record is the yaw
         // rate over that interval, ω = wrap(z − z_prev) / Δt (an odometer's relative heading is
         // good even when its absolute heading drifts); the rate goes in with the gyro bias
@@ -291,30 +301,23 @@ pub(super) fn odometry<const N: usize>(
         track.heading.rate = None;
         track.heading.rate_from_odometer = false;
     }
-    if let Some(heading) = heading_rad {
-        let Some(heading_std) = heading_std_rad else {
-            let reason = "odometry with `heading_rad` needs `heading_std_rad`".to_string();
-            out.events.push(rejected(&track.tag, time_s, kind, reason));
-            return Ok(());
-        };
+    // prepare() leaves the channel with a state (started unaligned if it had none)
+    if let (Some((heading, heading_std)), Some(state)) = (odometer, track.heading.state) {
         // z = ψ + δ + v; a zero std is floored (a heading is never exact)
         let variance = heading_std.max(1e-4).powi(2);
-        if let Some(state) = track.heading.state {
-            match shared
-                .heading_model
-                .observe_odometer_heading(&state, heading, variance, GATE_SIGMAS)?
-            {
-                Some(updated) => track.heading.state = Some(updated),
-                None if track.heading.heading().is_some() => {
-                    let (psi, std) = track.heading.heading().unwrap_or_default();
-                    let reason = format!(
-                        "odometer heading {heading:.3} rad is more than {GATE_SIGMAS} σ from the track's \
-                         heading {psi:.3} ± {std:.3} rad (offset included)"
-                    );
-                    out.events.push(rejected(&track.tag, time_s, kind, reason));
-                    return Ok(());
-                }
-                None => {}
+        match shared
+            .heading_model
+            .observe_odometer_heading(&state, heading, variance, GATE_SIGMAS)?
+        {
+            Some(updated) => track.heading.state = Some(updated),
+            None => {
+                let (psi, std) = (state.heading_rad(), state.heading_variance_rad2().sqrt());
+                let reason = format!(
+                    "odometer heading {heading:.3} rad is more than {GATE_SIGMAS} σ from the track's \
+                     heading {psi:.3} ± {std:.3} rad (offset included)"
+                );
+                out.events.push(rejected(&track.tag, time_s, kind, reason));
+                return Ok(());
             }
         }
     }
@@ -447,10 +450,13 @@ fn body_to_level<const N: usize>(
     acceleration_mps2: &[f64],
     angular_rate_radps: &[f64],
 ) -> (f64, Option<[f64; 2]>) {
-    let rate_z = angular_rate_radps[angular_rate_radps.len() - 1];
+    // shapes are validated by the parsers; a record built in code with other shapes gives what
+    // it can (no rate: 0, no horizontal force: none) rather than a panic
+    let rate_z = angular_rate_radps.last().copied().unwrap_or(0.0);
     let ([fx, fy, fz], [wx, wy, wz]) = match (acceleration_mps2, angular_rate_radps) {
         ([fx, fy, fz], [wx, wy, wz]) => ([*fx, *fy, *fz], [*wx, *wy, *wz]),
-        _ => return (rate_z, Some([acceleration_mps2[0], acceleration_mps2[1]])),
+        ([fx, fy, ..], _) => return (rate_z, Some([*fx, *fy])),
+        _ => return (rate_z, None),
     };
     // ĝ ← ĝ + α (f − ĝ),  α = min(1, Δt / τ)
     let f = [fx, fy, fz];

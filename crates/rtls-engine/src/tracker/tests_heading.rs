@@ -372,3 +372,24 @@ reorder_window_s = 0.0
         rejected_kinds(&out, "range")
     );
 }
+
+#[test]
+fn unvalidated_imu_shapes_pushed_in_code_do_not_panic() {
+    // Tracker::push does not re-validate records: shapes the parsers refuse must still not panic
+    let mut tracker = Tracker::new(&site()).unwrap();
+    let mut out = Output::default();
+    for (k, (acceleration, rate)) in [(vec![], vec![]), (vec![0.1], vec![0.2, 0.3]), (vec![0.1, 0.2], vec![])]
+        .into_iter()
+        .enumerate()
+    {
+        let measurement = Measurement::Imu {
+            acceleration_mps2: acceleration,
+            angular_rate_radps: rate,
+            std_mps2: None,
+            std_radps: None,
+        };
+        tracker.push(record(k as f64, measurement), &mut out).unwrap();
+    }
+    tracker.finish(&mut out).unwrap();
+    assert!(out.updates.is_empty(), "an IMU alone gives no position");
+}
