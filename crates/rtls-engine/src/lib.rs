@@ -17,6 +17,7 @@
 //!   enter / exit / dwell events with anti-flap tolerance.
 
 pub mod association;
+pub mod corridors;
 mod error;
 pub mod evaluation;
 pub mod lifecycle;

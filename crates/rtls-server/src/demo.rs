@@ -24,6 +24,7 @@ pub fn demo_site_toml() -> String {
     MineLayout::seed000().site_toml(&SiteOptions {
         name: Some("Demo mine (seed 000: 307 readers, a roof fall on drift 3)".into()),
         drift_zones: true,
+        without_map: false,
     })
 }
 

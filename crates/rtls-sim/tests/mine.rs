@@ -384,3 +384,55 @@ fn the_tracker_on_the_endless_feed_warns_before_every_approach_to_the_collapse()
     eprintln!("mine feed: alarm leads {leads_s:.1?} s");
     assert!(leads_s.iter().all(|&lead| lead > 2.0), "{leads_s:?}");
 }
+
+/// RMSE of every output (updates and coasting predictions) against the truth, linearly
+/// interpolated between the whole seconds [`run_feed`] records.
+fn rmse_m(out: &Output, truth: &[Vec<[f64; 2]>], start_time_s: f64) -> f64 {
+    let (mut sum, mut count) = (0.0, 0usize);
+    for u in &out.updates {
+        let t = u.time_s - start_time_s;
+        let k = t.floor() as usize;
+        let track = &truth[tag_index(&u.tag)];
+        let (Some(a), Some(b)) = (track.get(k), track.get(k + 1)) else {
+            continue;
+        };
+        let w = t - k as f64;
+        let p = [a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1])];
+        sum += (u.position_m[0] - p[0]).powi(2) + (u.position_m[1] - p[1]).powi(2);
+        count += 1;
+    }
+    assert!(count > 10_000, "{count} outputs");
+    (sum / count as f64).sqrt()
+}
+
+#[test]
+fn the_tunnel_map_and_silent_readers_halve_the_demo_mines_error() {
+    let layout = MineLayout::seed000();
+    let config = few_roaming_miners();
+    let (steps, truth) = run_feed(&layout, &config);
+    let records: Vec<Record> = steps.into_iter().flatten().collect();
+    let run = |options: &SiteOptions| {
+        let site = Site::from_toml_str(&layout.site_toml(options), "mine.toml").unwrap();
+        let (_, out, refused) = track(&site, &records);
+        assert!(refused.is_empty());
+        rmse_m(&out, &truth, config.start_time_s)
+    };
+    let plain = run(&SiteOptions {
+        without_map: true,
+        ..SiteOptions::default()
+    });
+    let mut site = Site::from_toml_str(&layout.site_toml(&SiteOptions::default()), "mine.toml").unwrap();
+    site.tracker.negative_information = false;
+    let (_, out, _) = track(&site, &records);
+    let map_only = rmse_m(&out, &truth, config.start_time_s);
+    let best = run(&SiteOptions::default());
+    eprintln!(
+        "demo mine, 12 roaming miners for 30 min: RMSE RSSI only {plain:.2} m, + tunnel map {map_only:.2} m, \
+         + silent readers {best:.2} m"
+    );
+    assert!(map_only < 0.8 * plain, "map {map_only:.2} vs {plain:.2} m");
+    assert!(
+        best < 0.6 * plain && best <= map_only,
+        "best {best:.2} vs {map_only:.2} / {plain:.2} m"
+    );
+}

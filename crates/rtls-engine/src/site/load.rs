@@ -113,6 +113,34 @@ fn validate(site: &mut Site, text: &str, file: &str) -> Result<()> {
         }
     };
 
+    unique_ids(text, file, "corridors", site.corridors.iter().map(|c| c.id.as_str()))?;
+    for (i, corridor) in site.corridors.iter().enumerate() {
+        let points = &corridor.points_m;
+        let distinct = points.windows(2).all(|w| w[0] != w[1]);
+        check(
+            text,
+            file,
+            &[(
+                format!("corridors[{i}].points_m"),
+                points.len() >= 2 && distinct,
+                "must be a polyline of at least two points [x, y] with no point repeated back to back, m",
+            )],
+        )?;
+    }
+    for (i, reader) in site.readers.iter().enumerate() {
+        let radio = reader.radio.as_ref();
+        let sensitivity = radio.is_some_and(|r| r.sensitivity_dbm.is_some());
+        check(
+            text,
+            file,
+            &[(
+                format!("readers[{i}].radio.sensitivity_dbm"),
+                !sensitivity || radio.is_some_and(|r| r.path_loss.is_some()),
+                "needs the reader's radio.path_loss too (what it should have received is computed from it)",
+            )],
+        )?;
+    }
+
     let floors = unique_ids(text, file, "floors", site.floors.iter().map(|f| f.id.as_str()))?;
     for (i, floor) in site.floors.iter().enumerate() {
         let [lo, hi] = floor.z_range_m;

@@ -21,8 +21,8 @@ mod ranges;
 
 pub use limits::{read_text_file, MAX_RADIO_MAP_BYTES, MAX_RADIO_MAP_ROWS, MAX_SITE_BYTES, MAX_ZONE_VERTICES};
 pub use options::{
-    AdaptiveNoiseSettings, AlarmSettings, FrameSettings, GeodeticOrigin, GnssSettings, HeadingSettings, ImmSettings,
-    SchedulingCell, SchedulingSettings,
+    AdaptiveNoiseSettings, AlarmSettings, Corridor, FrameSettings, GeodeticOrigin, GnssSettings, HeadingSettings,
+    ImmSettings, MapSettings, SchedulingCell, SchedulingSettings,
 };
 pub use platform::Platform;
 
@@ -77,6 +77,11 @@ pub struct Site {
     /// Floors (levels), referenced by polygon zones.
     #[serde(default)]
     pub floors: Vec<Floor>,
+    /// The corridors tags move in (drifts, aisles): the tracker keeps its estimates inside them
+    /// ([`TrackerSettings::map`]) and, with negative information, treats rock between a
+    /// reader and a tag as blocking the radio.
+    #[serde(default)]
+    pub corridors: Vec<Corridor>,
     /// Zones; after loading, a polygon's `floor` has been resolved into its `z_range_m`.
     #[serde(default)]
     pub zones: Vec<Zone>,
@@ -177,6 +182,11 @@ pub struct Radio {
     /// Range error model for time-of-flight ranges.
     #[serde(default)]
     pub range: Option<RangeErrors>,
+    /// The weakest RSSI the reader reports, dBm. With it and a `path_loss`, a working reader
+    /// that does not hear a tag it should have heard is evidence that the tag is farther away
+    /// (`tracker.negative_information`; seed 000).
+    #[serde(default)]
+    pub sensitivity_dbm: Option<f64>,
 }
 
 /// Log-distance path loss: `P(d) = reference_power_dbm − 10·exponent·log10(d / d₀) + X`,
@@ -393,6 +403,18 @@ pub struct TrackerSettings {
     /// GNSS pseudoranges: default noise, fault exclusion and the receiver clock's process.
     #[serde(default)]
     pub gnss: GnssSettings,
+    /// The map constraint: how firmly estimates are held to the site's `[[corridors]]`.
+    #[serde(default)]
+    pub map: MapSettings,
+    /// Negative information (seed 000): a working reader with a `sensitivity_dbm` that did not
+    /// hear a tag although, from the estimate, it should have, moves the estimate away from
+    /// it. Default true (it needs readers with a sensitivity to do anything).
+    #[serde(default = "yes")]
+    pub negative_information: bool,
+    /// The largest speed a tag can have, m/s (> 0): a faster estimated velocity is scaled down
+    /// to it (a walker cannot run at 6 m/s through a drift). Absent: no limit.
+    #[serde(default)]
+    pub max_speed_mps: Option<f64>,
 }
 
 fn default_dimensions() -> u8 {

@@ -293,3 +293,44 @@ impl Default for GnssSettings {
         }
     }
 }
+
+/// `[[corridors]]`: one corridor tags move in (a drift, an aisle, a hallway), as its plan
+/// centreline and half-width. See [`crate::corridors`] for the geometry.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Corridor {
+    /// Unique id.
+    pub id: String,
+    /// The centreline, a polyline of at least two distinct consecutive points `[x, y]`, m.
+    pub points_m: Vec<[f64; 2]>,
+    /// Half the corridor's width: from the centreline to the walls, m (> 0).
+    pub half_width_m: f64,
+}
+
+/// `[tracker.map]`: the map constraint. After each epoch's updates the estimate's lateral
+/// offset from its nearest corridor segment is observed as `0 ± lateral_std_m` (not within
+/// `junction_radius_m` of a junction, where which way the tag went is for the measurements to
+/// tell), and an estimate past a dead end is pulled back to it (Simon 2010's soft constraint
+/// as a pseudo-measurement). Does nothing without `[[corridors]]`.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MapSettings {
+    /// Whether the constraint is applied. Default true.
+    pub enabled: bool,
+    /// Standard deviation of a tag's lateral offset from the centreline, m (> 0). Absent: the
+    /// corridor's `half_width_m / √3` (a tag anywhere across the corridor, uniformly).
+    pub lateral_std_m: Option<f64>,
+    /// Near a junction, within this distance, the lateral constraint is not applied, m (≥ 0).
+    /// Absent: twice the widest corridor's half-width.
+    pub junction_radius_m: Option<f64>,
+}
+
+impl Default for MapSettings {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            lateral_std_m: None,
+            junction_radius_m: None,
+        }
+    }
+}

@@ -141,6 +141,11 @@ const CLOCK_BIAS_NOISE_M2PS: Bounds = Bounds::closed(1e-9, 1e6, "m²/s");
 const CLOCK_DRIFT_NOISE_M2PS3: Bounds = Bounds::closed(1e-9, 1e6, "m²/s³");
 const CLOCK_DRIFT_STD_MPS: Bounds = Bounds::closed(1e-3, 1e5, "m/s");
 const FIX_STD_M: Bounds = Bounds::closed(1e-3, 1e4, "m");
+const SENSITIVITY_DBM: Bounds = Bounds::closed(-200.0, 50.0, "dBm");
+const HALF_WIDTH_M: Bounds = Bounds::closed(0.01, 1000.0, "m");
+const LATERAL_STD_M: Bounds = Bounds::closed(1e-3, 1000.0, "m");
+const JUNCTION_RADIUS_M: Bounds = Bounds::closed(0.0, 1000.0, "m");
+const MAX_SPEED_MPS: Bounds = Bounds::closed(1e-3, 1e4, "m/s");
 const COUNT_MAX: usize = 1000;
 const NEIGHBOURS_MAX: usize = 100;
 const JPDA_EVENTS_MAX: usize = 10_000_000;
@@ -209,11 +214,35 @@ pub(super) fn checks(site: &Site) -> Vec<Check> {
                 REFERENCE_DISTANCE_M,
             ));
         }
+        if let Some(sensitivity_dbm) = radio.sensitivity_dbm {
+            out.push(within(
+                format!("readers[{i}].radio.sensitivity_dbm"),
+                sensitivity_dbm,
+                SENSITIVITY_DBM,
+            ));
+        }
         if let Some(range) = radio.range {
             let at = |key: &str| format!("readers[{i}].radio.range.{key}");
             out.push(within(at("range_std_m"), range.range_std_m, RANGE_STD_M));
             out.push(within(at("bias_m"), range.bias_m, RANGE_BIAS_M));
         }
+    }
+    for (i, corridor) in site.corridors.iter().enumerate() {
+        if let Some(j) = corridor
+            .points_m
+            .iter()
+            .position(|v| !v.iter().all(|c| COORDINATE_M.contains(*c)))
+        {
+            out.push(coordinates(
+                format!("corridors[{i}].points_m[{j}]"),
+                &corridor.points_m[j],
+            ));
+        }
+        out.push(within(
+            format!("corridors[{i}].half_width_m"),
+            corridor.half_width_m,
+            HALF_WIDTH_M,
+        ));
     }
     for (i, floor) in site.floors.iter().enumerate() {
         out.push(coordinates(format!("floors[{i}].z_range_m"), &floor.z_range_m));
@@ -431,6 +460,15 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
         ),
     ] {
         out.push(within(at(key), value, bounds));
+    }
+    if let Some(std) = t.map.lateral_std_m {
+        out.push(within(at("map.lateral_std_m"), std, LATERAL_STD_M));
+    }
+    if let Some(radius) = t.map.junction_radius_m {
+        out.push(within(at("map.junction_radius_m"), radius, JUNCTION_RADIUS_M));
+    }
+    if let Some(speed) = t.max_speed_mps {
+        out.push(within(at("max_speed_mps"), speed, MAX_SPEED_MPS));
     }
     let gnss = &t.gnss;
     out.push(within(

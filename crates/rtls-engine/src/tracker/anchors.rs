@@ -18,6 +18,8 @@ pub(crate) struct Anchor {
     pub(crate) range_bias_m: f64,
     /// `(ρ₀ dBm, d₀ m, n, σ_X dB)` of the log-distance law.
     pub(crate) path_loss: Option<[f64; 4]>,
+    /// The weakest RSSI the reader reports, dBm (negative information).
+    pub(crate) sensitivity_dbm: Option<f64>,
 }
 
 impl Anchor {
@@ -38,6 +40,7 @@ impl Anchor {
                     p.shadowing_std_db,
                 ]
             }),
+            sensitivity_dbm: radio.and_then(|r| r.sensitivity_dbm),
         }
     }
 }
@@ -70,6 +73,15 @@ pub(crate) enum AnchorReading {
     },
 }
 
+impl AnchorReading {
+    /// The reader it came from.
+    pub(crate) fn anchor(&self) -> usize {
+        match *self {
+            Self::Range { anchor, .. } | Self::Rssi { anchor, .. } | Self::Tdoa { anchor, .. } => anchor,
+        }
+    }
+}
+
 /// All readers of a site, indexed by id.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Anchors {
@@ -86,6 +98,11 @@ impl Anchors {
 
     pub(crate) fn get(&self, index: usize) -> &Anchor {
         &self.list[index]
+    }
+
+    /// Every anchor, in site order (the index is the anchor's).
+    pub(crate) fn iter(&self) -> impl Iterator<Item = &Anchor> {
+        self.list.iter()
     }
 
     /// The index of a working anchor, or why it cannot be used.

@@ -24,6 +24,7 @@ use rtls_estimation::imm::ImmState;
 use rtls_estimation::motion::ConstantVelocity;
 use rtls_estimation::{EstimationError, Gaussian};
 
+use super::constraints::{close_epoch_if_due, Constraints, Hearing};
 use super::heading::HeadingChannel;
 use super::modes::Manoeuvres;
 use super::noise::NoiseScales;
@@ -69,6 +70,9 @@ pub(crate) struct Shared {
     /// The site frame as ENU about `[frame] origin`; `None` without an origin (pseudoranges
     /// are then refused).
     pub(crate) frame: Option<rtls_positioning::gnss::LocalFrame>,
+    /// Negative information, the corridor map and the speed limit; `None` when the site asks
+    /// for none of them.
+    pub(crate) constraints: Option<Constraints>,
 }
 
 /// One tag's track: its state (a value it owns), lifecycle and pending work.
@@ -110,6 +114,8 @@ pub(crate) struct Track<const N: usize> {
     pub(super) heading: HeadingChannel,
     /// GNSS: the open pseudorange epoch and the receiver clock filter.
     pub(super) gnss: GnssTrack,
+    /// The open epoch's readers, for negative information and the map at its close.
+    pub(super) hearing: Hearing,
 }
 
 impl<const N: usize> Track<N> {
@@ -134,6 +140,7 @@ impl<const N: usize> Track<N> {
             gated_updates: 0,
             heading: HeadingChannel::default(),
             gnss: GnssTrack::default(),
+            hearing: Hearing::default(),
         }
     }
 
@@ -270,15 +277,17 @@ impl<const N: usize> Core<N> {
     /// End of input: closes every epoch and reports every pending update.
     pub(crate) fn flush(&mut self, out: &mut Output) -> Result<()> {
         for track in &mut self.tracks {
-            let flushed = close_due_epoch(&self.shared, track, f64::INFINITY, out).and_then(|()| {
-                if reset_if_diverged(&self.shared.bounds, track, track.epoch_start_s, "epoch", out) {
-                    return Ok(());
-                }
-                match track.unreported {
-                    Some(_) => report(&self.shared, track, &mut self.monitor, out),
-                    None => Ok(()),
-                }
-            });
+            let flushed = close_due_epoch(&self.shared, track, f64::INFINITY, out)
+                .and_then(|()| close_epoch_if_due(&self.shared, track, f64::INFINITY, out))
+                .and_then(|()| {
+                    if reset_if_diverged(&self.shared.bounds, track, track.epoch_start_s, "epoch", out) {
+                        return Ok(());
+                    }
+                    match track.unreported {
+                        Some(_) => report(&self.shared, track, &mut self.monitor, out),
+                        None => Ok(()),
+                    }
+                });
             if let Err(error) = flushed {
                 let time_s = track.state.as_ref().map_or(track.epoch_start_s, Gaussian::time_s);
                 reset(track, time_s, "track", &format!("{error}"), out);
@@ -299,6 +308,12 @@ fn apply_record<const N: usize>(
 ) -> Result<()> {
     // a record beyond the open GNSS epoch's window closes it (its fix is dated before this record)
     close_due_gnss_epoch(shared, track, time_s, out)?;
+    if shared.constraints.is_some() {
+        // the epoch this record closes: its fix first (fix-then-filter), then what the
+        // readers that stayed silent, the map and the speed limit say about it
+        close_due_epoch(shared, track, time_s, out)?;
+        close_epoch_if_due(shared, track, time_s, out)?;
+    }
     // a later time closes the previous time's work: report it first
     if track.state.as_ref().is_some_and(|s| time_s > s.time_s()) && track.unreported.is_some() {
         report(shared, track, monitor, out)?;
@@ -307,13 +322,17 @@ fn apply_record<const N: usize>(
         Measurement::Range { .. } | Measurement::Rssi { .. } | Measurement::Tdoa { .. } => {
             let reading = match shared.anchors.resolve(measurement) {
                 Ok(Some(reading)) => reading,
-                Ok(None) => return Ok(()),
+                Ok(None) => {
+                    track.hearing.heard(time_s, None);
+                    return Ok(());
+                }
                 Err(reason) => {
                     out.events
                         .push(rejected(&track.tag, time_s, measurement.kind(), reason));
                     return Ok(());
                 }
             };
+            track.hearing.heard(time_s, Some(reading));
             anchor_reading(shared, track, time_s, reading, measurement.kind(), out)
         }
         // the control input of the CV model (and of the IMM's CV mode) for the next
@@ -341,6 +360,7 @@ fn tick_track<const N: usize>(
 ) -> Result<bool> {
     let interval_s = shared.settings.output_interval_s;
     close_due_epoch(shared, track, now_s, out)?;
+    close_epoch_if_due(shared, track, now_s, out)?;
     if reset_if_diverged(&shared.bounds, track, now_s, "epoch", out) {
         return Ok(false);
     }
@@ -413,6 +433,8 @@ fn coast_if_sound<const N: usize>(
     monitor: &mut ZoneMonitor,
     out: &mut Output,
 ) -> Result<()> {
+    // no reader heard the tag: every reader that should have is evidence where it is not
+    super::constraints::coast(shared, track, now_s)?;
     let Some(state) = track.state.as_ref() else {
         return Ok(());
     };

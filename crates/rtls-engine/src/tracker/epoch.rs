@@ -167,7 +167,13 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
 }
 
 /// An epoch's raw fix, naming the solver's method.
-fn epoch_raw_fix(tag: &Arc<str>, time_s: f64, position: &[f64], covariance: &[f64], method: &'static str) -> RawFix {
+pub(super) fn epoch_raw_fix(
+    tag: &Arc<str>,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+    method: &'static str,
+) -> RawFix {
     RawFix {
         method: Some(method),
         ..raw_fix(tag, time_s, position, covariance)

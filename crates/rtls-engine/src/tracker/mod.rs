@@ -128,6 +128,7 @@
 mod alarms;
 mod anchors;
 mod anonymous;
+mod constraints;
 mod core;
 mod direct;
 mod divergence;
@@ -145,6 +146,8 @@ mod solve;
 mod tests;
 #[cfg(test)]
 mod tests_anonymous;
+#[cfg(test)]
+mod tests_constraints;
 #[cfg(test)]
 mod tests_gnss;
 #[cfg(test)]
@@ -263,11 +266,13 @@ impl Tracker {
             .filter(|z| z.kind == ZoneKind::Hazard || no_coverage_zones.contains(&z.id))
             .cloned()
             .collect();
+        let anchors = Anchors::new(site);
+        let constraints = constraints::Constraints::new(site, &anchors);
         let shared = Shared {
             settings,
             alarms: site.alarms,
             lifecycle,
-            anchors: Anchors::new(site),
+            anchors,
             radio_map: None,
             motion,
             aided_motion: motion.with_acceleration_input(),
@@ -300,6 +305,7 @@ impl Tracker {
                 .frame
                 .map(|f| rtls_positioning::gnss::LocalFrame::new(f.origin.geodetic()))
                 .transpose()?,
+            constraints,
         };
         let monitor = site.zone_monitor()?;
         let tracks = if settings.dimensions == 3 {

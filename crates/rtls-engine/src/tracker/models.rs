@@ -74,6 +74,12 @@ pub(crate) enum AnchorLaw {
         /// The reference anchor `b`, m.
         reference_m: [f64; 3],
     },
+    /// Signed offset `e = n·(p − a) + v` (m) of the tag from a line or plane through the
+    /// "anchor" `a` with unit normal `n`: a map constraint as a pseudo-measurement.
+    Offset {
+        /// The unit normal `n`.
+        normal: [f64; 3],
+    },
 }
 
 /// One scalar anchor measurement as a [`MeasurementModel`] (seed 003's one-observation EKF
@@ -123,6 +129,11 @@ impl AnchorMeasurement {
             } => reference_power_dbm - 10.0 * exponent * (d.max(MIN_DISTANCE_M) / reference_distance_m).log10(),
             // h = ‖p − a‖ − ‖p − b‖
             AnchorLaw::RangeDifference { reference_m } => d - offset(p, &reference_m).1,
+            // h = n·(p − a)
+            AnchorLaw::Offset { normal } => {
+                let (delta, _) = offset(p, &self.anchor_m);
+                normal[0] * delta[0] + normal[1] * delta[1] + normal[2] * delta[2]
+            }
         }
     }
 
@@ -131,6 +142,10 @@ impl AnchorMeasurement {
     /// # Errors
     /// [`EstimationError::SingularMeasurement`] at an anchor, where the direction is undefined.
     pub(crate) fn gradient(&self, p: &[f64; 3]) -> rtls_estimation::Result<[f64; 3]> {
+        // ∂(n·(p − a))/∂p = nᵀ, defined everywhere
+        if let AnchorLaw::Offset { normal } = self.law {
+            return Ok(normal);
+        }
         let (delta, d) = offset(p, &self.anchor_m);
         let u = unit(&delta, d, "anchor measurement")?;
         Ok(match self.law {
@@ -147,6 +162,7 @@ impl AnchorMeasurement {
                 let w = unit(&delta_b, d_b, "anchor measurement")?;
                 [u[0] - w[0], u[1] - w[1], u[2] - w[2]]
             }
+            AnchorLaw::Offset { normal } => normal,
         })
     }
 }
@@ -195,7 +211,7 @@ mod tests {
             .collect()
     }
 
-    fn laws() -> [AnchorLaw; 3] {
+    fn laws() -> [AnchorLaw; 4] {
         [
             AnchorLaw::Range,
             AnchorLaw::LogDistance {
@@ -205,6 +221,9 @@ mod tests {
             },
             AnchorLaw::RangeDifference {
                 reference_m: [-4.0, 7.0, 3.0],
+            },
+            AnchorLaw::Offset {
+                normal: [0.6, -0.8, 0.0],
             },
         ]
     }

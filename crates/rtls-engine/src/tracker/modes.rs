@@ -195,6 +195,11 @@ impl Manoeuvres {
         Ok(modes)
     }
 
+    /// Each mode's state layout, in mode order.
+    pub(crate) fn modes_layouts(&self) -> Vec<&StateLayout> {
+        self.imm.modes().iter().map(|m| m.layout()).collect()
+    }
+
     /// The moment-matched CV state `x̂ = Σⱼ μⱼ x̂ⱼ`, `P = Σⱼ μⱼ [Pⱼ + (x̂ⱼ − x̂)(·)ᵀ]`.
     ///
     /// # Errors

@@ -192,6 +192,7 @@ pub(super) fn apply(site: &mut Site, calibration: &[ReaderCalibration]) {
         let radio = reader.radio.get_or_insert(Radio {
             path_loss: None,
             range: None,
+            sensitivity_dbm: None,
         });
         if let Some(range) = fit.range {
             radio.range = Some(RangeErrors {

@@ -21,11 +21,16 @@ pub struct SiteOptions {
     pub name: Option<String>,
     /// Also write one area-of-interest zone per drift (head counts per drift on the map).
     pub drift_zones: bool,
+    /// Write neither the tunnels as `[[corridors]]` nor the readers' `sensitivity_dbm`: the
+    /// tracker without seed 000's map and negative information (for comparisons).
+    pub without_map: bool,
 }
 
 /// The tracker and alarm settings of the mine's site file: the tightly coupled EKF on raw
 /// RSSI with a constant-velocity model, a 10 s coast timeout, one output per second, and
-/// predictive hazard alarms over a 10 s horizon.
+/// predictive hazard alarms over a 10 s horizon. With the tunnels as corridors and the readers'
+/// sensitivity (unless [`SiteOptions::without_map`]), the map constraint and negative
+/// information apply too.
 const TRACKER_SETTINGS: &str = "\
 [tracker]
 pipeline = \"tightly-coupled\"
@@ -73,12 +78,38 @@ impl MineLayout {
                 text,
                 "\n[[readers]]\nid = {}\nposition_m = [{x:?}, {y:?}]\ntechnology = \"rfid\"\nworking = {}\n\
                  radio = {{ path_loss = {{ reference_power_dbm = {:?}, exponent = {:?}, shadowing_std_db = {:?}, \
-                 reference_distance_m = 1.0 }} }}\n",
+                 reference_distance_m = 1.0 }}{} }}\n",
                 toml_string(&reader.id),
                 reader.working,
                 radio.reference_power_dbm,
                 radio.exponent,
                 radio.shadowing_std_db,
+                if options.without_map {
+                    String::new()
+                } else {
+                    format!(", sensitivity_dbm = {:?}", radio.sensitivity_dbm)
+                },
+            );
+        }
+        if !options.without_map {
+            for drift in &self.drifts {
+                let [x0, x1] = drift.x_range_m;
+                let _ = write!(
+                    text,
+                    "\n[[corridors]]\nid = {}\npoints_m = [[{x0:?}, {y:?}], [{x1:?}, {y:?}]]\nhalf_width_m = {:?}\n",
+                    toml_string(&drift.name),
+                    self.tunnel_half_width_m,
+                    y = drift.y_m,
+                );
+            }
+            let cut = &self.cross_cut;
+            let [y0, y1] = cut.y_range_m;
+            let _ = write!(
+                text,
+                "\n[[corridors]]\nid = {}\npoints_m = [[{x:?}, {y0:?}], [{x:?}, {y1:?}]]\nhalf_width_m = {:?}\n",
+                toml_string(&cut.name),
+                self.tunnel_half_width_m,
+                x = cut.x_m,
             );
         }
         for zone in self.zones(options) {

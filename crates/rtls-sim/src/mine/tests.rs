@@ -61,6 +61,7 @@ fn site_file_loads_with_the_collapse_as_a_hazard_and_optional_drift_zones() {
     let options = SiteOptions {
         name: Some("Paishanlou \"demo\"".into()),
         drift_zones: true,
+        without_map: false,
     };
     let site = Site::from_toml_str(&mine.site_toml(&options), "mine.toml").unwrap();
     assert_eq!(site.name.as_deref(), Some("Paishanlou \"demo\""));

@@ -1,0 +1,429 @@
+//! What a track knows at the end of each epoch beyond its measurements (seed 000's manager
+//! layer): which readers did *not* hear the tag (negative information), the corridors the tag
+//! cannot leave (the map), and how fast it can move (the speed limit).
+//!
+//! An epoch opens with a track's first reading or update at `t₀` and closes when a record or a
+//! clock tick comes later than `t₀ + tracker.epoch_s`. At the close, on the state at its time:
+//!
+//! ```text
+//! silence   of the working readers j with a sensitivity S_j that did not hear the tag, in line
+//!           of sight of the estimate through the corridors, the one with the largest
+//!             ŷ_j − S_j,  ŷ_j = ρ₀ − 10 n log₁₀(‖p̂ − r_j‖ / d₀)
+//!           if ŷ_j − S_j ≥ σ_X: EKF update with z = S_j, R = σ_X²       (Koch 2007)
+//! map       nearest corridor segment (a, u, n); unless a junction is within r_J of p̂:
+//!             e = n·(p − a) = 0 ± σ_lat                                 (Simon 2010)
+//!           past a dead end a (or b):  u·(p − a) = 0 ± σ_lat
+//! speed     ‖v_xy‖ > v_max  →  v_xy ← v_xy · v_max / ‖v_xy‖             (estimate projection)
+//! ```
+//!
+//! A coasting track (no reader heard the tag at all) gets the silence of every reader and the
+//! map at each coasting output: a miner behind a roof fall is where no working reader can hear
+//! him, and the estimate goes there instead of drifting on.
+//!
+//! Zones without coverage (every reader listed for the zone is broken: seed 000's roof fall)
+//! shield: an estimate inside one is not expected to be heard by anyone, and a reader whose line
+//! to the estimate crosses one is not expected to hear it (the rubble that broke the reader
+//! stops its neighbours' radio too).
+//!
+//! # References
+//! W. Koch, "On exploiting 'negative' sensor evidence for target tracking and sensor data
+//! fusion", *Information Fusion* 8(1), 2007; D. Simon, "Kalman filtering with state
+//! constraints: a survey of linear and nonlinear algorithms", *IET Control Theory &
+//! Applications* 4(8), 2010; seed 000 §3 (the mine's manager layer).
+
+use nalgebra::DVector;
+use rtls_estimation::imm::{Axis, Component, ImmState};
+use rtls_estimation::Gaussian;
+
+use super::alarms::position_of;
+use super::anchors::AnchorReading;
+use super::anchors::Anchors;
+use super::core::rejected;
+use super::core::{Shared, Track};
+use super::epoch::{epoch_raw_fix, solve};
+use super::models::{AnchorLaw, AnchorMeasurement};
+use super::output::Output;
+use super::update::{fix_update, predict, reacquire};
+use crate::corridors::CorridorMap;
+use crate::error::Result;
+use crate::site::{FilterKind, Site};
+use crate::zones::Zone;
+
+/// Smallest variance of a silence pseudo-measurement, dB² (a reader stated with no shadowing).
+const MIN_SILENCE_VARIANCE_DB2: f64 = 0.25;
+
+/// The end-of-epoch knowledge shared by every track.
+#[derive(Debug, Clone)]
+pub(crate) struct Constraints {
+    /// The corridors (empty: no map constraint, every reader in line of sight).
+    map: CorridorMap,
+    /// `σ_lat` when set; else each corridor's `half_width / √3`.
+    lateral_std_m: Option<f64>,
+    /// `r_J`, m.
+    junction_radius_m: f64,
+    /// Whether the map constraint is applied.
+    map_enabled: bool,
+    /// Anchors used as negative information: `(index, S dBm)`.
+    listeners: Vec<(usize, f64)>,
+    /// `v_max`, m/s.
+    max_speed_mps: Option<f64>,
+    /// Zones without coverage, which shield the radio.
+    shadows: Vec<Zone>,
+}
+
+impl Constraints {
+    /// The constraints `site` asks for, or `None` when it asks for none.
+    pub(crate) fn new(site: &Site, anchors: &Anchors) -> Option<Self> {
+        let settings = &site.tracker;
+        let map = CorridorMap::new(&site.corridors);
+        let map_enabled = settings.map.enabled && !map.is_empty();
+        let listeners: Vec<(usize, f64)> = if settings.negative_information {
+            anchors
+                .iter()
+                .enumerate()
+                .filter(|(_, a)| a.working && a.path_loss.is_some())
+                .filter_map(|(i, a)| a.sensitivity_dbm.map(|s| (i, s)))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        if !map_enabled && listeners.is_empty() && settings.max_speed_mps.is_none() {
+            return None;
+        }
+        let widest_m = site.corridors.iter().map(|c| c.half_width_m).fold(0.0, f64::max);
+        Some(Self {
+            map,
+            lateral_std_m: settings.map.lateral_std_m,
+            junction_radius_m: settings.map.junction_radius_m.unwrap_or(2.0 * widest_m),
+            map_enabled,
+            listeners,
+            max_speed_mps: settings.max_speed_mps,
+            shadows: site
+                .zones
+                .iter()
+                .filter(|z| {
+                    !z.readers.is_empty() && z.readers.iter().all(|r| site.reader(r).is_some_and(|r| !r.working))
+                })
+                .cloned()
+                .collect(),
+        })
+    }
+
+    /// Whether a reader at `reader_m` is expected to hear a tag at `tag_m`: in line of sight
+    /// through the corridors and with no zone without coverage in between.
+    fn audible(&self, tag_m: [f64; 3], reader_m: [f64; 3]) -> bool {
+        if !self.map.line_of_sight([tag_m[0], tag_m[1]], [reader_m[0], reader_m[1]]) {
+            return false;
+        }
+        if self.shadows.is_empty() {
+            return true;
+        }
+        // samples every 0.5 m along the line, ends included
+        let length_m = (0..3).map(|k| (reader_m[k] - tag_m[k]).powi(2)).sum::<f64>().sqrt();
+        let steps = (length_m / SHADOW_STEP_M).ceil().clamp(1.0, 1e5) as usize;
+        !(0..=steps).any(|k| {
+            let t = k as f64 / steps as f64;
+            let p = [0, 1, 2].map(|a| tag_m[a] + t * (reader_m[a] - tag_m[a]));
+            self.shadows.iter().any(|z| z.contains(p))
+        })
+    }
+}
+
+/// Spacing of the samples of a line tested against zones without coverage, m.
+const SHADOW_STEP_M: f64 = 0.5;
+
+/// A track's open epoch: when it opened and which readers heard the tag in it.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Hearing {
+    open_since_s: Option<f64>,
+    heard: Vec<usize>,
+    /// The epoch's anchor readings (a track found in the wrong corridor restarts at their fix).
+    readings: Vec<AnchorReading>,
+}
+
+impl Hearing {
+    /// A record at `time_s`, with its anchor reading when it came from a reader.
+    pub(super) fn heard(&mut self, time_s: f64, reading: Option<AnchorReading>) {
+        self.open_since_s.get_or_insert(time_s);
+        if let Some(reading) = reading {
+            let anchor = reading.anchor();
+            if !self.heard.contains(&anchor) {
+                self.heard.push(anchor);
+            }
+            self.readings.push(reading);
+        }
+    }
+
+    /// An update applied at `time_s` (opens the epoch if none is open).
+    pub(super) fn updated(&mut self, time_s: f64) {
+        self.open_since_s.get_or_insert(time_s);
+    }
+}
+
+/// Closes the track's epoch if `now_s` is past `t₀ + epoch_s`: applies silence, map and speed
+/// to the state at its time. If most of the readers that heard the tag (at least two) have no
+/// line of sight to the estimate through the corridors, the estimate is in the wrong corridor
+/// (a single-hypothesis track that took the wrong branch at a junction): instead of being held
+/// there, it restarts at the fix of the epoch's own readings (an event says so); when they give
+/// none, the epoch's constraints are skipped and the track keeps its state.
+///
+/// # Errors
+/// A failed filter step (the caller reports it and restarts the track).
+pub(super) fn close_epoch_if_due<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    now_s: f64,
+    out: &mut Output,
+) -> Result<()> {
+    let Some(constraints) = shared.constraints.as_ref() else {
+        return Ok(());
+    };
+    let Some(open_s) = track.hearing.open_since_s else {
+        return Ok(());
+    };
+    if now_s - open_s <= shared.settings.epoch_s {
+        return Ok(());
+    }
+    let heard = std::mem::take(&mut track.hearing.heard);
+    track.hearing.open_since_s = None;
+    let readings = std::mem::take(&mut track.hearing.readings);
+    if track.state.is_none() || track.is_lost() {
+        return Ok(());
+    }
+    if let (true, Some(p)) = (constraints.map_enabled, position(shared, track)) {
+        let blocked = heard
+            .iter()
+            .filter(|&&i| {
+                !constraints.map.line_of_sight([p[0], p[1]], {
+                    let a = shared.anchors.get(i).position_m;
+                    [a[0], a[1]]
+                })
+            })
+            .count();
+        if heard.len() >= 2 && 2 * blocked > heard.len() {
+            let time_s = track.state.as_ref().map_or(open_s, Gaussian::time_s);
+            let fixes = solve::<N>(shared, &readings, None).ok();
+            let what = if fixes.is_some() {
+                "restarts at the fix of this epoch's readings"
+            } else {
+                "is not held to the map this epoch (its readings give no fix to restart at)"
+            };
+            let reason = format!(
+                "{blocked} of the {} readers that heard the tag cannot see the estimate through the corridors: \
+                 the track is in the wrong corridor and {what}",
+                heard.len()
+            );
+            out.events.push(rejected(&track.tag, time_s, "epoch", reason));
+            if let Some(fixes) = fixes {
+                reacquire(track);
+                for (position, covariance, method) in fixes {
+                    out.fixes
+                        .push(epoch_raw_fix(&track.tag, time_s, &position, &covariance, method));
+                    fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
+                }
+            }
+            return Ok(());
+        }
+    }
+    constrain(shared, constraints, track, &heard)
+}
+
+/// A coasting track at `now_s`: predicted there, then every listening reader's silence, the map
+/// and the speed limit.
+///
+/// # Errors
+/// A failed prediction or filter step.
+pub(super) fn coast<const N: usize>(shared: &Shared, track: &mut Track<N>, now_s: f64) -> Result<()> {
+    let Some(constraints) = shared.constraints.as_ref() else {
+        return Ok(());
+    };
+    let Some(state) = track.state.as_ref() else {
+        return Ok(());
+    };
+    if state.time_s() >= now_s {
+        return Ok(());
+    }
+    let prior = predict(shared, track, state, now_s)?;
+    track.state = Some(prior.state);
+    if prior.modes.is_some() {
+        track.modes = prior.modes;
+    }
+    constrain(shared, constraints, track, &[])
+}
+
+/// Silence, map and speed on the track's state, in that order.
+fn constrain<const N: usize>(
+    shared: &Shared,
+    constraints: &Constraints,
+    track: &mut Track<N>,
+    heard: &[usize],
+) -> Result<()> {
+    silence(shared, constraints, track, heard)?;
+    if constraints.map_enabled {
+        map(shared, constraints, track)?;
+    }
+    if let Some(max_speed_mps) = constraints.max_speed_mps {
+        limit_speed(shared, track, max_speed_mps)?;
+    }
+    Ok(())
+}
+
+/// The tag position `[x, y, z]` of the track's state.
+fn position<const N: usize>(shared: &Shared, track: &Track<N>) -> Option<[f64; 3]> {
+    track.state.as_ref().map(|s| position_of(s, shared.tag_height_m).0)
+}
+
+/// Negative information: of the listening readers that did not hear the tag, the one that
+/// should most surely have heard it (largest `ŷ − S`), if `ŷ − S ≥ σ_X` (it hears a tag there
+/// at least 84 % of the time). One per epoch: the silences of neighbouring readers are not
+/// independent evidence, and stacking them as independent Gaussian measurements collapses the
+/// covariance until real readings are gated out (measured on the demo mine).
+fn silence<const N: usize>(
+    shared: &Shared,
+    constraints: &Constraints,
+    track: &mut Track<N>,
+    heard: &[usize],
+) -> Result<()> {
+    let Some(p) = position(shared, track) else {
+        return Ok(());
+    };
+    let mut surest: Option<(f64, AnchorMeasurement, f64)> = None;
+    for &(index, sensitivity_dbm) in &constraints.listeners {
+        if heard.contains(&index) {
+            continue;
+        }
+        let anchor = shared.anchors.get(index);
+        let Some([p0, d0, n, shadowing_db]) = anchor.path_loss else {
+            continue;
+        };
+        let law = AnchorLaw::LogDistance {
+            reference_power_dbm: p0,
+            reference_distance_m: d0,
+            exponent: n,
+        };
+        let variance = (shadowing_db * shadowing_db).max(MIN_SILENCE_VARIANCE_DB2);
+        let model = AnchorMeasurement::new(anchor.position_m, shared.tag_height_m, law, variance);
+        // ŷ − S, against σ_X: a silence that is not clearly unexpected says little
+        let excess_db = model.value(&p) - sensitivity_dbm;
+        if excess_db < variance.sqrt() || surest.as_ref().is_some_and(|(e, _, _)| *e >= excess_db) {
+            continue;
+        }
+        if !constraints.audible(p, anchor.position_m) {
+            continue;
+        }
+        surest = Some((excess_db, model, sensitivity_dbm));
+    }
+    match surest {
+        // z = S: the most the reader could have received without reporting it
+        Some((_, model, sensitivity_dbm)) => pseudo_update(shared, track, &model, sensitivity_dbm),
+        None => Ok(()),
+    }
+}
+
+/// The map constraint on the nearest corridor segment.
+fn map<const N: usize>(shared: &Shared, constraints: &Constraints, track: &mut Track<N>) -> Result<()> {
+    let Some(p) = position(shared, track) else {
+        return Ok(());
+    };
+    let plan = [p[0], p[1]];
+    let Some(segment) = constraints.map.nearest(plan) else {
+        return Ok(());
+    };
+    let lateral_std_m = constraints.lateral_std_m.unwrap_or(segment.half_width_m / 3f64.sqrt());
+    let variance = lateral_std_m * lateral_std_m;
+    let [ax, ay] = segment.origin_m;
+    if !constraints.map.junction_within(plan, constraints.junction_radius_m) {
+        // e = n·(p − a) = 0 ± σ_lat
+        let [nx, ny] = segment.normal;
+        let model = AnchorMeasurement::new(
+            [ax, ay, p[2]],
+            shared.tag_height_m,
+            AnchorLaw::Offset { normal: [nx, ny, 0.0] },
+            variance,
+        );
+        pseudo_update(shared, track, &model, 0.0)?;
+    }
+    let [ux, uy] = segment.direction;
+    let end = if segment.dead_start && segment.along_m < 0.0 {
+        Some([ax, ay])
+    } else if segment.dead_end && segment.along_m > segment.length_m {
+        Some([ax + segment.length_m * ux, ay + segment.length_m * uy])
+    } else {
+        None
+    };
+    if let Some([ex, ey]) = end {
+        // u·(p − end) = 0 ± σ_lat: back at the dead end
+        let model = AnchorMeasurement::new(
+            [ex, ey, p[2]],
+            shared.tag_height_m,
+            AnchorLaw::Offset { normal: [ux, uy, 0.0] },
+            variance,
+        );
+        pseudo_update(shared, track, &model, 0.0)?;
+    }
+    Ok(())
+}
+
+/// `v_xy ← v_xy · v_max/‖v_xy‖` on the state and on every IMM mode (covariances kept).
+fn limit_speed<const N: usize>(shared: &Shared, track: &mut Track<N>, max_speed_mps: f64) -> Result<()> {
+    let Some(state) = track.state.as_ref() else {
+        return Ok(());
+    };
+    let mut mean = *state.mean();
+    let speed = mean[1].hypot(mean[3]);
+    if speed <= max_speed_mps {
+        return Ok(());
+    }
+    let scale = max_speed_mps / speed;
+    mean[1] *= scale;
+    mean[3] *= scale;
+    track.state = Some(Gaussian::new(mean, *state.covariance(), state.time_s())?);
+    if let (Some(manoeuvres), Some(modes)) = (shared.manoeuvres.as_ref(), track.modes.as_mut()) {
+        limit_mode_speeds(manoeuvres.modes_layouts(), modes, max_speed_mps);
+    }
+    Ok(())
+}
+
+/// The speed limit on each IMM mode's own velocity entries.
+fn limit_mode_speeds(layouts: Vec<&rtls_estimation::imm::StateLayout>, modes: &mut ImmState, max_speed_mps: f64) {
+    for (layout, estimate) in layouts.into_iter().zip(modes.estimates_mut()) {
+        let (Some(ix), Some(iy)) = (
+            layout.index_of(Component::Velocity(Axis::X)),
+            layout.index_of(Component::Velocity(Axis::Y)),
+        ) else {
+            continue;
+        };
+        let speed = estimate.mean[ix].hypot(estimate.mean[iy]);
+        if speed > max_speed_mps {
+            let scale = max_speed_mps / speed;
+            estimate.mean[ix] *= scale;
+            estimate.mean[iy] *= scale;
+        }
+    }
+}
+
+/// An ungated update with a pseudo-measurement `z` of `model` (every IMM mode too). Not a
+/// measurement: no lifecycle step, no gate, no adaptive-noise statistics.
+fn pseudo_update<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    model: &AnchorMeasurement,
+    z: f64,
+) -> Result<()> {
+    let Some(state) = track.state.as_ref() else {
+        return Ok(());
+    };
+    let measured = DVector::from_element(1, z);
+    if let (Some(manoeuvres), Some(modes)) = (shared.manoeuvres.as_ref(), track.modes.as_ref()) {
+        let posterior = manoeuvres.update_anchor(modes, model, z)?;
+        track.state = Some(manoeuvres.combined(&posterior)?);
+        track.modes = Some(posterior);
+        return Ok(());
+    }
+    let updated = match shared.settings.filter {
+        FilterKind::Ukf => shared.ukf.update(state, model, &measured)?,
+        FilterKind::Ekf | FilterKind::Kf => shared.ekf.update(state, model, &measured)?,
+    };
+    track.state = Some(updated.state);
+    Ok(())
+}
