@@ -2,11 +2,14 @@
 
 use nalgebra::DVector;
 
-use super::update::{check_measurement, check_model_shapes, linearized_update, CovarianceUpdate, Updated};
+use super::predict::control_effect;
+use super::update::{
+    check_measurement, check_model_shapes, linearized_update, sequential_update, CovarianceUpdate, Updated,
+};
 use crate::error::{EstimationError, Result};
-use crate::gaussian::{Gaussian, Vector};
+use crate::gaussian::Gaussian;
 use crate::measurement::LinearMeasurementModel;
-use crate::motion::{ControlGain, LinearMotionModel};
+use crate::motion::LinearMotionModel;
 
 /// The linear Kalman filter for linear motion and measurement models.
 ///
@@ -122,7 +125,7 @@ impl KalmanFilter {
         model: &H,
         z: &DVector<f64>,
     ) -> Result<Updated<N>> {
-        super::ekf::sequential_update(prior, model, z, self.covariance_update)
+        sequential_update(prior, model, z, self.covariance_update)
     }
 }
 
@@ -145,17 +148,4 @@ fn linear_predict<const N: usize, M: LinearMotionModel<N>>(
     // P⁻ = F P Fᵀ + Q
     let covariance = f * state.covariance() * f.transpose() + model.process_noise_matrix(dt_s);
     Gaussian::from_step(mean, covariance, to_time_s, "predicted state")
-}
-
-/// `B u` with a size check of `u`.
-pub(crate) fn control_effect<const N: usize>(b: &ControlGain<N>, control: &DVector<f64>) -> Result<Vector<N>> {
-    if b.ncols() != control.len() {
-        return Err(EstimationError::DimensionMismatch {
-            what: "control input",
-            expected: b.ncols(),
-            found: control.len(),
-        });
-    }
-    crate::math::ensure_finite(control, "control input")?;
-    Ok(b * control)
 }

@@ -14,6 +14,7 @@ mod cv_axes;
 mod ekf;
 mod gaussian_filter;
 mod kf;
+mod predict;
 mod ukf;
 mod update;
 

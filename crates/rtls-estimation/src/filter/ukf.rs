@@ -4,7 +4,7 @@ use alloc::vec::Vec;
 
 use nalgebra::{DMatrix, DVector};
 
-use super::kf::control_effect;
+use super::predict::control_effect;
 use super::update::{check_measurement, solve_gain, Gain, GainSolution, Updated};
 use crate::error::{EstimationError, Result};
 use crate::gaussian::{Gaussian, Matrix, Vector};

@@ -1,10 +1,11 @@
-//! The measurement-update kernel shared by the KF and the EKF, and the update result type.
+//! The measurement-update kernels shared by the KF and the EKF (batch and one component at a
+//! time), and the update result type.
 
 use nalgebra::{Const, DMatrix, DVector, Dyn, OMatrix};
 
 use crate::error::{EstimationError, Result};
 use crate::gaussian::{Gaussian, Matrix};
-use crate::measurement::MeasurementJacobian;
+use crate::measurement::{MeasurementJacobian, MeasurementModel};
 
 /// Kalman gain `K` (`N × m`).
 pub type Gain<const N: usize> = OMatrix<f64, Const<N>, Dyn>;
@@ -237,6 +238,49 @@ pub(crate) fn linearized_update<const N: usize>(
         state,
         innovation,
         innovation_covariance: s,
+        gain,
+        nis,
+        log_det_innovation_covariance: log_det,
+    })
+}
+
+/// Scalar-at-a-time update, re-linearising before each component.
+pub(crate) fn sequential_update<const N: usize, H: MeasurementModel<N>>(
+    prior: &Gaussian<N>,
+    model: &H,
+    z: &DVector<f64>,
+    form: CovarianceUpdate,
+) -> Result<Updated<N>> {
+    let m = model.dim();
+    check_measurement(z, m)?;
+    let r = model.noise_covariance();
+    let h0 = model.jacobian(prior.mean())?;
+    check_model_shapes(&h0, r, m)?;
+    for i in 0..m {
+        for j in 0..m {
+            if i != j && r[(i, j)] != 0.0 {
+                return Err(EstimationError::CorrelatedNoise);
+            }
+        }
+    }
+    // Batch quantities at the prior, for gating and NIS: ν, S = H P Hᵀ + R, K, νᵀ S⁻¹ ν.
+    let innovation = model.residual(z, &model.predict(prior.mean())?);
+    let (pht, innovation_covariance) = linearized_innovation_covariance(prior, &h0, r);
+    let GainSolution { gain, nis, log_det, .. } = solve_gain(&innovation_covariance, &pht, &innovation)?;
+    let mut state = *prior;
+    for i in 0..m {
+        // hᵢ(x), Hᵢ = ∂hᵢ/∂x at the current estimate
+        let predicted = model.predict(state.mean())?;
+        let h_row = model.jacobian(state.mean())?.rows(i, 1).into_owned();
+        // νᵢ = zᵢ − hᵢ(x)   (through the model's residual, so angles wrap)
+        let nu = model.residual(z, &predicted)[i];
+        let r_i = DMatrix::from_element(1, 1, r[(i, i)]);
+        state = linearized_update(&state, DVector::from_element(1, nu), &h_row, &r_i, form)?.state;
+    }
+    Ok(Updated {
+        state,
+        innovation,
+        innovation_covariance,
         gain,
         nis,
         log_det_innovation_covariance: log_det,

@@ -17,9 +17,10 @@ use tokio::time::timeout;
 
 use crate::auth::{Access, Tokens};
 
-use super::broker::{add, Shared};
 use super::frame::{self, FrameError, Next};
 use super::session::{packet_name, Session, CLOSE_WRITE_TIMEOUT};
+use super::shared::Shared;
+use super::stats::add;
 use super::CONNECT_TIMEOUT;
 
 /// Serves one accepted connection until it closes: the handshake, then the session.

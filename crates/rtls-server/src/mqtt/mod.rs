@@ -74,12 +74,17 @@
 
 mod bridge;
 mod broker;
+mod config;
 mod connection;
 mod frame;
 mod session;
+mod shared;
+mod stats;
 
 pub use bridge::{BridgeError, BridgeStats, BridgeStatsHandle, ExternalBroker, DEFAULT_CLIENT_ID};
-pub use broker::{BrokerConfig, BrokerError, BrokerStats, BrokerStatsHandle, EmbeddedBroker};
+pub use broker::EmbeddedBroker;
+pub use config::{BrokerConfig, BrokerError};
+pub use stats::{BrokerStats, BrokerStatsHandle};
 
 use std::time::Duration;
 

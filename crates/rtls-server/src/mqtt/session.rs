@@ -22,9 +22,10 @@ use tokio::time::{timeout, timeout_at, Instant};
 use crate::auth::Access;
 use crate::sink::{IngestError, Publication};
 
-use super::broker::{add, Shared};
 use super::error_topic;
 use super::frame::{self, Next};
+use super::shared::Shared;
+use super::stats::add;
 
 /// How long a closing session (DISCONNECT, server shutdown) waits for the payloads it already
 /// handed to the sink, to acknowledge them, before it closes anyway.

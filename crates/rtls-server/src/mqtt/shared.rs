@@ -1,0 +1,89 @@
+//! What every connection task of the embedded broker shares: its configuration, the sink, the
+//! publication channel, the counters and the registry of client ids.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, PoisonError};
+
+use tokio::sync::{broadcast, Notify};
+
+use crate::sink::{MeasurementSink, Publication};
+
+use super::config::BrokerConfig;
+use super::stats::Counters;
+
+/// The sessions by client id, so that a new CONNECT with an id in use closes the older session
+/// (MQTT 3.1.1 §3.1.4).
+#[derive(Debug, Default)]
+pub(crate) struct ClientRegistry {
+    sessions: Mutex<HashMap<String, (u64, Arc<Notify>)>>,
+}
+
+impl ClientRegistry {
+    /// Registers session `connection_no` as `client_id`, tells the session it replaces (if any)
+    /// to close, and returns the signal by which this session will be told.
+    pub(crate) fn register(&self, client_id: &str, connection_no: u64) -> Arc<Notify> {
+        let taken_over = Arc::new(Notify::new());
+        let mut sessions = self.sessions.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((_, previous)) = sessions.insert(client_id.to_owned(), (connection_no, Arc::clone(&taken_over))) {
+            previous.notify_one();
+        }
+        taken_over
+    }
+
+    /// Removes `client_id` unless a newer session registered it since.
+    pub(crate) fn unregister(&self, client_id: &str, connection_no: u64) {
+        let mut sessions = self.sessions.lock().unwrap_or_else(PoisonError::into_inner);
+        if sessions.get(client_id).is_some_and(|(no, _)| *no == connection_no) {
+            sessions.remove(client_id);
+        }
+    }
+}
+
+/// What every connection task shares.
+pub(crate) struct Shared {
+    pub(crate) config: BrokerConfig,
+    pub(crate) sink: Arc<dyn MeasurementSink>,
+    pub(crate) publications: broadcast::Sender<Publication>,
+    pub(crate) counters: Arc<Counters>,
+    pub(crate) clients: ClientRegistry,
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use super::*;
+
+    #[test]
+    fn a_second_session_with_the_same_client_id_takes_over() {
+        let registry = ClientRegistry::default();
+        let first = registry.register("reader-1", 1);
+        let other = registry.register("reader-2", 2);
+        let second = registry.register("reader-1", 3);
+        // The first session was told; a notified() future now completes at once.
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_time()
+            .build()
+            .expect("runtime");
+        runtime.block_on(async {
+            tokio::time::timeout(Duration::from_millis(100), first.notified())
+                .await
+                .expect("the first session is told to close");
+            assert!(tokio::time::timeout(Duration::from_millis(20), other.notified())
+                .await
+                .is_err());
+            assert!(tokio::time::timeout(Duration::from_millis(20), second.notified())
+                .await
+                .is_err());
+        });
+        // The first session's unregister must not remove the second one's entry.
+        registry.unregister("reader-1", 1);
+        let third = registry.register("reader-1", 4);
+        runtime.block_on(async {
+            tokio::time::timeout(Duration::from_millis(100), second.notified())
+                .await
+                .expect("the second session is still registered and is told");
+        });
+        drop(third);
+    }
+}
