@@ -170,7 +170,7 @@ pub struct RadioMapFix {
 impl RadioMap {
     /// Default number of neighbours `k` (WKNN): the best `k` on UJIIndoorLoc's training set
     /// averaged per location (see the [module docs](self)).
-    pub const DEFAULT_NEIGHBOURS: usize = 3;
+    pub const DEFAULT_NEIGHBOURS: usize = crate::site::FingerprintDatabase::DEFAULT_NEIGHBOURS;
 
     /// Most reference points queried by the leave-one-out calibration; a larger map is
     /// subsampled evenly ([`RadioMap::loo_queries`]).

@@ -269,7 +269,12 @@ pub struct FingerprintDatabase {
 }
 
 fn default_neighbours() -> usize {
-    crate::radio_map::RadioMap::DEFAULT_NEIGHBOURS
+    FingerprintDatabase::DEFAULT_NEIGHBOURS
+}
+
+impl FingerprintDatabase {
+    /// `k` when `neighbours` is absent.
+    pub const DEFAULT_NEIGHBOURS: usize = 3;
 }
 
 fn default_noise_floor_dbm() -> f64 {

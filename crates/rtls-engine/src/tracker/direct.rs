@@ -7,10 +7,10 @@
 //! fix, then the others. Applied at once, it would move the state past the fix's time, and the
 //! fix's prediction would go backwards in time.
 
-use super::core::{dimensions, rejected, Shared, Track};
-use super::epoch::raw_fix;
 use super::heading;
+use super::output::raw_fix;
 use super::output::Output;
+use super::track::{dimensions, rejected, Shared, Track};
 use super::update::{fix_update, velocity_update};
 use crate::error::Result;
 use crate::record::Measurement;

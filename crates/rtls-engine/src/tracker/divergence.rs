@@ -11,9 +11,9 @@ use nalgebra::DMatrix;
 use rtls_estimation::imm::ImmState;
 use rtls_estimation::Gaussian;
 
-use super::core::{dimensions, rejected, Track};
+use super::bounds::SiteBounds;
 use super::output::Output;
-use crate::site::Site;
+use super::track::{dimensions, rejected, Track};
 
 /// The largest trace of a track's position covariance, m²: a 10 km standard deviation, far
 /// beyond any site and any honest coast (a CV track coasting 600 s at σ_a = 1 m/s² reaches
@@ -22,44 +22,6 @@ pub(super) const MAX_POSITION_VARIANCE_M2: f64 = 1.0e8;
 
 /// The farthest a track's position may be from the box around the site's readers, m.
 pub(super) const MAX_DISTANCE_FROM_SITE_M: f64 = 10_000.0;
-
-/// The box around the site's readers that positions are checked against.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct SiteBounds {
-    /// Smallest and largest reader coordinates, m; `None` for a site without readers (fixes
-    /// only: then the position is not checked, as it may be in any projected frame).
-    extent_m: Option<([f64; 3], [f64; 3])>,
-}
-
-impl SiteBounds {
-    /// The box around `site`'s readers.
-    pub(crate) fn new(site: &Site) -> Self {
-        let mut extent_m: Option<([f64; 3], [f64; 3])> = None;
-        for reader in &site.readers {
-            let p = reader.position_xyz_m();
-            let (low, high) = extent_m.get_or_insert((p, p));
-            for axis in 0..3 {
-                low[axis] = low[axis].min(p[axis]);
-                high[axis] = high[axis].max(p[axis]);
-            }
-        }
-        Self { extent_m }
-    }
-
-    /// Distance from `position_m` (the first `d` axes) to the box, m (0 inside it).
-    fn distance_m(&self, position_m: &[f64], d: usize) -> Option<f64> {
-        let (low, high) = self.extent_m?;
-        let squared: f64 = (0..d)
-            .map(|axis| {
-                let outside = (low[axis] - position_m[axis])
-                    .max(position_m[axis] - high[axis])
-                    .max(0.0);
-                outside * outside
-            })
-            .sum();
-        Some(squared.sqrt())
-    }
-}
 
 /// Why `state` (and, under the IMM, its `modes`) has diverged, or `None` when it is sound.
 pub(super) fn divergence<const N: usize>(

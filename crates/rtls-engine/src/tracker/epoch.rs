@@ -1,17 +1,15 @@
 //! Anchor readings in epochs: buffering, solving an epoch into fixes (fix-then-filter), and
 //! initialising a tightly coupled track from its first readings.
 
-use std::sync::Arc;
-
 use nalgebra::SVector;
 use rtls_estimation::Gaussian;
 
 use super::anchors::AnchorReading;
-use super::core::{dimensions, rejected, Shared, Track};
 use super::direct::apply_deferred;
 use super::gnss::close_due_gnss_epoch;
-use super::output::{Output, RawFix};
+use super::output::{epoch_raw_fix, Output};
 use super::solve::{solve_epoch, EpochFix};
+use super::track::{dimensions, rejected, Shared, Track};
 use super::update::{coupled_update, fix_update};
 use crate::error::Result;
 use crate::site::Pipeline;
@@ -164,33 +162,4 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
     }
     // and those at or after it
     apply_deferred(shared, track, f64::INFINITY, out)
-}
-
-/// An epoch's raw fix, naming the solver's method.
-pub(super) fn epoch_raw_fix(
-    tag: &Arc<str>,
-    time_s: f64,
-    position: &[f64],
-    covariance: &[f64],
-    method: &'static str,
-) -> RawFix {
-    RawFix {
-        method: Some(method),
-        ..raw_fix(tag, time_s, position, covariance)
-    }
-}
-
-pub(super) fn raw_fix(tag: &Arc<str>, time_s: f64, position: &[f64], covariance: &[f64]) -> RawFix {
-    let mut position_m = [0.0; 3];
-    position_m[..position.len()].copy_from_slice(position);
-    let mut covariance_m2 = [0.0; 9];
-    covariance_m2[..covariance.len()].copy_from_slice(covariance);
-    RawFix {
-        time_s,
-        tag: Arc::clone(tag),
-        dimensions: position.len(),
-        position_m,
-        covariance_m2,
-        method: None,
-    }
 }

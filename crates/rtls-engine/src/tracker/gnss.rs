@@ -40,120 +40,22 @@
 
 use std::sync::Arc;
 
-use nalgebra::{Matrix2, Vector2, Vector3};
+use nalgebra::Vector3;
 use rtls_positioning::gnss::{
-    elevation_rad, elevation_std_m, pseudorange_fix, pseudorange_fix_at_height, ClockPrior, LocalFrame, Pseudorange,
+    elevation_rad, elevation_std_m, pseudorange_fix, pseudorange_fix_at_height, LocalFrame, Pseudorange,
     PseudorangeOptions, PseudorangeSolution,
 };
 
-use super::core::{dimensions, rejected, Shared, Track};
-use super::epoch::raw_fix;
+use super::gnss_state::{Reading, ReceiverClock};
+use super::output::raw_fix;
 use super::output::{Output, RawFix};
+use super::track::{dimensions, rejected, Shared, Track};
 use super::update::fix_update;
 use crate::error::Result;
 use crate::record::Measurement;
 
 /// The kind name of pseudorange records.
 const KIND: &str = "pseudorange";
-
-/// A buffered pseudorange: its time, satellite id, position and value as received.
-#[derive(Debug, Clone, PartialEq)]
-pub(super) struct Reading {
-    time_s: f64,
-    satellite: Arc<str>,
-    satellite_ecef_m: [f64; 3],
-    pseudorange_m: f64,
-    std_m: Option<f64>,
-}
-
-/// A track's GNSS state: the open epoch and the receiver clock filter.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub(crate) struct GnssTrack {
-    epoch: Vec<Reading>,
-    clock: Option<ReceiverClock>,
-}
-
-impl GnssTrack {
-    /// Whether the open epoch holds readings from before `now_s`.
-    pub(super) fn holds_readings_before(&self, now_s: f64) -> bool {
-        self.epoch.first().is_some_and(|r| r.time_s < now_s)
-    }
-}
-
-/// The receiver clock filter: `[b, ḃ]` (m, m/s) with its covariance at `time_s`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct ReceiverClock {
-    mean: Vector2<f64>,
-    covariance: Matrix2<f64>,
-    time_s: f64,
-}
-
-impl ReceiverClock {
-    /// The prediction to `time_s` (never backwards: an earlier time keeps the state).
-    fn predicted(&self, time_s: f64, shared: &Shared) -> Self {
-        let dt = (time_s - self.time_s).max(0.0);
-        let (qb, qd) = (
-            shared.settings.gnss.clock_bias_noise_m2ps,
-            shared.settings.gnss.clock_drift_noise_m2ps3,
-        );
-        // F = [[1, Δt], [0, 1]]
-        let f = Matrix2::new(1.0, dt, 0.0, 1.0);
-        // Q = [[q_b Δt + q_d Δt³/3, q_d Δt²/2], [q_d Δt²/2, q_d Δt]]
-        let q = Matrix2::new(
-            qb * dt + qd * dt.powi(3) / 3.0,
-            qd * dt * dt / 2.0,
-            qd * dt * dt / 2.0,
-            qd * dt,
-        );
-        Self {
-            // x⁻ = F x
-            mean: f * self.mean,
-            // P⁻ = F P Fᵀ + Q
-            covariance: f * self.covariance * f.transpose() + q,
-            time_s: time_s.max(self.time_s),
-        }
-    }
-
-    /// The prior on `b` this prediction gives the solver.
-    fn prior(&self) -> ClockPrior {
-        ClockPrior {
-            mean_m: self.mean[0],
-            variance_m2: self.covariance[(0, 0)],
-        }
-    }
-
-    /// The filter with `b`'s marginal replaced by the solver's posterior `N(b̂, σ̂²)`.
-    fn with_bias_posterior(&self, bias_m: f64, variance_m2: f64) -> Self {
-        let p_bb = self.covariance[(0, 0)];
-        // k = P⁻ e₁ / P⁻_bb
-        let k = self.covariance.column(0) / p_bb;
-        Self {
-            // x⁺ = x⁻ + k (b̂ − b̄)
-            mean: self.mean + k * (bias_m - self.mean[0]),
-            // P⁺ = P⁻ + k (σ̂² − P⁻_bb) kᵀ, symmetrised
-            covariance: symmetric(self.covariance + k * (variance_m2 - p_bb) * k.transpose()),
-            time_s: self.time_s,
-        }
-    }
-
-    /// A clock starting at the solved bias, with the drift unknown.
-    fn start(bias_m: f64, variance_m2: f64, time_s: f64, shared: &Shared) -> Self {
-        Self {
-            mean: Vector2::new(bias_m, 0.0),
-            covariance: Matrix2::new(
-                variance_m2,
-                0.0,
-                0.0,
-                shared.settings.gnss.initial_clock_drift_std_mps.powi(2),
-            ),
-            time_s,
-        }
-    }
-}
-
-fn symmetric(m: Matrix2<f64>) -> Matrix2<f64> {
-    (m + m.transpose()) * 0.5
-}
 
 /// A pseudorange record: refused without a site origin, else into the open epoch (which is
 /// closed first if the record is beyond its window).
@@ -233,7 +135,7 @@ fn close<const N: usize>(shared: &Shared, track: &mut Track<N>, out: &mut Output
     if used.is_empty() {
         return Ok(());
     }
-    let predicted = track.gnss.clock.map(|c| c.predicted(time_s, shared));
+    let predicted = track.gnss.clock.map(|c| c.predicted(time_s, &shared.settings.gnss));
     let start = track.state.as_ref().filter(|_| !track.is_lost()).map(|s| {
         let m = s.mean();
         if dimensions::<N>() == 3 {
@@ -353,7 +255,7 @@ fn solve_epoch<const N: usize>(
         None => {
             // no clock yet, or a clock jump: (re)start it from the satellites alone
             let (fix, bias, variance) = alone?;
-            Ok((fix, ReceiverClock::start(bias, variance, time_s, shared)))
+            Ok((fix, ReceiverClock::start(bias, variance, time_s, &shared.settings.gnss)))
         }
     }
 }

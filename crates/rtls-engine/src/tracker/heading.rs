@@ -33,112 +33,16 @@
 //! # References
 //! Groves (2013) §14.1, §16.2; seed 004 (odometry with heading drift).
 
-use rtls_estimation::aided::{odometry_velocity, HeadingModel, HeadingState};
+use rtls_estimation::aided::{odometry_velocity, HeadingModel};
 
-use super::core::{rejected, Shared, Track};
+use super::heading_state::{
+    COURSE_MIN_INTERVAL_S, COURSE_VARIANCE_INFLATION, GATE_SIGMAS, GRAVITY_MPS2, GRAVITY_TIME_CONSTANT_S,
+    MAX_HEADING_STD_RAD, RATE_HOLD_S,
+};
 use super::output::Output;
+use super::track::{rejected, Shared, Track};
 use super::update::velocity_update;
 use crate::error::Result;
-
-/// A speed is turned into a velocity only when the heading's std is at most this, rad (20°):
-/// beyond it the linearised velocity covariance no longer describes the error.
-pub(super) const MAX_HEADING_STD_RAD: f64 = 0.35;
-
-/// The course over ground's variance is multiplied by this before it updates the heading (the
-/// track's velocity already holds the odometry the heading produced).
-pub(super) const COURSE_VARIANCE_INFLATION: f64 = 4.0;
-
-/// A held yaw rate is integrated for at most this long after its sample, s; later the heading
-/// is a random walk.
-const RATE_HOLD_S: f64 = 1.0;
-
-/// A course chord spans at least this long, s.
-pub(super) const COURSE_MIN_INTERVAL_S: f64 = 1.0;
-
-/// A chord that has not grown long enough within this long starts again, s (slow motion).
-const COURSE_MAX_INTERVAL_S: f64 = 10.0;
-
-/// Heading references more than this many standard deviations from the channel are not used.
-const GATE_SIGMAS: f64 = 4.0;
-
-/// Time constant of the gravity estimate (low-passed specific force), s.
-const GRAVITY_TIME_CONSTANT_S: f64 = 1.0;
-
-/// Standard gravity, m/s².
-const GRAVITY_MPS2: f64 = 9.806_65;
-
-/// A track's heading channel and what it holds between records.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct HeadingChannel {
-    state: Option<HeadingState>,
-    /// The last yaw rate `(t, ω rad/s, σ_ω² (rad/s)²)`, held until the next.
-    rate: Option<(f64, f64, f64)>,
-    /// Whether that rate is an odometer heading's change over its interval (not a gyro's).
-    rate_from_odometer: bool,
-    /// The chord's start: a position after a position update.
-    chord_start: Option<CoursePoint>,
-    /// The latest position after a position update.
-    chord_end: Option<CoursePoint>,
-    /// `θ`: the heading changes since the channel started, rad — the bias-corrected yaw rate
-    /// integrated, or without a recent rate the odometer heading's changes; never corrected by
-    /// references.
-    integrated_rad: f64,
-    /// The time θ was last brought up to, s, and its rate then, rad/s (to carry θ to a
-    /// position update between heading records).
-    integrated_time_s: f64,
-    integrated_rate_radps: f64,
-    /// The previous odometer heading `(t, z)`, s and rad.
-    odometer_heading: Option<(f64, f64)>,
-    /// Low-passed specific force in the sensor's axes `(t, f)`, m/s².
-    gravity: Option<(f64, [f64; 3])>,
-}
-
-/// A track position after a position update, for the course chord.
-#[derive(Debug, Clone, Copy)]
-struct CoursePoint {
-    time_s: f64,
-    position_m: [f64; 2],
-    /// Position covariance `[P_xx, P_xy, P_yy]`, m².
-    covariance_m2: [f64; 3],
-    /// `θ` at that time, rad.
-    integrated_rad: f64,
-}
-
-impl HeadingChannel {
-    /// Notes the track's position after a position update (fix or anchor measurement).
-    pub(super) fn position_updated(&mut self, time_s: f64, position_m: [f64; 2], covariance_m2: [f64; 3]) {
-        // θ(t) = θ + θ̇ (t − t_θ): the heading change up to the update's time
-        let since_s = (time_s - self.integrated_time_s).max(0.0);
-        let point = CoursePoint {
-            time_s,
-            position_m,
-            covariance_m2,
-            integrated_rad: self.integrated_rad + self.integrated_rate_radps * since_s,
-        };
-        if self
-            .chord_start
-            .is_none_or(|start| time_s - start.time_s > COURSE_MAX_INTERVAL_S)
-        {
-            self.chord_start = Some(point);
-            self.chord_end = None;
-        } else {
-            self.chord_end = Some(point);
-        }
-    }
-
-    /// `(ψ̂, σ_ψ)` when the channel is aligned.
-    pub(super) fn heading(&self) -> Option<(f64, f64)> {
-        let state = self.state.as_ref()?;
-        let std = state.heading_variance_rad2().sqrt();
-        (std <= MAX_HEADING_STD_RAD).then(|| (state.heading_rad(), std))
-    }
-
-    /// The channel's state (tests).
-    #[cfg(test)]
-    pub(super) fn state(&self) -> Option<&HeadingState> {
-        self.state.as_ref()
-    }
-}
 
 /// Predicts the channel to `time_s` with the held rate (a random walk without a recent one),
 /// starting it unaligned if it has no state.

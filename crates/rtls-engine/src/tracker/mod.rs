@@ -128,13 +128,17 @@
 mod alarms;
 mod anchors;
 mod anonymous;
+mod bounds;
+mod constraint_model;
 mod constraints;
 mod core;
 mod direct;
 mod divergence;
 mod epoch;
 mod gnss;
+mod gnss_state;
 mod heading;
+mod heading_state;
 pub(crate) mod models;
 mod modes;
 mod noise;
@@ -160,6 +164,7 @@ mod tests_robust;
 mod tests_schedule;
 #[cfg(test)]
 mod tests_timing;
+mod track;
 mod update;
 
 pub use anonymous::ANONYMOUS_TAG;
@@ -177,9 +182,10 @@ use self::anchors::Anchors;
 use std::sync::Arc;
 
 use self::anonymous::AnonymousFront;
-use self::core::{Core, Shared};
+use self::core::Core;
 use self::modes::Manoeuvres;
 use self::schedule::Scheduling;
+use self::track::Shared;
 use crate::error::{EngineError, Result};
 use crate::lifecycle::{LifecycleEvent, TrackStatus};
 use crate::radio_map::RadioMap;
@@ -267,7 +273,7 @@ impl Tracker {
             .cloned()
             .collect();
         let anchors = Anchors::new(site);
-        let constraints = constraints::Constraints::new(site, &anchors);
+        let constraints = constraint_model::Constraints::new(site, &anchors);
         let shared = Shared {
             settings,
             alarms: site.alarms,
@@ -293,7 +299,7 @@ impl Tracker {
             } else {
                 None
             },
-            bounds: divergence::SiteBounds::new(site),
+            bounds: bounds::SiteBounds::new(site),
             heading_model: HeadingModel::new(
                 settings.heading.gyro_bias_std_radps,
                 settings.heading.gyro_bias_random_walk_radps_per_sqrt_s,

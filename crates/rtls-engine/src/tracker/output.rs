@@ -412,3 +412,32 @@ impl Output {
         self.updates.is_empty() && self.events.is_empty() && self.fixes.is_empty()
     }
 }
+
+/// An epoch's raw fix, naming the solver's method.
+pub(super) fn epoch_raw_fix(
+    tag: &Arc<str>,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+    method: &'static str,
+) -> RawFix {
+    RawFix {
+        method: Some(method),
+        ..raw_fix(tag, time_s, position, covariance)
+    }
+}
+
+pub(super) fn raw_fix(tag: &Arc<str>, time_s: f64, position: &[f64], covariance: &[f64]) -> RawFix {
+    let mut position_m = [0.0; 3];
+    position_m[..position.len()].copy_from_slice(position);
+    let mut covariance_m2 = [0.0; 9];
+    covariance_m2[..covariance.len()].copy_from_slice(covariance);
+    RawFix {
+        time_s,
+        tag: Arc::clone(tag),
+        dimensions: position.len(),
+        position_m,
+        covariance_m2,
+        method: None,
+    }
+}

@@ -5,8 +5,8 @@ use std::sync::Arc;
 use rtls_estimation::Gaussian;
 
 use super::alarms::{position_of, predict_entries};
-use super::core::{dimensions, Shared, Track};
 use super::output::{Event, Output, TrackUpdate, UpdateSource};
+use super::track::{dimensions, Shared, Track};
 use super::update::predict;
 use crate::error::Result;
 use crate::lifecycle::TrackStatus;

@@ -11,10 +11,10 @@ use rtls_estimation::{Gaussian, Matrix, Vector};
 
 use super::alarms::position_of;
 use super::anchors::AnchorReading;
-use super::core::{dimensions, rejected, Shared, Track, ACCELERATION_HOLD_S};
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::noise::{NoiseClass, Source};
 use super::output::{Event, Output, UpdateSource};
+use super::track::{dimensions, rejected, Shared, Track, ACCELERATION_HOLD_S};
 use crate::error::Result;
 use crate::lifecycle::{Lifecycle, TrackStatus};
 use crate::site::FilterKind;

@@ -1,0 +1,163 @@
+//! What every track shares ([`Shared`]: settings, anchors, models, filters, zones) and what one
+//! track owns ([`Track`]: its state, lifecycle and channels), with the small helpers every part
+//! of the tracker uses. The lowest file of the tracker: it imports the channels' state types,
+//! never their logic.
+
+use std::sync::Arc;
+
+use rtls_estimation::adaptive::AdaptiveNoise;
+use rtls_estimation::aided::HeadingModel;
+use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter};
+use rtls_estimation::imm::ImmState;
+use rtls_estimation::motion::ConstantVelocity;
+use rtls_estimation::Gaussian;
+
+use super::anchors::{AnchorReading, Anchors};
+use super::bounds::SiteBounds;
+use super::constraint_model::{Constraints, Hearing};
+use super::gnss_state::GnssTrack;
+use super::heading_state::HeadingChannel;
+use super::modes::Manoeuvres;
+use super::noise::NoiseScales;
+use super::output::{Event, UpdateSource};
+use super::schedule::{Scheduling, TrackSchedule};
+use crate::lifecycle::{Lifecycle, LifecycleSettings, TrackStatus};
+use crate::radio_map::RadioMap;
+use crate::record::Measurement;
+use crate::site::{AlarmSettings, TrackerSettings};
+use crate::zones::Zone;
+
+/// An accelerometer sample drives the prediction (zero-order hold) for at most this long, s.
+pub(super) const ACCELERATION_HOLD_S: f64 = 1.0;
+
+/// Everything the tracks share: settings, anchors, models, filters, alarm zones.
+#[derive(Debug, Clone)]
+pub(crate) struct Shared {
+    pub(crate) settings: TrackerSettings,
+    pub(crate) alarms: AlarmSettings,
+    pub(crate) lifecycle: LifecycleSettings,
+    pub(crate) anchors: Anchors,
+    pub(crate) radio_map: Option<RadioMap>,
+    /// CV with white-acceleration noise `q = σ_a²`.
+    pub(crate) motion: ConstantVelocity,
+    /// The same model driven by a measured acceleration `u`.
+    pub(crate) aided_motion: ConstantVelocity,
+    pub(crate) kf: KalmanFilter,
+    pub(crate) ekf: ExtendedKalmanFilter,
+    pub(crate) ukf: UnscentedKalmanFilter,
+    /// `χ²` gate thresholds for 1, 2 and 3 degrees of freedom (index = dof − 1).
+    pub(crate) gates: [f64; 3],
+    pub(crate) tag_height_m: f64,
+    /// Hazard zones and zones without a working reader, checked by the predictive alarm.
+    pub(crate) alarm_zones: Vec<Zone>,
+    /// Ids of the zones whose listed readers are all broken.
+    pub(crate) no_coverage_zones: Vec<String>,
+    /// The interacting multiple models of `motion_model = "imm"`.
+    pub(crate) manoeuvres: Option<Arc<Manoeuvres>>,
+    /// Seed 003's adaptive node scheduling (`[scheduling]`).
+    pub(crate) scheduling: Option<Arc<Scheduling>>,
+    /// Adaptive measurement noise (`[tracker.adaptive_noise]`); `None` when disabled.
+    pub(crate) adaptive: Option<AdaptiveNoise>,
+    /// The box around the readers that a diverged track's position leaves.
+    pub(crate) bounds: SiteBounds,
+    /// The heading channel's model (`[tracker.heading]`).
+    pub(crate) heading_model: HeadingModel,
+    /// The site frame as ENU about `[frame] origin`; `None` without an origin (pseudoranges
+    /// are then refused).
+    pub(crate) frame: Option<rtls_positioning::gnss::LocalFrame>,
+    /// Negative information, the corridor map and the speed limit; `None` when the site asks
+    /// for none of them.
+    pub(crate) constraints: Option<Constraints>,
+}
+
+/// One tag's track: its state (a value it owns), lifecycle and pending work.
+#[derive(Debug, Clone)]
+pub(crate) struct Track<const N: usize> {
+    pub(super) tag: Arc<str>,
+    /// The filtered state; `None` until the first fix.
+    pub(super) state: Option<Gaussian<N>>,
+    pub(super) lifecycle: Option<Lifecycle>,
+    /// Fix-then-filter: the open epoch's readings; tightly coupled: readings waiting to
+    /// initialise the track.
+    pub(super) epoch: Vec<(f64, AnchorReading)>,
+    pub(super) epoch_start_s: f64,
+    /// Fix-then-filter: direct measurements (fixes, velocities, odometry) held while the
+    /// epoch is open, applied in time order with its fix (see [`super::direct`]).
+    pub(super) deferred: Vec<(f64, Measurement)>,
+    /// Last accelerometer sample `(t, a)`.
+    pub(super) acceleration: Option<(f64, [f64; 3])>,
+    /// An update not yet reported, and what produced it.
+    pub(super) unreported: Option<UpdateSource>,
+    pub(super) last_output_s: f64,
+    /// Alarm zones with a raised predictive alarm.
+    pub(super) alarmed: Vec<bool>,
+    /// The state frozen when the track was lost (its last position is kept and reported).
+    pub(super) lost_state: Option<Gaussian<N>>,
+    /// Under the IMM: the modes the state combines.
+    pub(super) modes: Option<ImmState>,
+    /// Under the IMM: the reported (most probable) mode's index.
+    pub(super) mode: usize,
+    /// Under `[scheduling]`: the track's task nodes and last reported firing set.
+    pub(super) schedule: TrackSchedule,
+    /// Adaptive measurement-noise scales, per measurement class.
+    pub(super) noise: NoiseScales,
+    /// Running share of gated updates that fell outside the gate (exponential, ~20 updates).
+    pub(super) rejection_rate: f64,
+    /// Gated updates since the track (re)started.
+    pub(super) gated_updates: u32,
+    /// Heading, gyro bias and odometer offset, for yaw rates, odometry and IMU samples.
+    pub(super) heading: HeadingChannel,
+    /// GNSS: the open pseudorange epoch and the receiver clock filter.
+    pub(super) gnss: GnssTrack,
+    /// The open epoch's readers, for negative information and the map at its close.
+    pub(super) hearing: Hearing,
+}
+
+impl<const N: usize> Track<N> {
+    pub(super) fn new(tag: Arc<str>, alarm_zones: usize) -> Self {
+        Self {
+            tag,
+            state: None,
+            lifecycle: None,
+            epoch: Vec::new(),
+            epoch_start_s: f64::NEG_INFINITY,
+            deferred: Vec::new(),
+            acceleration: None,
+            unreported: None,
+            last_output_s: f64::NEG_INFINITY,
+            alarmed: vec![false; alarm_zones],
+            lost_state: None,
+            modes: None,
+            mode: 0,
+            schedule: TrackSchedule::default(),
+            noise: NoiseScales::default(),
+            rejection_rate: 0.0,
+            gated_updates: 0,
+            heading: HeadingChannel::default(),
+            gnss: GnssTrack::default(),
+            hearing: Hearing::default(),
+        }
+    }
+
+    pub(super) fn status(&self) -> Option<TrackStatus> {
+        self.lifecycle.as_ref().map(Lifecycle::status)
+    }
+
+    pub(super) fn is_lost(&self) -> bool {
+        self.status() == Some(TrackStatus::Lost)
+    }
+}
+
+/// Tracked dimensions of a CV state of size `N`.
+pub(super) const fn dimensions<const N: usize>() -> usize {
+    N / 2
+}
+
+pub(super) fn rejected(tag: &Arc<str>, time_s: f64, kind: &'static str, reason: String) -> Event {
+    Event::Rejected {
+        tag: Arc::clone(tag),
+        time_s,
+        kind,
+        reason,
+    }
+}
