@@ -13,6 +13,7 @@
 //!             [--png PNG] [--cell-m M] …
 //! rtls tune --site SITE --input FILE --out TUNED.toml [--truth TRUTH.csv] [--until-s T]
 //!           [--grid A,B,…] [--json]
+//! rtls sim mine --out DIR [--miners N] [--duration-s S] [--seed N] [--without-map]
 //! ```
 //!
 //! `track` runs a measurement file through the tracker of a site (docs/FORMATS.md), `import`
@@ -31,6 +32,7 @@ mod markdown;
 mod plot;
 mod repro;
 mod serve;
+mod sim;
 mod survey;
 mod track;
 mod tune;
@@ -69,6 +71,9 @@ enum Command {
     /// Run the control-room server: MQTT and HTTP ingest, omlox REST and WebSocket APIs,
     /// history, alarms, metrics. `--demo` runs seed 000's simulated mine through it.
     Serve(serve::ServeArgs),
+    /// Write a simulated scenario (site file, measurements, ground truth) for `rtls track` and
+    /// `rtls eval`.
+    Sim(sim::SimArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -81,6 +86,7 @@ fn main() -> std::process::ExitCode {
         Command::Survey(args) => survey::run(&args),
         Command::Tune(args) => tune::run(&args),
         Command::Serve(args) => serve::run(&args),
+        Command::Sim(args) => sim::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,0 +1,124 @@
+//! `rtls sim`: writes a simulated scenario as files a user can run the tracker on.
+//!
+//! ```text
+//! rtls sim mine --out DIR [--miners N] [--duration-s S] [--seed N] [--without-map]
+//! ```
+//!
+//! `DIR/site.toml` (the site the tracker needs), `DIR/measurements.jsonl` (the records, JSON
+//! Lines as `rtls track` reads them) and `DIR/truth.csv` (`t,tag,x,y,z` every 0.25 s, as
+//! `rtls eval` reads it), so that
+//!
+//! ```text
+//! rtls track --site DIR/site.toml --input DIR/measurements.jsonl --output DIR/tracks.jsonl
+//! rtls eval --truth DIR/truth.csv --tracks DIR/tracks.jsonl
+//! ```
+//!
+//! scores the tracker on a known truth from files, and a user can start a deployment from it.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use rtls_engine::record::to_json_line;
+use rtls_sim::mine::{MineConfig, MineLayout, MineSimulation, SiteOptions};
+
+/// Truth is written this often, s (`rtls eval` interpolates across at most 0.5 s by default).
+const TRUTH_INTERVAL_S: f64 = 0.25;
+
+/// The scenarios `rtls sim` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Scenario {
+    /// Seed 000's mine: 307 RSSI readers along seven drifts and a cross-cut, roaming miners,
+    /// a roof fall on drift 3 whose reader is broken (the `rtls serve --demo` feed).
+    Mine,
+}
+
+/// Arguments of `rtls sim`.
+#[derive(Debug, Args)]
+pub struct SimArgs {
+    /// The scenario to write.
+    #[arg(value_enum)]
+    scenario: Scenario,
+    /// Directory for site.toml, measurements.jsonl and truth.csv (created if missing).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Miners (tags); the first 1 in 60 (1 to 10) start heading into the collapse.
+    #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    miners: u64,
+    /// Simulated time, s.
+    #[arg(long, value_name = "S", default_value_t = 600.0, allow_negative_numbers = true)]
+    duration_s: f64,
+    /// Seed of every random draw.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Leave the tunnels (`[[corridors]]`) and the readers' sensitivity out of the site file:
+    /// the tracker without the map and negative information, for comparison.
+    #[arg(long)]
+    without_map: bool,
+}
+
+/// Runs `rtls sim`.
+///
+/// # Errors
+/// A duration that is not a positive number of seconds up to a day, or a file that cannot be
+/// written.
+pub fn run(args: &SimArgs) -> Result<()> {
+    if !(args.duration_s > 0.0 && args.duration_s <= 86_400.0) {
+        bail!("--duration-s must be a number of seconds in (0, 86 400]");
+    }
+    match args.scenario {
+        Scenario::Mine => mine(args),
+    }
+}
+
+fn mine(args: &SimArgs) -> Result<()> {
+    let miners = usize::try_from(args.miners)?;
+    let layout = MineLayout::seed000();
+    let config = MineConfig {
+        miners,
+        entering_miners: (miners / 60).clamp(1, 10),
+        seed: args.seed,
+        ..MineConfig::default()
+    };
+    let site = layout.site_toml(&SiteOptions {
+        name: Some(format!(
+            "Simulated mine (seed 000), {miners} miners, seed {}",
+            args.seed
+        )),
+        drift_zones: false,
+        without_map: args.without_map,
+    });
+    let mut simulation = MineSimulation::new(layout, config.clone()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut measurements = String::new();
+    let mut truth = String::from("t,tag,x,y,z\n");
+    let steps = (args.duration_s / TRUTH_INTERVAL_S).ceil() as usize;
+    let (mut records, mut rows) = (0usize, 0usize);
+    for k in 0..=steps {
+        let t_s = config.start_time_s + (k as f64 * TRUTH_INTERVAL_S).min(args.duration_s);
+        for record in simulation.step(t_s) {
+            measurements.push_str(&to_json_line(&record));
+            measurements.push('\n');
+            records += 1;
+        }
+        for (tag, [x, y]) in simulation.truth() {
+            // writing into a String cannot fail
+            let _ = writeln!(truth, "{t_s},{tag},{x},{y},");
+            rows += 1;
+        }
+    }
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    for (name, text) in [
+        ("site.toml", &site),
+        ("measurements.jsonl", &measurements),
+        ("truth.csv", &truth),
+    ] {
+        let path = args.out.join(name);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
+    eprintln!(
+        "wrote {}: site.toml ({miners} miners' site), measurements.jsonl ({records} records), truth.csv ({rows} rows)",
+        args.out.display()
+    );
+    Ok(())
+}
