@@ -25,6 +25,7 @@
 //! "metric | paper | ours | PCRB" per experiment, and with `--out` writes a markdown report with
 //! SVG and PNG figures (`rtls repro all --out docs` regenerates `docs/REPRODUCTIONS.md`).
 
+mod demo;
 mod eval;
 mod import;
 mod markdown;
