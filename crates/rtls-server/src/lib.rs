@@ -13,6 +13,12 @@
 //!   [`serve`] — starting and stopping it all; [`feed`] — a live feed of records from any
 //!   [`feed::RecordSource`] (the binary's `--demo` mine) through the ingest path.
 //!
+//! ## Layer
+//! It owns the service (ingest, pipeline, APIs, storage, auth, live feeds) and may import
+//! `rtls-engine` only among the rtls crates: it does not depend on the simulator (`rtls serve
+//! --demo`'s mine is composed in the binary and handed over as a [`feed::RecordSource`]), the
+//! datasets or the paper experiments.
+//!
 //! # References
 //! - omlox™ hub API 2.0.0, OpenAPI 3.0.2 description (PROFIBUS & PROFINET International).
 //! - OASIS MQTT 3.1.1 (2014).
