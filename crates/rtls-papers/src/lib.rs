@@ -14,6 +14,9 @@
 //!   examples in `examples/` print them).
 //! - [`report`] — the report's plain, serialisable types; the `rtls` binary renders them as
 //!   tables, JSON lines, markdown and plots.
+//! - The report prose: one markdown template per experiment in `crates/rtls-papers/templates/`
+//!   (embedded at compile time), whose `{key}` placeholders the experiments fill with the
+//!   numbers of the runs.
 //!
 //! ## What it may import
 //! `rtls-sim` (trajectories, sensors, site layouts, metrics, the PCRB, Monte Carlo),

@@ -19,6 +19,7 @@ use rtls_sim::montecarlo::Progress;
 mod common;
 pub mod lwknn;
 pub mod mekf;
+mod template;
 pub mod ukf_uwb;
 pub mod vdkf;
 pub mod wsn_ekf;

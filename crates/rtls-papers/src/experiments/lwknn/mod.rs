@@ -8,6 +8,7 @@ mod scenario;
 
 use crate::error::Result;
 use crate::experiments::common::{cdf_series, fmt, pooled_rmse, squared_errors};
+use crate::experiments::template::{files::LWKNN as T, render};
 use crate::experiments::{find_source, parse_scenario, ReproOptions, ScenarioSource};
 use crate::report::{ExperimentReport, Figure, Metric, Series, SeriesStyle, Table};
 use crate::reproduction::{run_seed_002, Seed002Config, Seed002Run};
@@ -408,69 +409,46 @@ fn notes(
     let (paper_low, paper_high) = range(&table_means);
     let textbook_rmse = pooled_rmse(&field.squared[3])?;
     Ok(vec![
-        format!(
-            "**Setup.** The paper's field: 100 m × 100 m, 25 anchors on a 20 m grid, 121 reference points on a \
-             10 m grid, `ρ = 0 − 40 log10(d) + X` dBm, one survey per reference point with σ² = {} dB², online \
-             σ_p² = {} dB², L-WKNN with N_k = {}, radius {} m, n = {} and weights 1/D (SPEC erratum), fix noise \
-             U = diag({}, {}) m², accelerometer ε = 0.01 m/s², 100 samples at 1 s. The paper does not give its \
-             trajectory; ours is in `crates/rtls-sim/src/scenarios/seed_002.rs`. Errors are Euclidean (SPEC \
-             erratum for eq. (13)).",
-            s.base.fingerprint_variance_db2,
-            s.base.rssi_variance_db2,
-            s.base.locator.strongest_anchors,
-            s.base.locator.radius_m,
-            s.base.locator.knn.neighbours,
-            s.base.fix_variance_m2[0],
-            s.base.fix_variance_m2[1],
+        render!(
+            T,
+            "setup",
+            fingerprint_variance_db2 = s.base.fingerprint_variance_db2,
+            rssi_variance_db2 = s.base.rssi_variance_db2,
+            strongest_anchors = s.base.locator.strongest_anchors,
+            radius_m = s.base.locator.radius_m,
+            neighbours = s.base.locator.knn.neighbours,
+            fix_variance_x_m2 = s.base.fix_variance_m2[0],
+            fix_variance_y_m2 = s.base.fix_variance_m2[1],
         ),
-        format!(
-            "**Fixes.** L-WKNN's mean error is {} m (paper: below 3.1 m), and it picks the same neighbours as \
-             global WKNN at every epoch, as the paper found. The paper's \"with this algorithm 90 % of the errors \
-             are below 3 m\" (Fig. 3) hardly describes the fixes themselves: with a mean of 3.1 m it needs the other \
-             10 % of the errors to average more than 4 m ((3.1 − 0.9 · 3)/0.1); our fixes' 90th percentile is {} m, while \
-             that of the second-order KF output is {} m, which matches the sentence read as the tracked output. \
-             Table 2's means ({}–{} m in the paper) are above the paper's own Fig. 1 figure for the \
-             same trajectory and settings (below 3.1 m), so Fig. 1 is probably one run and Table 2 the average of \
-             100; \
-             ours are {} m for the paper's default setting, consistent with Fig. 1. Like the paper we find the \
-             setting matters little: all seven means lie within {} m of each other.",
-            fmt(field.mean(0), 2),
-            fmt(percentile(&field.errors(0), 90.0)?, 2),
-            fmt(percentile(&field.errors(2), 90.0)?, 2),
-            fmt(paper_low, 2),
-            fmt(paper_high, 2),
-            fmt(field.mean(0), 2),
-            fmt(spread(ours_table_2), 2),
+        render!(
+            T,
+            "fixes",
+            lwknn_mean_m = fmt(field.mean(0), 2),
+            lwknn_p90_m = fmt(percentile(&field.errors(0), 90.0)?, 2),
+            second_order_p90_m = fmt(percentile(&field.errors(2), 90.0)?, 2),
+            paper_table_low_m = fmt(paper_low, 2),
+            paper_table_high_m = fmt(paper_high, 2),
+            table_spread_m = fmt(spread(ours_table_2), 2),
         ),
-        format!(
-            "**Tracking.** The second-order model as printed reaches {} m (paper 1.4 m) and the first-order {} m; \
-             the textbook `[p, v]` model with the accelerometer as control input, which also estimates the \
-             velocity from the fixes instead of integrating the accelerometer open loop, reaches {} m — our best. \
-             With the noise 10 % of the reading (Fig. 6) the second order beats the first, as in the paper, but by \
-             {} m against the paper's 0.5 m ({} vs {} m; paper 1.1 vs 1.6 m): both printed models integrate the \
-             same accelerometer and differ only in the `a Δt²/2` term and in how `Q` grows, and the same fixes \
-             correct both every second, which keeps them close.",
-            fmt(field.mean(2), 2),
-            fmt(field.mean(1), 2),
-            fmt(field.mean(3), 2),
-            fmt(order.mean(1) - order.mean(2), 2),
-            fmt(order.mean(2), 2),
-            fmt(order.mean(1), 2),
+        render!(
+            T,
+            "tracking",
+            second_order_m = fmt(field.mean(2), 2),
+            first_order_m = fmt(field.mean(1), 2),
+            textbook_m = fmt(field.mean(3), 2),
+            order_gain_m = fmt(order.mean(1) - order.mean(2), 2),
+            order_second_m = fmt(order.mean(2), 2),
+            order_first_m = fmt(order.mean(1), 2),
         ),
-        format!(
-            "**PCRB.** The bound is computed for the `[p, v]` state with the accelerometer as a known control \
-             input (process noise from its noise), the known start at rest, and the information of the 25 raw \
-             RSSI readings per epoch at the true position under the log-distance law (`Σ ∇ρᵢ ∇ρᵢᵀ / σ_p²`). \
-             √PCRB pooled over the run: {} m on Fig. 1, {} m on Fig. 6; our best tracker is at {}× and {}×. The \
-             gap is the price of fingerprinting: L-WKNN averages reference points 10 m apart and knows the radio \
-             only through a noisy survey, while the bound assumes an estimator that knows the path-loss law \
-             exactly; the single-epoch CRB of a fix from the same readings is {} m against L-WKNN's RMSE of {} m.",
-            fmt(field_bounds.tracking_rmse_m, 2),
-            fmt(order_bounds.tracking_rmse_m, 2),
-            fmt(textbook_rmse / field_bounds.tracking_rmse_m, 1),
-            fmt(pooled_rmse(&order.squared[3])? / order_bounds.tracking_rmse_m, 1),
-            fmt(field_bounds.snapshot_rmse_m, 2),
-            fmt(pooled_rmse(&field.squared[0])?, 2),
+        render!(
+            T,
+            "pcrb",
+            field_bound_m = fmt(field_bounds.tracking_rmse_m, 2),
+            order_bound_m = fmt(order_bounds.tracking_rmse_m, 2),
+            field_ratio = fmt(textbook_rmse / field_bounds.tracking_rmse_m, 1),
+            order_ratio = fmt(pooled_rmse(&order.squared[3])? / order_bounds.tracking_rmse_m, 1),
+            snapshot_crb_m = fmt(field_bounds.snapshot_rmse_m, 2),
+            lwknn_rmse_m = fmt(pooled_rmse(&field.squared[0])?, 2),
         ),
     ])
 }

@@ -1,9 +1,11 @@
 //! The explanatory tables and notes of the `mekf` report; every number in them is computed in
-//! the run.
+//! the run, and the notes' prose is in `templates/mekf.md`.
 
 use super::evaluate::{AlarmSummary, DistanceBin, Extras, MethodSummary, ObstacleAnalysis, METHODS};
 use super::scenario::MineWalk;
 use super::table1::{Table1, Table1Evaluation};
+use crate::experiments::common::fmt;
+use crate::experiments::template::{files::MEKF as T, render};
 use crate::report::Table;
 use crate::reproduction::seed_000::TrackerCounts;
 use rtls_sim::sensors::readers::ReaderStatus;
@@ -158,35 +160,29 @@ fn setup_note(input: &NotesInput<'_>) -> String {
     let e = input.extras;
     let rssi_pel = input.summaries[0].pel_percent;
     let hole_percent = 100.0 * e.hole_epochs as f64 / setup.epochs.len() as f64;
-    format!(
-        "**Setup.** {runs} seeded runs of a {duration:.0} s walk ({epochs} epochs at T = {period} s) through {tunnels} \
-         past {working} working readers and the broken {broken}. Radio (not in the paper, see the scenario file): \
-         ρ_T = {rho} dBm at {d0} m, η = {eta}, σ_X = {sigma} dB, sensitivity {sens} dBm (median line-of-sight detection \
-         range {d50:.0} m), {nlos} dB more for a path that leaves the tunnels and the rockfall's loss for a path across it. \
-         Outside the collapsed zone {heard:.1} readers hear the tag per epoch on average ({four:.0} % of epochs ≥ 4). The \
-         walker spends {hole} of {epochs} epochs ({hole_pct:.1} %) beyond the rockfall, where no working reader hears \
-         him; shadowing elsewhere empties {shadow:.1} % more, so the RSSI PEL is {pel:.1} % against the paper's 6.7 % — the hole \
-         was sized for that.",
+    render!(
+        T,
+        "setup",
         runs = input.runs,
-        duration = walk.path.duration_s(),
+        duration_s = fmt(walk.path.duration_s(), 0),
         epochs = setup.epochs.len(),
-        period = walk.period_s,
+        period_s = walk.period_s,
         tunnels = tunnels.join(", "),
         working = readers.len() - broken.len(),
         broken = broken.join(", "),
-        rho = law.reference_rssi_dbm(),
-        d0 = law.reference_distance_m(),
+        rho_dbm = law.reference_rssi_dbm(),
+        d0_m = law.reference_distance_m(),
         eta = law.exponent(),
-        sigma = law.shadowing_std_db(),
-        sens = setup.layer.radio().sensitivity_dbm(),
-        d50 = setup.layer.radio().median_detection_range_m(),
-        nlos = walk.nlos_loss_db,
-        heard = e.heard_mean,
-        four = e.heard_four_percent,
-        hole = e.hole_epochs,
-        hole_pct = hole_percent,
-        shadow = (rssi_pel - hole_percent).max(0.0),
-        pel = rssi_pel,
+        sigma_db = law.shadowing_std_db(),
+        sensitivity_dbm = setup.layer.radio().sensitivity_dbm(),
+        detection_range_m = fmt(setup.layer.radio().median_detection_range_m(), 0),
+        nlos_db = walk.nlos_loss_db,
+        heard_readers = fmt(e.heard_mean, 1),
+        four_percent = fmt(e.heard_four_percent, 0),
+        hole_epochs = e.hole_epochs,
+        hole_percent = fmt(hole_percent, 1),
+        shadow_percent = fmt((rssi_pel - hole_percent).max(0.0), 1),
+        pel_percent = fmt(rssi_pel, 1),
     )
 }
 
@@ -202,145 +198,123 @@ fn accuracy_notes(input: &NotesInput<'_>) -> Vec<String> {
     let out_rmse = |i: usize| opt(e.rmse_outside_m[i], 1.0, 2);
     let o = &walk.setup.ours;
     let c = input.counts;
+    let dv_hop = if input.dv_hop_failures_percent > 0.0 {
+        render!(
+            T,
+            "pel-dv-hop-failed",
+            failed_percent = fmt(input.dv_hop_failures_percent, 1)
+        )
+    } else {
+        render!(T, "pel-dv-hop-always")
+    };
+    let naive_is_no_bound = input.naive_bounds_m[0] > s[3].rmse_m || input.naive_bounds_m[1] > s[0].rmse_m;
     vec![
-        format!(
-            "**PEL.** RSSI {:.1} %, DV-Hop {:.1} % (the paper: 6.7 % each), ME-KF and ours 0 (the paper: 0 for the ME-KF): with no fix a \
-             tracker reports its prediction. {}",
-            s[0].pel_percent,
-            s[1].pel_percent,
-            if input.dv_hop_failures_percent > 0.0 {
-                format!(
-                    "DV-Hop needs only one reader too, but its least-squares solve found no fix in {:.1} % of the heard \
-                     epochs.",
-                    input.dv_hop_failures_percent
-                )
-            } else {
-                "DV-Hop found a fix whenever a reader heard the tag, so both PELs are the share of epochs nobody \
-                 heard, as in the paper's Table 2."
-                    .to_string()
-            }
+        render!(
+            T,
+            "pel",
+            rssi_pel_percent = fmt(s[0].pel_percent, 1),
+            dv_hop_pel_percent = fmt(s[1].pel_percent, 1),
+            dv_hop = dv_hop,
         ),
-        format!(
-            "**Error rate.** The paper's Err = |D − N|/N divides by the coordinate itself, so it depends on where the \
-             origin is: within {} m of the entrance the RSSI x rate is {} % for a mean |x error| of {} m, beyond {} m {} % \
-             for {} m (table above). The paper's Table 1 walk stays within x = {:.1} m of the entrance, ours reaches \
-             x = {:.0} m, so our pooled x rates (RSSI {:.1} %, DV-Hop {:.1} %, ME-KF {:.1} %) are not comparable with its \
-             \"about 20 %, 20 %, 5 %\"; the metres are. The z rates are meaningless: the tag's height starts at 0 at the \
-             entrance (RSSI z rate {:.0} %).",
-            first.upper_m.unwrap_or(f64::INFINITY),
-            rate(first),
-            abs(first),
-            last.lower_m,
-            rate(last),
-            abs(last),
-            input.table.rows.iter().map(|r| r.actual[0].abs()).fold(0.0, f64::max),
-            walk.setup.epochs.iter().map(|e| e.position_m[0].abs()).fold(0.0, f64::max),
-            pct(s[0].error_rates[0]),
-            pct(s[1].error_rates[0]),
-            pct(s[2].error_rates[0])
-            ,
-            pct(s[0].error_rates[2])
+        render!(
+            T,
+            "error-rate",
+            near_m = first.upper_m.unwrap_or(f64::INFINITY),
+            near_rate_percent = rate(first),
+            near_error_m = abs(first),
+            far_m = last.lower_m,
+            far_rate_percent = rate(last),
+            far_error_m = abs(last),
+            table_max_x_m = fmt(
+                input.table.rows.iter().map(|r| r.actual[0].abs()).fold(0.0, f64::max),
+                1
+            ),
+            walk_max_x_m = fmt(
+                walk.setup
+                    .epochs
+                    .iter()
+                    .map(|e| e.position_m[0].abs())
+                    .fold(0.0, f64::max),
+                0
+            ),
+            rssi_rate_percent = fmt(pct(s[0].error_rates[0]), 1),
+            dv_hop_rate_percent = fmt(pct(s[1].error_rates[0]), 1),
+            mekf_rate_percent = fmt(pct(s[2].error_rates[0]), 1),
+            rssi_z_rate_percent = fmt(pct(s[0].error_rates[2]), 0),
         ),
-        format!(
-            "**ME-KF as printed.** It assumes fixes with R = {r} m² per axis; the RSSI fixes' actual mean squared errors \
-             are {x:.1}, {y:.1} and {z:.1} m² (x, y, z; x runs along the main drift, where the fixes lag the walker near \
-             the hole, see the warning note), and with Q = {q} (m/s²)² (±{qs:.1} m/s² per second, far \
-             beyond a walker) the filter mostly passes the fixes through: outside the collapsed zone its RMSE is {mo} m \
-             against the fixes' {ro} m. In the zone it extrapolates a noisy velocity for {hole} epochs (RMSE {mi} m there), \
-             which dominates its overall {mekf:.2} m.",
-            r = walk.setup.mekf.measurement_variance,
-            x = s[0].axis_mse_m2[0],
-            y = s[0].axis_mse_m2[1],
-            z = s[0].axis_mse_m2[2],
+        render!(
+            T,
+            "mekf-as-printed",
+            r_m2 = walk.setup.mekf.measurement_variance,
+            mse_x_m2 = fmt(s[0].axis_mse_m2[0], 1),
+            mse_y_m2 = fmt(s[0].axis_mse_m2[1], 1),
+            mse_z_m2 = fmt(s[0].axis_mse_m2[2], 1),
             q = walk.setup.mekf.process_variance,
-            qs = walk.setup.mekf.process_variance.sqrt(),
-            mo = out_rmse(2),
-            ro = out_rmse(0),
-            hole = e.hole_epochs,
-            mi = hole_rmse(2),
-            mekf = s[2].rmse_m,
+            q_std_mps2 = fmt(walk.setup.mekf.process_variance.sqrt(), 1),
+            mekf_outside_m = out_rmse(2),
+            rssi_outside_m = out_rmse(0),
+            hole_epochs = e.hole_epochs,
+            mekf_inside_m = hole_rmse(2),
+            mekf_rmse_m = fmt(s[2].rmse_m, 2),
         ),
-        format!(
-            "**Our tracker** is an EKF on the raw RSSI of whichever readers heard the tag (one is enough), with a \
-             pedestrian CV model (σ = {h:.2} m/s² horizontal, {v:.2} m/s² vertical), a 99 % per-reader gate ({gated:.1} % \
-             of the RSSI gated out), the silence of readers that should have heard the tag as negative information \
-             ({silent:.1} per run), the tunnel map as a pseudo-measurement (the tag is on a walking line within \
-             σ = {lat} m across and {vert} m vertically; not within {jr} m of a junction), the walking speed limit and \
-             track re-initialisation from the RSSI fix ({reinit} times in {runs} runs). The simulated tag stays on the \
-             walking line (the walker keeps to the middle of the drift at one helmet height), so the map is exact here; \
-             its σ allow for real walkers, and its vertical part is why our z error is small. RMSE {ours:.2} m against the ME-KF's \
-             {mekf:.2} m ({red:.0} % lower; {oo} m vs {mo} m outside the zone, {oi} m vs {mi} m inside), x error rate \
-             {ox:.1} % against the paper's ME-KF headline of 5 %. Per run the median RMSE is {om:.2} m (ME-KF {mm:.2} m); \
-             the worst run has {ow:.1} m (ME-KF {mw:.1} m): next to the hole only readers behind the walker hear him, and \
-             a single-hypothesis filter can follow the wrong branch at the junction until the fix contradicts it — a \
-             multiple-hypothesis or particle filter over the tunnel graph would keep both branches.",
-            h = o.motion.horizontal_std_mps2(),
-            v = o.motion.vertical_std_mps2(),
-            gated = 100.0 * c.rejected as f64 / (c.accepted + c.rejected).max(1) as f64,
-            silent = c.silent as f64 / input.runs.max(1) as f64,
-            lat = o.map.lateral_std_m,
-            vert = o.map.vertical_std_m,
-            jr = o.junction_radius_m,
-            reinit = c.reinitialised,
+        render!(
+            T,
+            "our-tracker",
+            horizontal_std_mps2 = fmt(o.motion.horizontal_std_mps2(), 2),
+            vertical_std_mps2 = fmt(o.motion.vertical_std_mps2(), 2),
+            gated_percent = fmt(100.0 * c.rejected as f64 / (c.accepted + c.rejected).max(1) as f64, 1),
+            silent_per_run = fmt(c.silent as f64 / input.runs.max(1) as f64, 1),
+            lateral_std_m = o.map.lateral_std_m,
+            vertical_std_m = o.map.vertical_std_m,
+            junction_radius_m = o.junction_radius_m,
+            reinitialised = c.reinitialised,
             runs = input.runs,
-            ours = s[3].rmse_m,
-            mekf = s[2].rmse_m,
-            red = 100.0 * (1.0 - s[3].rmse_m / s[2].rmse_m),
-            oo = out_rmse(3),
-            mo = out_rmse(2),
-            oi = hole_rmse(3),
-            mi = hole_rmse(2),
-            ox = pct(s[3].error_rates[0]),
-            om = e.per_run_rmse_m[1].0,
-            mm = e.per_run_rmse_m[0].0,
-            ow = e.per_run_rmse_m[1].1,
-            mw = e.per_run_rmse_m[0].1,
+            ours_rmse_m = fmt(s[3].rmse_m, 2),
+            mekf_rmse_m = fmt(s[2].rmse_m, 2),
+            reduction_percent = fmt(100.0 * (1.0 - s[3].rmse_m / s[2].rmse_m), 0),
+            ours_outside_m = out_rmse(3),
+            mekf_outside_m = out_rmse(2),
+            ours_inside_m = hole_rmse(3),
+            mekf_inside_m = hole_rmse(2),
+            ours_x_rate_percent = fmt(pct(s[3].error_rates[0]), 1),
+            ours_median_m = fmt(e.per_run_rmse_m[1].0, 2),
+            mekf_median_m = fmt(e.per_run_rmse_m[0].0, 2),
+            ours_worst_m = fmt(e.per_run_rmse_m[1].1, 1),
+            mekf_worst_m = fmt(e.per_run_rmse_m[0].1, 1),
         ),
-        format!(
-            "**Bound.** √PCRB (Tichavský's recursion) with our pedestrian CV model from the trackers' prior (entrance \
-             ±{p0:.1} m, ±{v0:.1} m/s) and, at the true positions, the expected information of (a) every working reader's \
-             RSSI censored at the sensitivity — I(m) = [1 − Φ(c) + c φ(c) + φ(c)²/Φ(c)]/σ_X², c = (S − m)/σ_X, so a reader \
-             that does not hear the tag informs too — with the walls' and the rockfall's losses, and (b) the tunnel map \
-             (the same σ as our tracker's). Along the tunnel nothing informs in the hole, where the bound grows to \
-             {maxb:.1} m. Pooled: {bt:.2} m over all epochs (trackers), {bf:.2} m over the RSSI fix epochs. Counting only \
-             the readers that hear the tag and no map (the usual recipe) gives {nt:.2} m and {nf:.2} m against our \
-             tracker's {ours:.2} m and the RSSI fixes' {rssi:.2} m{verdict}. The truth is one fixed walk, \
-             not a draw from the CV model, so even the full bound is a reference, not a guarantee; every RMSE here is \
-             above it (ratios {r0:.2}, {r1:.2}, {r2:.2}, {r3:.2}).",
-            p0 = walk.setup.prior.position_variance_m2.sqrt(),
-            v0 = walk.setup.prior.velocity_variance_m2s2.sqrt(),
-            maxb = e.max_bound_m,
-            bt = s[2].bound_m,
-            bf = s[0].bound_m,
-            verdict = if input.naive_bounds_m[0] > s[3].rmse_m || input.naive_bounds_m[1] > s[0].rmse_m {
-                ": that is no bound, since estimators use the silences and the map (the RSSI centroid fallback uses \
-                 the readers' positions on the walls)"
+        render!(
+            T,
+            "bound",
+            prior_position_m = fmt(walk.setup.prior.position_variance_m2.sqrt(), 1),
+            prior_velocity_mps = fmt(walk.setup.prior.velocity_variance_m2s2.sqrt(), 1),
+            max_bound_m = fmt(e.max_bound_m, 1),
+            tracker_bound_m = fmt(s[2].bound_m, 2),
+            fix_bound_m = fmt(s[0].bound_m, 2),
+            naive_tracker_bound_m = fmt(input.naive_bounds_m[0], 2),
+            naive_fix_bound_m = fmt(input.naive_bounds_m[1], 2),
+            ours_rmse_m = fmt(s[3].rmse_m, 2),
+            rssi_rmse_m = fmt(s[0].rmse_m, 2),
+            verdict = if naive_is_no_bound {
+                render!(T, "bound-naive-is-no-bound")
             } else {
-                ""
+                String::new()
             },
-            nt = input.naive_bounds_m[0],
-            nf = input.naive_bounds_m[1],
-            ours = s[3].rmse_m,
-            rssi = s[0].rmse_m,
-            r0 = s[0].rmse_m / s[0].bound_m,
-            r1 = s[1].rmse_m / s[1].bound_m,
-            r2 = s[2].rmse_m / s[2].bound_m,
-            r3 = s[3].rmse_m / s[3].bound_m,
+            rssi_ratio = fmt(s[0].rmse_m / s[0].bound_m, 2),
+            dv_hop_ratio = fmt(s[1].rmse_m / s[1].bound_m, 2),
+            mekf_ratio = fmt(s[2].rmse_m / s[2].bound_m, 2),
+            ours_ratio = fmt(s[3].rmse_m / s[3].bound_m, 2),
         ),
-        format!(
-            "**RSSI fixes and DV-Hop.** {:.0} % of the RSSI fixes came from ≥ 4 readers, {:.0} % from 3 (Gauss–Newton \
-             started below the readers), {:.0} % from 1–2 (range-weighted centroid). DV-Hop runs over the reader network \
-             ({} links, a chain along the tunnels: the irregular topology the paper's §2 says DV-Hop handles badly); hop \
-             counts quantise distances to the reader spacing and carry no height, so DV-Hop is poor on every axis \
-             (RMSE x / y / z {:.1} / {:.1} / {:.1} m, 3-D {:.1} m).",
-            input.kinds[0],
-            input.kinds[1],
-            input.kinds[2],
-            walk.reader_links,
-            s[1].axis_mse_m2[0].sqrt(),
-            s[1].axis_mse_m2[1].sqrt(),
-            s[1].axis_mse_m2[2].sqrt(),
-            s[1].rmse_m
+        render!(
+            T,
+            "fixes-and-dv-hop",
+            multilateration_percent = fmt(input.kinds[0], 0),
+            three_reader_percent = fmt(input.kinds[1], 0),
+            centroid_percent = fmt(input.kinds[2], 0),
+            reader_links = walk.reader_links,
+            dv_hop_x_m = fmt(s[1].axis_mse_m2[0].sqrt(), 1),
+            dv_hop_y_m = fmt(s[1].axis_mse_m2[1].sqrt(), 1),
+            dv_hop_z_m = fmt(s[1].axis_mse_m2[2].sqrt(), 1),
+            dv_hop_rmse_m = fmt(s[1].rmse_m, 1),
         ),
     ]
 }
@@ -357,29 +331,26 @@ fn alarm_note(input: &NotesInput<'_>) -> String {
         a.map_or_else(
             || "–".to_string(),
             |a| {
-                format!(
-                    "{:.0} % of the runs warned before the entry (mean lead {} s), {:.2} false alarms per run",
-                    a.warned_percent,
-                    opt(a.mean_lead_s, 1.0, 1),
-                    a.false_per_run
+                render!(
+                    T,
+                    "warning-alarms",
+                    warned_percent = fmt(a.warned_percent, 0),
+                    lead_s = opt(a.mean_lead_s, 1.0, 1),
+                    false_per_run = fmt(a.false_per_run, 2),
                 )
             },
         )
     };
-    format!(
-        "**Predictive warning** (paper §5.3, qualitative only). An alarm is raised when the track's CV prediction lies in \
-         the danger zone; the walker enters it at t = {entry} s. With the paper's one-step prediction (T ahead), a warning \
-         can come at most about one period early. ME-KF: {m1}; with a {la} s look-ahead: {m5}. Ours: {o1}; with the \
-         look-ahead: {o5}. The ME-KF's input lags: in the 5 epochs before the entry the RSSI fixes are on average \
-         {lag} m behind the walker in x — once the broken reader is ahead of him only readers behind him hear him, and \
-         the fixes stay near them. Our tracker keeps its velocity and reads the silence of the readers behind.",
-        entry = opt(input.walk.entry_time_s, 1.0, 1),
-        m1 = describe(find("ME-KF", true)),
-        la = input.walk.look_ahead_s,
-        m5 = describe(find("ME-KF", false)),
-        o1 = describe(find("ours", true)),
-        o5 = describe(find("ours", false)),
-        lag = opt(input.extras.rssi_lag_m.map(|l| -l), 1.0, 1),
+    render!(
+        T,
+        "warning",
+        entry_s = opt(input.walk.entry_time_s, 1.0, 1),
+        mekf_one_step = describe(find("ME-KF", true)),
+        look_ahead_s = input.walk.look_ahead_s,
+        mekf_look_ahead = describe(find("ME-KF", false)),
+        ours_one_step = describe(find("ours", true)),
+        ours_look_ahead = describe(find("ours", false)),
+        lag_m = opt(input.extras.rssi_lag_m.map(|l| -l), 1.0, 1),
     )
 }
 
@@ -389,28 +360,34 @@ fn obstacle_note(input: &NotesInput<'_>) -> String {
         .readers
         .iter()
         .map(|r| {
-            format!(
-                "{} ({:.0} dB obstacle) has a mean innovation of {:.2} dB{}",
-                r.name,
-                r.loss_db,
-                r.mean_innovation_db,
-                if r.lowest { ", the lowest of all readers" } else { "" }
+            render!(
+                T,
+                "obstacles-reader",
+                reader = r.name,
+                loss_db = fmt(r.loss_db, 0),
+                mean_innovation_db = fmt(r.mean_innovation_db, 2),
+                lowest = if r.lowest {
+                    render!(T, "obstacles-reader-lowest")
+                } else {
+                    String::new()
+                },
             )
         })
         .collect();
-    format!(
-        "**Obstacle analysis** (paper capability 4). Our tracker's RSSI innovations (measured − predicted), averaged per \
-         reader over all runs: {}; the median of the clear readers is {} dB.{} A mean innovation of a reader with an \
-         obstacle of L dB is less negative than −L: the gate drops the worst values and the track absorbs part of the \
-         bias; and the clear readers' means are biased upwards because only readings above the sensitivity are \
-         reported (censoring).",
-        if described.is_empty() { "no reader has an obstacle".to_string() } else { described.join("; ") },
-        opt(analysis.clear_median_db, 1.0, 2),
-        if analysis.readers.iter().any(|r| r.lowest) {
-            " The obstacle shows in the data without being modelled."
+    render!(
+        T,
+        "obstacles",
+        readers = if described.is_empty() {
+            render!(T, "obstacles-none")
         } else {
-            ""
-        }
+            described.join("; ")
+        },
+        clear_median_db = opt(analysis.clear_median_db, 1.0, 2),
+        shows = if analysis.readers.iter().any(|r| r.lowest) {
+            format!(" {}", render!(T, "obstacles-shows"))
+        } else {
+            String::new()
+        },
     )
 }
 
@@ -418,21 +395,27 @@ fn obstacle_note(input: &NotesInput<'_>) -> String {
 fn table_verdict(t: &Table1Evaluation) -> String {
     let x = |i: usize| 100.0 * t.columns[i].rates[0];
     let fixes = if x(0) < 15.0 && x(1) < 15.0 {
-        "The paper's \"about 20 %\" for RSSI and DV-Hop cannot come from these rows"
+        "table-1-fixes-below-20"
     } else {
-        "The RSSI and DV-Hop rates are near the paper's \"about 20 %\""
+        "table-1-fixes-near-20"
     };
     let filter = if (x(2) - 5.0).abs() < 1.5 {
-        "its 5 % for the ME-KF can"
+        "table-1-filter-5-can"
     } else {
-        "nor can its 5 % for the ME-KF"
+        "table-1-filter-5-cannot"
     };
     let gain = if x(2) > 0.8 * x(0) {
-        ", but the ME-KF column is hardly better than the RSSI it filters."
+        render!(T, "table-1-no-gain")
     } else {
-        "."
+        String::new()
     };
-    format!("{fixes}; {filter}{gain}")
+    render!(
+        T,
+        "table-1-verdict",
+        fixes = render!(T, fixes),
+        filter = render!(T, filter),
+        gain = gain,
+    )
 }
 
 fn table_notes(input: &NotesInput<'_>) -> Vec<String> {
@@ -450,63 +433,58 @@ fn table_notes(input: &NotesInput<'_>) -> Vec<String> {
         .iter()
         .map(|f| format!("{} s {}", f.time_s, f.column))
         .collect();
+    let smallest = t.smallest_sample.map_or_else(String::new, |(k, n)| {
+        render!(
+            T,
+            "pel-table-1-smallest",
+            paper_pel_percent = table.paper_pel_percent,
+            empty = k,
+            samples = n,
+            empty_percent = fmt(100.0 * k as f64 / n as f64, 2),
+            twice = 2 * n,
+            thrice = 3 * n,
+        )
+    });
     vec![
-        format!(
-            "**Table 1 re-evaluated** from its printed numbers over the {} intact rows of {} (excluded: {}; flagged but \
-             kept: {}). Mean x error rates: RSSI {:.1} %, DV-Hop {:.1} %, ME-KF {:.1} % (3-D RMSE {:.2}, {:.2}, {:.2} m). \
-             {verdict} Our re-run of the ME-KF on the printed \
-             RSSI with the paper's settings (T = {} s, Q = R = 5, starting at the entrance at t = {} s with position and \
-             velocity variances {} m² and {} (m/s)²) gives {:.1} % and differs from the printed ME-KF column by {:.2} m \
-             RMS. The RSSI x is above the truth in {} of the {} intact rows (mean {:+.2} m), a bias this filter passes \
-             on ({:+.2} m in our re-run), while the printed ME-KF x is off by {:+.2} m on average: the printed column \
-             does not follow from the printed RSSI with the stated settings (it needs a slower filter, another start \
-             or other input). Without the flagged rows: RSSI {:.1} %, DV-Hop {:.1} %, \
-             ME-KF {:.1} %.",
-            t.intact_rows,
-            t.rows,
-            excluded.join("; "),
-            flagged.join(", "),
-            pct(c(0).rates[0]),
-            pct(c(1).rates[0]),
-            pct(c(2).rates[0]),
-            c(0).rmse_m,
-            c(1).rmse_m,
-            c(2).rmse_m,
-            table.period_s,
-            table.initial_time_s,
-            table.prior.position_variance_m2,
-            table.prior.velocity_variance_m2s2,
-            pct(c(3).rates[0]),
-            t.kf_vs_printed_m,
-            c(0).x_above_truth,
-            t.intact_rows,
-            c(0).mean_x_error_m,
-            c(3).mean_x_error_m,
-            c(2).mean_x_error_m,
-            pct(c(0).rates_unflagged[0]),
-            pct(c(1).rates_unflagged[0]),
-            pct(c(2).rates_unflagged[0]),
+        render!(
+            T,
+            "table-1",
+            intact_rows = t.intact_rows,
+            rows = t.rows,
+            excluded = excluded.join("; "),
+            flagged = flagged.join(", "),
+            rssi_rate_percent = fmt(pct(c(0).rates[0]), 1),
+            dv_hop_rate_percent = fmt(pct(c(1).rates[0]), 1),
+            mekf_rate_percent = fmt(pct(c(2).rates[0]), 1),
+            rssi_rmse_m = fmt(c(0).rmse_m, 2),
+            dv_hop_rmse_m = fmt(c(1).rmse_m, 2),
+            mekf_rmse_m = fmt(c(2).rmse_m, 2),
             verdict = table_verdict(t),
+            period_s = table.period_s,
+            initial_time_s = table.initial_time_s,
+            position_variance_m2 = table.prior.position_variance_m2,
+            velocity_variance_m2s2 = table.prior.velocity_variance_m2s2,
+            rerun_rate_percent = fmt(pct(c(3).rates[0]), 1),
+            rerun_vs_printed_m = fmt(t.kf_vs_printed_m, 2),
+            x_above_truth = c(0).x_above_truth,
+            rssi_mean_x_error_m = format!("{:+.2}", c(0).mean_x_error_m),
+            rerun_mean_x_error_m = format!("{:+.2}", c(3).mean_x_error_m),
+            mekf_mean_x_error_m = format!("{:+.2}", c(2).mean_x_error_m),
+            rssi_unflagged_percent = fmt(pct(c(0).rates_unflagged[0]), 1),
+            dv_hop_unflagged_percent = fmt(pct(c(1).rates_unflagged[0]), 1),
+            mekf_unflagged_percent = fmt(pct(c(2).rates_unflagged[0]), 1),
         ),
-        format!(
-            "**PEL = {paper} % cannot come from Table 1.** With {n} samples a PEL is k/{n}: 0, {step:.0}, {two:.0} % …; \
-             the closest to {paper} % is {near:.1} %. The printed RSSI column has no blank cell (PEL {r:.0} %), the DV-Hop \
-             column one (row 20: {d:.0} %). {smallest}",
-            paper = table.paper_pel_percent,
-            n = t.rows,
-            step = 100.0 / t.rows as f64,
-            two = 200.0 / t.rows as f64,
-            near = t.nearest_pel_percent,
-            r = t.printed_pel_percent[0],
-            d = t.printed_pel_percent[1],
-            smallest = t.smallest_sample.map_or_else(String::new, |(k, n)| format!(
-                "The smallest sample giving {} % is {k} empty in {n} ({:.2} %), so Table 2 was computed on other data \
-                 ({n}, {}, {} … epochs).",
-                table.paper_pel_percent,
-                100.0 * k as f64 / n as f64,
-                2 * n,
-                3 * n
-            )),
+        render!(
+            T,
+            "pel-table-1",
+            paper_pel_percent = table.paper_pel_percent,
+            rows = t.rows,
+            step_percent = fmt(100.0 / t.rows as f64, 0),
+            two_percent = fmt(200.0 / t.rows as f64, 0),
+            nearest_percent = fmt(t.nearest_pel_percent, 1),
+            rssi_pel_percent = fmt(t.printed_pel_percent[0], 0),
+            dv_hop_pel_percent = fmt(t.printed_pel_percent[1], 0),
+            smallest = smallest,
         ),
     ]
 }

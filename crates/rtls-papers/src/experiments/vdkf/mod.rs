@@ -10,6 +10,7 @@ use rtls_estimation::motion::{ConstantVelocity, LinearMotionModel, NoiseGain, Pr
 use rtls_positioning::tdoa::cyclic_reference;
 
 use super::common::{cdf_series, decimate, dynamic, fmt, pooled_rmse, rmse_over_time, squared_errors};
+use super::template::{files::VDKF as T, render};
 use super::{find_source, parse_scenario, ReproOptions, ScenarioSource};
 use crate::error::{Result, SimError};
 use crate::report::{ExperimentReport, Figure, Metric, Series, SeriesStyle, Table};
@@ -419,106 +420,64 @@ fn notes(
         .map(|s| format!("({:.0}, {:.0})", s[0], s[1]))
         .collect::<Vec<_>>()
         .join(", ");
-    let fix_covariance = filter_settings(config);
+    let manoeuvre_percent = |name: &str| report.metric(name).map_or(0.0, |m| m.ours);
     Ok(vec![
-        format!(
-            "**Setup.** The paper's five-phase run ({:.0} s) at a cruise speed of {} m/s (not given; our choice) \
-             with four base stations at {stations} m (layout not given; our choice). TDOA errors: Gaussian {:.0} ns \
-             plus uniform 0–{:.0} ns per range difference; fixes by Chan's estimator refined by a Taylor step with a \
-             master station that rotates every epoch; the fix covariance `R` is calibrated at {} surveyed points \
-             (seed 002's method). Odometer: speed error {} m/s, heading drift ±20°/h plus a 0.5° white heading error \
-             (not given; our choice). {fix_covariance}",
-            trajectory.duration_s(),
-            config.speed_mps,
-            config.tdoa.gaussian_std_s * 1e9,
-            config.tdoa.nlos_uniform_max_s * 1e9,
-            config.calibration_points,
-            config.odometer.speed_std_mps,
-        ),
-        format!(
-            "**What the paper reports and what we find.** The paper prints no numbers for this experiment, only \
-             figures: the VD-KF fused with the velocity tracks the manoeuvres more closely than the KF on the fixes, \
-             which beats the raw fixes; on quiet legs the fused filter is slightly worse, and the odometer's drift \
-             degrades it late in the run. Fusing the raw, drifting heading as the paper does, we get an RMSE of {} m \
-             against {} m for the KF on fixes: {} The reason is that the drift is a bias, the same for minutes, while \
-             the filter (like the paper's) models it as independent noise whose variance grows with time: it \
-             averages a biased velocity as if its errors cancelled, and with fixes as poor as these ({} m RMSE) \
-             nothing pulls the track back. Estimating the drift against the fixes-only track and removing it (our \
-             addition, `estimate_heading_drift = true`) gives {} m (ratio to the KF {}), better than the KF in every \
-             phase; the paper's ordering holds for this variant. On the first quiet leg (0–400 s) the KF has {} m, \
-             the raw-heading VD-KF {} m and the drift-corrected one {} m; in the last phase (1000–1500 s) {} m raw \
-             against {} m corrected.",
-            fmt(findings.raw, 1),
-            fmt(rmse_kf, 1),
-            if findings.raw > rmse_kf {
-                "worse overall, though better than the KF at the stop and in the turn (per-phase table)."
-            } else {
-                "better, as the paper reports."
-            },
-            fmt(findings.fixes, 1),
-            fmt(rmse_vd, 1),
-            fmt(rmse_vd / rmse_kf, 2),
-            fmt(findings.quiet_kf, 1),
-            fmt(findings.quiet_raw, 1),
-            fmt(findings.quiet_estimated, 1),
-            fmt(findings.late_raw, 1),
-            fmt(findings.late_estimated, 1),
-        ),
-        format!(
-            "**Our best method** is an IMM over CV (4-state KF), CA (6-state KF) and coordinated-turn (5-state EKF) \
-             models fed the same fused observations: RMSE {} m against the VD-KF's {} m. The VD-KF's detector must \
-             wait for the fading-memory statistic to cross its threshold and then re-filters from an assumed onset; \
-             the IMM weighs the models every step.",
-            fmt(rmse_imm, 1),
-            fmt(rmse_vd, 1),
-        ),
-        format!(
-            "**PCRB.** √PCRB pooled over the run: {} m. It is computed along the true trajectory with the CV \
-             model and the KF's process noise, the information of the three range differences at each epoch \
-             (Gaussian of the same variance as the Gaussian + uniform error: the bound for any estimator linear in \
-             the measurements; for the real mixture the optimum could be lower) and of the odometry velocity without \
-             drift (a drift known exactly can only help, so leaving it out keeps the bound a bound). The trackers sit \
-             at {}× (VD-KF) and {}× (IMM) the bound: the stop and the turn violate the CV model the bound assumes, \
-             and the uniform NLOS delay biases every fix; the per-phase table shows the ratio is smallest on the \
-             straight legs.",
-            fmt(bound_all, 1),
-            fmt(rmse_vd / bound_all, 1),
-            fmt(rmse_imm / bound_all, 1),
-        ),
-        format!(
-            "**Manoeuvre detection.** The VD-KF switched to CA within 5 s of the stop in {} % of the runs, within \
-             5 s of the start in {} %, and within 20 s of the turn onset in {} %; it stayed in CV for {} % of the \
-             straight-leg epochs. The 0.02 m/s² deceleration is inside the CV model's noise and is not detected, as \
-             the per-phase errors show it need not be.",
-            fmt(
-                report
-                    .metric("VD-KF detects the stop within 5 s")
-                    .map_or(0.0, |m| m.ours),
-                0
+        render!(
+            T,
+            "setup",
+            duration_s = fmt(trajectory.duration_s(), 0),
+            speed_mps = config.speed_mps,
+            stations = stations,
+            gaussian_ns = fmt(config.tdoa.gaussian_std_s * 1e9, 0),
+            nlos_max_ns = fmt(config.tdoa.nlos_uniform_max_s * 1e9, 0),
+            calibration_points = config.calibration_points,
+            odometer_speed_std_mps = config.odometer.speed_std_mps,
+            filter_settings = render!(
+                T,
+                "filter-settings",
+                cv_variance = config.cv_variance,
+                ca_variance = config.ca_variance
             ),
-            fmt(
-                report
-                    .metric("VD-KF detects the start within 5 s")
-                    .map_or(0.0, |m| m.ours),
-                0
+        ),
+        render!(
+            T,
+            "paper-and-ours",
+            raw_rmse_m = fmt(findings.raw, 1),
+            kf_rmse_m = fmt(rmse_kf, 1),
+            raw_verdict = render!(
+                T,
+                if findings.raw > rmse_kf {
+                    "raw-worse"
+                } else {
+                    "raw-better"
+                }
             ),
-            fmt(
-                report
-                    .metric("VD-KF detects the turn within 20 s")
-                    .map_or(0.0, |m| m.ours),
-                0
-            ),
-            fmt(report.metric("VD-KF in CV on straight legs").map_or(0.0, |m| m.ours), 1),
+            fixes_rmse_m = fmt(findings.fixes, 1),
+            estimated_rmse_m = fmt(rmse_vd, 1),
+            estimated_to_kf = fmt(rmse_vd / rmse_kf, 2),
+            quiet_kf_m = fmt(findings.quiet_kf, 1),
+            quiet_raw_m = fmt(findings.quiet_raw, 1),
+            quiet_estimated_m = fmt(findings.quiet_estimated, 1),
+            late_raw_m = fmt(findings.late_raw, 1),
+            late_estimated_m = fmt(findings.late_estimated, 1),
+        ),
+        render!(T, "best", imm_rmse_m = fmt(rmse_imm, 1), vd_rmse_m = fmt(rmse_vd, 1)),
+        render!(
+            T,
+            "pcrb",
+            bound_m = fmt(bound_all, 1),
+            vd_ratio = fmt(rmse_vd / bound_all, 1),
+            imm_ratio = fmt(rmse_imm / bound_all, 1),
+        ),
+        render!(
+            T,
+            "manoeuvres",
+            stop_percent = fmt(manoeuvre_percent("VD-KF detects the stop within 5 s"), 0),
+            start_percent = fmt(manoeuvre_percent("VD-KF detects the start within 5 s"), 0),
+            turn_percent = fmt(manoeuvre_percent("VD-KF detects the turn within 20 s"), 0),
+            cv_percent = fmt(manoeuvre_percent("VD-KF in CV on straight legs"), 1),
         ),
     ])
-}
-
-/// A sentence on the filters' noise settings.
-fn filter_settings(config: &Seed004Config) -> String {
-    format!(
-        "Filters: CV `σ_a²` = {} (m/s)² per step with the printed `G`, CA `σ_m²` = {} (m/s²)² per step.",
-        config.cv_variance, config.ca_variance
-    )
 }
 
 #[cfg(test)]
