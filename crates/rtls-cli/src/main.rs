@@ -25,7 +25,14 @@
 //! `repro` reruns the seed papers' experiments (seeded Monte Carlo, in parallel), prints
 //! "metric | paper | ours | PCRB" per experiment, and with `--out` writes a markdown report with
 //! SVG and PNG figures (`rtls repro all --out docs` regenerates `docs/REPRODUCTIONS.md`).
+//! `serve` runs the control-room server; `--demo` feeds it seed 000's simulated mine.
+//!
+//! ## Layer
+//! The top of the workspace: the binary composes the crates below it and may import every one
+//! of them (the experiments of rtls-papers for `repro`, rtls-sim's mine for `serve --demo`,
+//! rtls-server, rtls-engine, rtls-data); nothing imports it. Errors are `anyhow` here only.
 
+mod demo;
 mod eval;
 mod import;
 mod markdown;

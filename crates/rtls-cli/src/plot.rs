@@ -9,7 +9,7 @@ use std::sync::Once;
 use anyhow::{anyhow, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use rtls_sim::report::{Figure, SeriesStyle};
+use rtls_papers::report::{Figure, SeriesStyle};
 
 const SIZE_PX: (u32, u32) = (960, 640);
 
@@ -159,7 +159,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rtls_sim::report::Series;
+    use rtls_papers::report::Series;
 
     #[test]
     fn renders_svg_and_png_and_rejects_bad_data() {

@@ -7,9 +7,9 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use rtls_sim::experiments::{ExperimentId, ReproOptions, ScenarioSource};
+use rtls_papers::experiments::{ExperimentId, ReproOptions, ScenarioSource};
+use rtls_papers::report::{ExperimentReport, Metric};
 use rtls_sim::montecarlo::Progress;
-use rtls_sim::report::{ExperimentReport, Metric};
 use serde::Serialize;
 
 /// Which experiment to run.

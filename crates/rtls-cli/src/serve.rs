@@ -1,6 +1,6 @@
 //! `rtls serve`: the control-room server (crate rtls-server) — MQTT and HTTP ingest, the
 //! omlox hub API and WebSocket, history, alarms, metrics. `--demo` runs seed 000's simulated
-//! mine through it.
+//! mine through it (composed in [`crate::demo`]).
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -77,7 +77,7 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
     init_logging(&config.server.log_format);
 
     let (site_text, site_name) = if args.demo {
-        (rtls_server::demo::demo_site_toml(), "demo mine".to_string())
+        (crate::demo::site_toml(), "demo mine".to_string())
     } else {
         let path = config
             .server
@@ -108,12 +108,7 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
         if miners == 0 {
             bail!("--demo-miners must be at least 1");
         }
-        Some(Box::new(move |pipeline, bound: Bound, stop| {
-            rtls_server::demo::start(pipeline, bound, write, miners, stop).unwrap_or_else(|e| {
-                eprintln!("error: demo feed: {e}");
-                tokio::spawn(async {})
-            })
-        }))
+        Some(crate::demo::feed(write, miners))
     } else {
         None
     };

@@ -5,6 +5,11 @@
 //! `rtls-positioning` (and later `rtls-estimation`), and every malformed input is a
 //! [`DataError`] naming the file, the line and the field.
 //!
+//! ## Layer
+//! It owns the readers and importers of recorded datasets and their evaluations, and may import
+//! `rtls-positioning` and `rtls-engine` (the importers write sites and records); it does not
+//! import the simulator, the paper experiments or the server.
+//!
 //! ## Datasets
 //! - [`ujiindoorloc`] — UJIIndoorLoc, the multi-building, multi-floor Wi-Fi fingerprint
 //!   database of Universitat Jaume I (Torres-Sospedra et al., IPIN 2014; CC BY 4.0), and

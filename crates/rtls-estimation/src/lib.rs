@@ -7,6 +7,10 @@
 //! The crate has no I/O and no async runtime; without its default `std` feature it is
 //! `no_std` + `alloc`.
 //!
+//! ## Layer
+//! The bottom of the workspace: it owns state estimation (models, filters, smoothers, gating,
+//! consistency) and imports no other rtls crate.
+//!
 //! ## Vocabulary
 //! - [`Gaussian`] — a state value (mean, covariance, time stamp) owned by a track.
 //! - [`motion`] — immutable transition strategies (`F`, `Q`, optional control `B`).

@@ -11,6 +11,10 @@
 //! The crate is numeric only: no I/O, no async, no global state, no randomness. Every
 //! numerical failure is a [`PositioningError`] (never a panic, never a NaN in an output).
 //!
+//! ## Layer
+//! It owns the fix methods and their covariances and may import `rtls-estimation` only; the
+//! engine, the simulators and the experiments build on it.
+//!
 //! ## What is here
 //! - [`tdoa`] — time difference of arrival in the plane and in space: Chan & Ho's closed-form
 //!   estimator ([`tdoa::chan`], two-step WLS for ≥ 4 stations in the plane and ≥ 5 in space,

@@ -10,8 +10,14 @@
 //! - [`store`] — SQLite (default, WAL) and PostgreSQL with schema migrations and retention.
 //! - [`omlox`] and [`convert`] — the omlox hub API 2.0.0 data model and the engine's outputs in
 //!   its terms; [`auth`] — write and read tokens; [`config`] — the configuration file;
-//!   [`serve`] — starting and stopping it all; [`demo`] — seed 000's simulated mine as a live
-//!   feed.
+//!   [`serve`] — starting and stopping it all; [`feed`] — a live feed of records from any
+//!   [`feed::RecordSource`] (the binary's `--demo` mine) through the ingest path.
+//!
+//! ## Layer
+//! It owns the service (ingest, pipeline, APIs, storage, auth, live feeds) and may import
+//! `rtls-engine` only among the rtls crates: it does not depend on the simulator (`rtls serve
+//! --demo`'s mine is composed in the binary and handed over as a [`feed::RecordSource`]), the
+//! datasets or the paper experiments.
 //!
 //! # References
 //! - omlox™ hub API 2.0.0, OpenAPI 3.0.2 description (PROFIBUS & PROFINET International).
@@ -20,8 +26,8 @@
 pub mod auth;
 pub mod config;
 pub mod convert;
-pub mod demo;
 mod error;
+pub mod feed;
 pub mod http;
 pub mod metrics;
 pub mod mqtt;

@@ -1,6 +1,6 @@
 //! `rtls serve`: opens the store, starts the pipeline, the HTTP/WebSocket server, the MQTT
-//! broker (or the bridge to an external one), retention, and — with `--demo` — the simulated
-//! mine; stops them in order on shutdown.
+//! broker (or the bridge to an external one), retention, and a live [`Feed`] if one is given
+//! (`rtls serve --demo`'s simulated mine); stops them in order on shutdown.
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -66,13 +66,14 @@ pub struct ServeOptions {
     pub site_text: String,
     /// The tokens (resolved from the config, the environment or generated).
     pub tokens: Tokens,
-    /// A feed to start once listening (the demo), given the pipeline as its sink and the
-    /// bound addresses.
+    /// A feed to start once listening (`rtls serve --demo`'s mine), given the pipeline as its
+    /// sink and the bound addresses.
     pub feed: Option<Feed>,
 }
 
-/// A feed started once the server listens (the demo): given the pipeline, the bound
-/// addresses and the stop signal, it returns its task.
+/// A feed started once the server listens (`rtls serve --demo`'s mine): given the pipeline,
+/// the bound addresses and the stop signal, it returns its task — typically
+/// [`crate::feed::start`] with a [`crate::feed::RecordSource`].
 pub type Feed = Box<dyn FnOnce(Pipeline, Bound, watch::Receiver<bool>) -> tokio::task::JoinHandle<()> + Send>;
 
 /// Runs the server until `shutdown` resolves; `on_bound` is told the addresses once

@@ -75,6 +75,31 @@ impl SimError {
     pub fn estimation(time_s: f64) -> impl FnOnce(rtls_estimation::EstimationError) -> Self {
         move |source| Self::Estimation { time_s, source }
     }
+
+    /// The simulation's error for an engine error: the engine's libraries used by the
+    /// simulators (scheduling layouts, energy ledgers) report bad parameters only, which keep
+    /// their name and reason; a positioning error stays one; any other kind is passed on with
+    /// its message as a [`SimError::Scenario`] of file `(rtls-engine)`.
+    ///
+    /// # Example
+    /// ```
+    /// use rtls_engine::EngineError;
+    /// use rtls_sim::SimError;
+    /// let e = SimError::from_engine(EngineError::InvalidParameter { name: "cell_side_m", reason: "must be positive" });
+    /// assert_eq!(e, SimError::InvalidParameter { name: "cell_side_m", reason: "must be positive" });
+    /// ```
+    #[must_use]
+    pub fn from_engine(error: rtls_engine::EngineError) -> Self {
+        use rtls_engine::EngineError;
+        match error {
+            EngineError::InvalidParameter { name, reason } => Self::InvalidParameter { name, reason },
+            EngineError::Positioning(e) => Self::Positioning(e),
+            other => Self::Scenario {
+                file: "(rtls-engine)".to_string(),
+                reason: other.to_string(),
+            },
+        }
+    }
 }
 
 /// Result alias of this crate: `Result<T, SimError>`.
@@ -92,7 +117,7 @@ impl SimError {
 pub type Result<T> = core::result::Result<T, SimError>;
 
 /// Checks that `value` is finite.
-pub(crate) fn finite(value: f64, what: &'static str) -> Result<f64> {
+pub fn finite(value: f64, what: &'static str) -> Result<f64> {
     if value.is_finite() {
         Ok(value)
     } else {
@@ -101,14 +126,14 @@ pub(crate) fn finite(value: f64, what: &'static str) -> Result<f64> {
 }
 
 /// Checks that both components of `value` are finite.
-pub(crate) fn finite2(value: [f64; 2], what: &'static str) -> Result<[f64; 2]> {
+pub fn finite2(value: [f64; 2], what: &'static str) -> Result<[f64; 2]> {
     finite(value[0], what)?;
     finite(value[1], what)?;
     Ok(value)
 }
 
 /// Checks that `value` is finite and strictly positive.
-pub(crate) fn positive(value: f64, name: &'static str, reason: &'static str) -> Result<f64> {
+pub fn positive(value: f64, name: &'static str, reason: &'static str) -> Result<f64> {
     finite(value, name)?;
     if value > 0.0 {
         Ok(value)
@@ -118,7 +143,7 @@ pub(crate) fn positive(value: f64, name: &'static str, reason: &'static str) -> 
 }
 
 /// Checks that `value` is finite and not negative.
-pub(crate) fn non_negative(value: f64, name: &'static str, reason: &'static str) -> Result<f64> {
+pub fn non_negative(value: f64, name: &'static str, reason: &'static str) -> Result<f64> {
     finite(value, name)?;
     if value >= 0.0 {
         Ok(value)

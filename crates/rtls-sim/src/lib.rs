@@ -1,9 +1,17 @@
 //! # rtls-sim
 //!
 //! Seeded simulation of RTLS scenarios: exact truth trajectories, simulated sensors and
-//! accuracy metrics, for the experiments of the seed papers and for testing the filters of
-//! `rtls-estimation` against a known truth. Numeric only: no I/O, no async, no global
+//! accuracy metrics, for the experiments of the seed papers (crate rtls-papers), for the
+//! `--demo` mine of `rtls serve` and for testing the filters of `rtls-estimation` and the
+//! engine's tracker against a known truth. Numeric only: no I/O, no async, no global
 //! randomness (every simulator takes `rng: &mut impl rand::Rng`).
+//!
+//! ## What this crate owns and may import
+//! It owns trajectories, sensor simulators, the seed papers' site layouts and trajectories
+//! ([`scenarios`]), metrics, the PCRB, Monte Carlo and the mine simulation. It may import
+//! `rtls-estimation`, `rtls-positioning` and `rtls-engine` (records and sites, which the mine
+//! writes). The paper experiments and their reports are in rtls-papers, on top of this crate;
+//! the server does not depend on it (the binary composes the demo feed).
 //!
 //! ## Vocabulary
 //! - [`trajectory`] — [`Trajectory`] built from segments (constant velocity, stop, coordinated
@@ -19,10 +27,8 @@
 //!   per-axis error rate and PEL, run-averaged NEES/NIS.
 //! - [`pcrb`] — the posterior Cramér–Rao bound (Tichavský's recursion, covariance form).
 //! - [`montecarlo`] — seeded parallel Monte Carlo whose results do not depend on the thread count.
-//! - [`experiments`] — the five paper reproductions behind `rtls repro`, read from the TOML
-//!   scenarios in `scenarios/`, each returning a [`report::ExperimentReport`] (metric | paper |
-//!   ours | bound, tables, figures as data, notes).
-//! - [`reproduction`] — one seeded run of each paper's experiment, with every estimate.
+//! - [`validate`] — the input checks behind every [`SimError::InvalidParameter`] and
+//!   [`SimError::NonFinite`], shared with rtls-papers.
 //! - [`mine`] — seed 000's mine at scale (307 readers, 600 miners, a roof fall) as a live,
 //!   endless feed of RSSI scans for `rtls serve --demo`, with the site file the tracker needs.
 //!
@@ -47,16 +53,19 @@
 //! ```
 
 mod error;
-pub mod experiments;
 pub mod metrics;
 pub mod mine;
 pub mod montecarlo;
 pub mod pcrb;
-pub mod report;
-pub mod reproduction;
 pub mod scenarios;
 pub mod sensors;
 pub mod trajectory;
+
+/// Input checks shared by the simulators and the paper experiments (crate rtls-papers): each
+/// returns its input, or the [`SimError`] that names the parameter and what is allowed.
+pub mod validate {
+    pub use crate::error::{finite, finite2, non_negative, positive};
+}
 
 pub use error::{Result, SimError};
 pub use metrics::{axis_rmse, empirical_cdf, euclidean_errors, percentile, ErrorSummary};

@@ -54,8 +54,7 @@ impl TestBed {
         positive(width_m, "width_m", "the bed width must be positive")?;
         positive(height_m, "height_m", "the bed height must be positive")?;
         positive(cell_side_m, "cell_side_m", "the cell side must be positive")?;
-        let layout =
-            Layout::grid(width_m, height_m, cell_side_m).map_err(crate::reproduction::seed_003::engine_error)?;
+        let layout = Layout::grid(width_m, height_m, cell_side_m).map_err(SimError::from_engine)?;
         let cells = [
             (width_m / cell_side_m).round() as usize,
             (height_m / cell_side_m).round() as usize,

@@ -14,7 +14,8 @@ use super::{plan_length, segment_distance, MineLayout};
 /// ```
 ///
 /// both linear in `p`; a walker is anywhere across the tunnel and wears his tag at some
-/// height, so each holds up to a spread (see `reproduction::seed_000::PositionConstraint`).
+/// height, so each holds up to a spread (see rtls-papers'
+/// `reproduction::seed_000::PositionConstraint`).
 ///
 /// # Example
 /// ```
