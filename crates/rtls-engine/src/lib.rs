@@ -4,6 +4,13 @@
 //! predictive tracks for every tag. Synchronous and deterministic: records in, track updates
 //! and events out, no threads, no clocks, no I/O beyond parsing text handed to it.
 //!
+//! ## What this crate owns and may import
+//! It owns the record formats, the site model, the tracker (`rtls_engine::Tracker`, the one
+//! tracking loop of the workspace), zones and alarms, association, scheduling, the survey,
+//! tuning and evaluation against ground truth. It may import `rtls-estimation` and
+//! `rtls-positioning` (the numeric crates) and no crate above it: rtls-sim, rtls-papers,
+//! rtls-server and the `rtls` binary import it.
+//!
 //! ## Vocabulary
 //! - [`record`] — the measurement record format (JSON Lines and CSV): a time stamp, a tag id and
 //!   one measurement (range, RSSI, TDOA, RSSI vector, position fix, accelerometer, odometry,
