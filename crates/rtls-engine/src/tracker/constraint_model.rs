@@ -3,6 +3,7 @@
 //! epoch ([`Hearing`]); the `constraints` module applies them.
 
 use super::anchors::{AnchorReading, Anchors};
+use super::models::{AnchorLaw, AnchorMeasurement};
 use crate::corridors::CorridorMap;
 use crate::site::Site;
 use crate::zones::Zone;
@@ -21,8 +22,9 @@ pub(crate) struct Constraints {
     pub(super) junction_radius_m: f64,
     /// Whether the map constraint is applied.
     pub(super) map_enabled: bool,
-    /// Anchors used as negative information: `(index, S dBm)`.
-    pub(super) listeners: Vec<(usize, f64)>,
+    /// Anchors used as negative information: `(index, S dBm, its RSSI model with R = σ_X²)`,
+    /// built once (no allocation per epoch).
+    pub(super) listeners: Vec<(usize, f64, AnchorMeasurement)>,
     /// `v_max`, m/s.
     pub(super) max_speed_mps: Option<f64>,
     /// Zones without coverage, which shield the radio.
@@ -30,17 +32,29 @@ pub(crate) struct Constraints {
 }
 
 impl Constraints {
-    /// The constraints `site` asks for, or `None` when it asks for none.
-    pub(crate) fn new(site: &Site, anchors: &Anchors) -> Option<Self> {
+    /// The constraints `site` asks for, or `None` when it asks for none. `shadows` are the
+    /// site's zones without coverage (the tracker's alarm zones of that kind).
+    pub(crate) fn new(site: &Site, anchors: &Anchors, shadows: Vec<Zone>) -> Option<Self> {
         let settings = &site.tracker;
         let map = CorridorMap::new(&site.corridors);
         let map_enabled = settings.map.enabled && !map.is_empty();
-        let listeners: Vec<(usize, f64)> = if settings.negative_information {
+        let tag_height_m = settings.tag_height_m.unwrap_or(0.0);
+        let listeners: Vec<(usize, f64, AnchorMeasurement)> = if settings.negative_information {
             anchors
                 .iter()
                 .enumerate()
-                .filter(|(_, a)| a.working && a.path_loss.is_some())
-                .filter_map(|(i, a)| a.sensitivity_dbm.map(|s| (i, s)))
+                .filter(|(_, a)| a.working)
+                .filter_map(|(i, a)| {
+                    let ([p0, d0, n, shadowing_db], sensitivity_dbm) = (a.path_loss?, a.sensitivity_dbm?);
+                    let law = AnchorLaw::LogDistance {
+                        reference_power_dbm: p0,
+                        reference_distance_m: d0,
+                        exponent: n,
+                    };
+                    let variance = (shadowing_db * shadowing_db).max(MIN_SILENCE_VARIANCE_DB2);
+                    let model = AnchorMeasurement::new(a.position_m, tag_height_m, law, variance);
+                    Some((i, sensitivity_dbm, model))
+                })
                 .collect()
         } else {
             Vec::new()
@@ -56,14 +70,7 @@ impl Constraints {
             map_enabled,
             listeners,
             max_speed_mps: settings.max_speed_mps,
-            shadows: site
-                .zones
-                .iter()
-                .filter(|z| {
-                    !z.readers.is_empty() && z.readers.iter().all(|r| site.reader(r).is_some_and(|r| !r.working))
-                })
-                .cloned()
-                .collect(),
+            shadows,
         })
     }
 

@@ -36,7 +36,7 @@ use rtls_estimation::imm::{Axis, Component, ImmState};
 use rtls_estimation::Gaussian;
 
 use super::alarms::position_of;
-use super::constraint_model::{Constraints, MIN_SILENCE_VARIANCE_DB2};
+use super::constraint_model::Constraints;
 use super::epoch::solve;
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::output::epoch_raw_fix;
@@ -174,35 +174,24 @@ fn silence<const N: usize>(
     let Some(p) = position(shared, track) else {
         return Ok(());
     };
-    let mut surest: Option<(f64, AnchorMeasurement, f64)> = None;
-    for &(index, sensitivity_dbm) in &constraints.listeners {
-        if heard.contains(&index) {
+    let mut surest: Option<(f64, &AnchorMeasurement, f64)> = None;
+    for (index, sensitivity_dbm, model) in &constraints.listeners {
+        if heard.contains(index) {
             continue;
         }
-        let anchor = shared.anchors.get(index);
-        let Some([p0, d0, n, shadowing_db]) = anchor.path_loss else {
-            continue;
-        };
-        let law = AnchorLaw::LogDistance {
-            reference_power_dbm: p0,
-            reference_distance_m: d0,
-            exponent: n,
-        };
-        let variance = (shadowing_db * shadowing_db).max(MIN_SILENCE_VARIANCE_DB2);
-        let model = AnchorMeasurement::new(anchor.position_m, shared.tag_height_m, law, variance);
         // ŷ − S, against σ_X: a silence that is not clearly unexpected says little
         let excess_db = model.value(&p) - sensitivity_dbm;
-        if excess_db < variance.sqrt() || surest.as_ref().is_some_and(|(e, _, _)| *e >= excess_db) {
+        if excess_db < model.variance().sqrt() || surest.is_some_and(|(e, _, _)| e >= excess_db) {
             continue;
         }
-        if !constraints.audible(p, anchor.position_m) {
+        if !constraints.audible(p, shared.anchors.get(*index).position_m) {
             continue;
         }
-        surest = Some((excess_db, model, sensitivity_dbm));
+        surest = Some((excess_db, model, *sensitivity_dbm));
     }
     match surest {
         // z = S: the most the reader could have received without reporting it
-        Some((_, model, sensitivity_dbm)) => pseudo_update(shared, track, &model, sensitivity_dbm),
+        Some((_, model, sensitivity_dbm)) => pseudo_update(shared, track, model, sensitivity_dbm),
         None => Ok(()),
     }
 }

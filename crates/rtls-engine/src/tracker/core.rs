@@ -178,7 +178,9 @@ fn apply_record<const N: usize>(
             let reading = match shared.anchors.resolve(measurement) {
                 Ok(Some(reading)) => reading,
                 Ok(None) => {
-                    track.hearing.heard(time_s, None);
+                    if shared.constraints.is_some() {
+                        track.hearing.heard(time_s, None);
+                    }
                     return Ok(());
                 }
                 Err(reason) => {
@@ -187,7 +189,10 @@ fn apply_record<const N: usize>(
                     return Ok(());
                 }
             };
-            track.hearing.heard(time_s, Some(reading));
+            if shared.constraints.is_some() {
+                // the epoch's readers, for its close (nothing to keep without constraints)
+                track.hearing.heard(time_s, Some(reading));
+            }
             anchor_reading(shared, track, time_s, reading, measurement.kind(), out)
         }
         // the control input of the CV model (and of the IMM's CV mode) for the next

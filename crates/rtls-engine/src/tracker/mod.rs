@@ -272,8 +272,15 @@ impl Tracker {
             .filter(|z| z.kind == ZoneKind::Hazard || no_coverage_zones.contains(&z.id))
             .cloned()
             .collect();
+
         let anchors = Anchors::new(site);
-        let constraints = constraint_model::Constraints::new(site, &anchors);
+        let shadows = site
+            .zones
+            .iter()
+            .filter(|z| no_coverage_zones.contains(&z.id))
+            .cloned()
+            .collect();
+        let constraints = constraint_model::Constraints::new(site, &anchors, shadows);
         let shared = Shared {
             settings,
             alarms: site.alarms,

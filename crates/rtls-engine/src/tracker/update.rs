@@ -112,7 +112,9 @@ pub(super) fn accept<const N: usize>(
             [p[(0, 0)], p[(0, 2)], p[(2, 2)]],
         );
     }
-    track.hearing.updated(time_s);
+    if shared.constraints.is_some() {
+        track.hearing.updated(time_s);
+    }
     track.state = Some(updated.state);
     track.lost_state = None;
     if let Some(modes) = modes {
