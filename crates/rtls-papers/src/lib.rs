@@ -12,6 +12,8 @@
 //!   [`report::ExperimentReport`].
 //! - [`reproduction`] — one seeded run of each paper's experiment, with every estimate (the
 //!   examples in `examples/` print them).
+//! - [`recording`] — a scenario as a site file, records and truth (what `rtls sim` writes),
+//!   and `rtls_engine::tracker::Tracker` run on it: every "ours" row goes through it.
 //! - [`report`] — the report's plain, serialisable types; the `rtls` binary renders them as
 //!   tables, JSON lines, markdown and plots.
 //! - The report prose: one markdown template per experiment in `crates/rtls-papers/templates/`
@@ -43,6 +45,7 @@
 
 mod error;
 pub mod experiments;
+pub mod recording;
 pub mod report;
 pub mod reproduction;
 
