@@ -4,6 +4,9 @@
 //! near, and whether the straight line between two points stays inside the corridors (radio
 //! line of sight underground, where rock stops a reader from hearing a tag in the next drift).
 //!
+//! A corridor may give the height of its centreline at each point (a decline's walking line):
+//! the height at `s` along a segment is interpolated linearly between its ends.
+//!
 //! A corridor is a polyline `[a₀, a₁, …]` (plan `x, y`, m). Each segment `aₖ → aₖ₊₁` has the
 //! unit direction `u = (aₖ₊₁ − aₖ)/‖aₖ₊₁ − aₖ‖` and the normal `n = (−u_y, u_x)`. For a point `p`
 //! its along-track coordinate is `s = u·(p − aₖ)` and its lateral offset `e = n·(p − aₖ)`.
@@ -21,10 +24,12 @@
 //! let map = CorridorMap::new(&[Corridor {
 //!     id: "drift".into(),
 //!     points_m: vec![[0.0, 0.0], [100.0, 0.0], [100.0, 50.0]],
+//!     heights_m: Some(vec![0.0, -1.0, -1.0]), // a 1 % decline, then level
 //!     half_width_m: 2.0,
 //! }]);
 //! let nearest = map.nearest([40.0, 1.5]).unwrap();
 //! assert!((nearest.lateral_m - 1.5).abs() < 1e-12);
+//! assert!((nearest.height_m.unwrap() + 0.4).abs() < 1e-12);
 //! assert!(map.junction_within([98.0, 1.0], 5.0));
 //! assert!(map.line_of_sight([10.0, 0.0], [90.0, 0.0]));
 //! assert!(!map.line_of_sight([50.0, 0.0], [100.0, 40.0])); // through the rock inside the L
@@ -48,6 +53,8 @@ struct Segment {
     length_m: f64,
     /// The corridor's half-width, m.
     half_width_m: f64,
+    /// Heights of the centreline at the start and the end (`heights_m`), m.
+    heights_m: Option<[f64; 2]>,
     /// Index of the corridor it belongs to.
     corridor: usize,
     /// Whether the segment's start is a dead end of its corridor.
@@ -105,6 +112,9 @@ pub struct NearestSegment {
     pub length_m: f64,
     /// The corridor's half-width, m.
     pub half_width_m: f64,
+    /// The centreline's height at the point nearest the estimate (`h = h₀ + clamp(s/L, 0, 1)
+    /// (h₁ − h₀)`), m, when the corridor has `heights_m`.
+    pub height_m: Option<f64>,
     /// Index of the corridor in the site's list.
     pub corridor: usize,
     /// The segment's start is a dead end (the estimate may not pass it).
@@ -160,6 +170,10 @@ impl CorridorMap {
                     direction: [d[0] / length_m, d[1] / length_m],
                     length_m,
                     half_width_m: corridor.half_width_m,
+                    heights_m: corridor
+                        .heights_m
+                        .as_ref()
+                        .and_then(|h| Some([*h.get(k)?, *h.get(k + 1)?])),
                     corridor: index,
                     dead_start: k == 0,
                     dead_end: k + 2 == points.len(),
@@ -223,6 +237,10 @@ impl CorridorMap {
             along_m,
             length_m: seg.length_m,
             half_width_m: seg.half_width_m,
+            // h = h₀ + clamp(s/L, 0, 1)·(h₁ − h₀)
+            height_m: seg
+                .heights_m
+                .map(|[h0, h1]| h0 + (along_m / seg.length_m).clamp(0.0, 1.0) * (h1 - h0)),
             corridor: seg.corridor,
             dead_start: seg.dead_start,
             dead_end: seg.dead_end,
@@ -271,6 +289,7 @@ mod tests {
         Corridor {
             id: id.into(),
             points_m,
+            heights_m: None,
             half_width_m: 2.5,
         }
     }

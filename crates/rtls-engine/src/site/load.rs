@@ -126,6 +126,15 @@ fn validate(site: &mut Site, text: &str, file: &str) -> Result<()> {
                 "must be a polyline of at least two points [x, y] with no point repeated back to back, m",
             )],
         )?;
+        check(
+            text,
+            file,
+            &[(
+                format!("corridors[{i}].heights_m"),
+                corridor.heights_m.as_ref().is_none_or(|h| h.len() == points.len()),
+                "must give one height per point of points_m, m",
+            )],
+        )?;
     }
     for (i, reader) in site.readers.iter().enumerate() {
         let radio = reader.radio.as_ref();

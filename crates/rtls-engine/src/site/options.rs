@@ -303,6 +303,12 @@ pub struct Corridor {
     pub id: String,
     /// The centreline, a polyline of at least two distinct consecutive points `[x, y]`, m.
     pub points_m: Vec<[f64; 2]>,
+    /// The height `z` of a tag on the centreline at each point (a drift's walking line with its
+    /// grade: floor height plus the height the tag is worn at), m; one per point, linear in
+    /// between. With `tracker.dimensions = 3` the map constraint holds the estimate's height to
+    /// it (`[tracker.map] vertical_std_m`). Optional; absent = no height constraint.
+    #[serde(default)]
+    pub heights_m: Option<Vec<f64>>,
     /// Half the corridor's width: from the centreline to the walls, m (> 0).
     pub half_width_m: f64,
 }
@@ -323,6 +329,15 @@ pub struct MapSettings {
     /// Near a junction, within this distance, the lateral constraint is not applied, m (≥ 0).
     /// Absent: twice the widest corridor's half-width.
     pub junction_radius_m: Option<f64>,
+    /// 3-D tracking, corridors with `heights_m`: standard deviation of a tag's height about
+    /// the corridor's height at its place, m (> 0). Default 0.3 (a tag on a helmet, a belt or
+    /// in a hand of walkers of different sizes).
+    pub vertical_std_m: f64,
+}
+
+impl MapSettings {
+    /// Default of [`MapSettings::vertical_std_m`], m.
+    pub const DEFAULT_VERTICAL_STD_M: f64 = 0.3;
 }
 
 impl Default for MapSettings {
@@ -331,6 +346,7 @@ impl Default for MapSettings {
             enabled: true,
             lateral_std_m: None,
             junction_radius_m: None,
+            vertical_std_m: Self::DEFAULT_VERTICAL_STD_M,
         }
     }
 }

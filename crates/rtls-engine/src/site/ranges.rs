@@ -238,6 +238,18 @@ pub(super) fn checks(site: &Site) -> Vec<Check> {
                 &corridor.points_m[j],
             ));
         }
+        if let Some(j) = corridor
+            .heights_m
+            .iter()
+            .flatten()
+            .position(|h| !COORDINATE_M.contains(*h))
+        {
+            out.push(within(
+                format!("corridors[{i}].heights_m[{j}]"),
+                corridor.heights_m.as_ref().map_or(0.0, |h| h[j]),
+                COORDINATE_M,
+            ));
+        }
         out.push(within(
             format!("corridors[{i}].half_width_m"),
             corridor.half_width_m,
@@ -467,6 +479,7 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
     if let Some(radius) = t.map.junction_radius_m {
         out.push(within(at("map.junction_radius_m"), radius, JUNCTION_RADIUS_M));
     }
+    out.push(within(at("map.vertical_std_m"), t.map.vertical_std_m, LATERAL_STD_M));
     if let Some(speed) = t.max_speed_mps {
         out.push(within(at("max_speed_mps"), speed, MAX_SPEED_MPS));
     }

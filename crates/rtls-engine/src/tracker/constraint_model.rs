@@ -20,6 +20,8 @@ pub(crate) struct Constraints {
     pub(super) lateral_std_m: Option<f64>,
     /// `r_J`, m.
     pub(super) junction_radius_m: f64,
+    /// `σ_z` of a tag's height about its corridor's, m (3-D tracking).
+    pub(super) vertical_std_m: f64,
     /// Whether the map constraint is applied.
     pub(super) map_enabled: bool,
     /// Anchors used as negative information: `(index, S dBm, its RSSI model with R = σ_X²)`,
@@ -67,6 +69,7 @@ impl Constraints {
             map,
             lateral_std_m: settings.map.lateral_std_m,
             junction_radius_m: settings.map.junction_radius_m.unwrap_or(2.0 * widest_m),
+            vertical_std_m: settings.map.vertical_std_m,
             map_enabled,
             listeners,
             max_speed_mps: settings.max_speed_mps,

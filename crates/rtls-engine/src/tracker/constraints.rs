@@ -42,7 +42,7 @@ use super::models::{AnchorLaw, AnchorMeasurement};
 use super::output::epoch_raw_fix;
 use super::output::Output;
 use super::track::rejected;
-use super::track::{Shared, Track};
+use super::track::{dimensions, Shared, Track};
 use super::update::{fix_update, predict, reacquire};
 use crate::error::Result;
 use crate::site::FilterKind;
@@ -216,6 +216,18 @@ fn map<const N: usize>(shared: &Shared, constraints: &Constraints, track: &mut T
             shared.tag_height_m,
             AnchorLaw::Offset { normal: [nx, ny, 0.0] },
             variance,
+        );
+        pseudo_update(shared, track, &model, 0.0)?;
+    }
+    if let (Some(height_m), true) = (segment.height_m, dimensions::<N>() == 3) {
+        // z − h(s) = 0 ± σ_z: on the corridor's walking line
+        let model = AnchorMeasurement::new(
+            [ax, ay, height_m],
+            shared.tag_height_m,
+            AnchorLaw::Offset {
+                normal: [0.0, 0.0, 1.0],
+            },
+            constraints.vertical_std_m * constraints.vertical_std_m,
         );
         pseudo_update(shared, track, &model, 0.0)?;
     }

@@ -304,3 +304,72 @@ fn without_corridors_or_sensitivities_nothing_changes() {
     b.finish(&mut out_b).unwrap();
     assert_eq!(out_a.updates, out_b.updates);
 }
+
+/// 3-D tracking in a decline: a walker goes down a 10 % grade while UWB readers on the walls,
+/// all about as high above the walking line as each other, range him. The ranges hardly see his
+/// height (every reader is near the plane of the walk); the corridor's `heights_m` does.
+#[test]
+fn a_corridor_with_heights_holds_a_3d_estimate_on_its_walking_line() {
+    const GRADE: f64 = -0.1;
+    let height = |x: f64| 1.5 + GRADE * x;
+    let mut text = String::new();
+    for k in 0..=10 {
+        let x = 10.0 * f64::from(k);
+        let y = if k % 2 == 0 { -2.0 } else { 2.0 };
+        let z = height(x) + if k % 4 < 2 { 0.8 } else { 1.2 };
+        text.push_str(&format!(
+            "[[readers]]\nid = \"R{k}\"\nposition_m = [{x}, {y}, {z}]\ntechnology = \"uwb\"\n\
+             radio = {{ range = {{ range_std_m = 0.3, bias_m = 0.0 }} }}\n"
+        ));
+    }
+    let run = |heights: bool| {
+        let mut site = text.clone();
+        site.push_str("[[corridors]]\nid = \"decline\"\npoints_m = [[0.0, 0.0], [100.0, 0.0]]\nhalf_width_m = 2.0\n");
+        if heights {
+            site.push_str(&format!("heights_m = [{}, {}]\n", height(0.0), height(100.0)));
+        }
+        site.push_str(
+            "[tracker]\nplatform = \"walker\"\ndimensions = 3\nreorder_window_s = 0.0\n\
+             [tracker.map]\nvertical_std_m = 0.2\n",
+        );
+        let site = Site::from_toml_str(&site, "decline.toml").unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let noise = Normal::new(0.0, 0.3).unwrap();
+        let mut tracker = Tracker::new(&site).unwrap();
+        let mut out = Output::default();
+        for step in 0..600 {
+            let t = f64::from(step) * 0.1;
+            let truth = [5.0 + 1.2 * t, 0.5, height(5.0 + 1.2 * t)];
+            let k = step % 11;
+            let anchor = site.reader(&format!("R{k}")).unwrap().position_xyz_m();
+            let d = ((truth[0] - anchor[0]).powi(2) + (truth[1] - anchor[1]).powi(2) + (truth[2] - anchor[2]).powi(2))
+                .sqrt();
+            let measurement = Measurement::Range {
+                anchor: format!("R{k}"),
+                range_m: d + noise.sample(&mut rng),
+                std_m: None,
+                anchor_position_m: None,
+            };
+            let record = Record {
+                time_s: t,
+                tag: "w".into(),
+                measurement,
+            };
+            tracker.push(record, &mut out).unwrap();
+        }
+        tracker.finish(&mut out).unwrap();
+        // height error of the updates after the first 10 s
+        let errors: Vec<f64> = out
+            .updates
+            .iter()
+            .filter(|u| u.time_s > 10.0)
+            .map(|u| u.position_m[2] - height(5.0 + 1.2 * u.time_s))
+            .collect();
+        assert!(errors.len() > 300, "{} updates", errors.len());
+        (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt()
+    };
+    let (with, without) = (run(true), run(false));
+    eprintln!("height RMSE: with heights_m {with:.3} m, without {without:.3} m");
+    assert!(with < 0.25, "height RMSE on the walking line {with:.3} m");
+    assert!(with < 0.5 * without, "with heights {with:.3} m, without {without:.3} m");
+}
