@@ -133,7 +133,7 @@ pub fn run(args: &ReproArgs) -> Result<()> {
 }
 
 /// The experiment's scenario files, from `dir` if given, else the shipped ones.
-fn scenario_sources(id: ExperimentId, dir: Option<&Path>) -> Result<Vec<ScenarioSource>> {
+pub(crate) fn scenario_sources(id: ExperimentId, dir: Option<&Path>) -> Result<Vec<ScenarioSource>> {
     let Some(dir) = dir else {
         return Ok(id.embedded_scenarios());
     };

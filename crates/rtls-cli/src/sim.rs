@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! rtls sim mine --out DIR [--miners N] [--duration-s S] [--seed N] [--without-map]
+//! rtls sim mekf --out DIR [--seed N] [--run I] [--scenarios DIR]
 //! ```
 //!
 //! `DIR/site.toml` (the site the tracker needs), `DIR/measurements.jsonl` (the records, JSON
@@ -14,6 +15,10 @@
 //! ```
 //!
 //! scores the tracker on a known truth from files, and a user can start a deployment from it.
+//!
+//! A paper scenario (`mekf`, seed 000's mine walk) is written as run `I` of
+//! `rtls repro <experiment> --seed N`: the same site, records and truth its "ours" row tracks,
+//! so the row's figures can be reproduced from the files.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -21,6 +26,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use rtls_engine::record::to_json_line;
+use rtls_papers::experiments::ExperimentId;
 use rtls_sim::mine::{MineConfig, MineLayout, MineSimulation, SiteOptions};
 
 /// Truth is written this often, s (`rtls eval` interpolates across at most 0.5 s by default).
@@ -32,6 +38,10 @@ pub enum Scenario {
     /// Seed 000's mine: 307 RSSI readers along seven drifts and a cross-cut, roaming miners,
     /// a roof fall on drift 3 whose reader is broken (the `rtls serve --demo` feed).
     Mine,
+    /// Seed 000's mine walk (`rtls repro mekf`): one miner past the readers of a decline, a
+    /// main drift and a cross-cut with a coverage hole; the site carries the tunnels and the
+    /// tracker settings of the reproduction's "ours" row.
+    Mekf,
 }
 
 /// Arguments of `rtls sim`.
@@ -49,9 +59,16 @@ pub struct SimArgs {
     /// Simulated time, s.
     #[arg(long, value_name = "S", default_value_t = 600.0, allow_negative_numbers = true)]
     duration_s: f64,
-    /// Seed of every random draw.
+    /// Seed of every random draw (a paper scenario: the base seed of `rtls repro`).
     #[arg(long, default_value_t = 7)]
     seed: u64,
+    /// A paper scenario: which Monte Carlo run of `rtls repro --seed N` to write.
+    #[arg(long, default_value_t = 0)]
+    run: usize,
+    /// A paper scenario: read its scenario files from DIR (edited copies) instead of the shipped
+    /// ones, as `rtls repro --scenarios DIR` does.
+    #[arg(long, value_name = "DIR")]
+    scenarios: Option<PathBuf>,
     /// Leave the tunnels (`[[corridors]]`) and the readers' sensitivity out of the site file:
     /// the tracker without the map and negative information, for comparison.
     #[arg(long)]
@@ -69,7 +86,46 @@ pub fn run(args: &SimArgs) -> Result<()> {
     }
     match args.scenario {
         Scenario::Mine => mine(args),
+        Scenario::Mekf => paper(args, ExperimentId::Mekf),
     }
+}
+
+/// Writes run `--run` of a paper experiment's scenario.
+fn paper(args: &SimArgs, id: ExperimentId) -> Result<()> {
+    let sources = crate::repro::scenario_sources(id, args.scenarios.as_deref())?;
+    let recording = id
+        .recording(&sources, args.seed, args.run)
+        .with_context(|| format!("`{}` has no recording", id.name()))?
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let tags: std::collections::BTreeSet<&str> = recording.records.iter().map(|r| r.tag.as_str()).collect();
+    write_files(
+        &args.out,
+        &recording.site_toml,
+        &recording.measurements_jsonl(),
+        &recording.truth_csv(),
+    )?;
+    eprintln!(
+        "wrote {}: site.toml, measurements.jsonl ({} records of {} tags), truth.csv ({} rows)",
+        args.out.display(),
+        recording.records.len(),
+        tags.len(),
+        recording.truth.len()
+    );
+    Ok(())
+}
+
+/// Writes the three files into `dir` (created if missing).
+fn write_files(dir: &std::path::Path, site: &str, measurements: &str, truth: &str) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    for (name, text) in [
+        ("site.toml", site),
+        ("measurements.jsonl", measurements),
+        ("truth.csv", truth),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
 }
 
 fn mine(args: &SimArgs) -> Result<()> {
@@ -107,15 +163,7 @@ fn mine(args: &SimArgs) -> Result<()> {
             rows += 1;
         }
     }
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    for (name, text) in [
-        ("site.toml", &site),
-        ("measurements.jsonl", &measurements),
-        ("truth.csv", &truth),
-    ] {
-        let path = args.out.join(name);
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-    }
+    write_files(&args.out, &site, &measurements, &truth)?;
     eprintln!(
         "wrote {}: site.toml ({miners} miners' site), measurements.jsonl ({records} records), truth.csv ({rows} rows)",
         args.out.display()

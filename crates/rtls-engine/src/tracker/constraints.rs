@@ -12,7 +12,8 @@
 //!           if ŷ_j − S_j ≥ σ_X: EKF update with z = S_j, R = σ_X²       (Koch 2007)
 //! map       nearest corridor segment (a, u, n); unless a junction is within r_J of p̂:
 //!             e = n·(p − a) = 0 ± σ_lat                                 (Simon 2010)
-//!           past a dead end a (or b):  u·(p − a) = 0 ± σ_lat
+//!           past a dead end a (or b): the mean projected back onto it, u·(p − b) ≤ 0
+//!           (estimate projection, P kept)
 //! speed     ‖v_xy‖ > v_max  →  v_xy ← v_xy · v_max / ‖v_xy‖             (estimate projection)
 //! ```
 //!
@@ -47,12 +48,17 @@ use super::update::{fix_update, predict, reacquire};
 use crate::error::Result;
 use crate::site::FilterKind;
 
+/// Consecutive epochs whose readers cannot see the estimate before the track restarts at the
+/// fix (a single epoch may be a reader heard round a corner at close range).
+const WRONG_CORRIDOR_EPOCHS: u32 = 2;
+
 /// Closes the track's epoch if `now_s` is past `t₀ + epoch_s`: applies silence, map and speed
 /// to the state at its time. If most of the readers that heard the tag (at least two) have no
-/// line of sight to the estimate through the corridors, the estimate is in the wrong corridor
-/// (a single-hypothesis track that took the wrong branch at a junction): instead of being held
-/// there, it restarts at the fix of the epoch's own readings (an event says so); when they give
-/// none, the epoch's constraints are skipped and the track keeps its state.
+/// line of sight through the corridors to the estimate or to the centreline beside it, the
+/// epoch's constraints are skipped; when that happens in [`WRONG_CORRIDOR_EPOCHS`] epochs in a
+/// row the estimate is in the wrong corridor (a single-hypothesis track that took the wrong
+/// branch at a junction): it restarts at the fix of the epoch's own readings (an event says
+/// so), or keeps its state when they give none.
 ///
 /// # Errors
 /// A failed filter step (the caller reports it and restarts the track).
@@ -78,16 +84,37 @@ pub(super) fn close_epoch_if_due<const N: usize>(
         return Ok(());
     }
     if let (true, Some(p)) = (constraints.map_enabled, position(shared, track)) {
+        // seen from the estimate or from the centreline beside it (an estimate a little off
+        // the centreline at a bend should not lose sight of the readers round it)
+        let plan = [p[0], p[1]];
+        let beside = constraints.map.nearest(plan).map(|s| {
+            let along = s.along_m.clamp(0.0, s.length_m);
+            [
+                s.origin_m[0] + along * s.direction[0],
+                s.origin_m[1] + along * s.direction[1],
+            ]
+        });
         let blocked = heard
             .iter()
             .filter(|&&i| {
-                !constraints.map.line_of_sight([p[0], p[1]], {
-                    let a = shared.anchors.get(i).position_m;
-                    [a[0], a[1]]
-                })
+                let a = shared.anchors.get(i).position_m;
+                let reader = [a[0], a[1]];
+                !constraints.map.line_of_sight(plan, reader)
+                    && beside.is_none_or(|c| !constraints.map.line_of_sight(c, reader))
             })
             .count();
-        if heard.len() >= 2 && 2 * blocked > heard.len() {
+        let wrong = heard.len() >= 2 && 2 * blocked > heard.len();
+        track.hearing.wrong_corridor_epochs = if wrong {
+            track.hearing.wrong_corridor_epochs + 1
+        } else {
+            0
+        };
+        if wrong && track.hearing.wrong_corridor_epochs < WRONG_CORRIDOR_EPOCHS {
+            // one epoch may be a reader heard round a corner: not held to the map, not restarted
+            return Ok(());
+        }
+        if wrong {
+            track.hearing.wrong_corridor_epochs = 0;
             let time_s = track.state.as_ref().map_or(open_s, Gaussian::time_s);
             let fixes = solve::<N>(shared, &readings, None).ok();
             let what = if fixes.is_some() {
@@ -240,14 +267,55 @@ fn map<const N: usize>(shared: &Shared, constraints: &Constraints, track: &mut T
         None
     };
     if let Some([ex, ey]) = end {
-        // u·(p − end) = 0 ± σ_lat: back at the dead end
-        let model = AnchorMeasurement::new(
-            [ex, ey, p[2]],
-            shared.tag_height_m,
-            AnchorLaw::Offset { normal: [ux, uy, 0.0] },
-            variance,
-        );
-        pseudo_update(shared, track, &model, 0.0)?;
+        // a dead end is an inequality, u·(p − end) ≤ 0 (or ≥ 0 at a start): back onto it
+        let outward = if segment.along_m < 0.0 { [-ux, -uy] } else { [ux, uy] };
+        project_inside(shared, track, outward, outward[0] * ex + outward[1] * ey)?;
+    }
+    Ok(())
+}
+
+/// Estimate projection onto the half-plane `w·p ≤ d` of a violated inequality constraint
+/// (Simon 2010, §2.3, with the weight `W = P⁻¹`):
+///
+/// ```text
+/// x̂ ← x̂ − P hᵀ (h P hᵀ)⁻¹ (h x̂ − d),   h = wᵀ on the position entries;  P unchanged
+/// ```
+///
+/// The covariance stays: a walker at a dead end may be anywhere short of it, and shrinking `P`
+/// along the tunnel at every epoch (as an equality pseudo-measurement would) makes the track
+/// overconfident until it gates out the readers that hear him walk back. Every IMM mode is
+/// projected in its own layout.
+fn project_inside<const N: usize>(shared: &Shared, track: &mut Track<N>, w: [f64; 2], d: f64) -> Result<()> {
+    let Some(state) = track.state.as_ref() else {
+        return Ok(());
+    };
+    let mut mean = *state.mean();
+    let covariance = *state.covariance();
+    // h = wᵀ on x (index 0) and y (index 2) of [x, vx, y, …]
+    let excess = w[0] * mean[0] + w[1] * mean[2] - d;
+    let ph: [f64; N] = std::array::from_fn(|i| covariance[(i, 0)] * w[0] + covariance[(i, 2)] * w[1]);
+    let hph = w[0] * ph[0] + w[1] * ph[2];
+    if excess > 0.0 && hph > 0.0 {
+        for (i, phi) in ph.iter().enumerate() {
+            mean[i] -= phi * excess / hph;
+        }
+        track.state = Some(Gaussian::new(mean, covariance, state.time_s())?);
+    }
+    if let (Some(manoeuvres), Some(modes)) = (shared.manoeuvres.as_ref(), track.modes.as_mut()) {
+        for (layout, estimate) in manoeuvres.modes_layouts().into_iter().zip(modes.estimates_mut()) {
+            let (Some(ix), Some(iy)) = (
+                layout.index_of(Component::Position(Axis::X)),
+                layout.index_of(Component::Position(Axis::Y)),
+            ) else {
+                continue;
+            };
+            let excess = w[0] * estimate.mean[ix] + w[1] * estimate.mean[iy] - d;
+            let ph = estimate.covariance.column(ix) * w[0] + estimate.covariance.column(iy) * w[1];
+            let hph = w[0] * ph[ix] + w[1] * ph[iy];
+            if excess > 0.0 && hph > 0.0 {
+                estimate.mean -= ph * (excess / hph);
+            }
+        }
     }
     Ok(())
 }

@@ -159,6 +159,25 @@ impl ExperimentId {
         }
     }
 
+    /// Run `run` of base seed `seed` of the experiment's main scenario as files — the site, the
+    /// records and the truth that its "ours" row runs the engine's tracker on (what
+    /// `rtls sim <experiment>` writes). `None` for an experiment whose "ours" row does not run
+    /// the engine on a recording yet.
+    ///
+    /// # Errors
+    /// [`SimError::Scenario`] for a missing or malformed scenario file; the simulation's errors.
+    pub fn recording(
+        self,
+        sources: &[ScenarioSource],
+        seed: u64,
+        run: usize,
+    ) -> Option<Result<crate::recording::Recording>> {
+        match self {
+            Self::Mekf => Some(mekf::recording(sources, seed, run)),
+            Self::UkfUwb | Self::Lwknn | Self::WsnEkf | Self::Vdkf => None,
+        }
+    }
+
     /// Its scenario files as shipped (embedded at compile time).
     #[must_use]
     pub fn embedded_scenarios(self) -> Vec<ScenarioSource> {

@@ -45,6 +45,17 @@ pub fn work_units(sources: &[ScenarioSource], options: &ReproOptions) -> Result<
     Ok(options.runs as u64)
 }
 
+/// Run `run` of base seed `seed` of the mine walk as files: the site, the readers' records
+/// and the truth that the "ours" row tracks (`rtls sim mekf` writes them).
+///
+/// # Errors
+/// [`crate::SimError::Scenario`] for a missing or malformed scenario; the reader layer's
+/// errors.
+pub fn recording(sources: &[ScenarioSource], seed: u64, run: usize) -> Result<crate::recording::Recording> {
+    let walk = scenario::mine_walk(find_source(sources, MINE_WALK)?)?;
+    crate::reproduction::seed_000::seed_000_recording(&walk.setup, rtls_sim::montecarlo::run_seed(seed, run))
+}
+
 /// Runs the reproduction: `options.runs` seeded runs of the mine walk, and the Table 1
 /// re-evaluation.
 ///
@@ -131,10 +142,7 @@ pub fn reproduce(
     let counts = runs.iter().fold(TrackerCounts::default(), |a, r| TrackerCounts {
         accepted: a.accepted + r.counts.accepted,
         rejected: a.rejected + r.counts.rejected,
-        forced: a.forced + r.counts.forced,
         reinitialised: a.reinitialised + r.counts.reinitialised,
-        speed_limited: a.speed_limited + r.counts.speed_limited,
-        silent: a.silent + r.counts.silent,
     });
     report.metrics.push(Metric::new(
         "ours: RSSI values gated out",

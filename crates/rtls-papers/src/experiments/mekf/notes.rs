@@ -263,7 +263,6 @@ fn accuracy_notes(input: &NotesInput<'_>) -> Vec<String> {
             horizontal_std_mps2 = fmt(o.motion.horizontal_std_mps2(), 2),
             vertical_std_mps2 = fmt(o.motion.vertical_std_mps2(), 2),
             gated_percent = fmt(100.0 * c.rejected as f64 / (c.accepted + c.rejected).max(1) as f64, 1),
-            silent_per_run = fmt(c.silent as f64 / input.runs.max(1) as f64, 1),
             lateral_std_m = o.map.lateral_std_m,
             vertical_std_m = o.map.vertical_std_m,
             junction_radius_m = o.junction_radius_m,

@@ -79,11 +79,7 @@ struct OursSection {
     horizontal_acceleration_std_mps2: f64,
     vertical_acceleration_std_mps2: f64,
     gate_probability: f64,
-    reacquire_after: usize,
     max_speed_mps: f64,
-    fix_std_m: f64,
-    reinit_gate_probability: f64,
-    reinit_after: usize,
     junction_radius_m: f64,
 }
 
@@ -243,14 +239,6 @@ pub fn mine_walk(source: &ScenarioSource) -> Result<MineWalk> {
     let motion = PedestrianCv::new(h * h, v * v)?;
     let gate = ChiSquareGate::new(o.gate_probability)
         .map_err(|e| invalid(file, format!("`ours.gate_probability` must lie in (0, 1): {e}")))?;
-    if o.reacquire_after == 0 {
-        return Err(invalid(file, "`ours.reacquire_after` must be ≥ 1".to_string()));
-    }
-    if o.reinit_after == 0 {
-        return Err(invalid(file, "`ours.reinit_after` must be ≥ 1".to_string()));
-    }
-    let reinit_gate = ChiSquareGate::new(o.reinit_gate_probability)
-        .map_err(|e| invalid(file, format!("`ours.reinit_gate_probability` must lie in (0, 1): {e}")))?;
     let look_ahead_s = check(file, "alarm.look_ahead_s", raw.alarm.look_ahead_s, false)?;
     let (layout, mean_height_m) = layout(file, &raw, nlos_loss_db)?;
     let path = walk(file, &raw.walk, &layout)?;
@@ -263,16 +251,12 @@ pub fn mine_walk(source: &ScenarioSource) -> Result<MineWalk> {
         mekf,
         ours: OursConfig {
             motion,
-            gate,
-            reacquire_after: o.reacquire_after,
+            gate_probability: gate.probability(),
             map: MapSpread {
                 lateral_std_m: check(file, "map.lateral_std_m", raw.map.lateral_std_m, false)?,
                 vertical_std_m: check(file, "map.vertical_std_m", raw.map.vertical_std_m, false)?,
             },
             max_speed_mps: check(file, "ours.max_speed_mps", o.max_speed_mps, false)?,
-            fix_std_m: check(file, "ours.fix_std_m", o.fix_std_m, false)?,
-            reinit_gate,
-            reinit_after: o.reinit_after,
             junction_radius_m: check(file, "ours.junction_radius_m", o.junction_radius_m, true)?,
         },
     };

@@ -1,13 +1,15 @@
 //! Seed 000's experiment, one seeded run: a miner walks through a mine section, the readers
 //! hear his tag (or not), the reader layer computes RSSI and DV-Hop fixes, and the manager
 //! layer tracks him with the paper's ME-KF (a 3-D CV Kalman filter on the RSSI fixes, `T = 1 s`,
-//! `Q = R = 5`) and with our tracker ([`OursConfig`]: an EKF on the raw RSSI with the tunnel map).
+//! `Q = R = 5`, as printed) and with ours: the engine's tracker on the readers' records
+//! ([`seed_000_recording`], settings [`OursConfig`]: an EKF on the raw RSSI with negative
+//! information and the tunnel map).
 //!
 //! Both trackers report a position at every epoch: with no fix (no detection) they report
 //! their prediction, so their percentage of empty locations is 0 (seed 000 Table 2).
 
+mod engine;
 mod models;
-mod tracker;
 
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
@@ -19,15 +21,15 @@ use rtls_estimation::{Gaussian, Matrix, Vector};
 use rtls_positioning::multilateration::GaussNewtonOptions;
 use rtls_positioning::range_free::DvHopOptions;
 
-use crate::error::{finite, positive, Result, SimError};
+use crate::error::{finite, non_negative, positive, Result, SimError};
 use rtls_sim::scenarios::seed_000::MineLayout;
 use rtls_sim::sensors::readers::{DvHopNetwork, ReaderLayer, ReaderRadio, RssiFix};
 use rtls_sim::trajectory::{PathSample, WaypointPath};
 
+pub use engine::{seed_000_recording, site_toml, InnovationSum, OursConfig, TrackerCounts, TAG};
 pub use models::{
     detected_information, expected_information, MapSpread, PedestrianCv, PositionConstraint, POSITION_INDICES,
 };
-pub use tracker::{InnovationSum, OursConfig, TrackerCounts};
 
 /// Iteration limit of the RSSI and DV-Hop Gauss–Newton fixes. In a tunnel the readers span only the wall
 /// spacing across and the mounting heights vertically, so the cost has a long, flat valley
@@ -123,7 +125,7 @@ pub struct Seed000Setup {
     pub prior: TrackerPrior,
     /// The ME-KF.
     pub mekf: MekfConfig,
-    /// Our tracker.
+    /// Our tracker's settings.
     pub ours: OursConfig,
 }
 
@@ -168,7 +170,11 @@ impl Seed000Setup {
             "max_speed_mps",
             "the speed limit must be positive",
         )?;
-        positive(options.ours.fix_std_m, "fix_std_m", "the fix error must be positive")?;
+        non_negative(
+            options.ours.junction_radius_m,
+            "junction_radius_m",
+            "the junction radius must not be negative",
+        )?;
         let epochs: Vec<PathSample> = path.sample(options.period_s)?.into_iter().skip(1).collect();
         if epochs.len() < 2 {
             return Err(SimError::InvalidParameter {
@@ -257,18 +263,20 @@ pub struct Seed000Run {
     pub dv_hop: Vec<Option<[f64; 3]>>,
     /// ME-KF state after each epoch.
     pub mekf: Vec<TrackState>,
-    /// Our tracker's state after each epoch.
+    /// The engine's state after each epoch (its latest update at the epoch's time).
     pub ours: Vec<TrackState>,
-    /// Our tracker's decisions.
+    /// The engine's decisions.
     pub counts: TrackerCounts,
-    /// Per reader: our tracker's RSSI innovations (for the obstacle analysis).
+    /// Per reader: the RSSI residuals against our estimates (for the obstacle analysis).
     pub innovations: Vec<InnovationSum>,
 }
 
-/// Runs seed 000 once with `seed` (every random draw — the shadowing — comes from it).
+/// Runs seed 000 once with `seed` (every random draw — the shadowing — comes from it): the
+/// reader layer's fixes, the ME-KF on them, and the engine on the readers' records.
 ///
 /// # Errors
-/// [`SimError::Estimation`] if a filter step fails numerically; the errors of the reader layer.
+/// [`SimError::Estimation`] if an ME-KF step fails numerically; the errors of the reader layer
+/// and of the engine's tracker.
 pub fn run_seed_000(setup: &Seed000Setup, seed: u64) -> Result<Seed000Run> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let estimation = |e| SimError::Estimation { time_s: 0.0, source: e };
@@ -284,17 +292,15 @@ pub fn run_seed_000(setup: &Seed000Setup, seed: u64) -> Result<Seed000Run> {
     )
     .map_err(estimation)?;
     let kf = KalmanFilter::new(CovarianceUpdate::Simple);
-    let mut ours = tracker::Ours::new(setup.ours, &setup.layer, &setup.layout)?;
     let n = setup.epochs.len();
-    let (mut heard, mut rssi, mut dv_hop) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
-    let (mut mekf, mut ours_states) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let (mut detections, mut rssi, mut dv_hop) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+    let mut mekf = Vec::with_capacity(n);
     let mut mekf_state = setup.prior.gaussian(0.0)?;
-    let mut ours_state = mekf_state;
     for (truth, excess_db) in setup.epochs.iter().zip(&setup.excess_loss_db) {
         let t = truth.time_s;
-        let detections = setup.layer.detect(truth.position_m, excess_db, &mut rng)?;
-        let fix = setup.layer.rssi_fix(&detections, setup.guess_below_m, &setup.solver)?;
-        dv_hop.push(setup.dv_hop.locate(&detections)?);
+        let heard = setup.layer.detect(truth.position_m, excess_db, &mut rng)?;
+        let fix = setup.layer.rssi_fix(&heard, setup.guess_below_m, &setup.solver)?;
+        dv_hop.push(setup.dv_hop.locate(&heard)?);
         // ME-KF: predict (eq. 21–22), update with the fix (eq. 23–25) or coast
         let prior = kf.predict(&mekf_state, &cv, t).map_err(SimError::estimation(t))?;
         mekf_state = match &fix {
@@ -306,21 +312,21 @@ pub fn run_seed_000(setup: &Seed000Setup, seed: u64) -> Result<Seed000Run> {
             }
             None => prior,
         };
-        ours_state = ours.step(&ours_state, t, &detections, fix.as_ref())?;
-        heard.push(detections.len());
+        detections.push(heard);
         rssi.push(fix);
         mekf.push(state_array(&mekf_state));
-        ours_states.push(state_array(&ours_state));
     }
+    let recording = engine::recording(setup, &detections);
+    let (ours, counts, innovations) = engine::ours(setup, &recording, &detections)?;
     Ok(Seed000Run {
         seed,
-        heard,
+        heard: detections.iter().map(Vec::len).collect(),
         rssi,
         dv_hop,
         mekf,
-        ours: ours_states,
-        counts: ours.counts,
-        innovations: ours.innovations,
+        ours,
+        counts,
+        innovations,
     })
 }
 
