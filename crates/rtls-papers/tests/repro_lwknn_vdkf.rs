@@ -72,9 +72,11 @@ fn vdkf_fusion_beats_the_kf_and_the_bounds_hold() {
     let fixes = ours(&report, "RMSE: raw TDOA fixes");
     let kf = ours(&report, "RMSE: KF (CV) on fixes");
     let vd = ours(&report, "RMSE: VD-KF, heading drift estimated");
-    let imm = ours(&report, "RMSE: IMM CV/CA/CT fused with odometry (ours)");
+    let imm = ours(&report, rtls_papers::experiments::vdkf::IMM_METRIC);
     assert!(vd < kf && kf < fixes, "fixes {fixes}, KF {kf}, VD {vd}");
-    assert!(imm < kf, "IMM {imm}");
+    assert!(imm < vd, "engine IMM {imm} vs VD {vd}");
+    let nees = ours(&report, "Mean NEES, position, engine (2 if consistent)");
+    assert!(nees > 1.0 && nees < 4.0, "engine NEES {nees}");
     assert_eq!(ours(&report, "VD-KF detects the stop within 5 s"), 100.0);
     every_bound_holds(&report);
     assert_eq!(report, run(ExperimentId::Vdkf, 3, 1));

@@ -10,4 +10,6 @@ pub mod seed_002;
 pub mod seed_004;
 
 pub use seed_002::{run_seed_002, Seed002Config, Seed002Run, Seed002Trajectory};
-pub use seed_004::{fused_observation, run_seed_004, seed_004_imm, Seed004Config, Seed004Run};
+pub use seed_004::{
+    fused_observation, run_seed_004, seed_004_recording, EngineEstimate, Seed004Config, Seed004Run, SEED_004_TAG,
+};

@@ -1,32 +1,37 @@
 //! Seed 004's experiment: a vehicle tracked by cellular TDOA fixes (Chan, cyclic master) and
-//! on-board odometry, comparing raw fixes, a KF on the fixes, the VD-KF fused with the
-//! odometry velocity, and an IMM (CV / CA / coordinated turn) on the same data.
+//! on-board odometry, comparing raw fixes, a KF on the fixes and the VD-KF fused with the
+//! odometry velocity (the paper's methods, built here from rtls-estimation types) with ours:
+//! the engine's tracker (`rtls_engine::tracker::Tracker`, an IMM over CV / CA / coordinated
+//! turn with its heading channel) run on the same data written as a [`Recording`]
+//! ([`seed_004_recording`]).
+
+use std::fmt::Write as _;
 
 use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use rtls_engine::record::{Measurement, Record};
 use rtls_estimation::aided::{
     position_velocity_observation, HeadingBiasEstimator, OdometryErrorModel, OdometryReading as OdometryInput,
 };
-use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter};
-use rtls_estimation::imm::{
-    ComponentObservation, FilterMode, ImmMode, InteractingMultipleModel, ModeEstimate, ModeTransitions, StateLayout,
-};
+use rtls_estimation::filter::KalmanFilter;
 use rtls_estimation::manoeuvre::{
     LinearObservation, ManoeuvreDetector, ModeSwitch, VariableDimensionFilter, VdMode, VdState,
 };
 use rtls_estimation::measurement::{ComponentSelection, MeasurementJacobian, NoiseCovariance};
-use rtls_estimation::motion::{
-    ConstantAcceleration, ConstantVelocity, CoordinatedTurnWithRate, NoiseGain, ProcessNoise,
-};
+use rtls_estimation::motion::{ConstantVelocity, NoiseGain, ProcessNoise};
 use rtls_estimation::{Gaussian, Matrix, Vector};
 use rtls_positioning::tdoa::{chan_taylor, cyclic_reference};
 use rtls_positioning::{calibrate_fix_noise, PositioningError};
 
 use crate::error::{Result, SimError};
+use crate::recording::{Recording, TruthRow};
 use rtls_sim::scenarios::seed_004_trajectory;
-use rtls_sim::sensors::{OdometrySimulator, TdoaSimulator};
+use rtls_sim::sensors::{OdometryReading, OdometrySimulator, TdoaSimulator};
 use rtls_sim::trajectory::TruthSample;
+
+/// The tag id of the vehicle in [`seed_004_recording`].
+pub const SEED_004_TAG: &str = "vehicle";
 
 /// Everything the seed 004 reproduction can be tuned by; [`Seed004Config::default`] is what
 /// the tests, the examples and the README figures use.
@@ -41,14 +46,6 @@ pub struct Seed004Config {
     pub ca_variance: f64,
     /// The VD-KF's manoeuvre detector.
     pub detector: ManoeuvreDetector,
-    /// Mean sojourn times (s) of the IMM's CV, CA and CT modes.
-    pub imm_sojourn_s: [f64; 3],
-    /// White acceleration variance of the IMM's CV and CT modes ((m/s²)², kinematic gain).
-    pub imm_cv_variance: f64,
-    /// Acceleration-increment variance of the IMM's CA mode ((m/s²)², kinematic gain).
-    pub imm_ca_variance: f64,
-    /// Turn-rate random-walk variance rate of the IMM's CT mode ((rad/s)²/s).
-    pub imm_turn_rate_variance: f64,
     /// The cellular TDOA network: stations and timing errors (seed 004: Gaussian 100 ns plus
     /// uniform 0–200 ns NLOS delay).
     pub tdoa: TdoaSimulator,
@@ -71,10 +68,6 @@ impl Default for Seed004Config {
             cv_variance: 0.01,
             ca_variance: 1e-2,
             detector: ManoeuvreDetector::default(),
-            imm_sojourn_s: [200.0, 30.0, 30.0],
-            imm_cv_variance: 0.01,
-            imm_ca_variance: 0.01,
-            imm_turn_rate_variance: 1e-6,
             tdoa: TdoaSimulator::seed_004(),
             calibration_points: 300,
             odometer: OdometrySimulator::default(),
@@ -101,10 +94,9 @@ pub struct Seed004Run {
     pub vd_modes: Vec<VdMode>,
     /// The VD-KF's model switches.
     pub vd_events: Vec<ModeSwitch>,
-    /// IMM (CV / CA / CT) on the same fused observations.
-    pub imm: Vec<[f64; 2]>,
-    /// IMM mode probabilities `[CV, CA, CT]` after each epoch.
-    pub imm_probabilities: Vec<[f64; 3]>,
+    /// Ours: the engine's tracker on [`seed_004_recording`] of the same data, its latest
+    /// state at each epoch (`None` before the track's first update).
+    pub engine: Vec<Option<EngineEstimate>>,
     /// The calibrated fix covariance `R` (m²) all filters use.
     pub fix_covariance_m2: Matrix2<f64>,
     /// The odometry velocity (m/s) and its covariance ((m/s)²) the fused filters used at each
@@ -128,6 +120,75 @@ impl Seed004Run {
     pub fn truth_positions(&self) -> Vec<[f64; 2]> {
         self.truth.iter().map(|s| s.position_m).collect()
     }
+
+    /// The engine's position at every epoch.
+    ///
+    /// # Errors
+    /// [`SimError::EmptyInput`] if the engine had no state at some epoch (it reports one from
+    /// the first epoch on; a missing one would leave that epoch unscored).
+    pub fn engine_positions(&self) -> Result<Vec<[f64; 2]>> {
+        self.engine
+            .iter()
+            .map(|e| {
+                e.as_ref().map(|e| e.position_m).ok_or(SimError::EmptyInput {
+                    what: "seed 004 engine state at an epoch (no track update yet)",
+                })
+            })
+            .collect()
+    }
+}
+
+/// The engine's state of the vehicle at one epoch (the latest [`TrackUpdate`] at or before
+/// it).
+///
+/// [`TrackUpdate`]: rtls_engine::tracker::TrackUpdate
+#[derive(Debug, Clone, PartialEq)]
+pub struct EngineEstimate {
+    /// Position `[x, y]`, m.
+    pub position_m: [f64; 2],
+    /// Position covariance `[P_xx, P_xy, P_yy]`, m².
+    pub covariance_m2: [f64; 3],
+    /// The IMM's most probable mode (`"CV"`, `"CA"`, `"CT"`).
+    pub mode: Option<&'static str>,
+}
+
+/// The sensor data of one seeded run, shared by the baselines and the engine's recording.
+struct Sensed {
+    truth: Vec<TruthSample>,
+    /// Per epoch: the reference station and the range differences of the other stations
+    /// (station order, reference left out), m.
+    differences: Vec<(usize, Vec<f64>)>,
+    /// The odometer's reading at each epoch.
+    readings: Vec<OdometryReading>,
+    /// The fix covariance calibrated at surveyed points (the baselines' `R`).
+    fix_covariance_m2: Matrix2<f64>,
+}
+
+/// Simulates one run: calibration fixes, then per epoch (1 Hz, `t = 1 … 1500 s`) the range
+/// differences with the master station cycling through the four stations (seed 004's "cyclic
+/// master") and an odometer reading. Every random draw comes from `seed`.
+fn sense(config: &Seed004Config, seed: u64) -> Result<Sensed> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let trajectory = seed_004_trajectory(config.speed_mps)?;
+    let truth: Vec<TruthSample> = trajectory.sample(1.0)?.into_iter().skip(1).collect();
+    let tdoa = &config.tdoa;
+    tdoa.validate()?;
+    let q_tdoa = DMatrix::from_diagonal_element(3, 3, tdoa.range_difference_variance_m2());
+    let fix_covariance_m2 = calibrate(tdoa, &q_tdoa, config.calibration_points, &mut rng)?;
+    let mut odometer = config.odometer.start_run(&mut rng)?;
+    let mut differences = Vec::with_capacity(truth.len());
+    let mut readings = Vec::with_capacity(truth.len());
+    for (k, sample) in truth.iter().enumerate() {
+        let reference = cyclic_reference(k as u64, tdoa.stations.len())?;
+        differences.push((reference, tdoa.measure(sample.position_m, reference, &mut rng)?));
+        readings.push(odometer.measure(sample, &mut rng)?);
+    }
+    Ok(Sensed {
+        truth,
+        differences,
+        readings,
+        fix_covariance_m2,
+    })
 }
 
 /// Runs the seed 004 experiment once with `seed`.
@@ -140,38 +201,41 @@ impl Seed004Run {
 /// `calibration_points` fixes at surveyed points (seed 002's method, since Chan's own
 /// covariance is the Cramér–Rao bound and too small at this noise, see `rtls_positioning`).
 /// An epoch without a fix gives the KF a coast and the fused filters a velocity-only update.
+/// Ours is the engine's tracker on [`seed_004_recording`] of the same range differences and
+/// odometer readings.
 ///
 /// # Errors
 /// [`SimError::InvalidParameter`] for a bad configuration; [`SimError::Estimation`] if a
-/// filter step fails; [`SimError::Positioning`] for a calibration without enough fixes.
+/// filter step fails; [`SimError::Positioning`] for a calibration without enough fixes;
+/// the engine's errors for a site it refuses.
 ///
 /// # References
 /// Seed 004 §3 (scenario, noise, 50 runs, compared methods).
 pub fn run_seed_004(config: &Seed004Config, seed: u64) -> Result<Seed004Run> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let trajectory = seed_004_trajectory(config.speed_mps)?;
-    let truth: Vec<TruthSample> = trajectory.sample(1.0)?.into_iter().skip(1).collect();
+    let sensed = sense(config, seed)?;
+    let Sensed {
+        truth,
+        differences,
+        readings: odometer_readings,
+        fix_covariance_m2,
+    } = &sensed;
     let tdoa = &config.tdoa;
-    tdoa.validate()?;
     let stations = tdoa.stations.as_slice();
     let q_tdoa = DMatrix::from_diagonal_element(3, 3, tdoa.range_difference_variance_m2());
-    let fix_covariance_m2 = calibrate(tdoa, &q_tdoa, config.calibration_points, &mut rng)?;
     let odometry_model = config.odometry_model;
-    let mut odometer = config.odometer.start_run(&mut rng)?;
 
     // Fixes and odometry for every epoch (the same data for every filter).
     let mut fixes = Vec::with_capacity(truth.len());
-    let mut readings = Vec::with_capacity(truth.len());
-    for (k, sample) in truth.iter().enumerate() {
-        let reference = cyclic_reference(k as u64, stations.len())?;
-        let differences = tdoa.measure(sample.position_m, reference, &mut rng)?;
-        fixes.push(fix_or_none(chan_taylor(stations, reference, &differences, &q_tdoa))?);
-        let reading = odometer.measure(sample, &mut rng)?;
-        readings.push(OdometryInput {
-            speed_mps: reading.speed_mps,
-            heading_rad: reading.heading_rad,
-        });
+    for (reference, z) in differences {
+        fixes.push(fix_or_none(chan_taylor(stations, *reference, z, &q_tdoa))?);
     }
+    let readings: Vec<OdometryInput> = odometer_readings
+        .iter()
+        .map(|r| OdometryInput {
+            speed_mps: r.speed_mps,
+            heading_rad: r.heading_rad,
+        })
+        .collect();
 
     let first_fix = fixes.iter().flatten().next().copied().ok_or(SimError::EmptyInput {
         what: "seed 004 fixes (every chan fix failed)",
@@ -191,24 +255,172 @@ pub fn run_seed_004(config: &Seed004Config, seed: u64) -> Result<Seed004Run> {
     )
     .map_err(SimError::estimation(0.0))?;
 
-    let kf_states = run_kf(config, &truth, &fixes, &fix_covariance_m2, initial)?;
+    let kf_states = run_kf(config, truth, &fixes, fix_covariance_m2, initial)?;
     let kf = kf_states.iter().map(position_of).collect();
-    let velocities = odometry_velocities(config, &truth, &readings, &kf_states)?;
-    let (vd, vd_modes, vd_events) = run_vd(config, &truth, &fixes, &velocities, &fix_covariance_m2, initial)?;
-    let (imm, imm_probabilities) = run_imm(config, &truth, &fixes, &velocities, &fix_covariance_m2, initial)?;
+    let velocities = odometry_velocities(config, truth, &readings, &kf_states)?;
+    let (vd, vd_modes, vd_events) = run_vd(config, truth, &fixes, &velocities, fix_covariance_m2, initial)?;
+    let engine = track_with_engine(&recording_of(config, &sensed)?)?;
     Ok(Seed004Run {
         seed,
         fixes: fixes.iter().map(|f| f.map(|v| [v[0], v[1]])).collect(),
-        truth,
+        truth: sensed.truth,
         kf,
         vd,
         vd_modes,
         vd_events,
-        imm,
-        imm_probabilities,
-        fix_covariance_m2,
+        engine,
+        fix_covariance_m2: sensed.fix_covariance_m2,
         odometry_velocities: velocities,
     })
+}
+
+/// The engine's latest state at every epoch of the recording's truth.
+fn track_with_engine(recording: &Recording) -> Result<Vec<Option<EngineEstimate>>> {
+    let tracked = recording.track()?;
+    let times: Vec<f64> = recording.truth.iter().map(|row| row.time_s).collect();
+    Ok(tracked
+        .latest_at(SEED_004_TAG, &times)
+        .into_iter()
+        .map(|update| {
+            update.map(|u| {
+                // D × D row-major in the first D² entries
+                let (p, d) = (&u.position_covariance_m2, u.dimensions);
+                EngineEstimate {
+                    position_m: [u.position_m[0], u.position_m[1]],
+                    covariance_m2: [p[0], p[1], p[d + 1]],
+                    mode: u.mode,
+                }
+            })
+        })
+        .collect())
+}
+
+/// Seed 004's run `seed` as a [`Recording`]: the site file a user at this site would write from
+/// the sensors' specifications, the records the network and the vehicle would send, and the
+/// truth. [`run_seed_004`] tracks it with the engine for the "ours" row.
+///
+/// - **Readers**: the four base stations (`technology = "cellular"`). The simulator puts an
+///   independent error on each range difference, Gaussian `σ_g` plus a uniform NLOS delay
+///   `U(0, u_max)`: variance `c²(σ_g² + u_max²/12)`. The engine takes a TDOA's variance as the
+///   sum of its two readers' `range_std_m²`, so each reader gets `range_std_m = σ_Δr/√2`.
+/// - **Records**: per epoch three `tdoa` records (anchor against the epoch's master station)
+///   and one `odometry` record with speed, heading and their specified 1σ (speed 1 m/s, the
+///   white heading error); an odometer does not report negative speeds, so the simulator's
+///   noisy speed is clipped at 0 (at a standstill).
+/// - **Tracker**: `platform = "vehicle"` (IMM: CV, CA, coordinated turn), tightly coupled (each
+///   range difference updates the filter: no fix is needed for an epoch, and no calibration),
+///   the heading channel with the odometer's drift (`[tracker.heading]`, see [`site_toml`]).
+///
+/// # Errors
+/// As [`run_seed_004`].
+pub fn seed_004_recording(config: &Seed004Config, seed: u64) -> Result<Recording> {
+    recording_of(config, &sense(config, seed)?)
+}
+
+fn recording_of(config: &Seed004Config, sensed: &Sensed) -> Result<Recording> {
+    let names = station_names(config.tdoa.stations.len());
+    let speed_std_mps = config.odometer.speed_std_mps;
+    let heading_std_rad = config.odometer.heading_noise_std_rad;
+    let mut records = Vec::with_capacity(4 * sensed.truth.len());
+    for ((sample, (reference, z)), reading) in sensed.truth.iter().zip(&sensed.differences).zip(&sensed.readings) {
+        let anchors = (0..names.len()).filter(|i| i != reference);
+        for (anchor, range_difference_m) in anchors.zip(z) {
+            records.push(Record {
+                time_s: sample.time_s,
+                tag: SEED_004_TAG.to_string(),
+                measurement: Measurement::Tdoa {
+                    anchor: names[anchor].clone(),
+                    reference: names[*reference].clone(),
+                    range_difference_m: *range_difference_m,
+                    std_m: None,
+                },
+            });
+        }
+        records.push(Record {
+            time_s: sample.time_s,
+            tag: SEED_004_TAG.to_string(),
+            measurement: Measurement::Odometry {
+                // an odometer reads no negative speed
+                speed_mps: reading.speed_mps.max(0.0),
+                heading_rad: Some(reading.heading_rad),
+                speed_std_mps: Some(speed_std_mps),
+                heading_std_rad: Some(heading_std_rad),
+            },
+        });
+    }
+    let truth = sensed
+        .truth
+        .iter()
+        .map(|s| TruthRow {
+            time_s: s.time_s,
+            tag: SEED_004_TAG.to_string(),
+            position_m: [s.position_m[0], s.position_m[1], 0.0],
+        })
+        .collect();
+    Ok(Recording {
+        site_toml: site_toml(config),
+        records,
+        truth,
+    })
+}
+
+fn station_names(count: usize) -> Vec<String> {
+    (1..=count).map(|i| format!("S{i}")).collect()
+}
+
+/// The site file of [`seed_004_recording`], every value from the sensors' specifications:
+///
+/// - reader `range_std_m = σ_Δr/√2` with `σ_Δr² = c²(σ_g² + u_max²/12)` (see
+///   [`seed_004_recording`]);
+/// - `[tracker.heading]`: the odometer heading's offset starts at its white error (the
+///   heading sensor is aligned at the start) and drifts; the engine models the drift as a
+///   random walk, written as the drift per hour spread over an hour,
+///   `√q_δ = δ̇ · 3600 s / √3600 s` (20°/h → 0.0058 rad/√s, the convention of
+///   `examples/site.toml`); without a gyro the heading's changes come from the odometer's
+///   successive headings, whose difference has the std `√2 σ_ψ` per second
+///   (`gyro_noise_std_radps`);
+/// - `[tracker.adaptive_noise]` off and no error correlation: the simulator's errors are white
+///   with the stated variances.
+fn site_toml(config: &Seed004Config) -> String {
+    let tdoa = &config.tdoa;
+    let odometer = &config.odometer;
+    // σ_Δr/√2 per reader, so that σ_a² + σ_b² = σ_Δr²
+    let reader_std_m = (tdoa.range_difference_variance_m2() / 2.0).sqrt();
+    let mut site = String::from("name = \"Seed 004: cellular TDOA network and a vehicle with odometry\"\n");
+    for (name, [x, y]) in station_names(tdoa.stations.len()).iter().zip(&tdoa.stations) {
+        // writing into a String cannot fail
+        let _ = writeln!(
+            site,
+            "[[readers]]\nid = \"{name}\"\nposition_m = [{x:?}, {y:?}]\ntechnology = \"cellular\"\n\
+             radio = {{ range = {{ range_std_m = {reader_std_m:?}, bias_m = 0.0 }} }}"
+        );
+    }
+    // √q_δ = δ̇ · 3600 / √3600, at least the engine's smallest (a drift-free heading sensor)
+    let drift = (odometer.heading_drift_rad_per_s * 3600f64.sqrt()).max(1e-7);
+    // the difference of two headings with white error σ_ψ, over 1 s
+    let heading_rate_std = 2f64.sqrt() * odometer.heading_noise_std_rad;
+    let offset_std = odometer.heading_noise_std_rad;
+    let _ = write!(
+        site,
+        "[tracker]\n\
+         platform = \"vehicle\"\n\
+         pipeline = \"tightly-coupled\"\n\
+         filter = \"ekf\"\n\
+         initiation = {{ confirm_updates = 1, within_s = 1.0 }}\n\
+         coast_timeout_s = 10.0\n\
+         delete_timeout_s = 600.0\n\
+         reorder_window_s = 0.0\n\
+         output_interval_s = 1.0\n\
+         negative_information = false\n\
+         [tracker.adaptive_noise]\n\
+         enabled = false\n\
+         correlation_s = 0.0\n\
+         [tracker.heading]\n\
+         gyro_noise_std_radps = {heading_rate_std:?}\n\
+         odometer_drift_rad_per_sqrt_s = {drift:?}\n\
+         odometer_offset_std_rad = {offset_std:?}\n"
+    );
+    site
 }
 
 /// A fix, or `None` when the noise made the hyperbolas miss (not an error of the input).
@@ -345,7 +557,6 @@ pub fn fused_observation(
 }
 
 type VdOutput = (Vec<[f64; 2]>, Vec<VdMode>, Vec<ModeSwitch>);
-type ImmOutput = (Vec<[f64; 2]>, Vec<[f64; 3]>);
 
 fn run_vd(
     config: &Seed004Config,
@@ -370,81 +581,6 @@ fn run_vd(
         modes.push(state.mode());
     }
     Ok((out, modes, events))
-}
-
-fn run_imm(
-    config: &Seed004Config,
-    truth: &[TruthSample],
-    fixes: &[Option<Vector2<f64>>],
-    velocities: &[(Vector2<f64>, Matrix2<f64>)],
-    r: &Matrix2<f64>,
-    initial: Gaussian<4>,
-) -> Result<ImmOutput> {
-    let imm = seed_004_imm(config).map_err(SimError::estimation(0.0))?;
-    let mut state = imm
-        .initial_state(
-            &ModeEstimate::from_gaussian(&initial),
-            &StateLayout::cv_2d(),
-            1e-4,
-            &[0.8, 0.1, 0.1],
-            0.0,
-        )
-        .map_err(SimError::estimation(0.0))?;
-    let (mut out, mut probabilities) = (Vec::new(), Vec::new());
-    for ((sample, fix), velocity) in truth.iter().zip(fixes).zip(velocities) {
-        let t = sample.time_s;
-        let prior = imm.predict(&state, t).map_err(SimError::estimation(t))?;
-        let observation = ComponentObservation::from_cv_observation(&fused_observation(t, fix, velocity, r)?)
-            .map_err(SimError::estimation(t))?;
-        state = imm
-            .update_components(&prior, &observation)
-            .map_err(SimError::estimation(t))?
-            .state;
-        let (mean, _) = imm
-            .combined(&state, &StateLayout::cv_2d())
-            .map_err(SimError::estimation(t))?;
-        out.push([mean[0], mean[2]]);
-        let p = state.probabilities();
-        probabilities.push([p[0], p[1], p[2]]);
-    }
-    Ok((out, probabilities))
-}
-
-/// The IMM of the seed 004 comparison: CV (4 states, KF), CA (6 states, KF) and a coordinated
-/// turn with the rate as a state (5 states, EKF), switching with the configured sojourn times.
-///
-/// # Errors
-/// [`rtls_estimation::EstimationError::InvalidParameter`] for invalid variances or sojourn times.
-pub fn seed_004_imm(config: &Seed004Config) -> rtls_estimation::Result<InteractingMultipleModel> {
-    // The modes' own measurement models are unused here (observations arrive as
-    // `ComponentObservation`s with per-epoch noise); they describe a position fix.
-    let placeholder = NoiseCovariance::isotropic(2, 1.0)?;
-    let cv = FilterMode::<4, _, _, _>::new(
-        "CV",
-        StateLayout::cv_2d(),
-        ConstantVelocity::new(ProcessNoise::discrete(config.imm_cv_variance, NoiseGain::kinematic()))?,
-        ComponentSelection::<4>::position(2, placeholder.clone())?,
-        KalmanFilter::default(),
-    )?;
-    let ca = FilterMode::<6, _, _, _>::new(
-        "CA",
-        StateLayout::ca_2d(),
-        ConstantAcceleration::new(ProcessNoise::discrete(config.imm_ca_variance, NoiseGain::kinematic()))?,
-        ComponentSelection::<6>::position(2, placeholder.clone())?,
-        KalmanFilter::default(),
-    )?;
-    let ct = FilterMode::<5, _, _, _>::new(
-        "CT",
-        StateLayout::ct_2d(),
-        CoordinatedTurnWithRate::new(
-            ProcessNoise::discrete(config.imm_cv_variance, NoiseGain::kinematic()),
-            config.imm_turn_rate_variance,
-        )?,
-        ComponentSelection::<5>::position(2, placeholder)?,
-        ExtendedKalmanFilter::default(),
-    )?;
-    let modes: Vec<Box<dyn ImmMode>> = vec![Box::new(cv), Box::new(ca), Box::new(ct)];
-    InteractingMultipleModel::new(modes, ModeTransitions::mean_sojourn(config.imm_sojourn_s.to_vec())?)
 }
 
 fn full_noise(m: &Matrix2<f64>) -> Result<NoiseCovariance> {

@@ -1,12 +1,14 @@
 //! `rtls repro vdkf`: seed 004's vehicle run — raw cellular TDOA fixes, a KF on the fixes, the
-//! variable-dimension KF fused with odometry, and our IMM — with per-phase errors, manoeuvre
-//! detection and the PCRB.
+//! variable-dimension KF fused with odometry, and ours: the engine's tracker (IMM, tightly
+//! coupled TDOA, odometry through its heading channel) on the same data as a recording — with
+//! per-phase errors, manoeuvre detection, the engine's NEES and the PCRB.
 
 use nalgebra::{DMatrix, Vector4};
 use rtls_estimation::aided::{OdometryErrorModel, OdometryReading as OdometryInput};
 use rtls_estimation::manoeuvre::VdMode;
 use rtls_estimation::measurement::{MeasurementModel, NoiseCovariance, Tdoa};
 use rtls_estimation::motion::{ConstantVelocity, LinearMotionModel, NoiseGain, ProcessNoise};
+use rtls_estimation::stats::{average_consistency_interval, ConsistencyInterval};
 use rtls_positioning::tdoa::cyclic_reference;
 
 use super::common::{cdf_series, decimate, dynamic, fmt, pooled_rmse, rmse_over_time, squared_errors};
@@ -15,15 +17,22 @@ use super::{find_source, parse_scenario, ReproOptions, ScenarioSource};
 use crate::error::{Result, SimError};
 use crate::report::{ExperimentReport, Figure, Metric, Series, SeriesStyle, Table};
 use crate::reproduction::{run_seed_004, Seed004Config, Seed004Run};
+use rtls_sim::metrics::average_over_runs;
 use rtls_sim::montecarlo::{monte_carlo, Progress};
 use rtls_sim::pcrb::{measurement_information, pooled_rmse_bound, posterior_crb, rmse_bound, PcrbStep};
 use rtls_sim::scenarios::{seed_004_phases, seed_004_trajectory, MotionPhase};
 
 mod scenario;
 
-pub use scenario::{DetectorSection, FilterSection, ImmSection, OdometerSection, TdoaSection, VehicleScenario};
+pub use scenario::{DetectorSection, FilterSection, OdometerSection, TdoaSection, VehicleScenario};
 
 const FILE: &str = "004-vehicle.toml";
+
+/// The metric of ours: the engine's tracker on the recording.
+pub const IMM_METRIC: &str = "RMSE: IMM CV/CA/CT on TDOA + odometry, engine tracker (ours)";
+
+/// Confidence of the NEES interval.
+const NEES_CONFIDENCE: f64 = 0.95;
 
 /// Progress units: one per run.
 ///
@@ -41,7 +50,10 @@ struct RunErrors {
     fixes: Vec<Option<f64>>,
     kf: Vec<f64>,
     vd: Vec<f64>,
+    /// Ours: the engine's tracker.
     imm: Vec<f64>,
+    /// The engine's position NEES `eᵀ P⁻¹ e` at each epoch.
+    imm_nees: Vec<f64>,
 }
 
 fn run_errors(run: &Seed004Run) -> Result<RunErrors> {
@@ -52,12 +64,39 @@ fn run_errors(run: &Seed004Run) -> Result<RunErrors> {
         .zip(&truth)
         .map(|(fix, t)| fix.map(|f| (f[0] - t[0]).powi(2) + (f[1] - t[1]).powi(2)))
         .collect();
+    let imm_nees = run
+        .engine
+        .iter()
+        .zip(&truth)
+        .map(|(estimate, t)| {
+            let estimate = estimate.as_ref().ok_or(SimError::EmptyInput {
+                what: "seed 004 engine state at an epoch (no track update yet)",
+            })?;
+            position_nees(estimate.position_m, estimate.covariance_m2, *t)
+        })
+        .collect::<Result<Vec<_>>>()?;
     Ok(RunErrors {
         fixes,
         kf: squared_errors(&truth, &run.kf)?,
         vd: squared_errors(&truth, &run.vd)?,
-        imm: squared_errors(&truth, &run.imm)?,
+        imm: squared_errors(&truth, &run.engine_positions()?)?,
+        imm_nees,
     })
+}
+
+/// `eᵀ P⁻¹ e` of a 2-D position estimate with covariance `[P_xx, P_xy, P_yy]`.
+fn position_nees(estimate: [f64; 2], covariance: [f64; 3], truth: [f64; 2]) -> Result<f64> {
+    let (ex, ey) = (estimate[0] - truth[0], estimate[1] - truth[1]);
+    let [pxx, pxy, pyy] = covariance;
+    // P⁻¹ = [[P_yy, −P_xy], [−P_xy, P_xx]] / det P
+    let det = pxx * pyy - pxy * pxy;
+    if !(det.is_finite() && det > 0.0 && pxx > 0.0) {
+        return Err(SimError::InvalidParameter {
+            name: "engine position covariance",
+            reason: "must be symmetric positive definite",
+        });
+    }
+    Ok((pyy * ex * ex - 2.0 * pxy * ex * ey + pxx * ey * ey) / det)
 }
 
 /// The PCRB of the `[x, vx, y, vy]` state along the (deterministic) truth: CV dynamics with the
@@ -146,6 +185,13 @@ pub fn reproduce(
     let kf: Vec<Vec<f64>> = errors.iter().map(|e| e.kf.clone()).collect();
     let vd: Vec<Vec<f64>> = errors.iter().map(|e| e.vd.clone()).collect();
     let imm: Vec<Vec<f64>> = errors.iter().map(|e| e.imm.clone()).collect();
+    // the engine's consistency: the run-averaged position NEES per epoch against its interval
+    let nees_interval =
+        average_consistency_interval(2, runs.len(), NEES_CONFIDENCE).map_err(SimError::estimation(0.0))?;
+    let nees_per_epoch = average_over_runs(&errors.iter().map(|e| e.imm_nees.clone()).collect::<Vec<_>>())?;
+    let mean_nees = nees_per_epoch.iter().sum::<f64>() / nees_per_epoch.len().max(1) as f64;
+    let nees_inside = 100.0 * nees_per_epoch.iter().filter(|v| nees_interval.contains(**v)).count() as f64
+        / nees_per_epoch.len().max(1) as f64;
     let fixes: Vec<Vec<f64>> = errors
         .iter()
         .map(|e| e.fixes.iter().flatten().copied().collect())
@@ -173,7 +219,13 @@ pub fn reproduce(
         Metric::new("RMSE: KF (CV) on fixes", "m", rmse_kf).bound(bound_all),
         Metric::new("RMSE: VD-KF, raw drifting heading (as the paper)", "m", rmse_raw).bound(bound_all),
         Metric::new("RMSE: VD-KF, heading drift estimated", "m", rmse_vd).bound(bound_all),
-        Metric::new("RMSE: IMM CV/CA/CT fused with odometry (ours)", "m", rmse_imm).bound(bound_all),
+        Metric::new(IMM_METRIC, "m", rmse_imm).bound(bound_all),
+        Metric::new("Mean NEES, position, engine (2 if consistent)", "", mean_nees),
+        Metric::new(
+            "Epochs whose run-averaged NEES is in its 95 % interval, engine",
+            "%",
+            nees_inside,
+        ),
         Metric::new(
             "RMSE ratio VD-KF (drift estimated) / KF (paper: VD-KF better, < 1)",
             "",
@@ -204,7 +256,7 @@ pub fn reproduce(
             "KF on fixes",
             "VD-KF, raw heading",
             "VD-KF, drift estimated",
-            "IMM (ours)",
+            "IMM, engine (ours)",
             "√PCRB",
         ]
         .map(String::from)
@@ -273,7 +325,18 @@ pub fn reproduce(
         late_raw: phase(&paper_vd, 1000, 1500)?,
         late_estimated: phase(&vd, 1000, 1500)?,
     };
-    report.notes = notes(&config, &report, &findings, rmse_kf, rmse_vd, rmse_imm, bound_all)?;
+    let consistency = Consistency {
+        mean_nees,
+        nees_inside,
+        interval: nees_interval,
+    };
+    report.notes = notes(
+        &config,
+        &report,
+        &findings,
+        &consistency,
+        [rmse_kf, rmse_vd, rmse_imm, bound_all],
+    )?;
     Ok(report)
 }
 
@@ -304,7 +367,7 @@ fn figures(first: &Seed004Run, errors: &[RunErrors], bounds: &[DMatrix<f64>]) ->
     .with(line("truth", &truth))
     .with(line("KF on fixes", &first.kf))
     .with(line("VD-KF + odometry", &first.vd))
-    .with(line("IMM (ours)", &first.imm));
+    .with(line("IMM, engine (ours)", &first.engine_positions()?));
 
     let over_time =
         |label: &str, style: SeriesStyle, values: &[f64]| Series::over_index(label, style, 1.0, 1.0, values);
@@ -343,7 +406,7 @@ fn figures(first: &Seed004Run, errors: &[RunErrors], bounds: &[DMatrix<f64>]) ->
         &rmse_over_time(&per_run(|e| &e.vd))?,
     ))
     .with(over_time(
-        "IMM (ours)",
+        "IMM, engine (ours)",
         SeriesStyle::Line,
         &rmse_over_time(&per_run(|e| &e.imm))?,
     ))
@@ -368,18 +431,26 @@ fn figures(first: &Seed004Run, errors: &[RunErrors], bounds: &[DMatrix<f64>]) ->
     .with(cdf_series("TDOA fixes", &fixes)?)
     .with(cdf_series("KF on fixes", &all(|e| &e.kf))?)
     .with(cdf_series("VD-KF + odometry", &all(|e| &e.vd))?)
-    .with(cdf_series("IMM (ours)", &all(|e| &e.imm))?);
+    .with(cdf_series("IMM, engine (ours)", &all(|e| &e.imm))?);
 
-    let probabilities = |i: usize| -> Vec<f64> { first.imm_probabilities.iter().map(|p| p[i]).collect() };
+    // the engine reports its most probable mode; drawn at 1 (CV), 2 (CA), 3 (CT)
+    let engine_mode: Vec<f64> = first
+        .engine
+        .iter()
+        .map(|e| match e.as_ref().and_then(|e| e.mode) {
+            Some("CV") => 1.0,
+            Some("CA") => 2.0,
+            Some("CT") => 3.0,
+            _ => 0.0,
+        })
+        .collect();
     let modes = Figure::new(
         "vdkf-modes",
-        "Seed 004 run 0: IMM mode probabilities and the VD-KF's model (1 = CA)",
+        "Seed 004 run 0: the engine IMM's most probable mode (1 = CV, 2 = CA, 3 = CT) and the VD-KF's model (1 = CA)",
         "time (s)",
-        "probability / mode",
+        "mode",
     )
-    .with(over_time("P(CV)", SeriesStyle::Line, &probabilities(0)))
-    .with(over_time("P(CA)", SeriesStyle::Line, &probabilities(1)))
-    .with(over_time("P(CT)", SeriesStyle::Line, &probabilities(2)))
+    .with(over_time("engine IMM mode", SeriesStyle::Line, &engine_mode))
     .with(over_time(
         "VD-KF in CA",
         SeriesStyle::Dashed,
@@ -403,14 +474,19 @@ struct Findings {
     late_estimated: f64,
 }
 
+/// The engine's NEES over the runs.
+struct Consistency {
+    mean_nees: f64,
+    nees_inside: f64,
+    interval: ConsistencyInterval,
+}
+
 fn notes(
     config: &Seed004Config,
     report: &ExperimentReport,
     findings: &Findings,
-    rmse_kf: f64,
-    rmse_vd: f64,
-    rmse_imm: f64,
-    bound_all: f64,
+    consistency: &Consistency,
+    [rmse_kf, rmse_vd, rmse_imm, bound_all]: [f64; 4],
 ) -> Result<Vec<String>> {
     let trajectory = seed_004_trajectory(config.speed_mps)?;
     let stations = config
@@ -461,13 +537,30 @@ fn notes(
             late_raw_m = fmt(findings.late_raw, 1),
             late_estimated_m = fmt(findings.late_estimated, 1),
         ),
-        render!(T, "best", imm_rmse_m = fmt(rmse_imm, 1), vd_rmse_m = fmt(rmse_vd, 1)),
+        render!(
+            T,
+            "best",
+            imm_rmse_m = fmt(rmse_imm, 1),
+            vd_rmse_m = fmt(rmse_vd, 1),
+            imm_verdict = render!(
+                T,
+                if rmse_imm < rmse_vd {
+                    "engine-better"
+                } else {
+                    "engine-worse"
+                }
+            ),
+            mean_nees = fmt(consistency.mean_nees, 2),
+            nees_lower = fmt(consistency.interval.lower, 2),
+            nees_upper = fmt(consistency.interval.upper, 2),
+            nees_inside = fmt(consistency.nees_inside, 0),
+        ),
         render!(
             T,
             "pcrb",
             bound_m = fmt(bound_all, 1),
             vd_ratio = fmt(rmse_vd / bound_all, 1),
-            imm_ratio = fmt(rmse_imm / bound_all, 1),
+            imm_ratio = fmt(rmse_imm / bound_all, 2),
         ),
         render!(
             T,
@@ -514,7 +607,8 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("[tdoa]") && err.contains("gaussian_std_s"), "{err}");
-        let zero = shipped.replace("cv_variance = 0.01\nca", "cv_variance = 0.0\nca");
+        let zero = shipped.replace("cv_variance = 0.01\n# CA", "cv_variance = 0.0\n# CA");
+        assert_ne!(&zero, shipped);
         let err = work_units(&source(&zero), &ReproOptions { runs: 1, seed: 0 })
             .unwrap_err()
             .to_string();

@@ -61,8 +61,6 @@ pub struct FilterSection {
     pub estimate_heading_drift: bool,
     /// The VD-KF's manoeuvre detector.
     pub detector: DetectorSection,
-    /// Our IMM.
-    pub imm: ImmSection,
 }
 
 /// `[filters.detector]`.
@@ -79,20 +77,6 @@ pub struct DetectorSection {
     pub exit_probability: f64,
     /// Prior std of the acceleration at the onset, m/s².
     pub onset_acceleration_std_mps2: f64,
-}
-
-/// `[filters.imm]`.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ImmSection {
-    /// Mean sojourn times of CV, CA and CT, s.
-    pub sojourn_s: [f64; 3],
-    /// CV/CT white-acceleration variance, (m/s²)².
-    pub cv_variance: f64,
-    /// CA acceleration-increment variance, (m/s²)².
-    pub ca_variance: f64,
-    /// CT turn-rate random-walk variance rate, (rad/s)²/s.
-    pub turn_rate_variance: f64,
 }
 
 fn scenario_error(section: &str, error: impl std::fmt::Display) -> SimError {
@@ -142,19 +126,10 @@ impl VehicleScenario {
             ("speed_mps", self.speed_mps),
             ("[filters] cv_variance", self.filters.cv_variance),
             ("[filters] ca_variance", self.filters.ca_variance),
-            ("[filters.imm] cv_variance", self.filters.imm.cv_variance),
-            ("[filters.imm] ca_variance", self.filters.imm.ca_variance),
-            ("[filters.imm] turn_rate_variance", self.filters.imm.turn_rate_variance),
         ] {
             if !(value.is_finite() && value > 0.0) {
                 return Err(scenario_error(name, "must be a finite number > 0"));
             }
-        }
-        if self.filters.imm.sojourn_s.iter().any(|s| !(s.is_finite() && *s > 1.0)) {
-            return Err(scenario_error(
-                "[filters.imm] sojourn_s",
-                "mean sojourn times must exceed the 1 s step",
-            ));
         }
         if self.filters.calibration_points < 10 {
             return Err(scenario_error(
@@ -167,10 +142,6 @@ impl VehicleScenario {
             cv_variance: self.filters.cv_variance,
             ca_variance: self.filters.ca_variance,
             detector,
-            imm_sojourn_s: self.filters.imm.sojourn_s,
-            imm_cv_variance: self.filters.imm.cv_variance,
-            imm_ca_variance: self.filters.imm.ca_variance,
-            imm_turn_rate_variance: self.filters.imm.turn_rate_variance,
             tdoa,
             calibration_points: self.filters.calibration_points,
             odometer,
