@@ -259,7 +259,7 @@ pub(super) fn engine_track(tracked: &Tracked, times_s: &[f64], truth: &[[f64; 4]
         let c = &update.position_covariance_m2;
         let (a, b, d) = (c[0], c[1], c[3]);
         let det = a * d - b * b;
-        if !(det > 0.0) {
+        if det.is_nan() || det <= 0.0 {
             return Err(SimError::NonFinite {
                 what: "engine position covariance (not positive definite)",
             });
