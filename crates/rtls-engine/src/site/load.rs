@@ -2,7 +2,9 @@
 
 use std::collections::HashMap;
 
-use super::{invalid, keys, platform, ranges, FilterKind, Pipeline, Site, MAX_SITE_BYTES};
+use super::{
+    invalid, keys, platform, ranges, FilterKind, ImmModeKind, MotionModelKind, Pipeline, Site, MAX_SITE_BYTES,
+};
 use crate::error::{EngineError, Result};
 use crate::zones::Shape;
 
@@ -212,6 +214,16 @@ fn validate(site: &mut Site, text: &str, file: &str) -> Result<()> {
                 "tracker.tag_height_m".to_string(),
                 t.tag_height_m.is_none() || t.dimensions == 2,
                 "only applies to 2-D tracking (dimensions = 2)",
+            ),
+            (
+                "tracker.motion_model".to_string(),
+                t.motion_model != MotionModelKind::Ct || t.dimensions == 2,
+                "the coordinated turn (\"ct\") is a 2-D model: use dimensions = 2, or \"cv\" / \"imm\" in 3-D",
+            ),
+            (
+                "tracker.imm.modes".to_string(),
+                t.dimensions == 2 || !t.imm.modes.is_some_and(|m| m.modes().contains(&ImmModeKind::Ct)),
+                "the coordinated turn (\"ct\") is a 2-D mode: leave it out in 3-D",
             ),
         ],
     )?;

@@ -22,7 +22,7 @@ mod ranges;
 pub use limits::{read_text_file, MAX_RADIO_MAP_BYTES, MAX_RADIO_MAP_ROWS, MAX_SITE_BYTES, MAX_ZONE_VERTICES};
 pub use options::{
     AdaptiveNoiseSettings, AlarmSettings, Corridor, FrameSettings, GeodeticOrigin, GnssSettings, HeadingSettings,
-    ImmSettings, MapSettings, SchedulingCell, SchedulingSettings,
+    ImmModeKind, ImmModeSet, ImmSettings, MapSettings, SchedulingCell, SchedulingSettings,
 };
 pub use platform::Platform;
 
@@ -302,9 +302,13 @@ pub enum MotionModelKind {
     Ca,
     /// Random walk (position only).
     RandomWalk,
-    /// Interacting multiple models switching between a quiet constant velocity, a constant
-    /// acceleration and (in 2-D) a coordinated turn with the turn rate as a state; settings in
-    /// `[tracker.imm]`. The tracker reports the most probable model and a `model-switch` event
+    /// Coordinated turn with the turn rate as a state, `[x, vx, y, vy, ω]` (2-D only): the
+    /// velocity turns at `ω`, which changes by a white turn acceleration
+    /// (`tracker.turn_rate_noise_std_radps2`); a straight track is `ω = 0`.
+    Ct,
+    /// Interacting multiple models switching between motion modes (by default a quiet constant
+    /// velocity, a constant acceleration and, in 2-D, a coordinated turn with the turn rate as a
+    /// state; `[tracker.imm] modes` chooses the set); settings in `[tracker.imm]`. The tracker reports the most probable model and a `model-switch` event
     /// when it changes.
     Imm,
 }
@@ -390,6 +394,16 @@ pub struct TrackerSettings {
     /// Velocity standard deviation of a new track, m/s (> 0). Default 2.
     #[serde(default = "default_initial_speed_std_mps")]
     pub initial_speed_std_mps: f64,
+    /// `motion_model = "ct"`: std of the white turn acceleration that changes the turn rate,
+    /// rad/s² (> 0). Default 0.2 (the IMM's CT mode has its own,
+    /// `[tracker.imm] ct_turn_rate_noise_std_radps2`).
+    #[serde(default = "default_turn_rate_noise_std_radps2")]
+    pub turn_rate_noise_std_radps2: f64,
+    /// Turn-rate standard deviation of a new track's coordinated turn (`motion_model = "ct"`
+    /// and the IMM's CT mode), rad/s (> 0); its mean is 0 (straight). Default 1 (any turn a
+    /// person or vehicle makes); a walker turns at well under 0.5 rad/s.
+    #[serde(default = "default_initial_turn_rate_std_radps")]
+    pub initial_turn_rate_std_radps: f64,
     /// A record more than this far ahead of the newest record is refused as a bad time stamp
     /// (a `rejected` event), not coasted through; [`crate::record::JUMP_CONFIRMATIONS`] records
     /// in a row on the new time base are taken as a real gap (see
@@ -432,6 +446,14 @@ fn default_output_interval_s() -> f64 {
 
 fn default_initial_speed_std_mps() -> f64 {
     2.0
+}
+
+fn default_turn_rate_noise_std_radps2() -> f64 {
+    0.2
+}
+
+fn default_initial_turn_rate_std_radps() -> f64 {
+    1.0
 }
 
 fn default_max_time_jump_s() -> f64 {

@@ -35,6 +35,81 @@ pub struct SchedulingCell {
     pub readers: Vec<String>,
 }
 
+/// One motion mode of the IMM (`[tracker.imm] modes`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ImmModeKind {
+    /// Constant velocity `[x, vx, y, vy(, z, vz)]`, white acceleration.
+    Cv,
+    /// Constant acceleration, white jerk.
+    Ca,
+    /// Coordinated turn with the turn rate as a state `[x, vx, y, vy, ω]` (2-D only).
+    Ct,
+}
+
+impl ImmModeKind {
+    /// The mode's name in updates and `model-switch` events: "CV", "CA", "CT".
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Cv => "CV",
+            Self::Ca => "CA",
+            Self::Ct => "CT",
+        }
+    }
+}
+
+/// The modes of an IMM, each at most once, in the order written (`modes = ["cv", "ct"]`). The
+/// first is the mode a (re)started track is in.
+///
+/// # Example
+/// ```
+/// use rtls_engine::site::{ImmModeKind, ImmModeSet};
+/// let set = ImmModeSet::new(&[ImmModeKind::Cv, ImmModeKind::Ct]).unwrap();
+/// assert_eq!(set.modes(), [ImmModeKind::Cv, ImmModeKind::Ct]);
+/// assert!(ImmModeSet::new(&[ImmModeKind::Cv, ImmModeKind::Cv]).is_err());
+/// assert!(ImmModeSet::new(&[]).is_err());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(try_from = "Vec<ImmModeKind>")]
+pub struct ImmModeSet {
+    modes: [Option<ImmModeKind>; 3],
+}
+
+impl ImmModeSet {
+    /// The set of `modes`, in that order.
+    ///
+    /// # Errors
+    /// A reason when `modes` is empty or names a mode twice.
+    pub fn new(modes: &[ImmModeKind]) -> core::result::Result<Self, String> {
+        if modes.is_empty() {
+            return Err("an IMM needs at least one mode (\"cv\", \"ca\", \"ct\")".to_string());
+        }
+        let mut set = [None; 3];
+        for (i, mode) in modes.iter().enumerate() {
+            if modes[..i].contains(mode) {
+                return Err(format!("mode \"{}\" is listed twice", mode.name().to_lowercase()));
+            }
+            set[i] = Some(*mode);
+        }
+        Ok(Self { modes: set })
+    }
+
+    /// The modes, in order.
+    #[must_use]
+    pub fn modes(&self) -> Vec<ImmModeKind> {
+        self.modes.iter().flatten().copied().collect()
+    }
+}
+
+impl TryFrom<Vec<ImmModeKind>> for ImmModeSet {
+    type Error = String;
+
+    fn try_from(modes: Vec<ImmModeKind>) -> core::result::Result<Self, String> {
+        Self::new(&modes)
+    }
+}
+
 /// `[tracker.imm]`: the modes of `motion_model = "imm"` (Blom & Bar-Shalom 1988; seed 004's
 /// manoeuvre problem). The CV mode uses `cv_acceleration_noise_std_mps2` (by default
 /// `tracker.acceleration_noise_std_mps2`); the CA mode a white jerk; the coordinated turn (2-D
@@ -43,6 +118,10 @@ pub struct SchedulingCell {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ImmSettings {
+    /// The modes, each at most once; the first is the mode a (re)started track is in.
+    /// Absent: `["cv", "ca", "ct"]` in 2-D, `["cv", "ca"]` in 3-D (the coordinated turn is 2-D
+    /// only).
+    pub modes: Option<ImmModeSet>,
     /// CV mode (and the coordinated turn's translational noise): white-acceleration std, m/s²
     /// (> 0). Absent: `tracker.acceleration_noise_std_mps2` (see
     /// [`super::TrackerSettings::imm_cv_acceleration_noise_std_mps2`]).
@@ -65,6 +144,7 @@ pub struct ImmSettings {
 impl Default for ImmSettings {
     fn default() -> Self {
         Self {
+            modes: None,
             cv_acceleration_noise_std_mps2: None,
             cv_sojourn_s: 20.0,
             ca_sojourn_s: 4.0,

@@ -110,6 +110,7 @@ const SPEED_STD_MPS: Bounds = Bounds::closed(1e-3, 1000.0, "m/s");
 const MAX_TIME_JUMP_S: Bounds = Bounds::closed(1.0, 31_536_000.0, "s");
 const SOJOURN_S: Bounds = Bounds::closed(1e-2, 1e6, "s");
 const JERK_NOISE_MPS3: Bounds = Bounds::closed(1e-6, 1e4, "m/s³");
+const TURN_RATE_STD_RADPS: Bounds = Bounds::closed(1e-3, 10.0, "rad/s");
 const TURN_NOISE_RADPS2: Bounds = Bounds::closed(1e-6, 100.0, "rad/s²");
 const MEMORY_S: Bounds = Bounds::closed(1e-3, 1e6, "s");
 const NOISE_SCALE: Bounds = Bounds::closed(1.0, 1e6, "(multiple of the stated variance)");
@@ -398,6 +399,16 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
         SPEED_STD_MPS,
     ));
     out.push(within(at("max_time_jump_s"), t.max_time_jump_s, MAX_TIME_JUMP_S));
+    out.push(within(
+        at("initial_turn_rate_std_radps"),
+        t.initial_turn_rate_std_radps,
+        TURN_RATE_STD_RADPS,
+    ));
+    out.push(within(
+        at("turn_rate_noise_std_radps2"),
+        t.turn_rate_noise_std_radps2,
+        TURN_NOISE_RADPS2,
+    ));
     let imm = &t.imm;
     if let Some(noise) = imm.cv_acceleration_noise_std_mps2 {
         out.push(within(

@@ -366,7 +366,11 @@ fn tracker_errors_name_the_key() {
             "reorder_window_s = -0.1",
             "tracker.reorder_window_s",
         ),
-        ("motion_model = \"cv\"", "motion_model = \"ct\"", "tracker.motion_model"),
+        (
+            "motion_model = \"cv\"",
+            "motion_model = \"singer\"",
+            "tracker.motion_model",
+        ),
     ];
     for (from, to, expected) in cases {
         let text = base.replace(from, to);

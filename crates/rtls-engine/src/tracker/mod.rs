@@ -32,12 +32,18 @@
 //!
 //! # Motion models (`tracker.motion_model`)
 //! - **cv**: constant velocity with white acceleration `σ_a` (seed 000).
-//! - **imm**: interacting multiple models (`[tracker.imm]`): a quiet CV, a constant
-//!   acceleration and, in 2-D, a coordinated turn with the rate as a state, switching as a
-//!   Markov chain. The track's reported state is the modes' moment-matched combination; every
+//! - **ct** (2-D): a coordinated turn with the turn rate as a state, `[x, vx, y, vy, ω]`, its
+//!   rate driven by a white turn acceleration (`turn_rate_noise_std_radps2`); run as an IMM of
+//!   this one mode (which is the plain filter), so its reported state is the `[x, vx, y, vy]`
+//!   marginal and every update names the mode "CT".
+//! - **imm**: interacting multiple models (`[tracker.imm]`): by default a quiet CV, a constant
+//!   acceleration and, in 2-D, a coordinated turn with the rate as a state (`modes` picks any
+//!   set of them), switching as a Markov chain. The track's reported state is the modes'
+//!   moment-matched combination; every
 //!   update names the most probable mode (`mode`), and [`Event::ModelSwitch`] reports when it
 //!   changes (anti-flap: the new mode needs `switch_probability`). Anchor readings update each
-//!   mode by an EKF step in its own layout; an accelerometer sample is the CV mode's control
+//!   mode in its own layout by a sigma-point step under `filter = "ukf"`, else by an EKF step,
+//!   and the coordinated turn predicts with the configured filter; an accelerometer sample is the CV mode's control
 //!   input, as for the single CV model (the CA and CT modes estimate the acceleration
 //!   themselves). The turn rate is kept within ±π rad/s (half a turn per second): beyond
 //!   that the CT mode is drifting where the position does not observe it, not turning.
@@ -241,13 +247,14 @@ impl Tracker {
         let settings = site.tracker;
         let manoeuvres = match settings.motion_model {
             MotionModelKind::Cv => None,
-            MotionModelKind::Imm => Some(Arc::new(Manoeuvres::new(&settings)?)),
+            MotionModelKind::Imm | MotionModelKind::Ct => Some(Arc::new(Manoeuvres::new(&settings)?)),
             MotionModelKind::Ca | MotionModelKind::RandomWalk => {
                 return Err(EngineError::InvalidParameter {
                     name: "tracker.motion_model",
-                    reason: "the tracker runs the constant-velocity model (\"cv\") or the interacting multiple \
-                             models (\"imm\", which include a constant acceleration); a lone \"ca\" or \
-                             \"random-walk\" is available in rtls-estimation but not wired into the tracker",
+                    reason: "the tracker runs the constant-velocity model (\"cv\"), the coordinated turn \
+                             (\"ct\") or the interacting multiple models (\"imm\", which can include a \
+                             constant acceleration); a lone \"ca\" or \"random-walk\" is available in \
+                             rtls-estimation but not wired into the tracker",
                 });
             }
         };

@@ -1,12 +1,15 @@
-//! `motion_model = "imm"`: the tracker's interacting multiple models — a quiet constant
-//! velocity, a constant acceleration and (in 2-D) a coordinated turn with the turn rate as a
-//! state — and the most probable mode, whose changes are reported as `model-switch` events.
+//! `motion_model = "imm"`: the tracker's interacting multiple models — by default a quiet
+//! constant velocity, a constant acceleration and (in 2-D) a coordinated turn with the turn rate
+//! as a state, or the set `[tracker.imm] modes` names — and the most probable mode, whose
+//! changes are reported as `model-switch` events. `motion_model = "ct"` is the coordinated turn
+//! alone, run as an IMM of one mode (mixing one mode is the identity: the plain filter).
 //!
 //! The track keeps its CV-layout state `[x, vx, y, vy(, z, vz)]` as the moment-matched
 //! combination of the modes (so reporting, gating, zones and alarms are unchanged) and the
 //! [`ImmState`] beside it. Fixes and velocities update every mode through
-//! [`ComponentObservation`]s; a single anchor reading (tightly coupled) updates every mode by
-//! an EKF step in that mode's own layout, since only the position enters the measurement.
+//! [`ComponentObservation`]s; a single anchor reading (tightly coupled) updates every mode in
+//! that mode's own layout, since only the position enters the measurement: by a sigma-point
+//! step under `filter = "ukf"`, else by an EKF step.
 //!
 //! # References
 //! H. A. P. Blom, Y. Bar-Shalom, "The interacting multiple model algorithm for systems with
@@ -15,20 +18,21 @@
 //! problem the IMM solves without a detector's delay).
 
 use nalgebra::{DMatrix, DVector};
-use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter};
+use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, SigmaPointParameters, UnscentedKalmanFilter};
 use rtls_estimation::imm::{
     Axis, Component, ComponentObservation, FilterMode, ImmMode, ImmState, InteractingMultipleModel, ModeEstimate,
     ModeTransitions, ModeUpdate, StateLayout,
 };
-use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
+use rtls_estimation::measurement::{ComponentSelection, MeasurementJacobian, MeasurementModel, NoiseCovariance};
 use rtls_estimation::motion::{ConstantAcceleration, ConstantVelocity, CoordinatedTurnWithRate, ProcessNoise};
 use rtls_estimation::{EstimationError, Gaussian, Matrix, Vector};
 
 use super::models::AnchorMeasurement;
-use crate::site::TrackerSettings;
+use crate::error::{EngineError, Result};
+use crate::site::{FilterKind, ImmModeKind, MotionModelKind, TrackerSettings};
 
-/// Prior variance of the components a CV estimate lacks when the modes start: accelerations
-/// ((m/s²)², i.e. σ = 1 m/s²) and the turn rate ((rad/s)², σ = 1 rad/s).
+/// Prior variance of the accelerations a CV estimate lacks when the modes start ((m/s²)², i.e.
+/// σ = 1 m/s²); the turn rate's is `tracker.initial_turn_rate_std_radps²`.
 const MISSING_VARIANCE: f64 = 1.0;
 
 /// The largest turn rate the coordinated-turn mode may hold, rad/s: half a turn per second.
@@ -47,83 +51,159 @@ pub(crate) struct Manoeuvres {
     names: Vec<&'static str>,
     initial_probabilities: Vec<f64>,
     switch_probability: f64,
+    /// `filter = "ukf"`: anchor readings update every mode by a sigma-point step; else by an
+    /// EKF step.
+    ukf: Option<UnscentedKalmanFilter>,
+    /// `σ_ω₀²` of a new track's turn rate, (rad/s)².
+    initial_turn_rate_variance: f64,
 }
 
 impl Manoeuvres {
-    /// The modes for a `dimensions`-D track: CV (`tracker.imm.cv_acceleration_noise_std_mps2`,
-    /// by default `tracker.acceleration_noise_std_mps2`), CA
-    /// (white jerk) and, in 2-D, a coordinated turn; Markov switching with the configured mean
-    /// sojourn times; start with 80 % CV (2-D: 10 % each manoeuvre mode; 3-D: 20 % CA).
+    /// The modes of `motion_model = "imm"` (`[tracker.imm] modes`; by default CV, CA and, in
+    /// 2-D, CT) or the coordinated turn alone (`motion_model = "ct"`, an IMM of one mode, which
+    /// is the plain filter). CV uses `tracker.imm.cv_acceleration_noise_std_mps2` (by default
+    /// `tracker.acceleration_noise_std_mps2`), CA a white jerk, CT the CV noise plus a white
+    /// turn acceleration; Markov switching with the configured mean sojourn times. A track
+    /// starts with 80 % in the first mode and the rest shared equally. The CT mode predicts with
+    /// the configured filter (`"ukf"`: sigma points through the turn; else the EKF).
     ///
     /// # Errors
-    /// [`EstimationError`] for noise or sojourn settings the models reject.
-    pub(crate) fn new(settings: &TrackerSettings) -> rtls_estimation::Result<Self> {
+    /// [`EngineError::InvalidParameter`] for a coordinated turn in 3-D or a motion model without
+    /// modes; [`EstimationError`] for noise or sojourn settings the models reject.
+    pub(crate) fn new(settings: &TrackerSettings) -> Result<Self> {
         let imm = settings.imm;
-        // q = σ² (continuous white-noise spectral densities)
-        let cv_noise = ProcessNoise::continuous(settings.imm_cv_acceleration_noise_std_mps2().powi(2));
-        let ca_noise = ProcessNoise::continuous(imm.ca_jerk_noise_std_mps3.powi(2));
         let planar = settings.dimensions != 3;
+        let (kinds, cv_noise, ct_rate_noise) = match settings.motion_model {
+            MotionModelKind::Ct => (
+                vec![ImmModeKind::Ct],
+                settings.acceleration_noise_std_mps2,
+                settings.turn_rate_noise_std_radps2,
+            ),
+            MotionModelKind::Imm => (
+                imm.modes.map_or_else(
+                    || {
+                        if planar {
+                            vec![ImmModeKind::Cv, ImmModeKind::Ca, ImmModeKind::Ct]
+                        } else {
+                            vec![ImmModeKind::Cv, ImmModeKind::Ca]
+                        }
+                    },
+                    |set| set.modes(),
+                ),
+                settings.imm_cv_acceleration_noise_std_mps2(),
+                imm.ct_turn_rate_noise_std_radps2,
+            ),
+            MotionModelKind::Cv | MotionModelKind::Ca | MotionModelKind::RandomWalk => {
+                return Err(EngineError::InvalidParameter {
+                    name: "tracker.motion_model",
+                    reason: "only \"imm\" and \"ct\" run as motion modes",
+                })
+            }
+        };
+        if !planar && kinds.contains(&ImmModeKind::Ct) {
+            return Err(EngineError::InvalidParameter {
+                name: "tracker.imm.modes",
+                reason: "the coordinated turn is a 2-D model: track in 2-D or leave it out",
+            });
+        }
+        // q = σ² (continuous white-noise spectral densities)
+        let cv_noise = ProcessNoise::continuous(cv_noise.powi(2));
+        let ca_noise = ProcessNoise::continuous(imm.ca_jerk_noise_std_mps3.powi(2));
         let axes = if planar { 2 } else { 3 };
         // the modes' own measurement models are unused: observations arrive with their noise
         let placeholder = NoiseCovariance::isotropic(axes, 1.0)?;
-        let (modes, layout, names, sojourn_s, initial_probabilities): (Vec<Box<dyn ImmMode>>, _, _, _, _) = if planar {
-            let cv = FilterMode::<4, _, _, _>::new(
-                "CV",
-                StateLayout::cv_2d(),
-                ConstantVelocity::new(cv_noise)?,
-                ComponentSelection::<4>::position(2, placeholder.clone())?,
-                KalmanFilter::default(),
-            )?;
-            let ca = FilterMode::<6, _, _, _>::new(
-                "CA",
-                StateLayout::ca_2d(),
-                ConstantAcceleration::new(ca_noise)?,
-                ComponentSelection::<6>::position(2, placeholder.clone())?,
-                KalmanFilter::default(),
-            )?;
-            let ct = FilterMode::<5, _, _, _>::new(
-                "CT",
-                StateLayout::ct_2d(),
-                CoordinatedTurnWithRate::new(cv_noise, imm.ct_turn_rate_noise_std_radps2.powi(2))?,
-                ComponentSelection::<5>::position(2, placeholder)?,
-                ExtendedKalmanFilter::default(),
-            )?;
-            (
-                vec![Box::new(cv), Box::new(ca), Box::new(ct)],
-                StateLayout::cv_2d(),
-                vec!["CV", "CA", "CT"],
-                vec![imm.cv_sojourn_s, imm.ca_sojourn_s, imm.ct_sojourn_s],
-                vec![0.8, 0.1, 0.1],
-            )
-        } else {
-            let cv = FilterMode::<6, _, _, _>::new(
-                "CV",
-                StateLayout::cv_3d(),
-                ConstantVelocity::new(cv_noise)?,
-                ComponentSelection::<6>::position(3, placeholder.clone())?,
-                KalmanFilter::default(),
-            )?;
-            let ca = FilterMode::<9, _, _, _>::new(
-                "CA",
-                StateLayout::ca_3d(),
-                ConstantAcceleration::new(ca_noise)?,
-                ComponentSelection::<9>::position(3, placeholder)?,
-                KalmanFilter::default(),
-            )?;
-            (
-                vec![Box::new(cv), Box::new(ca)],
-                StateLayout::cv_3d(),
-                vec!["CV", "CA"],
-                vec![imm.cv_sojourn_s, imm.ca_sojourn_s],
-                vec![0.8, 0.2],
-            )
-        };
+        let ukf = UnscentedKalmanFilter::new(SigmaPointParameters::default());
+        let mut modes: Vec<Box<dyn ImmMode>> = Vec::with_capacity(kinds.len());
+        let mut sojourn_s = Vec::with_capacity(kinds.len());
+        for kind in &kinds {
+            let name = kind.name();
+            let mode: Box<dyn ImmMode> = match (kind, planar) {
+                (ImmModeKind::Cv, true) => Box::new(FilterMode::<4, _, _, _>::new(
+                    name,
+                    StateLayout::cv_2d(),
+                    ConstantVelocity::new(cv_noise)?,
+                    ComponentSelection::<4>::position(2, placeholder.clone())?,
+                    KalmanFilter::default(),
+                )?),
+                (ImmModeKind::Cv, false) => Box::new(FilterMode::<6, _, _, _>::new(
+                    name,
+                    StateLayout::cv_3d(),
+                    ConstantVelocity::new(cv_noise)?,
+                    ComponentSelection::<6>::position(3, placeholder.clone())?,
+                    KalmanFilter::default(),
+                )?),
+                (ImmModeKind::Ca, true) => Box::new(FilterMode::<6, _, _, _>::new(
+                    name,
+                    StateLayout::ca_2d(),
+                    ConstantAcceleration::new(ca_noise)?,
+                    ComponentSelection::<6>::position(2, placeholder.clone())?,
+                    KalmanFilter::default(),
+                )?),
+                (ImmModeKind::Ca, false) => Box::new(FilterMode::<9, _, _, _>::new(
+                    name,
+                    StateLayout::ca_3d(),
+                    ConstantAcceleration::new(ca_noise)?,
+                    ComponentSelection::<9>::position(3, placeholder.clone())?,
+                    KalmanFilter::default(),
+                )?),
+                (ImmModeKind::Ct, _) => {
+                    let motion = CoordinatedTurnWithRate::new(cv_noise, ct_rate_noise.powi(2))?;
+                    let selection = ComponentSelection::<5>::position(2, placeholder.clone())?;
+                    if settings.filter == FilterKind::Ukf {
+                        Box::new(FilterMode::<5, _, _, _>::new(
+                            name,
+                            StateLayout::ct_2d(),
+                            motion,
+                            selection,
+                            ukf,
+                        )?)
+                    } else {
+                        Box::new(FilterMode::<5, _, _, _>::new(
+                            name,
+                            StateLayout::ct_2d(),
+                            motion,
+                            selection,
+                            ExtendedKalmanFilter::default(),
+                        )?)
+                    }
+                }
+            };
+            modes.push(mode);
+            sojourn_s.push(match kind {
+                ImmModeKind::Cv => imm.cv_sojourn_s,
+                ImmModeKind::Ca => imm.ca_sojourn_s,
+                ImmModeKind::Ct => imm.ct_sojourn_s,
+            });
+        }
+        // 80 % in the first mode, the rest shared (one mode: 1)
+        let others = kinds.len().saturating_sub(1);
+        let initial_probabilities = (0..kinds.len())
+            .map(|i| match (i, others) {
+                (_, 0) => 1.0,
+                (0, _) => 0.8,
+                _ => 0.2 / others as f64,
+            })
+            .collect();
         Ok(Self {
-            imm: InteractingMultipleModel::new(modes, ModeTransitions::mean_sojourn(sojourn_s)?)?,
-            layout,
-            names,
+            // one mode stays in itself: Π = [1]
+            imm: InteractingMultipleModel::new(
+                modes,
+                if sojourn_s.len() == 1 {
+                    ModeTransitions::per_step(DMatrix::identity(1, 1))?
+                } else {
+                    ModeTransitions::mean_sojourn(sojourn_s)?
+                },
+            )?,
+            layout: if planar {
+                StateLayout::cv_2d()
+            } else {
+                StateLayout::cv_3d()
+            },
+            names: kinds.iter().map(|k| k.name()).collect(),
             initial_probabilities,
             switch_probability: imm.switch_probability,
+            ukf: (settings.filter == FilterKind::Ukf).then_some(ukf),
+            initial_turn_rate_variance: settings.initial_turn_rate_std_radps.powi(2),
         })
     }
 
@@ -132,19 +212,26 @@ impl Manoeuvres {
         self.names.get(index).copied().unwrap_or("?")
     }
 
-    /// The modes started from a CV state: shared components copied, accelerations and the
-    /// turn rate `N(0, MISSING_VARIANCE)`.
+    /// The modes started from a CV state: shared components copied, accelerations
+    /// `N(0, MISSING_VARIANCE)`, the turn rate `N(0, tracker.initial_turn_rate_std_radps²)`.
     ///
     /// # Errors
     /// [`EstimationError`] if the state does not fit the layout.
     pub(crate) fn start<const N: usize>(&self, state: &Gaussian<N>) -> rtls_estimation::Result<ImmState> {
-        self.imm.initial_state(
+        let mut modes = self.imm.initial_state(
             &ModeEstimate::from_gaussian(state),
             &self.layout,
             MISSING_VARIANCE,
             &self.initial_probabilities,
             state.time_s(),
-        )
+        )?;
+        // the turn rate's own prior, ω ~ N(0, σ_ω₀²) (uncorrelated: the fill is diagonal)
+        for (mode, estimate) in self.imm.modes().iter().zip(modes.estimates_mut()) {
+            if let Some(i) = mode.layout().index_of(Component::TurnRate) {
+                estimate.covariance[(i, i)] = self.initial_turn_rate_variance;
+            }
+        }
+        Ok(modes)
     }
 
     /// Mixing and mode-matched prediction to `time_s`.
@@ -235,7 +322,8 @@ impl Manoeuvres {
         self.bounded(self.imm.update_components(prior, &observation)?.state)
     }
 
-    /// Every mode updated with one anchor reading `z` by an EKF step in its own layout.
+    /// Every mode updated with one anchor reading `z` in its own layout: by a sigma-point step
+    /// under `filter = "ukf"`, else by an EKF step.
     ///
     /// # Errors
     /// [`EstimationError`] at an anchor (undefined direction), for a non-positive innovation
@@ -246,9 +334,13 @@ impl Manoeuvres {
         model: &AnchorMeasurement,
         z: f64,
     ) -> rtls_estimation::Result<ImmState> {
+        let time_s = prior.time_s();
         self.bounded(
             self.imm
-                .update_with(prior, |mode, estimate| scalar_update(mode.layout(), estimate, model, z))?
+                .update_with(prior, |mode, estimate| match &self.ukf {
+                    Some(ukf) => sigma_point_update(ukf, mode.layout(), estimate, model, z, time_s),
+                    None => scalar_update(mode.layout(), estimate, model, z),
+                })?
                 .state,
         )
     }
@@ -324,6 +416,93 @@ fn scalar_update(
         log_likelihood: -0.5 * ((2.0 * core::f64::consts::PI * s).ln() + nis),
         nis,
     })
+}
+
+/// One anchor reading seen from a mode state: `h` of the entries `indices` that hold the
+/// position `[x, y(, z)]` in the mode's layout (`z` = the tag height when the layout has none).
+struct LayoutAnchor<'a> {
+    model: &'a AnchorMeasurement,
+    indices: [Option<usize>; 3],
+}
+
+impl LayoutAnchor<'_> {
+    fn position(&self, x: &[f64]) -> [f64; 3] {
+        let mut p = [0.0, 0.0, self.model.tag_height_m()];
+        for (axis, index) in self.indices.iter().enumerate() {
+            if let Some(i) = index {
+                p[axis] = x[*i];
+            }
+        }
+        p
+    }
+}
+
+impl<const N: usize> MeasurementModel<N> for LayoutAnchor<'_> {
+    fn dim(&self) -> usize {
+        1
+    }
+
+    fn predict(&self, x: &Vector<N>) -> rtls_estimation::Result<DVector<f64>> {
+        Ok(DVector::from_element(1, self.model.value(&self.position(x.as_slice()))))
+    }
+
+    fn jacobian(&self, x: &Vector<N>) -> rtls_estimation::Result<MeasurementJacobian<N>> {
+        let gradient = self.model.gradient(&self.position(x.as_slice()))?;
+        let mut h = MeasurementJacobian::<N>::zeros(1);
+        for (axis, index) in self.indices.iter().enumerate() {
+            if let Some(i) = index {
+                h[(0, *i)] = gradient[axis];
+            }
+        }
+        Ok(h)
+    }
+
+    fn noise_covariance(&self) -> &DMatrix<f64> {
+        MeasurementModel::<N>::noise_covariance(self.model)
+    }
+}
+
+/// One sigma-point (UKF) update of a mode estimate in `layout` with an anchor reading: the
+/// tracker's UKF step in the mode's own state (sigma points of all `n` entries, `h` of their
+/// position entries), and the mode likelihood `ln Λ = −½ (ln 2π + ln S + ν²/S)`.
+fn sigma_point_update(
+    ukf: &UnscentedKalmanFilter,
+    layout: &StateLayout,
+    estimate: &ModeEstimate,
+    model: &AnchorMeasurement,
+    z: f64,
+    time_s: f64,
+) -> rtls_estimation::Result<ModeUpdate> {
+    fn update<const N: usize>(
+        ukf: &UnscentedKalmanFilter,
+        anchor: &LayoutAnchor<'_>,
+        estimate: &ModeEstimate,
+        z: f64,
+        time_s: f64,
+    ) -> rtls_estimation::Result<ModeUpdate> {
+        let prior = estimate.to_gaussian::<N>(time_s)?;
+        let updated = ukf.update(&prior, anchor, &DVector::from_element(1, z))?;
+        Ok(ModeUpdate {
+            estimate: ModeEstimate::from_gaussian(&updated.state),
+            log_likelihood: updated.log_likelihood(),
+            nis: updated.nis,
+        })
+    }
+    let anchor = LayoutAnchor {
+        model,
+        indices: [Axis::X, Axis::Y, Axis::Z].map(|axis| layout.index_of(Component::Position(axis))),
+    };
+    match layout.len() {
+        4 => update::<4>(ukf, &anchor, estimate, z, time_s),
+        5 => update::<5>(ukf, &anchor, estimate, z, time_s),
+        6 => update::<6>(ukf, &anchor, estimate, z, time_s),
+        9 => update::<9>(ukf, &anchor, estimate, z, time_s),
+        _ => Err(EstimationError::DimensionMismatch {
+            what: "IMM mode layout for a sigma-point anchor update",
+            expected: 9,
+            found: layout.len(),
+        }),
+    }
 }
 
 #[cfg(test)]

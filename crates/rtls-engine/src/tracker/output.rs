@@ -60,7 +60,7 @@ pub struct TrackUpdate {
     pub status: TrackStatus,
     /// What produced it.
     pub source: UpdateSource,
-    /// Under `motion_model = "imm"`: the most probable motion mode ("CV", "CA", "CT").
+    /// Under `motion_model = "imm"` (or "ct"): the most probable motion mode ("CV", "CA", "CT").
     pub mode: Option<&'static str>,
 }
 

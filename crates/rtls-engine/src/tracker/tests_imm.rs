@@ -181,3 +181,80 @@ fn imm_settings_are_validated_by_name() {
     assert_eq!(site.tracker.imm.ca_sojourn_s, 2.0);
     assert_eq!(site.tracker.imm.switch_probability, 0.6);
 }
+
+/// The test site with `motion_model` and its extra keys in `[tracker]`.
+fn model_site(filter: &str, motion_model: &str, extra: &str) -> Site {
+    let text = site_text("tightly-coupled", filter, WHITE_NOISE).replace(
+        "motion_model = \"cv\"",
+        &format!("motion_model = \"{motion_model}\"\n{extra}"),
+    );
+    Site::from_toml_str(&text, "models.toml").unwrap()
+}
+
+#[test]
+fn the_coordinated_turn_alone_follows_the_turn_better_than_cv_with_either_filter() {
+    let records = || {
+        let mut records = range_records(18.0, 11, turner);
+        for (i, record) in records.iter_mut().enumerate() {
+            record.time_s += (i % 4) as f64 * 0.025;
+        }
+        records
+    };
+    let cv = run(
+        &mut Tracker::new(&site("tightly-coupled", "ekf", WHITE_NOISE)).unwrap(),
+        records(),
+    );
+    let cv_error = rmse(&positions(&cv, 6.0, 12.0), turner, 6.0);
+    for filter in ["ekf", "ukf"] {
+        let ct = run(
+            &mut Tracker::new(&model_site(filter, "ct", "initial_turn_rate_std_radps = 0.5")).unwrap(),
+            records(),
+        );
+        // one mode: every update names it, and it never switches
+        assert!(ct.updates.iter().all(|u| u.mode == Some("CT")), "{filter}");
+        assert!(switches(&ct).is_empty(), "{filter}");
+        let ct_error = rmse(&positions(&ct, 6.0, 12.0), turner, 6.0);
+        println!("{filter}: turn RMSE CT {ct_error:.4} m, CV {cv_error:.4} m");
+        assert!(ct_error < cv_error, "{filter}: CT {ct_error} vs CV {cv_error}");
+    }
+}
+
+#[test]
+fn an_imm_of_chosen_modes_runs_those_modes_only() {
+    let site = model_site("ukf", "imm", "");
+    let text = site_text("tightly-coupled", "ukf", WHITE_NOISE)
+        .replace("motion_model = \"cv\"", "motion_model = \"imm\"")
+        + "\n[tracker.imm]\nmodes = [\"cv\", \"ct\"]\n";
+    let chosen = Site::from_toml_str(&text, "modes.toml").unwrap();
+    let out = run(&mut Tracker::new(&chosen).unwrap(), range_records(18.0, 11, turner));
+    assert!(out.updates.iter().all(|u| matches!(u.mode, Some("CV" | "CT"))));
+    assert!(
+        switches(&out).iter().any(|(_, _, to)| *to == "CT"),
+        "{:?}",
+        switches(&out)
+    );
+    // the default set has three modes
+    assert_eq!(site.tracker.imm.modes, None);
+}
+
+#[test]
+fn mode_sets_and_the_turn_in_3d_are_checked_by_the_loader() {
+    let base =
+        site_text("tightly-coupled", "ukf", WHITE_NOISE).replace("motion_model = \"cv\"", "motion_model = \"imm\"");
+    for (modes, field) in [
+        ("[]", "tracker.imm.modes"),
+        ("[\"cv\", \"cv\"]", "tracker.imm.modes"),
+        ("[\"cv\", \"singer\"]", "tracker.imm.modes"),
+    ] {
+        let text = format!("{base}\n[tracker.imm]\nmodes = {modes}\n");
+        let error = Site::from_toml_str(&text, "modes.toml").unwrap_err().to_string();
+        assert!(error.contains(field), "{modes}: {error}");
+    }
+    let spatial = base.replace("tag_height_m = 1.0\n", "dimensions = 3\n");
+    let text = format!("{spatial}\n[tracker.imm]\nmodes = [\"cv\", \"ct\"]\n");
+    let error = Site::from_toml_str(&text, "modes.toml").unwrap_err().to_string();
+    assert!(error.contains("tracker.imm.modes"), "{error}");
+    let text = spatial.replace("motion_model = \"imm\"", "motion_model = \"ct\"");
+    let error = Site::from_toml_str(&text, "modes.toml").unwrap_err().to_string();
+    assert!(error.contains("tracker.motion_model"), "{error}");
+}

@@ -155,12 +155,14 @@ impl InteractingMultipleModel {
     ///
     /// # Errors
     /// [`EstimationError::DimensionMismatch`] if `transitions` is not for `modes.len()` modes;
-    /// [`EstimationError::InvalidParameter`] for fewer than two modes.
+    /// [`EstimationError::InvalidParameter`] for no mode. One mode (with the transition matrix
+    /// `[1]`) is allowed: mixing is then the identity and the IMM is that mode's filter, so a
+    /// user of the IMM can run a single model through the same code.
     pub fn new(modes: Vec<Box<dyn ImmMode>>, transitions: ModeTransitions) -> Result<Self> {
-        if modes.len() < 2 {
+        if modes.is_empty() {
             return Err(EstimationError::InvalidParameter {
                 name: "modes",
-                reason: "an IMM needs at least two modes",
+                reason: "an IMM needs at least one mode",
             });
         }
         if transitions.modes() != modes.len() {

@@ -8,7 +8,7 @@ use rtls_estimation::stats::{average_consistency_interval, ConsistencyInterval};
 
 use super::config::ReportSettings;
 use crate::error::{Result, SimError};
-use crate::reproduction::seed_001::{FilterTrack, NlosRun, Seed001Config, Seed001Filter, Seed001Run};
+use crate::reproduction::seed_001::{FilterTrack, Seed001Config, Seed001Filter, Seed001Run};
 use rtls_sim::metrics::average_over_runs;
 use rtls_sim::pcrb::{mean_information, posterior_crb, rmse_bound, PcrbStep};
 
@@ -33,19 +33,26 @@ pub(super) struct TrackerSummary {
     pub(super) max_rmse_m: f64,
     /// Mean over runs of `|x̂ − x|`, `|v̂x − vx|`, `|ŷ − y|`, `|v̂y − vy|` at each epoch (m, m/s).
     pub(super) mean_abs_error: [Vec<f64>; 4],
-    /// Time average over the evaluated epochs of the run-averaged NEES (4 for a consistent filter).
+    /// Degrees of freedom of the NEES: 4 (`[x, vx, y, vy]`, the baselines) or 2 (the position,
+    /// the engine).
+    pub(super) nees_dof: usize,
+    /// The 95 % interval of a run-averaged NEES with `nees_dof` degrees of freedom.
+    pub(super) nees_interval: ConsistencyInterval,
+    /// Time average over the evaluated epochs of the run-averaged NEES (`nees_dof` for a
+    /// consistent filter).
     pub(super) mean_nees: f64,
     /// Share of evaluated epochs whose run-averaged NEES lies in the 95 % interval.
     pub(super) nees_inside: f64,
-    /// As `mean_nees` for the NIS (the measurement dimension for a consistent filter).
-    pub(super) mean_nis: f64,
+    /// As `mean_nees` for the NIS of the joint measurement (its dimension for a consistent
+    /// filter); `None` for the engine, which updates one reading at a time.
+    pub(super) mean_nis: Option<f64>,
     /// As `nees_inside` for the NIS.
-    pub(super) nis_inside: f64,
+    pub(super) nis_inside: Option<f64>,
     /// Runs whose last position error exceeds the lost-track threshold.
     pub(super) lost_tracks: usize,
     /// Share of evaluated (run, epoch) pairs with `|x̂ − x|` below the paper's threshold.
     pub(super) share_x_below: f64,
-    /// Ranges the tracker down-weighted, per range measured (robust UKF only).
+    /// Ranges the engine's validation gate refused, per range measured (0 for the baselines).
     pub(super) downweighted_share: f64,
 }
 
@@ -81,9 +88,9 @@ pub(super) struct FixSummary {
 pub(super) struct NlosSummary {
     /// The paper's UKF on NLOS-biased ranges.
     pub(super) ukf: TrackerSummary,
-    /// The robust UKF on the same ranges.
+    /// The engine's CV UKF on the same ranges.
     pub(super) robust: TrackerSummary,
-    /// The robust UKF on the line-of-sight ranges.
+    /// The engine's CV UKF on the line-of-sight ranges.
     pub(super) robust_los: TrackerSummary,
     /// Share of NLOS ranges.
     pub(super) nlos_share: f64,
@@ -102,7 +109,8 @@ pub(super) struct ScenarioAnalysis {
     pub(super) runs: usize,
     /// Size of the joint measurement (the NIS's degrees of freedom).
     pub(super) measurement_dim: usize,
-    /// One summary per [`Seed001Filter::ALL`] entry.
+    /// One summary per [`Seed001Filter::ALL`] entry the runs computed (the baselines only for
+    /// the variants), in that order.
     pub(super) trackers: Vec<TrackerSummary>,
     /// Index (into `trackers`) of the lowest pooled RMSE.
     pub(super) best: usize,
@@ -118,8 +126,10 @@ pub(super) struct ScenarioAnalysis {
     pub(super) start_to_baseline_m: f64,
     /// The fixes.
     pub(super) fixes: FixSummary,
-    /// The 95 % interval of a run-averaged NEES (dimension 4).
+    /// The 95 % interval of a run-averaged NEES of the baselines (dimension 4).
     pub(super) nees_interval: ConsistencyInterval,
+    /// The 95 % interval of a run-averaged position NEES of the engine (dimension 2).
+    pub(super) position_nees_interval: ConsistencyInterval,
     /// The 95 % interval of a run-averaged NIS (dimension = measurement size).
     pub(super) nis_interval: ConsistencyInterval,
     /// The NLOS extension, if run.
@@ -151,16 +161,19 @@ pub(super) fn analyse(
         average_consistency_interval(4, runs.len(), CONSISTENCY_CONFIDENCE).map_err(SimError::estimation(0.0))?;
     let nis_interval = average_consistency_interval(measurement_dim, runs.len(), CONSISTENCY_CONFIDENCE)
         .map_err(SimError::estimation(0.0))?;
+    let position_nees_interval =
+        average_consistency_interval(2, runs.len(), CONSISTENCY_CONFIDENCE).map_err(SimError::estimation(0.0))?;
     let ctx = Context {
         runs,
         settings,
         stations,
         first_epoch,
-        nees_interval,
+        nees_intervals: [position_nees_interval, nees_interval],
         nis_interval,
     };
     let trackers = Seed001Filter::ALL
         .iter()
+        .take_while(|f| runs.iter().all(|r| r.track(**f).is_some()))
         .map(|f| ctx.summarise(f.name(), |r| r.track(*f)))
         .collect::<Result<Vec<_>>>()?;
     let best = (0..trackers.len()).fold(0, |best, i| {
@@ -189,6 +202,7 @@ pub(super) fn analyse(
         start_to_baseline_m: start_to_baseline(config),
         fixes: summarise_fixes(runs, first_epoch)?,
         nees_interval,
+        position_nees_interval,
         nis_interval,
         nlos,
     })
@@ -241,20 +255,35 @@ struct Context<'a> {
     settings: &'a ReportSettings,
     stations: usize,
     first_epoch: usize,
-    nees_interval: ConsistencyInterval,
+    /// The NEES intervals for 2 and 4 degrees of freedom.
+    nees_intervals: [ConsistencyInterval; 2],
     nis_interval: ConsistencyInterval,
 }
 
 impl Context<'_> {
     /// The summary of the track `select(run)` over all runs.
-    fn summarise(&self, name: &str, select: impl Fn(&Seed001Run) -> &FilterTrack) -> Result<TrackerSummary> {
+    fn summarise(&self, name: &str, select: impl Fn(&Seed001Run) -> Option<&FilterTrack>) -> Result<TrackerSummary> {
+        let tracks = self
+            .runs
+            .iter()
+            .map(|r| {
+                select(r).ok_or(SimError::EmptyInput {
+                    what: "a seed 001 track the analysis asked for",
+                })
+            })
+            .collect::<Result<Vec<&FilterTrack>>>()?;
+        let nees_dof = tracks.first().map_or(4, |t| t.nees_dof);
+        let nees_interval = if nees_dof == 2 {
+            self.nees_intervals[0]
+        } else {
+            self.nees_intervals[1]
+        };
         let epochs = self.runs.first().map_or(0, |r| r.truth.len());
         let m = self.runs.len() as f64;
         let mut squared = vec![0.0; epochs];
         let mut mean_abs_error: [Vec<f64>; 4] = std::array::from_fn(|_| vec![0.0; epochs]);
         let (mut lost_tracks, mut below, mut downweighted) = (0, 0usize, 0usize);
-        for run in self.runs {
-            let track = select(run);
+        for (run, track) in self.runs.iter().zip(&tracks) {
             if track.estimates.len() != epochs || run.truth.len() != epochs {
                 return Err(SimError::LengthMismatch {
                     what: "epochs of a seed 001 track",
@@ -285,10 +314,15 @@ impl Context<'_> {
         let evaluated_count = evaluated.len().max(1) as f64;
         let pooled_rmse_m =
             (squared[self.first_epoch.min(epochs)..].iter().sum::<f64>() / (m * evaluated_count)).sqrt();
-        let nees = average_over_runs(&self.runs.iter().map(|r| select(r).nees.clone()).collect::<Vec<_>>())?;
-        let nis = average_over_runs(&self.runs.iter().map(|r| select(r).nis.clone()).collect::<Vec<_>>())?;
-        let (mean_nees, nees_inside) = self.time_average(&nees, &self.nees_interval);
-        let (mean_nis, nis_inside) = self.time_average(&nis, &self.nis_interval);
+        let nees = average_over_runs(&tracks.iter().map(|t| t.nees.clone()).collect::<Vec<_>>())?;
+        let (mean_nees, nees_inside) = self.time_average(&nees, &nees_interval);
+        let (mean_nis, nis_inside) = if tracks.iter().all(|t| t.nis.len() == epochs) {
+            let nis = average_over_runs(&tracks.iter().map(|t| t.nis.clone()).collect::<Vec<_>>())?;
+            let (mean, inside) = self.time_average(&nis, &self.nis_interval);
+            (Some(mean), Some(inside))
+        } else {
+            (None, None)
+        };
         // ranges measured per run: one per station and epoch
         let ranges_measured = (epochs * self.stations).max(1) as f64;
         Ok(TrackerSummary {
@@ -298,6 +332,8 @@ impl Context<'_> {
             max_rmse_m: evaluated.iter().copied().fold(0.0, f64::max),
             rmse_per_epoch_m,
             mean_abs_error,
+            nees_dof,
+            nees_interval,
             mean_nees,
             nees_inside,
             mean_nis,
@@ -330,9 +366,11 @@ fn summarise_nlos(ctx: &Context<'_>) -> Result<Option<NlosSummary>> {
         .filter_map(nlos_of)
         .fold((0.0, 0.0), |(s, b), (fs, fb)| (s + fs / m, b + fb / m));
     Ok(Some(NlosSummary {
-        ukf: ctx.summarise("UKF, NLOS ranges", |r| pick(r, |n| &n.ukf))?,
-        robust: ctx.summarise("robust UKF, NLOS ranges", |r| pick(r, |n| &n.robust))?,
-        robust_los: ctx.summarise("robust UKF, line-of-sight ranges", |r| pick(r, |n| &n.robust_los))?,
+        ukf: ctx.summarise("UKF (CV), NLOS ranges", |r| r.nlos.as_ref().map(|n| &n.ukf))?,
+        robust: ctx.summarise("engine UKF (CV), NLOS ranges", |r| r.nlos.as_ref().map(|n| &n.robust))?,
+        robust_los: ctx.summarise("engine UKF (CV), line-of-sight ranges", |r| {
+            r.nlos.as_ref().map(|n| &n.robust_los)
+        })?,
         nlos_share: share,
         mean_bias_m: bias,
     }))
@@ -409,10 +447,4 @@ fn start_to_baseline(config: &Seed001Config) -> f64 {
     } else {
         0.0
     }
-}
-
-/// The NLOS track `which` of a run; every run analysed here has the NLOS part (checked by the
-/// caller), so the fallback (the line-of-sight UKF) is never used.
-fn pick(run: &Seed001Run, which: fn(&NlosRun) -> &FilterTrack) -> &FilterTrack {
-    run.nlos.as_ref().map_or(run.track(Seed001Filter::Ukf), which)
 }

@@ -29,7 +29,7 @@ pub(super) fn scenario_figures(
 fn velocity_figures(prefix: &str, label: &str, config: &Seed001Config, run: &Seed001Run) -> Vec<Figure> {
     let x0 = config.truth.initial_state;
     let step_s = config.truth.step_s;
-    let ukf = &run.track(Seed001Filter::Ukf).estimates;
+    let ukf: &[[f64; 4]] = run.track(Seed001Filter::Ukf).map_or(&[], |t| &t.estimates);
     // v_k = (p_k − p_{k−1}) / t from consecutive fixes (the known start before the first)
     let mut previous = Some([x0[0], x0[2]]);
     let mut differenced: [Vec<[f64; 2]>; 2] = [Vec::new(), Vec::new()];
@@ -150,11 +150,13 @@ fn trajectory_figure(
         }
     }
     for filter in shown {
-        figure = figure.with(Series::new(
-            filter.name(),
-            SeriesStyle::Line,
-            positions(&run.track(filter).estimates),
-        ));
+        if let Some(track) = run.track(filter) {
+            figure = figure.with(Series::new(
+                filter.name(),
+                SeriesStyle::Line,
+                positions(&track.estimates),
+            ));
+        }
     }
     figure.with(Series::new(
         "base stations",
@@ -193,7 +195,7 @@ pub(super) fn axis_error_figure(prefix: &str, label: &str, analysis: &ScenarioAn
 }
 
 /// The NLOS extension: RMSE over time of the UKF on line-of-sight and on NLOS ranges, of the
-/// robust UKF on both, and the line-of-sight √PCRB.
+/// engine's CV UKF on both, and the line-of-sight √PCRB.
 pub(super) fn nlos_figure(prefix: &str, analysis: &ScenarioAnalysis) -> Option<Figure> {
     let nlos = analysis.nlos.as_ref()?;
     let ukf = &analysis.trackers[Seed001Filter::Ukf.index()];

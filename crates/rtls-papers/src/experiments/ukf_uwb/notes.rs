@@ -337,15 +337,26 @@ fn before_ukf(inputs: &NoteInputs<'_>) -> String {
 fn consistency(inputs: &NoteInputs<'_>) -> String {
     let describe = |a: &ScenarioAnalysis, filter: Seed001Filter| {
         let t = &a.trackers[filter.index()];
-        render!(
-            T,
-            "consistency-tracker",
-            name = t.name,
-            nees = fmt(t.mean_nees, 2),
-            nees_inside_percent = fmt(100.0 * t.nees_inside, 0),
-            nis = fmt(t.mean_nis, 2),
-            nis_inside_percent = fmt(100.0 * t.nis_inside, 0),
-        )
+        match (t.mean_nis, t.nis_inside) {
+            (Some(nis), Some(nis_inside)) => render!(
+                T,
+                "consistency-tracker",
+                name = t.name,
+                nees = fmt(t.mean_nees, 2),
+                nees_inside_percent = fmt(100.0 * t.nees_inside, 0),
+                nis = fmt(nis, 2),
+                nis_inside_percent = fmt(100.0 * nis_inside, 0),
+            ),
+            _ => render!(
+                T,
+                "consistency-engine-tracker",
+                name = t.name,
+                nees = fmt(t.mean_nees, 2),
+                nees_inside_percent = fmt(100.0 * t.nees_inside, 0),
+                nees_lower = fmt(t.nees_interval.lower, 2),
+                nees_upper = fmt(t.nees_interval.upper, 2),
+            ),
+        }
     };
     let a = inputs.cv_analysis;
     let t = inputs.turn_analysis;
@@ -372,7 +383,7 @@ fn turn_consistency(t: &ScenarioAnalysis) -> String {
     let cv = &t.trackers[Seed001Filter::Ukf.index()];
     let ct = &t.trackers[Seed001Filter::UkfTurnRate.index()];
     if cv.mean_nees > t.nees_interval.upper {
-        let restored = if t.nees_interval.contains(ct.mean_nees) {
+        let restored = if ct.nees_interval.contains(ct.mean_nees) {
             "turn-consistency-restored"
         } else {
             "turn-consistency-reduced"
