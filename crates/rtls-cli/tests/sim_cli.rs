@@ -63,3 +63,64 @@ fn a_bad_duration_is_refused_with_the_flag_named() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--duration-s"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `rtls sim <paper> --seed 2026 --run 0` → `rtls track` gives exactly the track updates that
+/// the "ours" row of `rtls repro <paper> --seed 2026` scores for its run 0: one tracking loop,
+/// from files as in memory.
+#[test]
+fn a_paper_scenario_from_files_is_tracked_exactly_as_its_reproduction_tracks_it() {
+    use rtls_papers::experiments::ExperimentId;
+    for (name, id) in [
+        ("mekf", ExperimentId::Mekf),
+        ("ukf-uwb", ExperimentId::UkfUwb),
+        ("vdkf", ExperimentId::Vdkf),
+    ] {
+        let dir = temp_dir("sim", name);
+        let path = |file: &str| dir.join(file).to_str().unwrap().to_string();
+        let sim = rtls(&["sim", name, "--out", &path(""), "--seed", "2026", "--run", "0"]);
+        assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+        let track = rtls(&[
+            "track",
+            "--site",
+            &path("site.toml"),
+            "--input",
+            &path("measurements.jsonl"),
+            "--output",
+            &path("tracks.jsonl"),
+            "--quiet",
+        ]);
+        assert!(track.status.success(), "{}", String::from_utf8_lossy(&track.stderr));
+        let from_files: Vec<[f64; 3]> = std::fs::read_to_string(path("tracks.jsonl"))
+            .unwrap()
+            .lines()
+            .map(|line| {
+                let v: serde_json::Value = serde_json::from_str(line).unwrap();
+                [
+                    v["t"].as_f64().unwrap(),
+                    v["x"].as_f64().unwrap(),
+                    v["y"].as_f64().unwrap(),
+                ]
+            })
+            .collect();
+        let recording = id
+            .recording(&id.embedded_scenarios(), 2026, 0)
+            .expect("has a recording")
+            .unwrap();
+        let in_memory: Vec<[f64; 3]> = recording
+            .track()
+            .unwrap()
+            .updates
+            .iter()
+            .map(|u| [u.time_s, u.position_m[0], u.position_m[1]])
+            .collect();
+        assert!(from_files.len() > 40, "{name}: {} updates", from_files.len());
+        assert_eq!(from_files.len(), in_memory.len(), "{name}");
+        for (a, b) in from_files.iter().zip(&in_memory) {
+            assert!(
+                a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9),
+                "{name}: {a:?} vs {b:?}"
+            );
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -174,7 +174,9 @@ impl ExperimentId {
     ) -> Option<Result<crate::recording::Recording>> {
         match self {
             Self::Mekf => Some(mekf::recording(sources, seed, run)),
-            Self::UkfUwb | Self::Lwknn | Self::WsnEkf | Self::Vdkf => None,
+            Self::UkfUwb => Some(ukf_uwb::recording(sources, seed, run)),
+            Self::Vdkf => Some(vdkf::recording(sources, seed, run)),
+            Self::Lwknn | Self::WsnEkf => None,
         }
     }
 

@@ -149,6 +149,17 @@ pub fn reproduce(
     Ok(report)
 }
 
+/// Run `run` of base seed `seed` of the turn scenario as files: the site, the records and the
+/// truth its engine rows track (`rtls sim ukf-uwb` writes them).
+///
+/// # Errors
+/// [`crate::SimError::Scenario`] for a missing or malformed scenario file; the simulation's
+/// errors (e.g. a path-loss law a site file cannot express).
+pub fn recording(sources: &[ScenarioSource], seed: u64, run: usize) -> Result<crate::recording::Recording> {
+    let turn = config::parse(find_source(sources, TURN_FILE)?)?;
+    crate::reproduction::seed_001::seed_001_recording(&turn.config, rtls_sim::montecarlo::run_seed(seed, run))
+}
+
 /// Both scenario files, parsed and validated.
 fn scenarios(sources: &[ScenarioSource]) -> Result<(Scenario, Scenario)> {
     Ok((

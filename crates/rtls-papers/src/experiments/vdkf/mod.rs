@@ -154,6 +154,17 @@ fn bound(config: &Seed004Config, run: &Seed004Run) -> Result<Vec<DMatrix<f64>>> 
     posterior_crb(&prior, steps)
 }
 
+/// Run `run` of base seed `seed` of the vehicle scenario as files: the site, the records and the
+/// truth its "ours" row tracks (`rtls sim vdkf` writes them).
+///
+/// # Errors
+/// [`crate::SimError::Scenario`] for a missing or malformed scenario file; the simulation's
+/// errors.
+pub fn recording(sources: &[ScenarioSource], seed: u64, run: usize) -> Result<crate::recording::Recording> {
+    let config = parse_scenario::<VehicleScenario>(find_source(sources, FILE)?)?.config()?;
+    crate::reproduction::seed_004::seed_004_recording(&config, rtls_sim::montecarlo::run_seed(seed, run))
+}
+
 /// Runs the reproduction.
 ///
 /// # Errors
