@@ -309,7 +309,7 @@ fn track_with_engine(recording: &Recording) -> Result<Vec<Option<EngineEstimate>
 ///   noisy speed is clipped at 0 (at a standstill).
 /// - **Tracker**: `platform = "vehicle"` (IMM: CV, CA, coordinated turn), tightly coupled (each
 ///   range difference updates the filter: no fix is needed for an epoch, and no calibration),
-///   the heading channel with the odometer's drift (`[tracker.heading]`, see [`site_toml`]).
+///   the heading channel with the odometer's drift (`[tracker.heading]`).
 ///
 /// # Errors
 /// As [`run_seed_004`].
