@@ -105,9 +105,6 @@ pub(crate) struct Track<const N: usize> {
     pub(super) rejection_rate: f64,
     /// Gated updates since the track (re)started.
     pub(super) gated_updates: u32,
-    /// Gated-out readings that say the tag is nearer a reader than the track allows (see
-    /// `update::contradicts`): how many in a row, and the time of the last.
-    pub(super) contradictions: (u32, f64),
     /// Heading, gyro bias and odometer offset, for yaw rates, odometry and IMU samples.
     pub(super) heading: HeadingChannel,
     /// GNSS: the open pseudorange epoch and the receiver clock filter.
@@ -136,7 +133,6 @@ impl<const N: usize> Track<N> {
             noise: NoiseScales::default(),
             rejection_rate: 0.0,
             gated_updates: 0,
-            contradictions: (0, f64::NEG_INFINITY),
             heading: HeadingChannel::default(),
             gnss: GnssTrack::default(),
             hearing: Hearing::default(),

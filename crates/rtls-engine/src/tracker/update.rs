@@ -89,24 +89,7 @@ pub(super) fn accept<const N: usize>(
             updated.nis,
             shared.gates[dof - 1]
         );
-        if contradicts(kind, updated.innovation.get(0).copied().unwrap_or(0.0)) {
-            let (count, last_s) = track.contradictions;
-            track.contradictions = if time_s - last_s > CONTRADICTION_GAP_S {
-                (1, time_s)
-            } else if time_s > last_s {
-                (count + 1, time_s)
-            } else {
-                (count, last_s)
-            };
-        }
-        if track.contradictions.0 >= REACQUIRE_CONTRADICTIONS {
-            reason.push_str(&format!(
-                "; the tag was heard nearer a reader than the track allows at {REACQUIRE_CONTRADICTIONS} times in a \
-                 row (no obstacle makes a signal stronger or a path shorter), so the track re-initialises from its \
-                 next fix"
-            ));
-            reacquire(track);
-        } else if track.gated_updates >= REACQUIRE_MIN_UPDATES && track.rejection_rate > REACQUIRE_REJECTION_RATE {
+        if track.gated_updates >= REACQUIRE_MIN_UPDATES && track.rejection_rate > REACQUIRE_REJECTION_RATE {
             // the track no longer explains its measurements (locked on a mirror solution or
             // left behind by a manoeuvre): start again from a fresh fix rather than gate out
             // every measurement for ever
@@ -165,13 +148,6 @@ const REACQUIRE_REJECTION_RATE: f64 = 0.6;
 /// Gated updates a track needs before its rejection rate can re-initialise it.
 const REACQUIRE_MIN_UPDATES: u32 = 10;
 
-/// Contradicting readings (see [`contradicts`]) at this many distinct times in a row, each
-/// within [`CONTRADICTION_GAP_S`] of the last, re-initialise the track.
-const REACQUIRE_CONTRADICTIONS: u32 = 3;
-
-/// Largest gap between contradicting readings counted in a row, s.
-const CONTRADICTION_GAP_S: f64 = 3.0;
-
 /// Drops the track's state (keeping its lifecycle, so it is reported as the same track) so its
 /// next fix starts it again; the adaptive noise scales, learnt on a wrong state, start over.
 pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
@@ -181,18 +157,6 @@ pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.noise = Default::default();
     track.rejection_rate = 0.0;
     track.gated_updates = 0;
-    track.contradictions = (0, f64::NEG_INFINITY);
-}
-
-/// Whether a reading outside the gate says the tag is *nearer* its reader than the track
-/// allows: an RSSI louder than predicted (`ν > 0`). Obstacles, walls and bodies only weaken a
-/// signal, so such a reading is not an outlier of the kind the gate is for; repeated, it means
-/// the track has lost the tag (seed 000: a walker the track left behind at a bend, heard
-/// loudly by the reader he passes). Ranges are not counted: a range shorter than predicted is
-/// the same argument (NLOS only lengthens a path), but ranging noise understated in the site
-/// file gives short outliers too, and a reset costs a ranging track its fix.
-fn contradicts(kind: &str, innovation: f64) -> bool {
-    kind == "rssi" && innovation > 0.0
 }
 
 /// Under the IMM: reports a `model-switch` when the mode to report changes (see
