@@ -52,14 +52,14 @@ use crate::site::FilterKind;
 /// fix. 1: at once. Waiting a second epoch (a reader heard round a corner is one epoch's
 /// evidence) kept seed 000's walker out of false restarts but left the demo mine's miners in
 /// the wrong drift: `rtls sim mine` → `rtls track` → `rtls eval` RMSE 6.30 m with 2, 3.10 m
-/// with 1.
+/// with 1 (and 2.14 m when, as now, a reader must see the estimate itself rather than the
+/// centreline beside it).
 const WRONG_CORRIDOR_EPOCHS: u32 = 1;
 
 /// Closes the track's epoch if `now_s` is past `t₀ + epoch_s`: applies silence, map and speed
 /// to the state at its time. If most of the readers that heard the tag (at least two) have no
-/// line of sight through the corridors to the estimate or to the centreline beside it in
-/// [`WRONG_CORRIDOR_EPOCHS`] epochs in a row (earlier ones skip only the constraints), the
-/// estimate is in the wrong corridor (a single-hypothesis track that took the wrong
+/// line of sight through the corridors to the estimate in [`WRONG_CORRIDOR_EPOCHS`] epochs in
+/// a row (earlier ones skip only the constraints), the estimate is in the wrong corridor (a single-hypothesis track that took the wrong
 /// branch at a junction): it restarts at the fix of the epoch's own readings (an event says
 /// so), or keeps its state when they give none.
 ///
@@ -87,23 +87,12 @@ pub(super) fn close_epoch_if_due<const N: usize>(
         return Ok(());
     }
     if let (true, Some(p)) = (constraints.map_enabled, position(shared, track)) {
-        // seen from the estimate or from the centreline beside it (an estimate a little off
-        // the centreline at a bend should not lose sight of the readers round it)
         let plan = [p[0], p[1]];
-        let beside = constraints.map.nearest(plan).map(|s| {
-            let along = s.along_m.clamp(0.0, s.length_m);
-            [
-                s.origin_m[0] + along * s.direction[0],
-                s.origin_m[1] + along * s.direction[1],
-            ]
-        });
         let blocked = heard
             .iter()
             .filter(|&&i| {
                 let a = shared.anchors.get(i).position_m;
-                let reader = [a[0], a[1]];
-                !constraints.map.line_of_sight(plan, reader)
-                    && beside.is_none_or(|c| !constraints.map.line_of_sight(c, reader))
+                !constraints.map.line_of_sight(plan, [a[0], a[1]])
             })
             .count();
         let wrong = heard.len() >= 2 && 2 * blocked > heard.len();
