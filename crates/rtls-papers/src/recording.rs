@@ -10,7 +10,8 @@
 //! # Example
 //! ```
 //! use rtls_engine::record::{Measurement, Record};
-//! use rtls_papers::recording::{Recording, TruthRow};
+//! use rtls_engine::evaluation::TruthSample;
+//! use rtls_papers::recording::Recording;
 //!
 //! let site = r#"
 //! readers = [ { id = "A", position_m = [0.0, 0.0], technology = "uwb" } ]
@@ -23,7 +24,7 @@
 //! let records = (0..5)
 //!     .map(|k| Record { time_s: f64::from(k), tag: "t1".into(), measurement: fix.clone() })
 //!     .collect();
-//! let truth = (0..5).map(|k| TruthRow { time_s: f64::from(k), tag: "t1".into(), position_m: [1.0, 2.0, 0.0] }).collect();
+//! let truth = (0..5).map(|k| TruthSample { has_z: true, line: 0, time_s: f64::from(k), tag: "t1".into(), position_m: [1.0, 2.0, 0.0] }).collect();
 //! let recording = Recording { site_toml: site.to_string(), records, truth };
 //! let tracked = recording.track()?;
 //! let at = tracked.latest_at("t1", &[4.0]);
@@ -34,6 +35,7 @@
 
 use std::fmt::Write as _;
 
+use rtls_engine::evaluation::TruthSample;
 use rtls_engine::record::{to_json_line, Record};
 use rtls_engine::site::Site;
 use rtls_engine::tracker::{Event, Output, TrackUpdate, Tracker};
@@ -43,17 +45,6 @@ use crate::error::{Result, SimError};
 /// The file name a recording's site is parsed under (errors name it).
 pub const SITE_FILE: &str = "site.toml";
 
-/// Where a tag truly was at a time.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TruthRow {
-    /// Time, s (the records' clock).
-    pub time_s: f64,
-    /// Tag id, as in the records.
-    pub tag: String,
-    /// Position `[x, y, z]` in the site frame, m.
-    pub position_m: [f64; 3],
-}
-
 /// A scenario as files: the site, the records a deployment would send, and the truth.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Recording {
@@ -62,7 +53,7 @@ pub struct Recording {
     /// The measurement records in arrival order.
     pub records: Vec<Record>,
     /// The truth, in time order.
-    pub truth: Vec<TruthRow>,
+    pub truth: Vec<TruthSample>,
 }
 
 /// What the engine's tracker made of a recording.
@@ -130,8 +121,12 @@ impl Recording {
         let mut text = String::from("t,tag,x,y,z\n");
         for row in &self.truth {
             let [x, y, z] = row.position_m;
-            // writing into a String cannot fail
-            let _ = writeln!(text, "{},{},{x},{y},{z}", row.time_s, row.tag);
+            // writing into a String cannot fail; no height: an empty z, as `rtls eval` reads it
+            let _ = if row.has_z {
+                writeln!(text, "{},{},{x},{y},{z}", row.time_s, row.tag)
+            } else {
+                writeln!(text, "{},{},{x},{y},", row.time_s, row.tag)
+            };
         }
         text
     }

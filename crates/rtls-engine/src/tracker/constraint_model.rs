@@ -107,8 +107,6 @@ pub(crate) struct Hearing {
     pub(super) heard: Vec<usize>,
     /// The epoch's anchor readings (a track found in the wrong corridor restarts at their fix).
     pub(super) readings: Vec<AnchorReading>,
-    /// Consecutive closed epochs whose readers said the estimate is in the wrong corridor.
-    pub(super) wrong_corridor_epochs: u32,
 }
 
 impl Hearing {

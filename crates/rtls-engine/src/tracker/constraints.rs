@@ -48,18 +48,9 @@ use super::update::{fix_update, predict, reacquire};
 use crate::error::Result;
 use crate::site::FilterKind;
 
-/// Consecutive epochs whose readers cannot see the estimate before the track restarts at the
-/// fix. 1: at once. Waiting a second epoch (a reader heard round a corner is one epoch's
-/// evidence) kept seed 000's walker out of false restarts but left the demo mine's miners in
-/// the wrong drift: `rtls sim mine` → `rtls track` → `rtls eval` RMSE 6.30 m with 2, 3.10 m
-/// with 1 (and 2.14 m when, as now, a reader must see the estimate itself rather than the
-/// centreline beside it).
-const WRONG_CORRIDOR_EPOCHS: u32 = 1;
-
 /// Closes the track's epoch if `now_s` is past `t₀ + epoch_s`: applies silence, map and speed
 /// to the state at its time. If most of the readers that heard the tag (at least two) have no
-/// line of sight through the corridors to the estimate in [`WRONG_CORRIDOR_EPOCHS`] epochs in
-/// a row (earlier ones skip only the constraints), the estimate is in the wrong corridor (a single-hypothesis track that took the wrong
+/// line of sight through the corridors to the estimate, the estimate is in the wrong corridor (a single-hypothesis track that took the wrong
 /// branch at a junction): it restarts at the fix of the epoch's own readings (an event says
 /// so), or keeps its state when they give none.
 ///
@@ -95,18 +86,10 @@ pub(super) fn close_epoch_if_due<const N: usize>(
                 !constraints.map.line_of_sight(plan, [a[0], a[1]])
             })
             .count();
-        let wrong = heard.len() >= 2 && 2 * blocked > heard.len();
-        track.hearing.wrong_corridor_epochs = if wrong {
-            track.hearing.wrong_corridor_epochs + 1
-        } else {
-            0
-        };
-        if wrong && track.hearing.wrong_corridor_epochs < WRONG_CORRIDOR_EPOCHS {
-            // one epoch may be a reader heard round a corner: not held to the map, not restarted
-            return Ok(());
-        }
-        if wrong {
-            track.hearing.wrong_corridor_epochs = 0;
+        // restart at once: waiting a second epoch (a reader heard round a corner is one epoch's
+        // evidence) left the demo mine's miners in the wrong drift (`rtls sim mine` → `rtls
+        // track` → `rtls eval`: RMSE 6.30 m against 2.14 m)
+        if heard.len() >= 2 && 2 * blocked > heard.len() {
             let time_s = track.state.as_ref().map_or(open_s, Gaussian::time_s);
             let fixes = solve::<N>(shared, &readings, None).ok();
             let what = if fixes.is_some() {

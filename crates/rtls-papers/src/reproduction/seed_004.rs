@@ -25,7 +25,7 @@ use rtls_positioning::tdoa::{chan_taylor, cyclic_reference};
 use rtls_positioning::{calibrate_fix_noise, PositioningError};
 
 use crate::error::{Result, SimError};
-use crate::recording::{Recording, TruthRow};
+use crate::recording::Recording;
 use rtls_sim::scenarios::seed_004_trajectory;
 use rtls_sim::sensors::{OdometryReading, OdometrySimulator, TdoaSimulator};
 use rtls_sim::trajectory::TruthSample;
@@ -351,10 +351,13 @@ fn recording_of(config: &Seed004Config, sensed: &Sensed) -> Result<Recording> {
     let truth = sensed
         .truth
         .iter()
-        .map(|s| TruthRow {
+        .map(|s| rtls_engine::evaluation::TruthSample {
             time_s: s.time_s,
             tag: SEED_004_TAG.to_string(),
             position_m: [s.position_m[0], s.position_m[1], 0.0],
+            // a plan scenario: no height
+            has_z: false,
+            line: 0,
         })
         .collect();
     Ok(Recording {

@@ -30,11 +30,13 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rtls_engine::record::{Measurement, Record};
 use rtls_engine::tracker::{Event, TrackUpdate};
+use rtls_positioning::pathloss::PathLossModel;
 
 use super::models::{MapSpread, PedestrianCv};
 use super::{Seed000Setup, TrackState};
 use crate::error::Result;
-use crate::recording::{Recording, Tracked, TruthRow};
+use crate::recording::{Recording, Tracked};
+use rtls_engine::evaluation::TruthSample;
 use rtls_sim::sensors::readers::{distance_m, Detection, ReaderStatus};
 
 /// The walker's tag id in the recording.
@@ -116,12 +118,16 @@ pub(super) fn recording(setup: &Seed000Setup, detections: &[Vec<Detection>]) -> 
             },
         }));
     }
-    let truth = std::iter::once(TruthRow {
+    let truth = std::iter::once(TruthSample {
+        has_z: true,
+        line: 0,
         time_s: 0.0,
         tag: TAG.into(),
         position_m: p0,
     })
-    .chain(setup.epochs.iter().map(|s| TruthRow {
+    .chain(setup.epochs.iter().map(|s| TruthSample {
+        has_z: true,
+        line: 0,
         time_s: s.time_s,
         tag: TAG.into(),
         position_m: s.position_m,
@@ -226,13 +232,8 @@ pub(super) fn ours(
     for (state, heard) in states.iter().zip(detections) {
         let p = [state[0], state[2], state[4]];
         for d in heard {
-            // ν = ρ − (ρ₀ − 10 n log₁₀(d/d₀))
-            let expected_dbm = law.reference_rssi_dbm()
-                - 10.0
-                    * law.exponent()
-                    * (distance_m(p, readers[d.reader].position_m).max(law.reference_distance_m())
-                        / law.reference_distance_m())
-                    .log10();
+            // ν = ρ − μ(‖p̂ − r‖)
+            let expected_dbm = law.mean_rssi_dbm(distance_m(p, readers[d.reader].position_m));
             innovations[d.reader].sum_db += d.rssi_dbm - expected_dbm;
             innovations[d.reader].count += 1;
         }

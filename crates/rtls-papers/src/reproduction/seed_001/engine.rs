@@ -12,7 +12,8 @@ use rtls_estimation::measurement::BreakpointForm;
 
 use super::{FilterTrack, Seed001Config};
 use crate::error::{finite, Result, SimError};
-use crate::recording::{Recording, Tracked, TruthRow};
+use crate::recording::{Recording, Tracked};
+use rtls_engine::evaluation::TruthSample;
 
 /// The tag id of the recordings.
 pub const SEED_001_TAG: &str = "tag-1";
@@ -109,7 +110,9 @@ pub fn seed_001_recording_with(
             .times_s
             .iter()
             .zip(&data.truth)
-            .map(|(&t, s)| TruthRow {
+            .map(|(&t, s)| TruthSample {
+                has_z: false,
+                line: 0,
                 time_s: t,
                 tag: SEED_001_TAG.to_string(),
                 position_m: [s[0], s[2], 0.0],
