@@ -6,7 +6,9 @@
 //! token, or the pipeline's sink when MQTT is off or external. The server does not depend on
 //! the simulator.
 
+use rtls_server::convert::uuid_for;
 use rtls_server::feed::{self, FeedIdentity};
+use rtls_server::omlox::{Trackable, TrackableType};
 use rtls_server::pipeline::unix_s;
 use rtls_server::serve::Feed;
 use rtls_sim::mine::{MineConfig, MineLayout, MineSimulation, SiteOptions};
@@ -22,6 +24,94 @@ pub fn site_toml() -> String {
         drift_zones: true,
         without_map: false,
     })
+}
+
+/// Given names and family names the demo's crew is named from (tag `miner-k` gets given name
+/// `k mod 40` and family name `(k / 40) mod 40`: 1 600 distinct names, then they repeat with
+/// the tag in brackets telling them apart).
+const GIVEN_NAMES: [&str; 40] = [
+    "Ana", "Bongani", "Chen", "Dagny", "Emeka", "Fatima", "Goran", "Hana", "Ivan", "Jia", "Kofi", "Lena", "Mateo",
+    "Nadia", "Olu", "Priya", "Quentin", "Rosa", "Sipho", "Tomás", "Uma", "Viktor", "Wen", "Ximena", "Yusuf", "Zanele",
+    "Arjun", "Birgit", "Carlos", "Dilnoza", "Erik", "Farid", "Greta", "Hamid", "Ines", "Jonas", "Keiko", "Lars",
+    "Mina", "Nikolai",
+];
+const FAMILY_NAMES: [&str; 40] = [
+    "Abara",
+    "Berg",
+    "Castillo",
+    "Dlamini",
+    "Eriksen",
+    "Fofana",
+    "Gupta",
+    "Haddad",
+    "Ivanova",
+    "Jensen",
+    "Kowalski",
+    "Lindqvist",
+    "Mokoena",
+    "Nakamura",
+    "Okafor",
+    "Petrov",
+    "Quispe",
+    "Rossi",
+    "Santos",
+    "Tanaka",
+    "Urbina",
+    "Vargas",
+    "Wang",
+    "Xu",
+    "Yilmaz",
+    "Zulu",
+    "Andersson",
+    "Bianchi",
+    "Chowdhury",
+    "Dubois",
+    "Engel",
+    "Ferreira",
+    "García",
+    "Horvat",
+    "Ibrahim",
+    "Jovanović",
+    "Kim",
+    "López",
+    "Moreau",
+    "Novak",
+];
+
+/// The demo's miners as omlox trackables: one per tag `miner-000` …, named, with the tag as its
+/// location provider, so `/v2/trackables` and the dashboard show people, not tag ids. Ids are
+/// name-based UUIDs of the tag, so a restart finds them registered.
+#[must_use]
+pub fn crew(miners: usize) -> Vec<Trackable> {
+    (0..miners)
+        .map(|k| {
+            let tag = format!("miner-{k:03}");
+            let name = format!(
+                "{} {}",
+                GIVEN_NAMES[k % GIVEN_NAMES.len()],
+                FAMILY_NAMES[(k / GIVEN_NAMES.len()) % FAMILY_NAMES.len()]
+            );
+            let name = if k >= GIVEN_NAMES.len() * FAMILY_NAMES.len() {
+                format!("{name} ({tag})")
+            } else {
+                name
+            };
+            Trackable {
+                id: uuid_for("trackable", &tag),
+                kind: TrackableType::Virtual,
+                name: Some(name),
+                geometry: None,
+                extrusion: None,
+                location_providers: Some(vec![tag]),
+                fence_timeout: None,
+                exit_tolerance: None,
+                tolerance_timeout: None,
+                exit_delay: None,
+                radius: None,
+                properties: None,
+            }
+        })
+        .collect()
 }
 
 /// The feed the server starts once listening: `miners` miners, the first scans at the second

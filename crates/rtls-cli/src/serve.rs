@@ -122,6 +122,11 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
             site,
             site_text,
             tokens,
+            trackables: if args.demo {
+                crate::demo::crew(args.demo_miners)
+            } else {
+                Vec::new()
+            },
             feed,
         };
         serve(options, announce, shutdown_signal()).await

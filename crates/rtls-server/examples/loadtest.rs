@@ -139,6 +139,7 @@ async fn main() {
             write: TOKEN.into(),
             read: None,
         },
+        trackables: Vec::new(),
         feed: None,
     };
     let (bound_tx, bound_rx) = tokio::sync::oneshot::channel::<Bound>();

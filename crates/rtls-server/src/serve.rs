@@ -66,6 +66,9 @@ pub struct ServeOptions {
     pub site_text: String,
     /// The tokens (resolved from the config, the environment or generated).
     pub tokens: Tokens,
+    /// omlox trackables registered at start when the store has none with their id (the demo's
+    /// named miners); trackables created through the API are kept as they are.
+    pub trackables: Vec<crate::omlox::Trackable>,
     /// A feed to start once listening (`rtls serve --demo`'s mine), given the pipeline as its
     /// sink and the bound addresses.
     pub feed: Option<Feed>,
@@ -91,6 +94,7 @@ pub async fn serve(
         site,
         site_text,
         tokens,
+        trackables,
         feed,
     } = options;
     let db = config.server.db.clone();
@@ -118,6 +122,16 @@ pub async fn serve(
     let (pipeline, query_store) = tokio::task::spawn_blocking(move || -> Result<_, ServeError> {
         let (ingest_store, output_store, mut query_store) = (open()?, open()?, open()?);
         query_store.put_config("site", "current", &site_text)?;
+        for trackable in &trackables {
+            if query_store
+                .get_config(crate::http::TRACKABLE_CONFIG, &trackable.id)?
+                .is_none()
+            {
+                let json = serde_json::to_string(trackable)
+                    .map_err(|e| ServeError::Config(format!("trackable {}: {e}", trackable.id)))?;
+                query_store.put_config(crate::http::TRACKABLE_CONFIG, &trackable.id, &json)?;
+            }
+        }
         let pipeline = Pipeline::start(
             &pipeline_site,
             ingest_store,

@@ -559,7 +559,9 @@ async fn fences_zones_and_operations_endpoints() {
                 .replace("{provider_id}", "p")
                 .replace("{trackable_id}", "t")
                 .replace("{zone_id}", "z")
-                .replace("{fence_id}", "f");
+                .replace("{fence_id}", "f")
+                .replace("{path}", "dashboard/app.js")
+                .replace("{alarm_id}", "a");
             let reply = call(&app, method.to_uppercase().parse().unwrap(), &uri, Some(WRITE), "").await;
             let unrouted = reply.status == StatusCode::METHOD_NOT_ALLOWED && reply.body.is_empty()
                 || reply.status == StatusCode::NOT_FOUND && reply.body.is_empty();

@@ -61,6 +61,7 @@ async fn run(mqtt: MqttMode) -> (Bound, f64, Vec<f64>) {
             write: WRITE.into(),
             read: Some(READ.into()),
         },
+        trackables: Vec::new(),
         feed: Some(start),
     };
     let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();

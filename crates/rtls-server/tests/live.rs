@@ -36,6 +36,7 @@ async fn start(mut config: ServerConfig) -> Running {
             write: WRITE.into(),
             read: Some(READ.into()),
         },
+        trackables: Vec::new(),
         feed: None,
     };
     let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();

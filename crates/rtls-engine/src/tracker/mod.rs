@@ -598,6 +598,15 @@ impl Tracker {
             Tracks::Spatial(core) => core.monitor.head_count(zone_id),
         }
     }
+
+    /// The tags inside zone `zone_id` (confirmed entries), sorted; empty for an unknown zone.
+    #[must_use]
+    pub fn occupants(&self, zone_id: &str) -> Vec<&str> {
+        match &self.tracks {
+            Tracks::Planar(core) => core.monitor.occupants(zone_id),
+            Tracks::Spatial(core) => core.monitor.occupants(zone_id),
+        }
+    }
 }
 
 /// Zone events and head counts for the anonymous tracks' updates appended to `out` since

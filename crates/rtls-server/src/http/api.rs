@@ -40,7 +40,8 @@ pub(super) async fn ingest_measurements(
     }
 }
 
-/// `GET /api/v1/tags`: every tag's latest state.
+/// `GET /api/v1/tags`: every tag's latest state, with its omlox `Location` (covariance in its
+/// `properties`).
 pub(super) async fn tags(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Value>> {
     state.authorize(&headers, Access::Read)?;
     let tags: Vec<Value> = state
@@ -48,7 +49,9 @@ pub(super) async fn tags(State(state): State<AppState>, headers: HeaderMap) -> A
         .live()
         .tags()
         .into_iter()
-        .map(|(tag, s)| json!({ "tag": tag, "t": s.time_s, "position_m": s.position_m, "status": s.status }))
+        .map(|(tag, s)| {
+            json!({ "tag": tag, "t": s.time_s, "position_m": s.position_m, "status": s.status, "location": s.location })
+        })
         .collect();
     Ok(Json(Value::Array(tags)))
 }
@@ -114,7 +117,7 @@ pub(super) struct HistoryParams {
 }
 
 /// A time parameter: Unix seconds or an RFC 3339 time stamp.
-fn parse_time(value: Option<&str>, field: &str, default: f64) -> ApiResult<f64> {
+pub(super) fn parse_time(value: Option<&str>, field: &str, default: f64) -> ApiResult<f64> {
     let Some(text) = value else { return Ok(default) };
     if let Ok(seconds) = text.parse::<f64>() {
         if seconds.is_finite() {
@@ -129,7 +132,7 @@ fn parse_time(value: Option<&str>, field: &str, default: f64) -> ApiResult<f64> 
     })
 }
 
-fn parse_limit(limit: Option<usize>) -> ApiResult<usize> {
+pub(super) fn parse_limit(limit: Option<usize>) -> ApiResult<usize> {
     match limit {
         None => Ok(MAX_ROWS),
         Some(0) => Err(ApiError::field("limit", "must be at least 1")),
@@ -139,17 +142,21 @@ fn parse_limit(limit: Option<usize>) -> ApiResult<usize> {
 }
 
 /// `GET /api/v1/history?tag=…&from=…&to=…&format=json|csv|geojson&limit=…`: one tag's track
-/// states in a time range, oldest first. `from`/`to` are Unix seconds or RFC 3339.
+/// states in a time range, oldest first; without `tag` (then `from` and `to` are required) every
+/// tag's, for a replay. `from`/`to` are Unix seconds or RFC 3339.
 pub(super) async fn history(
     State(state): State<AppState>,
     headers: HeaderMap,
     Query(params): Query<HistoryParams>,
 ) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let tag = params
-        .tag
-        .filter(|t| !t.is_empty())
-        .ok_or_else(|| ApiError::field("tag", "required: the tag whose history to read"))?;
+    let tag = params.tag.filter(|t| !t.is_empty());
+    if tag.is_none() && (params.from.is_none() || params.to.is_none()) {
+        return Err(ApiError::field(
+            "tag",
+            "required unless both `from` and `to` are given (a replay of every tag in a range)",
+        ));
+    }
     let from_s = parse_time(params.from.as_deref(), "from", f64::MIN)?;
     let to_s = parse_time(params.to.as_deref(), "to", f64::MAX)?;
     if from_s > to_s {
@@ -172,7 +179,7 @@ pub(super) async fn history(
     let rows = state.query(move |store| store.history(&query)).await?;
     Ok(match format.as_str() {
         "csv" => ([(header::CONTENT_TYPE, "text/csv")], history_csv(&rows)?).into_response(),
-        "geojson" => geojson(history_geojson(&tag, &rows)),
+        "geojson" => geojson(history_geojson(&rows)),
         _ => {
             let states: Vec<Value> = rows.iter().filter_map(|r| serde_json::from_str(&r.json).ok()).collect();
             Json(Value::Array(states)).into_response()
@@ -207,22 +214,31 @@ fn history_csv(rows: &[LocationRow]) -> ApiResult<String> {
     String::from_utf8(bytes).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))
 }
 
-/// History as GeoJSON: a LineString of the path plus one Point per state.
-fn history_geojson(tag: &str, rows: &[LocationRow]) -> Value {
+/// History as GeoJSON: per tag, a LineString of its path, then one Point per state.
+fn history_geojson(rows: &[LocationRow]) -> Value {
     let coordinates = |r: &LocationRow| match r.z_m {
         Some(z) => json!([r.x_m, r.y_m, z]),
         None => json!([r.x_m, r.y_m]),
     };
-    let mut features = vec![json!({
-        "type": "Feature",
-        "geometry": { "type": "LineString", "coordinates": rows.iter().map(coordinates).collect::<Vec<_>>() },
-        "properties": { "tag": tag, "from": rows.first().map(|r| r.time_s), "to": rows.last().map(|r| r.time_s) },
-    })];
+    let mut paths: std::collections::BTreeMap<&str, Vec<&LocationRow>> = std::collections::BTreeMap::new();
+    for row in rows {
+        paths.entry(row.tag.as_str()).or_default().push(row);
+    }
+    let mut features: Vec<Value> = paths
+        .iter()
+        .map(|(tag, path)| {
+            json!({
+                "type": "Feature",
+                "geometry": { "type": "LineString", "coordinates": path.iter().map(|r| coordinates(r)).collect::<Vec<_>>() },
+                "properties": { "tag": tag, "from": path.first().map(|r| r.time_s), "to": path.last().map(|r| r.time_s) },
+            })
+        })
+        .collect();
     features.extend(rows.iter().map(|r| {
         json!({
             "type": "Feature",
             "geometry": { "type": "Point", "coordinates": coordinates(r) },
-            "properties": { "tag": tag, "t": r.time_s, "accuracy_m": r.accuracy_m, "predicted": r.predicted },
+            "properties": { "tag": r.tag, "t": r.time_s, "accuracy_m": r.accuracy_m, "predicted": r.predicted },
         })
     }));
     json!({ "type": "FeatureCollection", "features": features })

@@ -19,7 +19,7 @@ use crate::pipeline::unix_s;
 use crate::ServerError;
 
 /// Stored configuration kinds.
-const TRACKABLE: &str = "trackable";
+use super::TRACKABLE_CONFIG as TRACKABLE;
 const PROVIDER: &str = "provider";
 
 // ---- location ingest (PUT /v2/providers/locations, PUT /v2/providers/{id}/location) ----

@@ -6,7 +6,9 @@
 //! configured. Errors are omlox `Error` objects `{type, code, message}` plus `field` — the
 //! offending field's path — when one field is at fault.
 
+mod alarms;
 mod api;
+mod dashboard;
 mod hub;
 mod ops;
 mod ws;
@@ -29,6 +31,9 @@ use crate::metrics::Metrics;
 use crate::pipeline::Pipeline;
 use crate::sink::IngestError;
 use crate::store::{Store, StoreError};
+
+/// The configuration kind omlox trackables are stored under.
+pub const TRACKABLE_CONFIG: &str = "trackable";
 
 /// What the handlers share.
 #[derive(Clone)]
@@ -234,6 +239,13 @@ pub const MAX_BODY_BYTES: usize = 16 * 1024 * 1024;
 /// (`tower::ServiceExt::oneshot`).
 pub fn router(state: AppState) -> Router {
     Router::new()
+        .route("/", get(dashboard::index))
+        .route("/ui/{*path}", get(dashboard::ui_file))
+        .route("/api/v1/site", get(dashboard::site))
+        .route("/api/v1/readers", get(dashboard::readers))
+        .route("/api/v1/zones/occupants", get(dashboard::occupants))
+        .route("/api/v1/alarms", get(alarms::list))
+        .route("/api/v1/alarms/{alarm_id}/acknowledge", post(alarms::acknowledge))
         .route("/health", get(ops::health))
         .route("/metrics", get(ops::metrics_text))
         .route("/openapi.json", get(ops::openapi))

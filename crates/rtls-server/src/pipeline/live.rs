@@ -1,6 +1,6 @@
 //! The live state the APIs read: each tag's latest location and each zone's head count.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::sync::RwLock;
 
 use rtls_engine::site::Site;
@@ -53,15 +53,22 @@ pub struct TagState {
 pub struct LiveState {
     zones: Vec<Zone>,
     latest: RwLock<HashMap<String, TagState>>,
-    head_counts: Vec<RwLock<HashMap<String, usize>>>,
+    /// Per partition: the tags inside each zone.
+    occupants: Vec<RwLock<HashMap<String, Vec<String>>>>,
+    /// The latest alarms (their event JSON with `alarm_id`), oldest first.
+    recent_alarms: RwLock<VecDeque<Value>>,
 }
+
+/// How many recent alarms the live state keeps (older ones are in the store).
+pub const RECENT_ALARMS: usize = 10_000;
 
 impl LiveState {
     pub(super) fn new(site: &Site, partitions: usize) -> Self {
         Self {
             zones: site.zones.clone(),
             latest: RwLock::new(HashMap::new()),
-            head_counts: (0..partitions.max(1)).map(|_| RwLock::new(HashMap::new())).collect(),
+            occupants: (0..partitions.max(1)).map(|_| RwLock::new(HashMap::new())).collect(),
+            recent_alarms: RwLock::new(VecDeque::new()),
         }
     }
 
@@ -95,15 +102,48 @@ impl LiveState {
     /// Tags inside each zone (confirmed entries), for every zone of the site.
     #[must_use]
     pub fn head_counts(&self) -> BTreeMap<String, usize> {
-        let mut counts: BTreeMap<String, usize> = self.zones.iter().map(|z| (z.id.clone(), 0)).collect();
-        for partition in &self.head_counts {
+        self.occupants()
+            .into_iter()
+            .map(|(zone, tags)| (zone, tags.len()))
+            .collect()
+    }
+
+    /// The tags inside each zone (confirmed entries), sorted, for every zone of the site.
+    #[must_use]
+    pub fn occupants(&self) -> BTreeMap<String, Vec<String>> {
+        let mut inside: BTreeMap<String, Vec<String>> = self.zones.iter().map(|z| (z.id.clone(), Vec::new())).collect();
+        for partition in &self.occupants {
             if let Ok(partition) = partition.read() {
-                for (zone, count) in partition.iter() {
-                    *counts.entry(zone.clone()).or_default() += count;
+                for (zone, tags) in partition.iter() {
+                    inside.entry(zone.clone()).or_default().extend(tags.iter().cloned());
                 }
             }
         }
-        counts
+        for tags in inside.values_mut() {
+            tags.sort_unstable();
+        }
+        inside
+    }
+
+    /// The recent alarm with this id (its event JSON), if it is among the last [`RECENT_ALARMS`].
+    #[must_use]
+    pub fn recent_alarm(&self, alarm_id: &str) -> Option<Value> {
+        self.recent_alarms
+            .read()
+            .ok()?
+            .iter()
+            .rev()
+            .find(|alarm| alarm["alarm_id"].as_str() == Some(alarm_id))
+            .cloned()
+    }
+
+    pub(super) fn note_alarm(&self, alarm: &Value) {
+        if let Ok(mut recent) = self.recent_alarms.write() {
+            if recent.len() == RECENT_ALARMS {
+                recent.pop_front();
+            }
+            recent.push_back(alarm.clone());
+        }
     }
 
     pub(super) fn set_tag(&self, tag: &str, state: TagState) {
@@ -118,9 +158,9 @@ impl LiveState {
         }
     }
 
-    pub(super) fn set_head_counts(&self, partition: usize, counts: HashMap<String, usize>) {
-        if let Some(Ok(mut slot)) = self.head_counts.get(partition).map(|p| p.write()) {
-            *slot = counts;
+    pub(super) fn set_occupants(&self, partition: usize, occupants: HashMap<String, Vec<String>>) {
+        if let Some(Ok(mut slot)) = self.occupants.get(partition).map(|p| p.write()) {
+            *slot = occupants;
         }
     }
 }

@@ -26,6 +26,7 @@ mod ingest_log;
 mod live;
 mod outputs;
 mod partition;
+pub mod readers;
 
 use std::sync::atomic::{AtomicI64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -38,6 +39,7 @@ use rtls_engine::tracker::Tracker;
 use tokio::sync::{broadcast, mpsc, oneshot};
 
 pub use live::{HubMessage, LiveState, TagState};
+pub use readers::{ReaderHealth, ReaderMonitor};
 
 use crate::metrics::Metrics;
 use crate::sink::{IngestError, IngestFuture, MeasurementSink, Publication};
@@ -159,6 +161,7 @@ struct Inner {
     validator: Mutex<Tracker>,
     config: PipelineConfig,
     live: Arc<LiveState>,
+    readers: ReaderMonitor,
     hub: broadcast::Sender<Arc<HubMessage>>,
     publications: broadcast::Sender<Publication>,
     metrics: Arc<Metrics>,
@@ -254,6 +257,7 @@ impl Pipeline {
                 validator: Mutex::new(validator),
                 config,
                 live,
+                readers: ReaderMonitor::new(site, unix_ms()),
                 hub,
                 publications,
                 metrics,
@@ -266,6 +270,18 @@ impl Pipeline {
     #[must_use]
     pub fn live(&self) -> &Arc<LiveState> {
         &self.inner.live
+    }
+
+    /// Each reader's health (last heard, record rate).
+    #[must_use]
+    pub fn readers(&self) -> &ReaderMonitor {
+        &self.inner.readers
+    }
+
+    /// Sends a message to every WebSocket subscriber (an alarm acknowledgement, a zone edit).
+    pub fn broadcast(&self, message: HubMessage) {
+        // no subscriber is not an error
+        let _ = self.inner.hub.send(Arc::new(message));
     }
 
     /// Subscribes to the hub's messages (locations, fence events, extension events).
@@ -341,6 +357,7 @@ impl Pipeline {
             }
         }
         let received_ms = unix_ms();
+        self.inner.readers.heard(records.iter().map(|(_, r)| r), received_ms);
         let rows = records
             .iter()
             .map(|(_, r)| NewRecord {

@@ -17,7 +17,7 @@ use super::live::{HubMessage, LiveState, TagState};
 use super::outputs::OutputBatch;
 use super::{unix_ms, unix_s, Progress};
 use crate::convert::{
-    accuracy_m, extension_payload, fence_event_from_zone_event, is_alarm, location_from_update, ZoneEventOut,
+    accuracy_m, alarm_id, extension_payload, fence_event_from_zone_event, is_alarm, location_from_update, ZoneEventOut,
 };
 use crate::metrics::Metrics;
 use crate::omlox::ProviderType;
@@ -103,13 +103,16 @@ impl PartitionWorker {
             self.publish_event(event, received_ms, &mut batch);
         }
         if !out.events.is_empty() {
-            let counts = self
+            let occupants = self
                 .live
                 .zones()
                 .iter()
-                .map(|zone| (zone.id.clone(), self.tracker.head_count(&zone.id)))
+                .map(|zone| {
+                    let tags = self.tracker.occupants(&zone.id).into_iter().map(String::from).collect();
+                    (zone.id.clone(), tags)
+                })
                 .collect();
-            self.live.set_head_counts(self.index, counts);
+            self.live.set_occupants(self.index, occupants);
         }
         out.clear();
         if self.outputs.send(batch).is_err() {
@@ -168,13 +171,19 @@ impl PartitionWorker {
     }
 
     fn publish_event(&mut self, event: &Event, received_ms: i64, batch: &mut OutputBatch) {
-        let json_line = event.to_json_line();
-        let parsed: Value = serde_json::from_str(&json_line).unwrap_or(Value::Null);
+        let mut json_line = event.to_json_line();
+        let mut parsed: Value = serde_json::from_str(&json_line).unwrap_or(Value::Null);
         let kind = parsed["type"].as_str().unwrap_or("event").to_string();
         let tag = parsed["tag"].as_str().map(str::to_string);
         let zone = parsed["zone"].as_str().map(str::to_string);
         let alarm = is_alarm(event);
         if alarm {
+            // a stable id: the same event (replayed after a restart, too) has the same id
+            if let Value::Object(object) = &mut parsed {
+                object.insert("alarm_id".into(), Value::String(alarm_id(&json_line)));
+                json_line = parsed.to_string();
+            }
+            self.live.note_alarm(&parsed);
             self.metrics
                 .alarms
                 // a lost tag is counted as `lost`, not as its event type `lifecycle`

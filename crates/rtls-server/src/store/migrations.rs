@@ -30,18 +30,32 @@ pub(crate) struct Migration {
 }
 
 /// The SQLite schema's migrations, oldest first.
-pub(crate) const SQLITE_MIGRATIONS: &[Migration] = &[Migration {
-    version: 1,
-    name: "initial",
-    sql: include_str!("../../migrations/sqlite/V1__initial.sql"),
-}];
+pub(crate) const SQLITE_MIGRATIONS: &[Migration] = &[
+    Migration {
+        version: 1,
+        name: "initial",
+        sql: include_str!("../../migrations/sqlite/V1__initial.sql"),
+    },
+    Migration {
+        version: 2,
+        name: "locations_by_time",
+        sql: include_str!("../../migrations/sqlite/V2__locations_by_time.sql"),
+    },
+];
 
 /// The PostgreSQL schema's migrations, oldest first.
-pub(crate) const POSTGRES_MIGRATIONS: &[Migration] = &[Migration {
-    version: 1,
-    name: "initial",
-    sql: include_str!("../../migrations/postgres/V1__initial.sql"),
-}];
+pub(crate) const POSTGRES_MIGRATIONS: &[Migration] = &[
+    Migration {
+        version: 1,
+        name: "initial",
+        sql: include_str!("../../migrations/postgres/V1__initial.sql"),
+    },
+    Migration {
+        version: 2,
+        name: "locations_by_time",
+        sql: include_str!("../../migrations/postgres/V2__locations_by_time.sql"),
+    },
+];
 
 /// A row of `schema_migrations`.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -82,11 +82,11 @@ pub struct EventRow {
     pub json: String,
 }
 
-/// A history query: one tag's states in `[from_s, to_s]`, oldest first.
+/// A history query: one tag's (or every tag's) states in `[from_s, to_s]`, oldest first.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HistoryQuery {
-    /// The tag.
-    pub tag: String,
+    /// The tag; `None`: every tag (a replay of the whole site).
+    pub tag: Option<String>,
     /// Start of the range (s, inclusive).
     pub from_s: f64,
     /// End of the range (s, inclusive).

@@ -432,12 +432,21 @@ impl Store for PostgresStore {
 
     fn history(&mut self, query: &HistoryQuery) -> Result<Vec<LocationRow>, StoreError> {
         const OPERATION: &str = "history query";
-        let rows = self.query(
-            "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
-             WHERE tag = $1 AND time_s >= $2 AND time_s <= $3 ORDER BY time_s, id LIMIT $4",
-            &[&query.tag, &query.from_s, &query.to_s, &limit_from(query.limit)],
-            OPERATION,
-        )?;
+        let limit = limit_from(query.limit);
+        let rows = match &query.tag {
+            Some(tag) => self.query(
+                "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
+                 WHERE tag = $1 AND time_s >= $2 AND time_s <= $3 ORDER BY time_s, id LIMIT $4",
+                &[tag, &query.from_s, &query.to_s, &limit],
+                OPERATION,
+            )?,
+            None => self.query(
+                "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
+                 WHERE time_s >= $1 AND time_s <= $2 ORDER BY time_s, id LIMIT $3",
+                &[&query.from_s, &query.to_s, &limit],
+                OPERATION,
+            )?,
+        };
         rows.iter()
             .map(location_from)
             .collect::<Result<_, _>>()

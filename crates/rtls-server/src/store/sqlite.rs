@@ -395,13 +395,15 @@ impl Store for SqliteStore {
 
     fn history(&mut self, query: &HistoryQuery) -> Result<Vec<LocationRow>, StoreError> {
         let fail = database("history query");
-        let mut select = self
-            .connection
-            .prepare_cached(
-                "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
-                 WHERE tag = ?1 AND time_s >= ?2 AND time_s <= ?3 ORDER BY time_s, id LIMIT ?4",
-            )
-            .map_err(fail)?;
+        // one statement per shape, so each uses its index (tag, time_s) or (time_s)
+        let sql = if query.tag.is_some() {
+            "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
+             WHERE tag = ?1 AND time_s >= ?2 AND time_s <= ?3 ORDER BY time_s, id LIMIT ?4"
+        } else {
+            "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
+             WHERE ?1 IS NULL AND time_s >= ?2 AND time_s <= ?3 ORDER BY time_s, id LIMIT ?4"
+        };
+        let mut select = self.connection.prepare_cached(sql).map_err(fail)?;
         let rows = select
             .query_map(
                 params![query.tag, query.from_s, query.to_s, limit_from(query.limit)],

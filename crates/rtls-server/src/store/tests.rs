@@ -202,7 +202,7 @@ fn history_bounds_limit_and_tags(store: &mut dyn Store) {
     store.append_locations(&[twin.clone()]).unwrap();
 
     let query = |from_s: f64, to_s: f64, limit: usize| HistoryQuery {
-        tag: "miner-1".into(),
+        tag: Some("miner-1".into()),
         from_s,
         to_s,
         limit,
@@ -243,12 +243,34 @@ fn history_bounds_limit_and_tags(store: &mut dyn Store) {
     assert!(store.history(&query(7.0, 3.0, 5)).unwrap().is_empty());
     assert!(store.history(&query(3.0, 7.0, 0)).unwrap().is_empty());
     let unknown = HistoryQuery {
-        tag: "miner-3".into(),
+        tag: Some("miner-3".into()),
         from_s: 0.0,
         to_s: 100.0,
         limit: 10,
     };
     assert!(store.history(&unknown).unwrap().is_empty());
+
+    // without a tag: every tag's states in the range, by time (a replay)
+    let everyone = store
+        .history(&HistoryQuery {
+            tag: None,
+            from_s: 2.0,
+            to_s: 3.0,
+            limit: 100,
+        })
+        .unwrap();
+    let by_time: Vec<(f64, &str)> = everyone.iter().map(|row| (row.time_s, row.tag.as_str())).collect();
+    assert_eq!(
+        by_time,
+        [
+            (2.0, "miner-1"),
+            (2.0, "miner-2"),
+            (2.0, "miner-10"),
+            (3.0, "miner-1"),
+            (3.0, "miner-2"),
+            (3.0, "miner-10")
+        ]
+    );
 }
 
 fn event_filters(store: &mut dyn Store) {
@@ -466,7 +488,7 @@ fn prune_deletes_exactly_the_older_rows(store: &mut dyn Store) {
     assert_eq!(kept, [2_000, 2_001, 3_000]);
     let history = store
         .history(&HistoryQuery {
-            tag: "t".into(),
+            tag: Some("t".into()),
             from_s: 0.0,
             to_s: 10.0,
             limit: 10,

@@ -37,7 +37,7 @@ fn sqlite_file_keeps_everything_across_close_and_reopen() {
     assert_eq!(stored[1].json, record(1_001, 2.0, "t", "b").json);
     let history = reopened
         .history(&HistoryQuery {
-            tag: "t".into(),
+            tag: Some("t".into()),
             from_s: 0.0,
             to_s: 5.0,
             limit: 5,

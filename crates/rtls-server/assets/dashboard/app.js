@@ -1,0 +1,276 @@
+// The control room: wires the map and panels to the server's API and WebSocket.
+// Tokens: kept in localStorage; a `?token=` in the page's address is taken as the read token.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const store = window.localStorage;
+const params = new URLSearchParams(location.search);
+if (params.get("token")) store.setItem("rtls.readToken", params.get("token"));
+if (params.get("write_token")) store.setItem("rtls.writeToken", params.get("write_token"));
+
+async function api(path, { method = "GET", body, write = false } = {}) {
+  const token = store.getItem(write ? "rtls.writeToken" : "rtls.readToken");
+  const headers = {};
+  if (token) headers.Authorization = `Bearer ${token}`;
+  if (body !== undefined) headers["Content-Type"] = "application/json";
+  const response = await fetch(path, { method, headers, body: body === undefined ? undefined : JSON.stringify(body) });
+  if (response.status === 401 || response.status === 403) {
+    setConnection("unauthorised");
+    if (!$("token-dialog").open) $("token-dialog").showModal();
+    throw new Error(`${path}: ${response.status}`);
+  }
+  if (!response.ok) {
+    const error = await response.json().catch(() => ({}));
+    throw new Error(`${path}: ${response.status} ${error.message || ""}`);
+  }
+  return response.json();
+}
+
+function setConnection(state) {
+  const el = $("connection");
+  el.dataset.state = state;
+  el.textContent = { open: "live", connecting: "connecting", closed: "disconnected — retrying", unauthorised: "token needed" }[state] || state;
+}
+
+const map = new SiteMap($("map"));
+// every tag's latest live state (the map shows these, or a replay's)
+const liveTags = new Map();
+function setLive(tag, state) {
+  liveTags.set(tag, state);
+  if (!replay.active) map.update(tag, state);
+}
+// the server's tag list is the truth: tags it deleted leave, missed updates are caught up
+async function reconcileTags() {
+  const tags = await api("/api/v1/tags");
+  const present = new Set();
+  for (const t of tags) {
+    present.add(t.tag);
+    const known = liveTags.get(t.tag);
+    if (!known || !(known.t >= t.t)) setLive(t.tag, stateFromLocation(t.location));
+  }
+  for (const tag of [...liveTags.keys()]) {
+    if (!present.has(tag)) {
+      liveTags.delete(tag);
+      if (!replay.active) map.remove(tag);
+    }
+  }
+  updateSummary();
+}
+const nameOf = (tag) => map.names.get(tag) || tag;
+const focusTag = (tag) => {
+  map.follow(tag);
+  $("unfollow").hidden = false;
+  $("tag-search").value = nameOf(tag);
+};
+map.onSelect = focusTag;
+
+const alarms = new AlarmConsole($("alarm-table"), {
+  onAcknowledge: async (id) => {
+    try {
+      await api(`/api/v1/alarms/${id}/acknowledge`, { method: "POST", write: true, body: { by: store.getItem("rtls.operator") || "operator" } });
+    } catch (e) {
+      console.warn(e);
+    }
+  },
+  onTag: focusTag,
+  nameOf,
+});
+let audio = null;
+alarms.beep = () => {
+  if (!$("sound").checked) return;
+  audio = audio || new AudioContext();
+  const osc = audio.createOscillator();
+  osc.frequency.value = 880;
+  osc.connect(audio.destination);
+  osc.start();
+  osc.stop(audio.currentTime + 0.2);
+};
+
+// The page's text summary: live tags (not replayed ones) and unacknowledged alarms.
+function updateSummary() {
+  const live = liveTags.size;
+  $("live-count").dataset.count = String(live);
+  $("live-count").textContent = `${live} live tag${live === 1 ? "" : "s"}`;
+  const open = alarms.unacknowledged();
+  $("alarm-count").dataset.count = String(open);
+  $("alarm-count").textContent = `${open} unacknowledged alarm${open === 1 ? "" : "s"}`;
+}
+alarms.onChange = updateSummary;
+
+const replay = new Replay(map, {
+  api,
+  onStatus: (text) => { $("replay-status").textContent = text; },
+  onFrame: (t) => {
+    $("replay-clock").textContent = `${new Date(t * 1000).toLocaleString()} (${replay.speed}×${replay.playing ? ", playing" : ""})`;
+    $("replay-clock").dataset.t = String(t);
+    const span = replay.toS - replay.fromS;
+    if (span > 0) $("replay-position").value = String(Math.round((1000 * (t - replay.fromS)) / span));
+    showReplayAlarms(t);
+  },
+});
+
+// ── WebSocket: locations and alarms ──────────────────────────────────────────────────────────
+let socket = null;
+function connect() {
+  setConnection("connecting");
+  const token = store.getItem("rtls.readToken");
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  socket = new WebSocket(`${scheme}://${location.host}/v2/ws/socket${token ? `?token=${encodeURIComponent(token)}` : ""}`);
+  const topics = new Map();
+  socket.onopen = () => {
+    setConnection("open");
+    for (const topic of ["location_updates", "rtls:alarms"]) socket.send(JSON.stringify({ event: "subscribe", topic }));
+  };
+  socket.onmessage = (event) => {
+    const message = JSON.parse(event.data);
+    if (message.event === "subscribed") { topics.set(message.subscription_id, message.topic); return; }
+    if (message.event !== "message") return;
+    const topic = message.topic || topics.get(message.subscription_id);
+    for (const payload of message.payload || []) {
+      if (topic === "location_updates") {
+        setLive(payload.provider_id, stateFromLocation(payload));
+      } else if (topic === "rtls:alarms") {
+        alarms.add(payload);
+      }
+    }
+  };
+  socket.onclose = () => {
+    setConnection("closed");
+    setTimeout(connect, 2000);
+  };
+}
+
+// ── Periodic panels ──────────────────────────────────────────────────────────────────────────
+let zones = { features: [] };
+async function refreshZones() {
+  const [collection, occupants] = await Promise.all([api("/api/v1/zones.geojson"), api("/api/v1/zones/occupants")]);
+  zones = collection;
+  renderZones($("zone-table"), zones, occupants, { onTag: focusTag, nameOf });
+  let live = 0;
+  for (const s of liveTags.values()) if (s.status !== "lost") live += 1;
+  $("on-site").textContent = `${live} tags tracked now (not lost)`;
+}
+
+async function refreshReaders() {
+  const readers = await api("/api/v1/readers");
+  renderReaders($("reader-table"), $("reader-summary"), readers);
+  map.setReaderHealth(readers);
+}
+
+async function refreshNames() {
+  // omlox trackables name their location providers (our tags)
+  const trackables = await api("/v2/trackables/summary").catch(() => []);
+  for (const t of trackables) for (const provider of t.location_providers || []) map.names.set(provider, t.name || provider);
+  const list = $("tag-list");
+  list.replaceChildren(...[...liveTags.keys()].sort().map((tag) => {
+    const option = document.createElement("option");
+    option.value = nameOf(tag);
+    option.dataset.tag = tag;
+    return option;
+  }));
+}
+
+function every(ms, task) {
+  const run = () => task().catch((e) => console.warn(e)).finally(() => setTimeout(run, ms));
+  run();
+}
+
+// ── Controls ─────────────────────────────────────────────────────────────────────────────────
+for (const tab of document.querySelectorAll("nav button")) {
+  tab.addEventListener("click", () => {
+    for (const other of document.querySelectorAll("nav button")) {
+      other.setAttribute("aria-selected", String(other === tab));
+      $(`panel-${other.dataset.panel}`).hidden = other !== tab;
+    }
+  });
+}
+$("floor-select").addEventListener("change", (e) => map.setFloor(e.target.value || null));
+$("tag-search").addEventListener("change", (e) => {
+  const wanted = e.target.value.trim();
+  for (const tag of liveTags.keys()) {
+    if (tag === wanted || nameOf(tag) === wanted) { focusTag(tag); return; }
+  }
+});
+$("unfollow").addEventListener("click", () => { map.follow(null); $("unfollow").hidden = true; });
+$("token-button").addEventListener("click", () => {
+  $("read-token").value = store.getItem("rtls.readToken") || "";
+  $("write-token").value = store.getItem("rtls.writeToken") || "";
+  $("operator-name").value = store.getItem("rtls.operator") || "";
+  $("token-dialog").showModal();
+});
+$("token-dialog").addEventListener("close", () => {
+  store.setItem("rtls.readToken", $("read-token").value.trim());
+  store.setItem("rtls.writeToken", $("write-token").value.trim());
+  store.setItem("rtls.operator", $("operator-name").value.trim());
+  location.reload();
+});
+
+const toLocalInput = (unixS) => {
+  const d = new Date(unixS * 1000);
+  return new Date(d.getTime() - d.getTimezoneOffset() * 60000).toISOString().slice(0, 19);
+};
+const fromLocalInput = (value) => new Date(value).getTime() / 1000;
+$("replay-from").value = toLocalInput(Date.now() / 1000 - 120);
+$("replay-to").value = toLocalInput(Date.now() / 1000 - 60);
+$("replay-form").addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const fromS = fromLocalInput($("replay-from").value);
+  const toS = fromLocalInput($("replay-to").value);
+  await replay.load(fromS, toS);
+  $("replay-controls").hidden = false;
+  const q = `from=${fromS}&to=${toS}`;
+  $("replay-export").innerHTML = `Export: <a href="/api/v1/history?${q}&format=csv">CSV</a> · <a href="/api/v1/history?${q}&format=geojson">GeoJSON</a> · <a href="/api/v1/alarms?${q}">alarms</a>`;
+  const past = await api(`/api/v1/alarms?${q}`);
+  replayAlarms = past;
+  replayAlarmsShown = -1;
+  showReplayAlarms(replay.clock);
+  updateSummary();
+});
+let replayAlarms = [];
+let replayAlarmsShown = -1;
+const replayConsole = new AlarmConsole($("replay-alarm-table"), { onAcknowledge: () => {}, onTag: focusTag, nameOf, limit: 100, readOnly: true });
+// the alarms raised up to replay time t (the API answers newest first)
+function showReplayAlarms(t) {
+  const upTo = replayAlarms.filter((a) => a.t <= t);
+  if (upTo.length === replayAlarmsShown) return;
+  replayAlarmsShown = upTo.length;
+  replayConsole.entries = upTo.slice(0, 100);
+  replayConsole.byId = new Map();
+  replayConsole.render();
+}
+$("replay-play").addEventListener("click", () => { if (replay.playing) replay.pause(); else replay.play(); });
+$("replay-step").addEventListener("click", () => replay.step(1));
+$("replay-speed").addEventListener("change", (e) => { replay.speed = Number(e.target.value); });
+$("replay-position").addEventListener("input", (e) => {
+  replay.pause();
+  replay.seek(replay.fromS + (Number(e.target.value) / 1000) * (replay.toS - replay.fromS));
+});
+$("replay-live").addEventListener("click", async () => {
+  replay.stop();
+  $("replay-controls").hidden = true;
+  $("replay-status").textContent = "Live";
+  for (const [tag, state] of liveTags) map.update(tag, state);
+  updateSummary();
+});
+
+// ── Start ────────────────────────────────────────────────────────────────────────────────────
+async function start() {
+  const site = await api("/api/v1/site");
+  $("site-name").textContent = site.name ? `rtls — ${site.name}` : "rtls";
+  document.title = $("site-name").textContent;
+  map.setSite(site);
+  const select = $("floor-select");
+  select.replaceChildren(new Option("all floors", ""), ...site.floors.map((f) => new Option(f.id, f.id)));
+  select.disabled = site.floors.length === 0;
+  map.setZones(await api("/api/v1/zones.geojson"));
+  // the tags' latest states first, so the map is full before the first WebSocket update
+  await reconcileTags();
+  alarms.load(await api("/api/v1/alarms?limit=200"));
+  connect();
+  every(5000, reconcileTags);
+  every(2000, refreshZones);
+  every(5000, refreshReaders);
+  every(10000, refreshNames);
+}
+start().catch((e) => { console.error(e); setConnection("closed"); });
+window.rtls = { map, alarms, replay, api, liveTags };
