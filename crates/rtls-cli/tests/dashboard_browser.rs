@@ -1,0 +1,440 @@
+//! The control-room dashboard in a real browser: Debian's `chromium`, headless, driven over the
+//! DevTools protocol (`headless_chrome`). `.ci/run` installs chromium and sets `RTLS_CHROMIUM`;
+//! elsewhere `/usr/bin/chromium` is used when installed, and without either the tests print a
+//! notice and pass. With `RTLS_SCREENSHOTS=DIR` the tests also save
+//! a screenshot of each view there (the docs' pictures).
+//!
+//! What a control room relies on is checked through the page, as an operator sees it: the
+//! text count of live tags equals `/api/v1/tags`; an alarm acknowledged on one screen shows as
+//! acknowledged on another and in the API, with who did it; a minute of history replays; the
+//! floor switch shows one floor's tags and zones.
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use headless_chrome::protocol::cdp::Page::CaptureScreenshotFormatOption;
+use headless_chrome::protocol::cdp::Runtime;
+use headless_chrome::{Browser, LaunchOptions, Tab};
+use serde_json::Value;
+
+const READ: &str = "dashboard-read-token";
+const WRITE: &str = "dashboard-write-token";
+
+/// `rtls serve` with `args`, on loopback ports of its own; killed when dropped.
+struct Server {
+    _child: common::KillOnDrop,
+    http: String,
+}
+
+fn serve(name: &str, args: &[&str]) -> Server {
+    let dir = common::temp_dir("dashboard", name);
+    let child = Command::new(env!("CARGO_BIN_EXE_rtls"))
+        .arg("serve")
+        .args(args)
+        .args(["--http", "127.0.0.1:0", "--mqtt-listen", "127.0.0.1:0"])
+        .arg("--db")
+        .arg(format!("sqlite:{}", dir.join("dashboard.db").display()))
+        .env("RTLS_WRITE_TOKEN", WRITE)
+        .env("RTLS_READ_TOKEN", READ)
+        .env("RTLS_LOG", "warn")
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("rtls serve starts");
+    let mut child = common::KillOnDrop(child);
+    let mut line = String::new();
+    BufReader::new(child.0.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let bound: Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("bound line {line:?}: {e}"));
+    Server {
+        _child: child,
+        http: bound["http"].as_str().unwrap().to_string(),
+    }
+}
+
+/// Headless chromium: `RTLS_CHROMIUM` (which must exist: `.ci/run` sets it), else Debian's
+/// `/usr/bin/chromium` when installed; `None` (the test prints a notice and passes, as the
+/// mosquitto and PostgreSQL tests do without their services) when neither is there.
+fn browser() -> Option<Browser> {
+    let path = match std::env::var_os("RTLS_CHROMIUM") {
+        Some(path) => {
+            let path = PathBuf::from(path);
+            assert!(path.exists(), "RTLS_CHROMIUM={} does not exist", path.display());
+            path
+        }
+        None if std::path::Path::new("/usr/bin/chromium").exists() => PathBuf::from("/usr/bin/chromium"),
+        None => {
+            eprintln!(
+                "notice: the dashboard's browser tests did not run: install chromium (`apt-get install chromium`, \
+                 as .ci/run does) or set RTLS_CHROMIUM to a Chrome/Chromium binary"
+            );
+            return None;
+        }
+    };
+    Some(
+        Browser::new(
+            LaunchOptions::default_builder()
+                .path(Some(path))
+                .headless(true)
+                .sandbox(false)
+                .window_size(Some((1500, 900)))
+                // the alarm wait below can be minutes without a DevTools message
+                .idle_browser_timeout(Duration::from_secs(600))
+                .build()
+                .unwrap(),
+        )
+        .expect("chromium starts"),
+    )
+}
+
+/// The value of a JavaScript expression (a promise is awaited), returned by value; an exception
+/// fails the test with its message.
+fn eval(tab: &Tab, expression: &str) -> Value {
+    let reply = tab
+        .call_method(Runtime::Evaluate {
+            expression: expression.to_string(),
+            return_by_value: Some(true),
+            generate_preview: None,
+            silent: Some(false),
+            await_promise: Some(true),
+            include_command_line_api: None,
+            user_gesture: Some(true),
+            object_group: None,
+            context_id: None,
+            throw_on_side_effect: None,
+            timeout: None,
+            disable_breaks: None,
+            repl_mode: None,
+            allow_unsafe_eval_blocked_by_csp: None,
+            unique_context_id: None,
+            serialization_options: None,
+        })
+        .unwrap_or_else(|e| panic!("evaluating {expression}: {e}"));
+    if let Some(exception) = reply.exception_details {
+        panic!(
+            "evaluating {expression}: {} {:?}",
+            exception.text,
+            exception.exception.and_then(|e| e.description)
+        );
+    }
+    reply.result.value.unwrap_or(Value::Null)
+}
+
+/// Polls `expression` until it is truthy (not false, null, 0 or ""); returns its value.
+fn wait_for(tab: &Tab, expression: &str, timeout: Duration, what: &str) -> Value {
+    wait_until(tab, expression, truthy, timeout, what)
+}
+
+fn truthy(value: &Value) -> bool {
+    match value {
+        Value::Null => false,
+        Value::Bool(b) => *b,
+        Value::Number(n) => n.as_f64() != Some(0.0),
+        Value::String(s) => !s.is_empty(),
+        _ => true,
+    }
+}
+
+/// Polls `expression` until `done` holds for its value; returns the value.
+fn wait_until(tab: &Tab, expression: &str, done: impl Fn(&Value) -> bool, timeout: Duration, what: &str) -> Value {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let value = eval(tab, expression);
+        if done(&value) {
+            return value;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "{what}: not within {timeout:?} (last value {value})"
+        );
+        std::thread::sleep(Duration::from_millis(250));
+    }
+}
+
+/// Whether the page's counts agree: the API's tags, the text count, the tags drawn.
+fn counts_agree(c: &Value) -> bool {
+    c["api"].as_u64().is_some_and(|n| n >= 50) && c["api"] == c["screen"] && c["drawn"] == c["api"]
+}
+
+/// A `fetch` of the server's API from the page with `token`, as JSON.
+fn api_js(path: &str, token: &str) -> String {
+    format!("fetch('{path}', {{ headers: {{ Authorization: 'Bearer {token}' }} }}).then(r => r.json())")
+}
+
+fn screenshot(tab: &Tab, name: &str) {
+    let Some(dir) = std::env::var_os("RTLS_SCREENSHOTS") else {
+        return;
+    };
+    let png = tab
+        .capture_screenshot(CaptureScreenshotFormatOption::Png, None, None, true)
+        .unwrap();
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(PathBuf::from(dir).join(format!("{name}.png")), png).unwrap();
+}
+
+/// The dashboard in a new browser context of its own (its own storage: another operator's
+/// screen), with the tokens in the address and `operator` as the name acknowledgements carry.
+fn open_dashboard(browser: &Browser, server: &Server, operator: &str) -> std::sync::Arc<Tab> {
+    let tab = browser.new_context().unwrap().new_tab().unwrap();
+    tab.navigate_to(&format!("http://{}/?token={READ}&write_token={WRITE}", server.http))
+        .unwrap()
+        .wait_until_navigated()
+        .unwrap();
+    eval(
+        &tab,
+        &format!("localStorage.setItem('rtls.operator', '{operator}'); true"),
+    );
+    tab
+}
+
+#[test]
+fn the_demo_on_screen_counts_its_tags_acknowledges_an_alarm_everywhere_and_replays_a_minute() {
+    let Some(browser) = browser() else { return };
+    let server = serve("demo", &["--demo", "--demo-miners", "60"]);
+    let tab = open_dashboard(&browser, &server, "shift lead A");
+    let second_screen = open_dashboard(&browser, &server, "shift lead B");
+
+    // the page states the live tag count in text; it equals the API's once the miners are in
+    let counts = format!(
+        "Promise.all([{}, Promise.resolve(document.getElementById('live-count'))]).then(([tags, el]) => \
+         ({{ api: tags.length, screen: Number(el.dataset.count), text: el.textContent, \
+            drawn: window.rtls.map.visibleCount(), frames: window.rtls.map.frames }}))",
+        api_js("/api/v1/tags", READ)
+    );
+    let settled = wait_until(
+        &tab,
+        &counts,
+        counts_agree,
+        Duration::from_secs(60),
+        "the on-screen tag count equals /api/v1/tags",
+    );
+    assert_eq!(settled["text"], format!("{} live tags", settled["api"]));
+    assert!(settled["frames"].as_u64().unwrap() > 0, "{settled}");
+    // names, not tag ids: the demo registers its crew as omlox trackables
+    wait_for(
+        &tab,
+        "window.rtls.map.names.size >= 50 && window.rtls.map.names.get('miner-000') !== 'miner-000'",
+        Duration::from_secs(30),
+        "trackable names reach the map",
+    );
+    screenshot(&tab, "dashboard-live-map");
+
+    // an alarm: the demo sends miners towards the roof fall, so hazard predictions come;
+    // acknowledge the first one on screen A with a real click
+    let alarm_id = wait_for(
+        &tab,
+        "(() => { const b = document.querySelector('button.acknowledge'); return b && b.closest('tr').dataset.alarmId; })()",
+        Duration::from_secs(240),
+        "an alarm to acknowledge on screen",
+    );
+    let alarm_id = alarm_id.as_str().unwrap().to_string();
+    let unacknowledged_before = eval(&tab, "Number(document.getElementById('alarm-count').dataset.count)");
+    assert!(unacknowledged_before.as_u64().unwrap() >= 1);
+    screenshot(&tab, "dashboard-alarms");
+    // clicked in the page: the console re-renders its rows as alarms arrive, so a node found
+    // over DevTools may be replaced before a synthesised mouse click reaches it
+    eval(
+        &tab,
+        &format!("document.querySelector(\"tr[data-alarm-id='{alarm_id}'] button.acknowledge\").click(); true"),
+    );
+    // the API has it, with who and when
+    let acknowledged = wait_for(
+        &tab,
+        &format!(
+            "{}.then(list => {{ const a = list.find(a => a.alarm_id === '{alarm_id}'); return a && a.acknowledged; }})",
+            api_js("/api/v1/alarms", READ)
+        ),
+        Duration::from_secs(10),
+        "the acknowledgement in /api/v1/alarms",
+    );
+    assert_eq!(acknowledged["by"], "shift lead A", "{acknowledged}");
+    assert!(
+        acknowledged["at"].as_str().is_some_and(|at| at.ends_with('Z')),
+        "{acknowledged}"
+    );
+    // every open screen shows it (the WebSocket broadcast), and the history has the event
+    for screen in [&tab, &second_screen] {
+        wait_for(
+            screen,
+            &format!("document.querySelector(\"tr[data-alarm-id='{alarm_id}']\")?.classList.contains('acknowledged')"),
+            Duration::from_secs(10),
+            "the alarm shown acknowledged on both screens",
+        );
+    }
+    let history = eval(
+        &tab,
+        &format!(
+            "{}.then(events => events.filter(e => e.alarm_id === '{alarm_id}').length)",
+            api_js("/api/v1/events?type=alarm-acknowledged", READ)
+        ),
+    );
+    assert_eq!(history, 1);
+    // a second acknowledgement keeps the first one's author
+    let again = eval(
+        &tab,
+        &format!(
+            "fetch('/api/v1/alarms/{alarm_id}/acknowledge', {{ method: 'POST', headers: {{ Authorization: 'Bearer {WRITE}' }}, \
+             body: JSON.stringify({{ by: 'someone else' }}) }}).then(r => r.json())"
+        ),
+    );
+    assert_eq!(again["by"], "shift lead A");
+
+    // replay the last minute: load it, step, and the map shows replayed tags with trails
+    eval(
+        &tab,
+        "(() => { document.querySelector(\"nav button[data-panel='replay']\").click(); \
+          const local = (s) => { const d = new Date(s * 1000); \
+            return new Date(d.getTime() - d.getTimezoneOffset() * 60000).toISOString().slice(0, 19); }; \
+          const now = Date.now() / 1000; \
+          document.getElementById('replay-from').value = local(now - 70); \
+          document.getElementById('replay-to').value = local(now - 10); return true; })()",
+    );
+    tab.find_element("#replay-form button[type=submit]")
+        .unwrap()
+        .click()
+        .unwrap();
+    let status = wait_for(
+        &tab,
+        "(() => { const t = document.getElementById('replay-status').textContent; return t.startsWith('Replay:') && t; })()",
+        Duration::from_secs(20),
+        "the replay loaded",
+    );
+    let states: u64 = status
+        .as_str()
+        .unwrap()
+        .split_whitespace()
+        .nth(1)
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(states >= 60, "a minute of 60 miners has more states: {status}");
+    let clock_before = eval(&tab, "Number(document.getElementById('replay-clock').dataset.t)");
+    tab.find_element("#replay-step").unwrap().click().unwrap();
+    let clock_after = eval(&tab, "Number(document.getElementById('replay-clock').dataset.t)");
+    assert!(
+        (clock_after.as_f64().unwrap() - clock_before.as_f64().unwrap() - 1.0).abs() < 1e-6,
+        "{clock_before} → {clock_after}"
+    );
+    eval(&tab, "document.getElementById('replay-speed').value = '60'; document.getElementById('replay-speed').dispatchEvent(new Event('change')); true");
+    tab.find_element("#replay-play").unwrap().click().unwrap();
+    wait_for(
+        &tab,
+        "window.rtls.replay.clock >= window.rtls.replay.toS && window.rtls.map.tags.size >= 50 && \
+         [...window.rtls.map.trails.values()].some(t => t.length > 5)",
+        Duration::from_secs(20),
+        "the replay played to its end at 60× with trails",
+    );
+    screenshot(&tab, "dashboard-replay");
+    // back to live: the live count still equals the API's
+    tab.find_element("#replay-live").unwrap().click().unwrap();
+    wait_until(
+        &tab,
+        &counts,
+        counts_agree,
+        Duration::from_secs(20),
+        "live again after the replay",
+    );
+}
+
+#[test]
+fn the_floor_switch_shows_one_floors_tags_and_zones() {
+    let dir = common::temp_dir("dashboard", "floors-site");
+    let site = dir.join("site.toml");
+    std::fs::write(
+        &site,
+        r#"
+name = "two floors"
+[[readers]]
+id = "A1"
+position_m = [0.0, 0.0, 2.5]
+technology = "uwb"
+[[readers]]
+id = "A2"
+position_m = [20.0, 10.0, 2.5]
+technology = "uwb"
+[[floors]]
+id = "ground"
+z_range_m = [0.0, 3.5]
+[[floors]]
+id = "mezzanine"
+z_range_m = [3.5, 7.0]
+[[zones]]
+id = "dock"
+name = "Dock"
+kind = "area-of-interest"
+shape = { type = "polygon", vertices_m = [[0.0, 0.0], [8.0, 0.0], [8.0, 8.0], [0.0, 8.0]], floor = "ground" }
+[[zones]]
+id = "gallery"
+name = "Gallery"
+kind = "restricted"
+shape = { type = "polygon", vertices_m = [[10.0, 0.0], [18.0, 0.0], [18.0, 8.0], [10.0, 8.0]], floor = "mezzanine" }
+[tracker]
+pipeline = "fix-then-filter"
+dimensions = 3
+"#,
+    )
+    .unwrap();
+    let Some(browser) = browser() else { return };
+    let server = serve("floors", &["--site", site.to_str().unwrap()]);
+    let tab = open_dashboard(&browser, &server, "tester");
+    wait_for(
+        &tab,
+        "document.getElementById('floor-select').options.length === 3",
+        Duration::from_secs(20),
+        "the floors listed",
+    );
+
+    // one tag on each floor (3-D fixes), posted with the write token
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    let mut lines = String::new();
+    for k in 0..8 {
+        let t = now - 4.0 + 0.5 * f64::from(k);
+        for (tag, position) in [("down", "[4.0,4.0,1.0]"), ("up", "[14.0,4.0,5.0]")] {
+            lines.push_str(&format!(
+                "{{\"t\":{t},\"tag\":\"{tag}\",\"kind\":\"fix\",\"position_m\":{position},\
+                 \"covariance_m2\":[0.04,0,0,0,0.04,0,0,0,0.04]}}\n"
+            ));
+        }
+    }
+    let body = serde_json::to_string(&lines).unwrap();
+    let posted = eval(
+        &tab,
+        &format!(
+            "fetch('/api/v1/measurements', {{ method: 'POST', headers: {{ Authorization: 'Bearer {WRITE}' }}, \
+             body: {body} }}).then(r => r.status)"
+        ),
+    );
+    assert_eq!(posted, 200);
+    wait_for(
+        &tab,
+        "window.rtls.liveTags.size === 2",
+        Duration::from_secs(20),
+        "both tags on screen",
+    );
+    let shown = |floor: &str| {
+        eval(
+            &tab,
+            &format!(
+                "(() => {{ const s = document.getElementById('floor-select'); s.value = '{floor}'; \
+                 s.dispatchEvent(new Event('change')); \
+                 return {{ tags: window.rtls.map.visibleCount(), zones: window.rtls.map.zoneLayer.getLayers().map(l => l.zoneId) }}; }})()"
+            ),
+        )
+    };
+    let all = shown("");
+    assert_eq!(all["tags"], 2, "{all}");
+    let ground = shown("ground");
+    assert_eq!(ground["tags"], 1, "{ground}");
+    assert_eq!(ground["zones"], serde_json::json!(["dock"]), "{ground}");
+    let mezzanine = shown("mezzanine");
+    assert_eq!(mezzanine["tags"], 1, "{mezzanine}");
+    assert_eq!(mezzanine["zones"], serde_json::json!(["gallery"]), "{mezzanine}");
+    screenshot(&tab, "dashboard-floors");
+}
