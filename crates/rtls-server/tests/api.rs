@@ -575,3 +575,98 @@ async fn fences_zones_and_operations_endpoints() {
     assert!(operations >= 30, "{operations} operations");
     state.pipeline.shutdown();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn geojson_is_wgs84_longitude_latitude_when_the_site_is_georeferenced_and_local_on_request() {
+    let local_state = state("api-geo");
+    let local_app = rtls_server::http::router(local_state.clone());
+    // the same server, its site given a WGS-84 origin
+    let mut geo_state = local_state.clone();
+    let mut site = (*geo_state.site).clone();
+    site.frame = Some(rtls_engine::site::FrameSettings {
+        origin: rtls_engine::site::GeodeticOrigin {
+            latitude_deg: 47.3769,
+            longitude_deg: 8.5417,
+            height_m: 455.0,
+        },
+    });
+    geo_state.site = std::sync::Arc::new(site);
+    let geo_app = rtls_server::http::router(geo_state);
+
+    let reply = call(
+        &geo_app,
+        Method::POST,
+        "/api/v1/measurements",
+        Some(WRITE),
+        &walk("miner-9", 3000.0, 4.0),
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::OK);
+    let tracked = eventually(Duration::from_secs(10), || {
+        local_state.pipeline.live().tag("miner-9").is_some()
+    })
+    .await;
+    assert!(tracked);
+
+    let local = call(&local_app, Method::GET, "/api/v1/tracks.geojson", Some(READ), "")
+        .await
+        .json();
+    let [x, y] = [0, 1].map(|k| local["features"][0]["geometry"]["coordinates"][k].as_f64().unwrap());
+    assert!(
+        (1.0..8.0).contains(&x) && (y - 10.0).abs() < 1.0,
+        "site metres: {x}, {y}"
+    );
+    // RFC 7946: [longitude, latitude]; 10 m north of the origin is 9e-5° of latitude
+    let geo = call(&geo_app, Method::GET, "/api/v1/tracks.geojson", Some(READ), "")
+        .await
+        .json();
+    let [lon, lat] = [0, 1].map(|k| geo["features"][0]["geometry"]["coordinates"][k].as_f64().unwrap());
+    assert!((lat - 47.3769 - y / 111_200.0).abs() < 2e-6, "latitude {lat}");
+    assert!(
+        (lon - 8.5417 - x / (111_320.0 * 47.3769_f64.to_radians().cos())).abs() < 2e-6,
+        "longitude {lon}"
+    );
+    // crs=local keeps metres on a georeferenced site (the dashboard draws in them)
+    let asked_local = call(
+        &geo_app,
+        Method::GET,
+        "/api/v1/tracks.geojson?crs=local",
+        Some(READ),
+        "",
+    )
+    .await
+    .json();
+    assert_eq!(asked_local["features"][0]["geometry"], local["features"][0]["geometry"]);
+    let zones = call(&geo_app, Method::GET, "/api/v1/zones.geojson", Some(READ), "")
+        .await
+        .json();
+    let ring = zones["features"][0]["geometry"]["coordinates"][0]
+        .as_array()
+        .unwrap()
+        .clone();
+    assert!(
+        ring.iter().all(|p| (p[1].as_f64().unwrap() - 47.3769).abs() < 1e-3),
+        "{ring:?}"
+    );
+    // a site without a frame cannot answer in WGS-84, and an unknown crs is named
+    let refused = call(
+        &local_app,
+        Method::GET,
+        "/api/v1/zones.geojson?crs=EPSG:4326",
+        Some(READ),
+        "",
+    )
+    .await;
+    assert_eq!(refused.status, StatusCode::BAD_REQUEST);
+    assert_eq!(refused.json()["field"], "crs");
+    let unknown = call(
+        &geo_app,
+        Method::GET,
+        "/api/v1/tracks.geojson?crs=EPSG:3857",
+        Some(READ),
+        "",
+    )
+    .await;
+    assert_eq!(unknown.status, StatusCode::BAD_REQUEST);
+    local_state.pipeline.shutdown();
+}

@@ -312,6 +312,32 @@ pub struct GeodeticOrigin {
     pub height_m: f64,
 }
 
+impl FrameSettings {
+    /// WGS-84 longitude, latitude (degrees) and ellipsoidal height (m) of a site position
+    /// `[x, y, z]` (m; `z` 0 for a 2-D position): the east-north-up offset from the origin taken
+    /// to ECEF, `ecef = ecef₀ + Rᵀ [x, y, z]`, and back to geodetic — the RFC 7946 GeoJSON
+    /// order. `None` when the origin is not a valid geodetic position (the loader refuses those).
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::site::{FrameSettings, GeodeticOrigin};
+    /// let frame = FrameSettings {
+    ///     origin: GeodeticOrigin { latitude_deg: 47.3769, longitude_deg: 8.5417, height_m: 455.0 },
+    /// };
+    /// let [lon, lat, h] = frame.wgs84_of([0.0, 111.2, 0.0]).unwrap();
+    /// // 111.2 m north is about 0.001° of latitude; the longitude does not change
+    /// assert!((lat - 47.3779).abs() < 2e-5 && (lon - 8.5417).abs() < 1e-9 && (h - 455.0).abs() < 0.01);
+    /// ```
+    #[must_use]
+    pub fn wgs84_of(&self, position_m: [f64; 3]) -> Option<[f64; 3]> {
+        let frame = rtls_positioning::gnss::LocalFrame::new(self.origin.geodetic()).ok()?;
+        let at = frame
+            .geodetic_of_enu(&nalgebra::Vector3::new(position_m[0], position_m[1], position_m[2]))
+            .ok()?;
+        Some([at.longitude_deg, at.latitude_deg, at.height_m])
+    }
+}
+
 impl GeodeticOrigin {
     /// The origin as `rtls_positioning`'s geodetic position.
     #[must_use]

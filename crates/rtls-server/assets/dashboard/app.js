@@ -143,7 +143,7 @@ function connect() {
 // ── Periodic panels ──────────────────────────────────────────────────────────────────────────
 let zones = { features: [] };
 async function refreshZones() {
-  const [collection, occupants] = await Promise.all([api("/api/v1/zones.geojson"), api("/api/v1/zones/occupants")]);
+  const [collection, occupants] = await Promise.all([api("/api/v1/zones.geojson?crs=local"), api("/api/v1/zones/occupants")]);
   zones = collection;
   renderZones($("zone-table"), zones, occupants, { onTag: focusTag, nameOf });
   let live = 0;
@@ -262,7 +262,7 @@ async function start() {
   const select = $("floor-select");
   select.replaceChildren(new Option("all floors", ""), ...site.floors.map((f) => new Option(f.id, f.id)));
   select.disabled = site.floors.length === 0;
-  map.setZones(await api("/api/v1/zones.geojson"));
+  map.setZones(await api("/api/v1/zones.geojson?crs=local"));
   // the tags' latest states first, so the map is full before the first WebSocket update
   await reconcileTags();
   alarms.load(await api("/api/v1/alarms?limit=200"));

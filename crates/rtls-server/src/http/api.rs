@@ -11,7 +11,7 @@ use serde_json::{json, Value};
 
 use super::{metrics, ApiError, ApiResult, AppState};
 use crate::auth::Access;
-use crate::convert::fence_from_zone;
+use crate::convert::{fence_from_zone, wgs84_geometry};
 use crate::omlox::time::{format_timestamp, parse_timestamp};
 use crate::store::{EventQuery, HistoryQuery, LocationRow};
 
@@ -56,10 +56,16 @@ pub(super) async fn tags(State(state): State<AppState>, headers: HeaderMap) -> A
     Ok(Json(Value::Array(tags)))
 }
 
-/// `GET /api/v1/tracks.geojson`: every tag's latest position as a GeoJSON FeatureCollection of
-/// Points (site coordinates, m).
-pub(super) async fn tracks_geojson(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Response> {
+/// `GET /api/v1/tracks.geojson?crs=…`: every tag's latest position as a GeoJSON
+/// FeatureCollection of Points (WGS-84 when the site is georeferenced, else site metres; see
+/// [`GeoParams`]).
+pub(super) async fn tracks_geojson(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(params): Query<GeoParams>,
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
+    let frame = export_frame(&state, params.crs.as_deref())?;
     let features: Vec<Value> = state
         .pipeline
         .live()
@@ -73,12 +79,21 @@ pub(super) async fn tracks_geojson(State(state): State<AppState>, headers: Heade
             })
         })
         .collect();
-    Ok(geojson(json!({ "type": "FeatureCollection", "features": features })))
+    Ok(geojson(
+        json!({ "type": "FeatureCollection", "features": features }),
+        frame,
+    ))
 }
 
-/// `GET /api/v1/zones.geojson`: the site's zones as a FeatureCollection of Polygons.
-pub(super) async fn zones_geojson(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Response> {
+/// `GET /api/v1/zones.geojson?crs=…`: the site's zones as a FeatureCollection of Polygons
+/// (frames as [`GeoParams`]).
+pub(super) async fn zones_geojson(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(params): Query<GeoParams>,
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
+    let frame = export_frame(&state, params.crs.as_deref())?;
     let counts = state.pipeline.live().head_counts();
     let features: Vec<Value> = state
         .site
@@ -93,7 +108,10 @@ pub(super) async fn zones_geojson(State(state): State<AppState>, headers: Header
             json!({ "type": "Feature", "geometry": fence.region, "properties": properties })
         })
         .collect();
-    Ok(geojson(json!({ "type": "FeatureCollection", "features": features })))
+    Ok(geojson(
+        json!({ "type": "FeatureCollection", "features": features }),
+        frame,
+    ))
 }
 
 /// `GET /api/v1/zones/head-counts`: tags inside each zone now.
@@ -102,7 +120,41 @@ pub(super) async fn head_counts(State(state): State<AppState>, headers: HeaderMa
     Ok(Json(json!(state.pipeline.live().head_counts())))
 }
 
-fn geojson(body: Value) -> Response {
+/// Query of the GeoJSON exports: `crs=local` (site metres) or `crs=EPSG:4326` (`wgs84`).
+#[derive(Debug, Default, Deserialize)]
+pub(super) struct GeoParams {
+    crs: Option<String>,
+}
+
+/// The frame a GeoJSON export is written in: WGS-84 (RFC 7946) by default when the site has a
+/// `[frame] origin`, local metres otherwise or with `crs=local`.
+fn export_frame<'a>(state: &'a AppState, crs: Option<&str>) -> ApiResult<Option<&'a rtls_engine::site::FrameSettings>> {
+    match crs {
+        None => Ok(state.site.frame.as_ref()),
+        Some("local") => Ok(None),
+        Some("EPSG:4326" | "wgs84" | "WGS84") => state
+            .site
+            .frame
+            .as_ref()
+            .map(Some)
+            .ok_or_else(|| ApiError::field("crs", "the site has no [frame] origin, so only crs=local is available")),
+        Some(other) => Err(ApiError::field(
+            "crs",
+            format!("`{other}` is not one of local, EPSG:4326"),
+        )),
+    }
+}
+
+/// A FeatureCollection as `application/geo+json`, each feature's geometry in `frame`'s WGS-84
+/// when given (RFC 7946: longitude, latitude), else in site metres.
+fn geojson(mut body: Value, frame: Option<&rtls_engine::site::FrameSettings>) -> Response {
+    if frame.is_some() {
+        if let Some(features) = body["features"].as_array_mut() {
+            for feature in features {
+                feature["geometry"] = wgs84_geometry(frame, &feature["geometry"]);
+            }
+        }
+    }
     ([(header::CONTENT_TYPE, "application/geo+json")], body.to_string()).into_response()
 }
 
@@ -114,6 +166,7 @@ pub(super) struct HistoryParams {
     to: Option<String>,
     format: Option<String>,
     limit: Option<usize>,
+    crs: Option<String>,
 }
 
 /// A time parameter: Unix seconds or an RFC 3339 time stamp.
@@ -179,7 +232,7 @@ pub(super) async fn history(
     let rows = state.query(move |store| store.history(&query)).await?;
     Ok(match format.as_str() {
         "csv" => ([(header::CONTENT_TYPE, "text/csv")], history_csv(&rows)?).into_response(),
-        "geojson" => geojson(history_geojson(&rows)),
+        "geojson" => geojson(history_geojson(&rows), export_frame(&state, params.crs.as_deref())?),
         _ => {
             let states: Vec<Value> = rows.iter().filter_map(|r| serde_json::from_str(&r.json).ok()).collect();
             Json(Value::Array(states)).into_response()

@@ -1,5 +1,6 @@
 //! The omlox WebSocket `/v2/ws/socket`: subscribe to `location_updates`(`:geojson`),
-//! `fence_events`(`:geojson`) and the extension topics `rtls:alarms` (predictive hazard alarms,
+//! `fence_events`(`:geojson`; geometries in WGS-84 longitude/latitude when the site has a
+//! `[frame] origin`, as RFC 7946 wants, else site metres) and the extension topics `rtls:alarms` (predictive hazard alarms,
 //! lost tags, no coverage, model switches) and `rtls:events` (everything else).
 //!
 //! Client: `{"event":"subscribe","topic":"location_updates","params":{"provider_id":"tag-7"}}`
@@ -21,7 +22,7 @@ use tokio::sync::broadcast::error::RecvError;
 
 use super::{metrics, ApiResult, AppState};
 use crate::auth::Access;
-use crate::convert::fence_from_zone;
+use crate::convert::{fence_from_zone, wgs84_geometry};
 use crate::omlox::ws::{Topic, WsErrorCode, WsEvent, WsMessage};
 use crate::pipeline::HubMessage;
 
@@ -62,7 +63,10 @@ async fn serve(mut socket: WebSocket, state: AppState) {
         .zones
         .iter()
         .map(fence_from_zone)
-        .filter_map(|f| Some((f.id.clone(), serde_json::to_value(&f.region).ok()?)))
+        .filter_map(|f| {
+            let region = serde_json::to_value(&f.region).ok()?;
+            Some((f.id.clone(), wgs84_geometry(state.site.frame.as_ref(), &region)))
+        })
         .collect();
     let mut subscriptions: HashMap<u64, Subscription> = HashMap::new();
     let mut next_id = 1u64;
@@ -89,7 +93,7 @@ async fn serve(mut socket: WebSocket, state: AppState) {
                     }
                     Err(RecvError::Closed) => break,
                 };
-                if deliver(&mut socket, &message, &subscriptions, &fences).await.is_err() {
+                if deliver(&mut socket, &message, &subscriptions, &fences, state.site.frame.as_ref()).await.is_err() {
                     break;
                 }
             }
@@ -163,6 +167,7 @@ async fn deliver(
     message: &Arc<HubMessage>,
     subscriptions: &HashMap<u64, Subscription>,
     fences: &HashMap<String, Value>,
+    frame: Option<&rtls_engine::site::FrameSettings>,
 ) -> Result<(), axum::Error> {
     for (&id, subscription) in subscriptions {
         let payload = match (message.as_ref(), subscription.topic) {
@@ -170,7 +175,7 @@ async fn deliver(
                 location.clone()
             }
             (HubMessage::Location { tag, location }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
-                json!({ "type": "Feature", "geometry": location["position"], "properties": location })
+                json!({ "type": "Feature", "geometry": wgs84_geometry(frame, &location["position"]), "properties": location })
             }
             (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => event.clone(),
             (HubMessage::FenceEvent { tag, event }, Topic::FenceEventsGeojson) if wanted(subscription, tag) => {
