@@ -223,6 +223,73 @@ fn the_demo_on_screen_counts_its_tags_acknowledges_an_alarm_everywhere_and_repla
     );
     screenshot(&tab, "dashboard-live-map");
 
+    // draw a zone over the western half of the mine with real clicks on the map, save it, and
+    // see its head count become the number of miners inside it
+    eval(
+        &tab,
+        "document.querySelector(\"nav button[data-panel='zones']\").click(); true",
+    );
+    tab.find_element("#zone-draw").unwrap().click().unwrap();
+    let corners = eval(
+        &tab,
+        &format!(
+            "{}.then(site => {{ const b = site.bounds_m; const mid = (b.min[0] + b.max[0]) / 2; \
+             const map = window.rtls.map.map; const box = map.getContainer().getBoundingClientRect(); \
+             return [[b.min[0] - 1, b.min[1] - 1], [mid, b.min[1] - 1], [mid, b.max[1] + 1], [b.min[0] - 1, b.max[1] + 1]] \
+               .map(([x, y]) => {{ const p = map.latLngToContainerPoint([y, x]); return [box.left + p.x, box.top + p.y]; }}); }})",
+            api_js("/api/v1/site", READ)
+        ),
+    );
+    for corner in corners.as_array().unwrap() {
+        let (x, y) = (corner[0].as_f64().unwrap(), corner[1].as_f64().unwrap());
+        tab.click_point(headless_chrome::browser::tab::point::Point { x, y })
+            .unwrap();
+    }
+    assert_eq!(
+        eval(
+            &tab,
+            "window.rtls.map.drawing && window.rtls.map.drawing.vertices.length"
+        ),
+        4,
+        "four corners placed by clicking the map"
+    );
+    eval(&tab, "document.getElementById('zone-name').value = 'West half'; true");
+    tab.find_element("#zone-save").unwrap().click().unwrap();
+    let west = wait_until(
+        &tab,
+        &format!(
+            "Promise.all([{}, {}]).then(([fences, occupants]) => {{ const f = fences.find(f => f.name === 'West half'); \
+             if (!f) return null; const row = document.querySelector(`tr[data-zone-id='${{f.foreign_id}}'] .head-count`); \
+             return {{ id: f.foreign_id, api: (occupants[f.foreign_id] || []).length, screen: row ? Number(row.textContent) : -1 }}; }})",
+            api_js("/v2/fences/summary", READ),
+            api_js("/api/v1/zones/occupants", READ)
+        ),
+        |v| v["api"].as_u64().is_some_and(|n| n >= 5) && v["screen"] == v["api"],
+        Duration::from_secs(30),
+        "the drawn zone's head count on screen equals the API's, with miners inside",
+    );
+    screenshot(&tab, "dashboard-zones");
+    // and it is stored as an omlox fence the trackers watch: deleting it through the API
+    // removes it from the screen
+    let id = west["id"].as_str().unwrap().to_string();
+    let status = eval(
+        &tab,
+        &format!(
+            "fetch('/v2/fences/{id}', {{ method: 'DELETE', headers: {{ Authorization: 'Bearer {WRITE}' }} }}).then(r => r.status)"
+        ),
+    );
+    assert_eq!(status, 204);
+    wait_for(
+        &tab,
+        &format!("!document.querySelector(\"tr[data-zone-id='{id}']\")"),
+        Duration::from_secs(10),
+        "the deleted zone leaves the screen",
+    );
+    eval(
+        &tab,
+        "document.querySelector(\"nav button[data-panel='alarms']\").click(); true",
+    );
+
     // an alarm: the demo sends miners towards the roof fall, so hazard predictions come;
     // acknowledge the first one on screen A with a real click
     let alarm_id = wait_for(

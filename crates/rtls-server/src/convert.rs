@@ -231,7 +231,12 @@ pub fn fence_from_zone(zone: &SiteZone) -> Fence {
         properties.insert("rtls:z_range_m".into(), json!(range));
     }
     Fence {
-        id: uuid_for("fence", &zone.id),
+        // a zone created through the API is named by its fence's UUID
+        id: if Uuid::parse_str(&zone.id).is_ok() {
+            zone.id.clone()
+        } else {
+            uuid_for("fence", &zone.id)
+        },
         region: Region::Polygon {
             coordinates: vec![closed],
         },

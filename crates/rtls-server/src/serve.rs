@@ -139,6 +139,13 @@ pub async fn serve(
             pipeline_config,
             pipeline_metrics,
         )?;
+        if let Some(zones) = crate::http::fences::stored_zones(query_store.as_mut()).map_err(ServeError::Config)? {
+            tracing::info!(
+                zones = zones.len(),
+                "watching the zone set edited through the API (DELETE /api/v1/zones/edits returns to the site file's)"
+            );
+            pipeline.live().set_zones(zones);
+        }
         Ok((pipeline, query_store))
     })
     .await

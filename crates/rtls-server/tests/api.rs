@@ -513,9 +513,12 @@ async fn fences_zones_and_operations_endpoints() {
             .json()["id"],
         id
     );
-    assert_eq!(
-        call(&app, Method::POST, "/v2/fences", Some(WRITE), "{}").await.status,
-        StatusCode::METHOD_NOT_ALLOWED
+    let no_region = call(&app, Method::POST, "/v2/fences", Some(WRITE), "{}").await;
+    assert_eq!(no_region.status, StatusCode::BAD_REQUEST);
+    assert!(
+        no_region.json()["message"].as_str().unwrap().contains("region"),
+        "{}",
+        no_region.json()
     );
     let zones = call(&app, Method::GET, "/api/v1/zones.geojson", Some(READ), "")
         .await
@@ -669,4 +672,110 @@ async fn geojson_is_wgs84_longitude_latitude_when_the_site_is_georeferenced_and_
     .await;
     assert_eq!(unknown.status, StatusCode::BAD_REQUEST);
     local_state.pipeline.shutdown();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_and_stored() {
+    let state = state("api-fence-edit");
+    let app = rtls_server::http::router(state.clone());
+    // a zone around the walk (y = 10 m, x from 2 m), with no restart
+    let fence = r#"{"name": "Staging", "region": {"type": "Polygon",
+        "coordinates": [[[0, 5], [12, 5], [12, 15], [0, 15], [0, 5]]]},
+        "properties": {"rtls:kind": "restricted"}}"#;
+    let created = call(&app, Method::POST, "/v2/fences", Some(WRITE), fence).await;
+    assert_eq!(created.status, StatusCode::CREATED);
+    let created = created.json();
+    let id = created["id"].as_str().unwrap().to_string();
+    assert_eq!(created["name"], "Staging");
+    assert_eq!(created["properties"]["rtls:kind"], "restricted");
+    let listed = call(&app, Method::GET, "/v2/fences", Some(READ), "").await.json();
+    assert_eq!(listed.as_array().unwrap().len(), 2, "{listed}");
+
+    let reply = call(
+        &app,
+        Method::POST,
+        "/api/v1/measurements",
+        Some(WRITE),
+        &walk("m-1", 100.0, 8.0),
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::OK);
+    let counted = eventually(Duration::from_secs(10), || {
+        state
+            .pipeline
+            .live()
+            .occupants()
+            .get(&id)
+            .is_some_and(|tags| tags == &["m-1".to_string()])
+    })
+    .await;
+    assert!(counted, "{:?}", state.pipeline.live().occupants());
+    let counts = call(&app, Method::GET, "/api/v1/zones/head-counts", Some(READ), "")
+        .await
+        .json();
+    assert_eq!(counts[&id], 1, "{counts}");
+
+    // renamed and reshaped: the id and the tag inside stay
+    let renamed = call(
+        &app,
+        Method::PUT,
+        &format!("/v2/fences/{id}"),
+        Some(WRITE),
+        r#"{"name": "Staging area", "region": {"type": "Point", "coordinates": [8, 10]}, "radius": 6}"#,
+    )
+    .await;
+    assert_eq!(renamed.status, StatusCode::OK);
+    assert_eq!(renamed.json()["name"], "Staging area");
+    assert_eq!(state.pipeline.live().head_counts()[&id], 1);
+
+    // bad fences name their field; a floor must be the site's
+    let bad = call(
+        &app,
+        Method::POST,
+        "/v2/fences",
+        Some(WRITE),
+        r#"{"region": {"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [0, 0]]]}}"#,
+    )
+    .await;
+    assert_eq!(
+        (bad.status, bad.json()["field"].as_str()),
+        (StatusCode::BAD_REQUEST, Some("region"))
+    );
+    let bad_kind = call(
+        &app,
+        Method::POST,
+        "/v2/fences",
+        Some(WRITE),
+        r#"{"region": {"type": "Point", "coordinates": [0, 0]}, "radius": 2, "properties": {"rtls:kind": "lava"}}"#,
+    )
+    .await;
+    assert_eq!(bad_kind.json()["field"], "properties.rtls:kind");
+    assert_eq!(
+        call(&app, Method::POST, "/v2/fences", None, fence).await.status,
+        StatusCode::UNAUTHORIZED
+    );
+
+    // the edited set is stored: a restart loads it
+    let stored = {
+        let mut queries = state.queries.lock().unwrap();
+        let store = queries.store_for_tests();
+        rtls_server::http::fences::stored_zones(store).unwrap().unwrap()
+    };
+    assert_eq!(stored.len(), 2);
+    assert!(stored.iter().any(|z| z.id == id && z.name == "Staging area"));
+
+    let deleted = call(&app, Method::DELETE, &format!("/v2/fences/{id}"), Some(WRITE), "").await;
+    assert_eq!(deleted.status, StatusCode::NO_CONTENT);
+    assert!(!state.pipeline.live().head_counts().contains_key(&id));
+    assert_eq!(
+        call(&app, Method::GET, &format!("/v2/fences/{id}"), Some(READ), "")
+            .await
+            .status,
+        StatusCode::NOT_FOUND
+    );
+    // back to the site file's zones
+    let reset = call(&app, Method::DELETE, "/api/v1/zones/edits", Some(WRITE), "").await;
+    assert_eq!(reset.status, StatusCode::NO_CONTENT);
+    assert_eq!(state.pipeline.live().zones().len(), 1);
+    state.pipeline.shutdown();
 }

@@ -16,7 +16,7 @@ use crate::error::{EngineError, Result};
 use crate::lifecycle::{LifecycleEvent, TrackStatus};
 use crate::record::Measurement;
 use crate::site::Pipeline;
-use crate::zones::ZoneMonitor;
+use crate::zones::{Zone, ZoneKind, ZoneMonitor};
 use rtls_estimation::{EstimationError, Gaussian};
 
 use super::constraints::close_epoch_if_due;
@@ -41,6 +41,31 @@ fn holds_earlier_readings<const N: usize>(shared: &Shared, track: &Track<N>, now
 }
 
 impl<const N: usize> Core<N> {
+    /// See [`super::Tracker::replace_zones`].
+    pub(crate) fn replace_zones(&mut self, zones: Vec<Zone>) -> Result<()> {
+        let alarm_zones: Vec<Zone> = zones
+            .iter()
+            .filter(|z| z.kind == ZoneKind::Hazard || self.shared.no_coverage_zones.contains(&z.id))
+            .cloned()
+            .collect();
+        self.monitor.replace_zones(zones)?;
+        // each track's alarm flags follow their zone's id
+        let old_ids: Vec<String> = self.shared.alarm_zones.iter().map(|z| z.id.clone()).collect();
+        for track in &mut self.tracks {
+            track.alarmed = alarm_zones
+                .iter()
+                .map(|zone| {
+                    old_ids
+                        .iter()
+                        .position(|id| *id == zone.id)
+                        .is_some_and(|i| track.alarmed.get(i).copied().unwrap_or(false))
+                })
+                .collect();
+        }
+        self.shared.alarm_zones = alarm_zones;
+        Ok(())
+    }
+
     pub(crate) fn new(shared: Shared, monitor: ZoneMonitor) -> Self {
         Self {
             shared,

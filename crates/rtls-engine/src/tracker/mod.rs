@@ -197,7 +197,7 @@ use crate::lifecycle::{LifecycleEvent, TrackStatus};
 use crate::radio_map::RadioMap;
 use crate::record::{Emitted, Record, Reorderer, TimeGate};
 use crate::site::{MotionModelKind, Site};
-use crate::zones::ZoneKind;
+use crate::zones::{Zone, ZoneKind};
 
 /// Ticks run to catch up after a silence of the whole input, at most: after a longer silence
 /// (or when a tick step is lost in rounding) the tick grid restarts at the record's time, so
@@ -596,6 +596,21 @@ impl Tracker {
         match &self.tracks {
             Tracks::Planar(core) => core.monitor.head_count(zone_id),
             Tracks::Spatial(core) => core.monitor.head_count(zone_id),
+        }
+    }
+
+    /// Replaces the site's zones while tracking (the control room's zone editor): the zone
+    /// monitor keeps each tag's state in zones whose id stays ([`crate::zones::ZoneMonitor::replace_zones`]),
+    /// and the predictive alarm watches the new hazard zones (plus the site's zones without
+    /// coverage that remain), each track keeping its alarm state in zones whose id stays.
+    ///
+    /// # Errors
+    /// As [`crate::zones::ZoneMonitor::new`] for an invalid zone (a polygon's `floor` must already be resolved
+    /// into `z_range_m`); the tracker is unchanged on error.
+    pub fn replace_zones(&mut self, zones: Vec<Zone>) -> Result<()> {
+        match &mut self.tracks {
+            Tracks::Planar(core) => core.replace_zones(zones),
+            Tracks::Spatial(core) => core.replace_zones(zones),
         }
     }
 

@@ -19,12 +19,12 @@ mod monitor;
 
 pub use monitor::{AntiFlap, ZoneEvent, ZoneMonitor};
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::error::{EngineError, Result};
 
 /// What a zone means to the control room.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ZoneKind {
     /// Dangerous ground (collapse, gas, blasting): entering it raises an alarm.
@@ -36,7 +36,7 @@ pub enum ZoneKind {
 }
 
 /// The geometry of a zone, written as a `shape` table with `type = "polygon"` or `type = "box"`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Shape {
     /// A simple (non-self-intersecting, possibly concave) polygon in the x–y plane, extruded over
@@ -77,7 +77,7 @@ pub enum Shape {
 /// assert!(zone.contains([5.0, 2.0, 1.0]));
 /// assert_eq!(zone.signed_distance_m([12.0, 2.0, 1.0]), 2.0);
 /// ```
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Zone {
     /// Unique id, used in events and head counts.

@@ -258,6 +258,55 @@ impl ZoneMonitor {
         Ok(self)
     }
 
+    /// Replaces the monitored zones while tags are being tracked (a zone drawn, edited or deleted
+    /// in the control room). A tag's state in a zone that keeps its id carries over (inside
+    /// stays inside, so no spurious entry; a moved border is judged at its next update with the
+    /// usual anti-flap), a new zone starts with every tag outside, and a removed zone's
+    /// occupants leave it without an exit event (the zone no longer exists).
+    ///
+    /// # Errors
+    /// As [`ZoneMonitor::new`]; the monitor is unchanged on error.
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::zones::{AntiFlap, Shape, Zone, ZoneKind, ZoneMonitor};
+    /// let zone = |id: &str, x0: f64| Zone {
+    ///     id: id.into(),
+    ///     name: id.into(),
+    ///     kind: ZoneKind::AreaOfInterest,
+    ///     readers: vec![],
+    ///     shape: Shape::Box { min_m: [x0, 0.0, 0.0], max_m: [x0 + 10.0, 10.0, 3.0] },
+    /// };
+    /// let mut monitor = ZoneMonitor::new(vec![zone("a", 0.0)], AntiFlap { tolerance_m: 0.0, delay_s: 0.0 }).unwrap();
+    /// monitor.update("t", 0.0, [5.0, 5.0, 1.0]).unwrap();
+    /// assert_eq!(monitor.head_count("a"), 1);
+    /// monitor.replace_zones(vec![zone("a", 0.0), zone("b", 2.0)]).unwrap();
+    /// assert_eq!((monitor.head_count("a"), monitor.head_count("b")), (1, 0));
+    /// let events = monitor.update("t", 1.0, [5.0, 5.0, 1.0]).unwrap();
+    /// assert_eq!(events.len(), 1); // entered b only
+    /// assert_eq!(monitor.head_count("b"), 1);
+    /// ```
+    pub fn replace_zones(&mut self, zones: Vec<Zone>) -> Result<()> {
+        let fresh = ZoneMonitor::new(zones, self.anti_flap)?;
+        // new index j ← old index of the zone with the same id, if any
+        let old_index: Vec<Option<usize>> = fresh
+            .zones
+            .iter()
+            .map(|zone| self.zones.iter().position(|old| old.id == zone.id))
+            .collect();
+        for state in self.tags.values_mut() {
+            state.zones = old_index
+                .iter()
+                .map(|old| old.map_or_else(Membership::default, |i| state.zones[i]))
+                .collect();
+        }
+        self.counts = (0..fresh.zones.len())
+            .map(|j| self.tags.values().filter(|s| s.zones[j].inside).count())
+            .collect();
+        self.zones = fresh.zones;
+        Ok(())
+    }
+
     /// The monitored zones, sorted by id.
     ///
     /// # Examples

@@ -23,7 +23,7 @@ async function api(path, { method = "GET", body, write = false } = {}) {
     const error = await response.json().catch(() => ({}));
     throw new Error(`${path}: ${response.status} ${error.message || ""}`);
   }
-  return response.json();
+  return response.status === 204 ? null : response.json();
 }
 
 function setConnection(state) {
@@ -142,10 +142,56 @@ function connect() {
 
 // ── Periodic panels ──────────────────────────────────────────────────────────────────────────
 let zones = { features: [] };
+
+// ── Zone editor: draw on the map, stored through omlox fences ────────────────────────────────
+map.onDrawn = (n) => {
+  $("zone-hint").textContent = n < 3 ? `${n} point${n === 1 ? "" : "s"}: click at least 3` : `${n} points: Save or add more`;
+  $("zone-save").disabled = n < 3;
+};
+$("zone-draw").addEventListener("click", () => {
+  map.startDrawing();
+  $("zone-cancel").disabled = false;
+  $("zone-hint").textContent = "click the map to place the corners";
+});
+$("zone-cancel").addEventListener("click", () => {
+  map.cancelDrawing();
+  $("zone-save").disabled = true;
+  $("zone-cancel").disabled = true;
+  $("zone-hint").textContent = "";
+});
+$("zone-editor").addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const vertices = map.finishDrawing();
+  $("zone-save").disabled = true;
+  $("zone-cancel").disabled = true;
+  const ring = [...vertices, vertices[0]];
+  const properties = { "rtls:kind": $("zone-kind").value };
+  if (map.floor) properties["rtls:floor"] = map.floor.id;
+  try {
+    const fence = await api("/v2/fences", {
+      method: "POST", write: true,
+      body: { name: $("zone-name").value.trim() || "New zone", region: { type: "Polygon", coordinates: [ring] }, properties },
+    });
+    $("zone-hint").textContent = `saved: ${fence.name}`;
+  } catch (error) {
+    $("zone-hint").textContent = `not saved: ${error.message}`;
+  }
+  await refreshZones();
+});
+async function deleteZone(id, name) {
+  if (!window.confirm(`Delete zone ${name}?`)) return;
+  try {
+    await api(`/v2/fences/${encodeURIComponent(id)}`, { method: "DELETE", write: true });
+  } catch (error) {
+    $("zone-hint").textContent = `not deleted: ${error.message}`;
+  }
+  await refreshZones();
+}
 async function refreshZones() {
   const [collection, occupants] = await Promise.all([api("/api/v1/zones.geojson?crs=local"), api("/api/v1/zones/occupants")]);
   zones = collection;
-  renderZones($("zone-table"), zones, occupants, { onTag: focusTag, nameOf });
+  renderZones($("zone-table"), zones, occupants, { onTag: focusTag, nameOf, onDelete: deleteZone });
+  map.setZones(zones);
   let live = 0;
   for (const s of liveTags.values()) if (s.status !== "lost") live += 1;
   $("on-site").textContent = `${live} tags tracked now (not lost)`;

@@ -45,7 +45,8 @@ class SiteMap {
     this.frames = 0; // frames drawn (the browser benchmark reads it)
     this.onSelect = () => {};
     this.map.on("move zoom resize viewreset", () => this.invalidate());
-    this.map.on("click", (e) => this.pick(e));
+    this.map.on("click", (e) => (this.drawing ? this.addVertex(e) : this.pick(e)));
+    this.drawing = null; // the polygon being drawn: {vertices: [[x, y]], layer}
     window.addEventListener("resize", () => this.invalidate());
     const frame = () => {
       if (this.dirty) this.draw();
@@ -113,6 +114,31 @@ class SiteMap {
       polygon.zoneId = f.properties.id;
       polygon.addTo(this.zoneLayer);
     }
+  }
+
+  // Zone editor: clicks add vertices of a polygon in metres until it is saved or cancelled.
+  startDrawing() {
+    this.cancelDrawing();
+    this.drawing = { vertices: [], layer: L.polygon([], { color: "#1f6feb", dashArray: "4 4" }).addTo(this.map) };
+    this.map.getContainer().style.cursor = "crosshair";
+  }
+
+  addVertex(e) {
+    this.drawing.vertices.push([e.latlng.lng, e.latlng.lat]);
+    this.drawing.layer.setLatLngs(this.drawing.vertices.map(SiteMap.ll));
+    this.onDrawn(this.drawing.vertices.length);
+  }
+
+  finishDrawing() {
+    const vertices = this.drawing ? this.drawing.vertices : [];
+    this.cancelDrawing();
+    return vertices;
+  }
+
+  cancelDrawing() {
+    if (this.drawing) this.drawing.layer.remove();
+    this.drawing = null;
+    this.map.getContainer().style.cursor = "";
   }
 
   // Whether something on `floorId` or spanning `zRange` shows on the selected floor.

@@ -112,7 +112,7 @@ class AlarmConsole {
 }
 
 // Zones: kind, head count and who is inside (muster board).
-function renderZones(table, zones, occupants, { onTag, nameOf }) {
+function renderZones(table, zones, occupants, { onTag, nameOf, onDelete }) {
   const rows = (zones.features || []).map((f) => {
     const id = f.properties.id;
     const inside = occupants[id] || [];
@@ -127,6 +127,12 @@ function renderZones(table, zones, occupants, { onTag, nameOf }) {
       names.appendChild(tagButton(tag, nameOf(tag), onTag));
     });
     cell(tr, names);
+    const remove = document.createElement("button");
+    remove.type = "button";
+    remove.className = "zone-delete";
+    remove.textContent = "Delete";
+    remove.addEventListener("click", () => onDelete(f.properties.id, f.properties.name || id));
+    cell(tr, remove);
     return tr;
   });
   table.tBodies[0].replaceChildren(...rows);

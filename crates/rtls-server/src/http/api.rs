@@ -95,9 +95,8 @@ pub(super) async fn zones_geojson(
     state.authorize(&headers, Access::Read)?;
     let frame = export_frame(&state, params.crs.as_deref())?;
     let counts = state.pipeline.live().head_counts();
-    let features: Vec<Value> = state
-        .site
-        .zones
+    let zones = state.pipeline.live().zones();
+    let features: Vec<Value> = zones
         .iter()
         .map(|zone| {
             let fence = fence_from_zone(zone);

@@ -1,5 +1,5 @@
-//! The omlox hub API under `/v2`: trackables and providers (stored configuration), zones and
-//! fences (from the site), location ingest and latest locations.
+//! The omlox hub API under `/v2`: trackables and providers (stored configuration), the site as
+//! an omlox zone, location ingest and latest locations (fences are in `fences.rs`).
 
 use axum::body::Bytes;
 use axum::extract::{Path, State};
@@ -12,9 +12,9 @@ use serde_json::Value;
 
 use super::{parse_json, ApiError, ApiResult, AppState};
 use crate::auth::Access;
-use crate::convert::{fence_from_zone, record_from_location, uuid_for};
+use crate::convert::{record_from_location, uuid_for};
 use crate::omlox::ingest::parse_locations;
-use crate::omlox::{Fence, Location, LocationProvider, Trackable, Zone, ZoneType};
+use crate::omlox::{Location, LocationProvider, Trackable, Zone, ZoneType};
 use crate::pipeline::unix_s;
 use crate::ServerError;
 
@@ -318,7 +318,7 @@ pub(super) async fn get_trackable_location(
         .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
 }
 
-// ---- zones and fences (from the site) ----
+// ---- zones (the site as one omlox zone; fences are in `fences.rs`) ----
 
 /// The site as one omlox zone (its local frame).
 fn site_zone(state: &AppState) -> Zone {
@@ -367,45 +367,6 @@ pub(super) async fn get_zone(
     } else {
         Err(ApiError::not_found(format!("zone `{zone_id}` not found")))
     }
-}
-
-fn fences(state: &AppState) -> Vec<Fence> {
-    state.site.zones.iter().map(fence_from_zone).collect()
-}
-
-/// `GET /v2/fences`.
-pub(super) async fn list_fences(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<String>>> {
-    state.authorize(&headers, Access::Read)?;
-    Ok(Json(fences(&state).into_iter().map(|f| f.id).collect()))
-}
-
-/// `GET /v2/fences/summary`.
-pub(super) async fn fence_summary(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Fence>>> {
-    state.authorize(&headers, Access::Read)?;
-    Ok(Json(fences(&state)))
-}
-
-/// `GET /v2/fences/{fence_id}`: by UUID or by the zone's id (`foreign_id`).
-pub(super) async fn get_fence(
-    State(state): State<AppState>,
-    Path(fence_id): Path<String>,
-    headers: HeaderMap,
-) -> ApiResult<Json<Fence>> {
-    state.authorize(&headers, Access::Read)?;
-    fences(&state)
-        .into_iter()
-        .find(|f| f.id == fence_id || f.foreign_id.as_deref() == Some(fence_id.as_str()))
-        .map(Json)
-        .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))
-}
-
-/// Writes to fences: the fences are the site's zones, which the trackers were built from.
-pub(super) async fn fences_read_only(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<StatusCode> {
-    state.authorize(&headers, Access::Write)?;
-    Err(ApiError::new(
-        StatusCode::METHOD_NOT_ALLOWED,
-        "fences are the site's zones: edit [[zones]] in the site file and restart the server",
-    ))
 }
 
 // ---- stored configuration helpers ----

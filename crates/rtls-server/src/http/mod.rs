@@ -9,6 +9,7 @@
 mod alarms;
 mod api;
 mod dashboard;
+pub mod fences;
 mod hub;
 mod ops;
 mod ws;
@@ -20,7 +21,7 @@ use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
-use axum::routing::{get, post, put};
+use axum::routing::{delete, get, post, put};
 use axum::{Json, Router};
 use rtls_engine::site::Site;
 use serde::de::DeserializeOwned;
@@ -68,6 +69,15 @@ impl QueryStore {
         self.0
             .as_deref_mut()
             .ok_or_else(|| ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "the query connection is closed"))
+    }
+
+    /// The store, for tests that inspect what the API stored.
+    ///
+    /// # Panics
+    /// When the connection is closed.
+    #[doc(hidden)]
+    pub fn store_for_tests(&mut self) -> &mut (dyn Store + 'static) {
+        self.0.as_deref_mut().expect("the query connection is open")
     }
 
     /// Deletes rows stored before `before_ms` (retention).
@@ -287,14 +297,13 @@ pub fn router(state: AppState) -> Router {
         .route("/v2/zones", get(hub::list_zones))
         .route("/v2/zones/summary", get(hub::zone_summary))
         .route("/v2/zones/{zone_id}", get(hub::get_zone))
-        .route("/v2/fences", get(hub::list_fences).post(hub::fences_read_only))
-        .route("/v2/fences/summary", get(hub::fence_summary))
+        .route("/v2/fences", get(fences::list).post(fences::create))
+        .route("/v2/fences/summary", get(fences::summary))
         .route(
             "/v2/fences/{fence_id}",
-            get(hub::get_fence)
-                .put(hub::fences_read_only)
-                .delete(hub::fences_read_only),
+            get(fences::get).put(fences::replace).delete(fences::delete),
         )
+        .route("/api/v1/zones/edits", delete(fences::reset))
         .route("/v2/ws/socket", get(ws::socket))
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
         .layer(axum::middleware::from_fn_with_state(state.clone(), count_requests))

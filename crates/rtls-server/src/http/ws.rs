@@ -58,9 +58,11 @@ async fn serve(mut socket: WebSocket, state: AppState) {
     let metrics = metrics(&state);
     metrics.websocket_clients.inc();
     let mut hub = state.pipeline.subscribe();
+    // the zones when the socket opened (a zone edit reaches sockets opened after it)
     let fences: HashMap<String, Value> = state
-        .site
-        .zones
+        .pipeline
+        .live()
+        .zones()
         .iter()
         .map(fence_from_zone)
         .filter_map(|f| {

@@ -1,7 +1,8 @@
 //! The live state the APIs read: each tag's latest location and each zone's head count.
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
-use std::sync::RwLock;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, RwLock};
 
 use rtls_engine::site::Site;
 use rtls_engine::zones::Zone;
@@ -51,7 +52,10 @@ pub struct TagState {
 /// Latest locations and head counts, written by the partition threads.
 #[derive(Debug)]
 pub struct LiveState {
-    zones: Vec<Zone>,
+    /// The zones now: the site's, or the zone editor's set (`set_zones`).
+    zones: RwLock<Arc<Vec<Zone>>>,
+    /// Incremented by every `set_zones`, so the partitions see an edit.
+    zones_version: AtomicU64,
     latest: RwLock<HashMap<String, TagState>>,
     /// Per partition: the tags inside each zone.
     occupants: Vec<RwLock<HashMap<String, Vec<String>>>>,
@@ -65,7 +69,8 @@ pub const RECENT_ALARMS: usize = 10_000;
 impl LiveState {
     pub(super) fn new(site: &Site, partitions: usize) -> Self {
         Self {
-            zones: site.zones.clone(),
+            zones: RwLock::new(Arc::new(site.zones.clone())),
+            zones_version: AtomicU64::new(0),
             latest: RwLock::new(HashMap::new()),
             occupants: (0..partitions.max(1)).map(|_| RwLock::new(HashMap::new())).collect(),
             recent_alarms: RwLock::new(VecDeque::new()),
@@ -74,8 +79,23 @@ impl LiveState {
 
     /// The site's zones.
     #[must_use]
-    pub fn zones(&self) -> &[Zone] {
-        &self.zones
+    pub fn zones(&self) -> Arc<Vec<Zone>> {
+        self.zones.read().map(|z| Arc::clone(&z)).unwrap_or_default()
+    }
+
+    /// The zone set's version: 0 for the site's, one more for every edit.
+    #[must_use]
+    pub fn zones_version(&self) -> u64 {
+        self.zones_version.load(Ordering::Acquire)
+    }
+
+    /// Replaces the zones (validated by the caller): head counts list them at once, the
+    /// partitions hand them to their trackers within a clock tick.
+    pub fn set_zones(&self, zones: Vec<Zone>) {
+        if let Ok(mut slot) = self.zones.write() {
+            *slot = Arc::new(zones);
+            self.zones_version.fetch_add(1, Ordering::AcqRel);
+        }
     }
 
     /// A tag's latest state.
@@ -111,11 +131,15 @@ impl LiveState {
     /// The tags inside each zone (confirmed entries), sorted, for every zone of the site.
     #[must_use]
     pub fn occupants(&self) -> BTreeMap<String, Vec<String>> {
-        let mut inside: BTreeMap<String, Vec<String>> = self.zones.iter().map(|z| (z.id.clone(), Vec::new())).collect();
+        let mut inside: BTreeMap<String, Vec<String>> =
+            self.zones().iter().map(|z| (z.id.clone(), Vec::new())).collect();
         for partition in &self.occupants {
             if let Ok(partition) = partition.read() {
                 for (zone, tags) in partition.iter() {
-                    inside.entry(zone.clone()).or_default().extend(tags.iter().cloned());
+                    // a partition may not have seen a zone edit yet: deleted zones are not listed
+                    if let Some(inside) = inside.get_mut(zone) {
+                        inside.extend(tags.iter().cloned());
+                    }
                 }
             }
         }

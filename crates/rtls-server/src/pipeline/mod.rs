@@ -232,6 +232,7 @@ impl Pipeline {
                 clock_lag_s: config.clock_lag_s,
                 zone_entries: Default::default(),
                 source: site.name.clone().unwrap_or_else(|| "rtls".into()),
+                zones_version: 0,
             };
             threads.push(spawn(
                 format!("rtls-partition-{index}"),

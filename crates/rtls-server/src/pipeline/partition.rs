@@ -43,6 +43,8 @@ pub(super) struct PartitionWorker {
     pub zone_entries: HashMap<(String, String), f64>,
     /// The omlox `source` of our locations (the site's name).
     pub source: String,
+    /// The version of the live zone set the tracker holds.
+    pub zones_version: u64,
 }
 
 impl PartitionWorker {
@@ -51,8 +53,11 @@ impl PartitionWorker {
         let mut last_clock = Instant::now();
         loop {
             let mut processed = None;
+            self.follow_zone_edits();
             match self.rx.recv_timeout(CLOCK_TICK) {
                 Ok(batch) => {
+                    // an edit made while this batch waited applies to it
+                    self.follow_zone_edits();
                     let started = Instant::now();
                     for (id, record) in batch {
                         let tag = record.tag.clone();
@@ -103,16 +108,7 @@ impl PartitionWorker {
             self.publish_event(event, received_ms, &mut batch);
         }
         if !out.events.is_empty() {
-            let occupants = self
-                .live
-                .zones()
-                .iter()
-                .map(|zone| {
-                    let tags = self.tracker.occupants(&zone.id).into_iter().map(String::from).collect();
-                    (zone.id.clone(), tags)
-                })
-                .collect();
-            self.live.set_occupants(self.index, occupants);
+            self.publish_occupants();
         }
         out.clear();
         if self.outputs.send(batch).is_err() {
@@ -121,6 +117,33 @@ impl PartitionWorker {
                 self.progress.stored[self.index].fetch_max(id, Ordering::AcqRel);
             }
         }
+    }
+
+    /// Hands a zone edit (the control room's zone editor) to the tracker.
+    fn follow_zone_edits(&mut self) {
+        let version = self.live.zones_version();
+        if version == self.zones_version {
+            return;
+        }
+        self.zones_version = version;
+        match self.tracker.replace_zones(self.live.zones().to_vec()) {
+            Ok(()) => self.publish_occupants(),
+            // the API validated the set; a failure here is a bug, and the old zones stay
+            Err(e) => tracing::error!(partition = self.index, error = %e, "the edited zones were refused"),
+        }
+    }
+
+    fn publish_occupants(&self) {
+        let occupants = self
+            .live
+            .zones()
+            .iter()
+            .map(|zone| {
+                let tags = self.tracker.occupants(&zone.id).into_iter().map(String::from).collect();
+                (zone.id.clone(), tags)
+            })
+            .collect();
+        self.live.set_occupants(self.index, occupants);
     }
 
     fn publish_update(&mut self, update: &TrackUpdate, received_ms: i64, batch: &mut OutputBatch) {

@@ -1,0 +1,312 @@
+//! omlox fences: the zones the trackers watch, read and edited live (the dashboard's zone
+//! editor). The site file's `[[zones]]` are the seed; an edit (create, replace, delete) stores
+//! the whole zone set in the database (configuration `zones/current`), which a restart loads
+//! instead of the site's, and hands it to the running trackers (head counts, zone events and
+//! predictive hazard alarms follow within a clock tick; tags inside an unchanged zone stay
+//! inside). Deleting `zones/current` (`DELETE /api/v1/zones/edits`) returns to the site file.
+//!
+//! A fence is written in the site's local metres (`crs` absent or `local`): a `Polygon` region
+//! (closed ring) or a `Point` with `radius` (a 32-gon). `properties` may carry `rtls:kind`
+//! (`hazard`, `restricted`, `area-of-interest`, default), and `rtls:floor` (a site floor id) or
+//! `rtls:z_range_m`; without either the zone spans every height. The zone's id is the fence's
+//! `foreign_id` when given, else its UUID.
+
+use axum::body::Bytes;
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use rtls_engine::site::Site;
+use rtls_engine::zones::{AntiFlap, Shape, Zone as SiteZone, ZoneKind, ZoneMonitor};
+use serde_json::Value;
+
+use super::{parse_json, ApiError, ApiResult, AppState};
+use crate::auth::Access;
+use crate::convert::fence_from_zone;
+use crate::omlox::{Fence, Region};
+use crate::store::Store;
+
+/// Where the edited zone set is stored.
+const ZONES_KIND: &str = "zones";
+const ZONES_ID: &str = "current";
+
+/// Vertices of the polygon a circular fence becomes.
+const CIRCLE_VERTICES: usize = 32;
+
+fn fences(state: &AppState) -> Vec<Fence> {
+    state.pipeline.live().zones().iter().map(fence_from_zone).collect()
+}
+
+fn find<'a>(fences: &'a [Fence], fence_id: &str) -> Option<&'a Fence> {
+    fences
+        .iter()
+        .find(|f| f.id == fence_id || f.foreign_id.as_deref() == Some(fence_id))
+}
+
+/// `GET /v2/fences`.
+pub(super) async fn list(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<String>>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(fences(&state).into_iter().map(|f| f.id).collect()))
+}
+
+/// `GET /v2/fences/summary`.
+pub(super) async fn summary(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Fence>>> {
+    state.authorize(&headers, Access::Read)?;
+    Ok(Json(fences(&state)))
+}
+
+/// `GET /v2/fences/{fence_id}`: by UUID or by the zone's id (`foreign_id`).
+pub(super) async fn get(
+    State(state): State<AppState>,
+    Path(fence_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Fence>> {
+    state.authorize(&headers, Access::Read)?;
+    find(&fences(&state), &fence_id)
+        .cloned()
+        .map(Json)
+        .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))
+}
+
+/// `POST /v2/fences`: 201 with the fence (a UUID is assigned when `id` is absent or empty); 400
+/// naming the field of a bad fence or an id in use.
+pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, body: Bytes) -> ApiResult<Response> {
+    state.authorize(&headers, Access::Write)?;
+    let mut value: Value = parse_json(&body)?;
+    if let Value::Object(object) = &mut value {
+        if object.get("id").is_none_or(|id| id.as_str().is_some_and(str::is_empty)) {
+            object.insert("id".into(), Value::String(uuid::Uuid::new_v4().to_string()));
+        }
+    }
+    let fence: Fence = parse_json(value.to_string().as_bytes())?;
+    uuid::Uuid::parse_str(&fence.id)
+        .map_err(|e| ApiError::field("id", format!("`{}` is not a UUID ({e})", fence.id)))?;
+    let zone_id = fence.foreign_id.clone().unwrap_or_else(|| fence.id.clone());
+    let zone = zone_from_fence(&fence, zone_id, &state.site)?;
+    let live = std::sync::Arc::clone(state.pipeline.live());
+    let created = state
+        .query(move |store| {
+            let mut zones = live.zones().to_vec();
+            let clash = zones
+                .iter()
+                .any(|z| z.id == zone.id || fence_from_zone(z).id == fence.id);
+            if clash {
+                return Ok(Err(ApiError::field(
+                    "id",
+                    "a fence with this id or foreign_id exists; use PUT",
+                )));
+            }
+            zones.push(zone.clone());
+            Ok(commit(store, &live, zones).map(|()| fence_from_zone(&zone)))
+        })
+        .await??;
+    Ok((StatusCode::CREATED, Json(created)).into_response())
+}
+
+/// `PUT /v2/fences/{fence_id}`: replaces a fence's geometry, name and properties (its zone id
+/// stays); 200 with the fence.
+pub(super) async fn replace(
+    State(state): State<AppState>,
+    Path(fence_id): Path<String>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<Json<Fence>> {
+    state.authorize(&headers, Access::Write)?;
+    let mut value: Value = parse_json(&body)?;
+    if let Value::Object(object) = &mut value {
+        // the path names the fence; a body without an id is fine
+        object.entry("id").or_insert_with(|| Value::String(fence_id.clone()));
+    }
+    let fence: Fence = parse_json(value.to_string().as_bytes())?;
+    let site = std::sync::Arc::clone(&state.site);
+    let live = std::sync::Arc::clone(state.pipeline.live());
+    let replaced = state
+        .query(move |store| {
+            let mut zones = live.zones().to_vec();
+            let Some(index) = zones.iter().position(|z| {
+                let existing = fence_from_zone(z);
+                existing.id == fence_id || existing.foreign_id.as_deref() == Some(fence_id.as_str())
+            }) else {
+                return Ok(Err(ApiError::not_found(format!("fence `{fence_id}` not found"))));
+            };
+            let zone = match zone_from_fence(&fence, zones[index].id.clone(), &site) {
+                Ok(zone) => zone,
+                Err(e) => return Ok(Err(e)),
+            };
+            zones[index] = zone.clone();
+            Ok(commit(store, &live, zones).map(|()| fence_from_zone(&zone)))
+        })
+        .await??;
+    Ok(Json(replaced))
+}
+
+/// `DELETE /v2/fences/{fence_id}`: 204; its occupants leave it without an exit event.
+pub(super) async fn delete(
+    State(state): State<AppState>,
+    Path(fence_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<StatusCode> {
+    state.authorize(&headers, Access::Write)?;
+    let live = std::sync::Arc::clone(state.pipeline.live());
+    state
+        .query(move |store| {
+            let mut zones = live.zones().to_vec();
+            let before = zones.len();
+            zones.retain(|z| {
+                let fence = fence_from_zone(z);
+                fence.id != fence_id && fence.foreign_id.as_deref() != Some(fence_id.as_str())
+            });
+            if zones.len() == before {
+                return Ok(Err(ApiError::not_found(format!("fence `{fence_id}` not found"))));
+            }
+            Ok(commit(store, &live, zones))
+        })
+        .await??;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// `DELETE /api/v1/zones/edits`: forgets the edited zone set; the site file's zones are
+/// watched again (at once, and after a restart). 204.
+pub(super) async fn reset(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<StatusCode> {
+    state.authorize(&headers, Access::Write)?;
+    let site = std::sync::Arc::clone(&state.site);
+    let live = std::sync::Arc::clone(state.pipeline.live());
+    state
+        .query(move |store| {
+            store.delete_config(ZONES_KIND, ZONES_ID)?;
+            live.set_zones(site.zones.clone());
+            Ok(())
+        })
+        .await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// Validates the whole set (ids unique, geometry), stores it, and hands it to the trackers.
+fn commit(store: &mut dyn Store, live: &crate::pipeline::LiveState, zones: Vec<SiteZone>) -> Result<(), ApiError> {
+    ZoneMonitor::new(
+        zones.clone(),
+        AntiFlap {
+            tolerance_m: 0.0,
+            delay_s: 0.0,
+        },
+    )
+    .map_err(|e| ApiError::field("region", e.to_string()))?;
+    let json =
+        serde_json::to_string(&zones).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
+    store
+        .put_config(ZONES_KIND, ZONES_ID, &json)
+        .map_err(|e| ApiError::new(StatusCode::SERVICE_UNAVAILABLE, e.to_string()))?;
+    live.set_zones(zones);
+    Ok(())
+}
+
+/// The stored zone set, if the zones were edited (for `rtls serve` at start).
+///
+/// # Errors
+/// The store's error, or a stored set that is not valid JSON zones.
+pub fn stored_zones(store: &mut dyn Store) -> Result<Option<Vec<SiteZone>>, String> {
+    let Some(json) = store.get_config(ZONES_KIND, ZONES_ID).map_err(|e| e.to_string())? else {
+        return Ok(None);
+    };
+    let zones: Vec<SiteZone> = serde_json::from_str(&json)
+        .map_err(|e| format!("the stored zone set (config zones/current) is corrupt: {e}"))?;
+    ZoneMonitor::new(
+        zones.clone(),
+        AntiFlap {
+            tolerance_m: 0.0,
+            delay_s: 0.0,
+        },
+    )
+    .map_err(|e| format!("the stored zone set (config zones/current) is invalid: {e}"))?;
+    Ok(Some(zones))
+}
+
+/// A fence as a site zone with id `zone_id` (see the module documentation).
+fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site) -> ApiResult<SiteZone> {
+    if fence.crs.as_deref().is_some_and(|crs| crs != "local") {
+        return Err(ApiError::field(
+            "crs",
+            "fences are written in the site's local metres (crs absent or \"local\")",
+        ));
+    }
+    let vertices_m: Vec<[f64; 2]> = match &fence.region {
+        Region::Polygon { coordinates } => {
+            let ring = coordinates
+                .first()
+                .ok_or_else(|| ApiError::field("region.coordinates", "a polygon needs a ring"))?;
+            let mut vertices = Vec::with_capacity(ring.len());
+            for (i, p) in ring.iter().enumerate() {
+                match p.as_slice() {
+                    [x, y, ..] if x.is_finite() && y.is_finite() => vertices.push([*x, *y]),
+                    _ => {
+                        return Err(ApiError::field(
+                            format!("region.coordinates[0][{i}]"),
+                            "a position is [x, y] in m, finite",
+                        ))
+                    }
+                }
+            }
+            // GeoJSON rings repeat the first vertex at the end; zones do not
+            if vertices.len() > 1 && vertices.first() == vertices.last() {
+                vertices.pop();
+            }
+            vertices
+        }
+        Region::Point { coordinates } => {
+            let radius = fence
+                .radius
+                .filter(|r| r.is_finite() && *r > 0.0)
+                .ok_or_else(|| ApiError::field("radius", "a Point fence needs a radius > 0 m"))?;
+            let (Some(&x), Some(&y)) = (coordinates.first(), coordinates.get(1)) else {
+                return Err(ApiError::field("region.coordinates", "a position is [x, y] in m"));
+            };
+            (0..CIRCLE_VERTICES)
+                .map(|k| {
+                    let angle = std::f64::consts::TAU * k as f64 / CIRCLE_VERTICES as f64;
+                    [x + radius * angle.cos(), y + radius * angle.sin()]
+                })
+                .collect()
+        }
+    };
+    let property = |key: &str| fence.properties.as_ref().and_then(|p| p.get(key)).cloned();
+    let kind: ZoneKind = match property("rtls:kind") {
+        None => ZoneKind::AreaOfInterest,
+        Some(kind) => serde_json::from_value(kind.clone()).map_err(|_| {
+            ApiError::field(
+                "properties.rtls:kind",
+                format!("{kind} is not one of \"hazard\", \"restricted\", \"area-of-interest\""),
+            )
+        })?,
+    };
+    let floor = match property("rtls:floor") {
+        None => None,
+        Some(Value::String(floor)) => Some(
+            site.floors
+                .iter()
+                .find(|f| f.id == floor)
+                .ok_or_else(|| ApiError::field("properties.rtls:floor", format!("the site has no floor `{floor}`")))?,
+        ),
+        Some(_) => return Err(ApiError::field("properties.rtls:floor", "a floor id (string)")),
+    };
+    let z_range_m = match (floor, property("rtls:z_range_m")) {
+        (Some(floor), _) => Some(floor.z_range_m),
+        (None, Some(range)) => Some(
+            serde_json::from_value::<[f64; 2]>(range)
+                .map_err(|_| ApiError::field("properties.rtls:z_range_m", "[z_min, z_max] in m"))?,
+        ),
+        (None, None) => None,
+    };
+    let zone = SiteZone {
+        name: fence.name.clone().unwrap_or_else(|| zone_id.clone()),
+        id: zone_id,
+        kind,
+        readers: Vec::new(),
+        shape: Shape::Polygon {
+            vertices_m,
+            floor: floor.map(|f| f.id.clone()),
+            z_range_m,
+        },
+    };
+    zone.validate().map_err(|e| ApiError::field("region", e.to_string()))?;
+    Ok(zone)
+}
