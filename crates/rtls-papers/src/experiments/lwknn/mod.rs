@@ -462,7 +462,7 @@ fn notes(
             second_order_m = fmt(field.mean(2), 2),
             first_order_m = fmt(field.mean(1), 2),
             textbook_m = fmt(field.mean(3), 2),
-            textbook_nees = fmt(mean_nees(&field), 1),
+            textbook_nees = fmt(mean_nees(field), 1),
             order_gain_m = fmt(order.mean(1) - order.mean(2), 2),
             order_second_m = fmt(order.mean(2), 2),
             order_first_m = fmt(order.mean(1), 2),
