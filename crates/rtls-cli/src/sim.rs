@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! rtls sim mine --out DIR [--miners N] [--duration-s S] [--seed N] [--without-map]
-//! rtls sim mekf|ukf-uwb|vdkf --out DIR [--seed N] [--run I] [--scenarios DIR]
+//! rtls sim mekf|ukf-uwb|lwknn|vdkf --out DIR [--seed N] [--run I] [--scenarios DIR]
 //! ```
 //!
 //! `DIR/site.toml` (the site the tracker needs), `DIR/measurements.jsonl` (the records, JSON
@@ -16,7 +16,7 @@
 //!
 //! scores the tracker on a known truth from files, and a user can start a deployment from it.
 //!
-//! A paper scenario (`mekf`, `ukf-uwb`, `vdkf`: seeds 000, 001, 004) is written as run `I` of
+//! A paper scenario (`mekf`, `ukf-uwb`, `lwknn`, `vdkf`: seeds 000, 001, 002, 004) is written as run `I` of
 //! `rtls repro <experiment> --seed N`: the same site, records and truth its "ours" row tracks,
 //! so the row's figures can be reproduced from the files.
 
@@ -45,6 +45,10 @@ pub enum Scenario {
     /// Seed 001's turn (`rtls repro ukf-uwb`): a walker turning between two UWB stations that
     /// range (TOA) and measure RSS; the site runs the coordinated-turn UKF of the "ours" row.
     UkfUwb,
+    /// Seed 002's field (`rtls repro lwknn`, Fig. 1): a node crossing a 100 m × 100 m field of
+    /// 25 anchors, its L-WKNN fixes and accelerometer samples; the site runs the textbook
+    /// `[p, v]` KF with the accelerometer as control input.
+    Lwknn,
     /// Seed 004's vehicle (`rtls repro vdkf`): cellular TDOA from four stations and on-board
     /// odometry with a drifting heading; the site runs the IMM with the heading channel.
     Vdkf,
@@ -94,6 +98,7 @@ pub fn run(args: &SimArgs) -> Result<()> {
         Scenario::Mine => mine(args),
         Scenario::Mekf => paper(args, ExperimentId::Mekf),
         Scenario::UkfUwb => paper(args, ExperimentId::UkfUwb),
+        Scenario::Lwknn => paper(args, ExperimentId::Lwknn),
         Scenario::Vdkf => paper(args, ExperimentId::Vdkf),
     }
 }

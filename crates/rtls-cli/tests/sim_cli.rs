@@ -73,6 +73,7 @@ fn a_paper_scenario_from_files_is_tracked_exactly_as_its_reproduction_tracks_it(
     for (name, id) in [
         ("mekf", ExperimentId::Mekf),
         ("ukf-uwb", ExperimentId::UkfUwb),
+        ("lwknn", ExperimentId::Lwknn),
         ("vdkf", ExperimentId::Vdkf),
     ] {
         let dir = temp_dir("sim", name);

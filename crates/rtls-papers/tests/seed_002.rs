@@ -1,6 +1,6 @@
 //! Seed 002 end to end: L-WKNN fixes from simulated RSSI, tracked by the paper's first- and
-//! second-order accelerometer models (as printed) and the textbook `[p, v]` model on the same
-//! seeded data.
+//! second-order accelerometer models (as printed) and the textbook `[p, v]` model (the engine's
+//! tracker on the run's recording) on the same seeded data.
 
 use rtls_papers::reproduction::{run_seed_002, Seed002Config};
 use rtls_sim::{euclidean_errors, ErrorSummary};

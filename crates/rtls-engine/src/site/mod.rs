@@ -357,6 +357,14 @@ pub struct TrackerSettings {
     /// (walker 1, vehicle 2, robot 0.5).
     #[serde(default = "platform::default_acceleration_noise_std_mps2")]
     pub acceleration_noise_std_mps2: f64,
+    /// Process noise of a prediction driven by an accelerometer sample (the sample is the
+    /// control input): the white acceleration the accelerometer misses (misalignment, bias,
+    /// vibration), m/s² (≥ 0). The sample's own `std_mps2` is added as discrete white noise held
+    /// over the step, `Γ ε² Γᵀ` with `Γ = [Δt²/2, Δt]ᵀ`. Absent:
+    /// `acceleration_noise_std_mps2` (an accelerometer of unknown quality).
+    /// Single-model CV tracks only (the IMM's CV mode keeps its own noise).
+    #[serde(default)]
+    pub aided_acceleration_noise_std_mps2: Option<f64>,
     /// Probability that a correct measurement falls inside the χ² validation gate, in (0, 1).
     /// Default 0.999.
     #[serde(default = "platform::default_gate_probability")]

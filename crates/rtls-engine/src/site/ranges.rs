@@ -100,6 +100,8 @@ const REFERENCE_DISTANCE_M: Bounds = Bounds::closed(0.01, 1000.0, "m");
 const RANGE_STD_M: Bounds = Bounds::closed(1e-4, 1000.0, "m");
 const RANGE_BIAS_M: Bounds = Bounds::closed(-1000.0, 1000.0, "m");
 const ACCELERATION_NOISE_MPS2: Bounds = Bounds::closed(1e-6, 1000.0, "m/s²");
+/// 0 allowed: an accelerometer-driven prediction may rest on the samples' own noise alone.
+const AIDED_ACCELERATION_NOISE_MPS2: Bounds = Bounds::closed(0.0, 1000.0, "m/s²");
 const GATE_PROBABILITY: Bounds = Bounds::closed(0.5, 1.0 - 1e-9, "");
 const PROBABILITY: Bounds = Bounds::open(0.0, 1.0, "");
 const WINDOW_S: Bounds = Bounds::closed(1e-3, 86_400.0, "s");
@@ -375,6 +377,13 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
         t.acceleration_noise_std_mps2,
         ACCELERATION_NOISE_MPS2,
     ));
+    if let Some(noise) = t.aided_acceleration_noise_std_mps2 {
+        out.push(within(
+            at("aided_acceleration_noise_std_mps2"),
+            noise,
+            AIDED_ACCELERATION_NOISE_MPS2,
+        ));
+    }
     out.push(within(at("gate_probability"), t.gate_probability, GATE_PROBABILITY));
     out.push(count(
         at("initiation.confirm_updates"),

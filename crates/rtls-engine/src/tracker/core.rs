@@ -4,6 +4,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
+use super::aided::HeldAcceleration;
 use super::alarms::position_of;
 use super::direct::direct_measurement;
 use super::divergence::{divergence, reset, reset_if_diverged};
@@ -222,12 +223,19 @@ fn apply_record<const N: usize>(
         }
         // the control input of the CV model (and of the IMM's CV mode) for the next
         // predictions, up to ACCELERATION_HOLD_S
-        Measurement::Accelerometer { acceleration_mps2, .. } => {
+        Measurement::Accelerometer {
+            acceleration_mps2,
+            std_mps2,
+        } => {
             let mut a = [0.0; 3];
             for (axis, value) in acceleration_mps2.iter().enumerate().take(3) {
                 a[axis] = *value;
             }
-            track.acceleration = Some((time_s, a));
+            track.acceleration = Some(HeldAcceleration {
+                time_s,
+                acceleration_mps2: a,
+                std_mps2: std_mps2.unwrap_or(0.0),
+            });
             Ok(())
         }
         Measurement::Pseudorange { .. } => pseudorange(shared, track, time_s, measurement, out),

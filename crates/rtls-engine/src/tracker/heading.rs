@@ -35,6 +35,7 @@
 
 use rtls_estimation::aided::{odometry_velocity, HeadingModel};
 
+use super::aided::HeldAcceleration;
 use super::heading_state::{
     COURSE_MIN_INTERVAL_S, COURSE_VARIANCE_INFLATION, GATE_SIGMAS, GRAVITY_MPS2, GRAVITY_TIME_CONSTANT_S,
     MAX_HEADING_STD_RAD, RATE_HOLD_S,
@@ -336,7 +337,12 @@ pub(super) fn imu<const N: usize>(
             // a = R(ψ) [a_fwd, a_left]ᵀ
             let (sin, cos) = heading.sin_cos();
             let a = [cos * forward - sin * left, sin * forward + cos * left, 0.0];
-            track.acceleration = Some((time_s, a));
+            // the IMU record states no accelerometer noise: the residual noise covers it
+            track.acceleration = Some(HeldAcceleration {
+                time_s,
+                acceleration_mps2: a,
+                std_mps2: 0.0,
+            });
         }
     }
     Ok(())

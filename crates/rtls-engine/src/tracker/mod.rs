@@ -131,6 +131,7 @@
 //! (1988) (manoeuvres, IMM); Bar-Shalom, Li & Kirubarajan,
 //! *Estimation with Applications to Tracking and Navigation*, 2001, §5.4 (validation gates).
 
+mod aided;
 mod alarms;
 mod anchors;
 mod anonymous;
@@ -295,7 +296,12 @@ impl Tracker {
             anchors,
             radio_map: None,
             motion,
-            aided_motion: motion.with_acceleration_input(),
+            // the accelerometer-driven model: the residual noise σ_r (absent: σ_a)
+            aided_motion: match settings.aided_acceleration_noise_std_mps2 {
+                Some(sigma) => ConstantVelocity::new(ProcessNoise::continuous(sigma * sigma))?,
+                None => motion,
+            }
+            .with_acceleration_input(),
             kf: KalmanFilter::default(),
             ekf: ExtendedKalmanFilter::default(),
             ukf: UnscentedKalmanFilter::new(SigmaPointParameters::default()),

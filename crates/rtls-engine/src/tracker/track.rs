@@ -12,6 +12,7 @@ use rtls_estimation::imm::ImmState;
 use rtls_estimation::motion::ConstantVelocity;
 use rtls_estimation::Gaussian;
 
+use super::aided::HeldAcceleration;
 use super::anchors::{AnchorReading, Anchors};
 use super::bounds::SiteBounds;
 use super::constraint_model::{Constraints, Hearing};
@@ -40,7 +41,8 @@ pub(crate) struct Shared {
     pub(crate) radio_map: Option<RadioMap>,
     /// CV with white-acceleration noise `q = σ_a²`.
     pub(crate) motion: ConstantVelocity,
-    /// The same model driven by a measured acceleration `u`.
+    /// The CV model driven by a measured acceleration `u`, with the residual noise
+    /// `tracker.aided_acceleration_noise_std_mps2` (see [`super::aided`]).
     pub(crate) aided_motion: ConstantVelocity,
     pub(crate) kf: KalmanFilter,
     pub(crate) ekf: ExtendedKalmanFilter,
@@ -84,8 +86,8 @@ pub(crate) struct Track<const N: usize> {
     /// Fix-then-filter: direct measurements (fixes, velocities, odometry) held while the
     /// epoch is open, applied in time order with its fix (see [`super::direct`]).
     pub(super) deferred: Vec<(f64, Measurement)>,
-    /// Last accelerometer sample `(t, a)`.
-    pub(super) acceleration: Option<(f64, [f64; 3])>,
+    /// Last accelerometer sample.
+    pub(super) acceleration: Option<HeldAcceleration>,
     /// An update not yet reported, and what produced it.
     pub(super) unreported: Option<UpdateSource>,
     pub(super) last_output_s: f64,

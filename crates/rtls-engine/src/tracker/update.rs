@@ -9,6 +9,7 @@ use rtls_estimation::imm::ImmState;
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
 use rtls_estimation::{Gaussian, Matrix, Vector};
 
+use super::aided::AidedMotion;
 use super::alarms::position_of;
 use super::anchors::AnchorReading;
 use super::models::{AnchorLaw, AnchorMeasurement};
@@ -28,8 +29,9 @@ pub(super) struct Prior<const N: usize> {
 }
 
 /// `x⁻ = F x̂ (+ B a)`, `P⁻ = F P Fᵀ + Q` to `time_s`, with a recent accelerometer sample as
-/// the control input (seed 002's acceleration-driven prediction); under the IMM, the modes'
-/// mixing and prediction and their moment-matched combination.
+/// the control input and its noise in `Q` (seed 002's acceleration-driven prediction, see
+/// [`super::aided`]); under the IMM, the modes' mixing and prediction and their
+/// moment-matched combination.
 pub(super) fn predict<const N: usize>(
     shared: &Shared,
     track: &Track<N>,
@@ -38,12 +40,13 @@ pub(super) fn predict<const N: usize>(
 ) -> Result<Prior<N>> {
     let held = track
         .acceleration
-        .filter(|(t, _)| time_s - t <= ACCELERATION_HOLD_S)
-        .map(|(_, a)| a);
+        .filter(|held| time_s - held.time_s <= ACCELERATION_HOLD_S);
     if let (Some(manoeuvres), Some(modes)) = (&shared.manoeuvres, &track.modes) {
         // the CV mode takes the accelerometer as its control input, like the single CV model
         let modes = match held {
-            Some(a) => manoeuvres.predict_with_control(modes, time_s, &a[..dimensions::<N>()])?,
+            Some(held) => {
+                manoeuvres.predict_with_control(modes, time_s, &held.acceleration_mps2[..dimensions::<N>()])?
+            }
             None => manoeuvres.predict(modes, time_s)?,
         };
         return Ok(Prior {
@@ -52,11 +55,12 @@ pub(super) fn predict<const N: usize>(
         });
     }
     let state = match held {
-        Some(a) => {
+        Some(held) => {
+            let a = held.acceleration_mps2;
             let u = DVector::from_iterator(dimensions::<N>(), a.iter().copied().take(dimensions::<N>()));
-            shared
-                .kf
-                .predict_with_control(state, &shared.aided_motion, &u, time_s)?
+            // Q = Q_c(σ_r²) + B ε² Bᵀ
+            let model = AidedMotion::new(shared.aided_motion, held.std_mps2)?;
+            shared.kf.predict_with_control(state, &model, &u, time_s)?
         }
         None => shared.kf.predict(state, &shared.motion, time_s)?,
     };

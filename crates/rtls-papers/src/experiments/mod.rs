@@ -175,8 +175,9 @@ impl ExperimentId {
         match self {
             Self::Mekf => Some(mekf::recording(sources, seed, run)),
             Self::UkfUwb => Some(ukf_uwb::recording(sources, seed, run)),
+            Self::Lwknn => Some(lwknn::recording(sources, seed, run)),
             Self::Vdkf => Some(vdkf::recording(sources, seed, run)),
-            Self::Lwknn | Self::WsnEkf => None,
+            Self::WsnEkf => None,
         }
     }
 

@@ -1,13 +1,17 @@
 //! Seed 002's experiment: L-WKNN fingerprint fixes over a 100 m × 100 m site, tracked with the
-//! accelerometer as control input by the paper's first- and second-order models (as printed)
-//! and by the textbook `[p, v]` model, all on the same seeded data.
+//! accelerometer as control input by the paper's first- and second-order models (as printed,
+//! the baselines, built here from rtls-estimation types) and by ours: the textbook `[p, v]`
+//! model in the engine's tracker (`rtls_engine::tracker::Tracker`), run on the same data
+//! written as a [`Recording`] ([`seed_002_recording`]).
 
-use nalgebra::{DVector, Matrix2, Matrix4, Vector2, Vector4};
+use std::fmt::Write as _;
+
+use nalgebra::{DVector, Matrix2, Vector2};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rtls_estimation::aided::{
-    AccelerometerSample, DeadReckoning, ModelOrder, PrintedAccelerometerModel, TextbookAccelerometerModel,
-};
+use rtls_engine::evaluation::TruthSample;
+use rtls_engine::record::{Measurement, Record};
+use rtls_estimation::aided::{AccelerometerSample, DeadReckoning, ModelOrder, PrintedAccelerometerModel};
 use rtls_estimation::filter::KalmanFilter;
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
 use rtls_estimation::Gaussian;
@@ -16,6 +20,7 @@ use rtls_positioning::fingerprint::{
 };
 
 use crate::error::{Result, SimError};
+use crate::recording::Recording;
 use rtls_sim::scenarios::{seed_002_manoeuvre_then_cruise, seed_002_trajectory, GridSite};
 use rtls_sim::sensors::{fingerprint_means, AccelerometerNoise, AccelerometerSimulator};
 
@@ -43,7 +48,9 @@ pub struct Seed002Config {
     pub fix_variance_m2: [f64; 2],
     /// Accelerometer noise (Table 1: 0.01 m/s²; §2(3): 10 % of the reading).
     pub accelerometer: AccelerometerNoise,
-    /// Extra white-acceleration variance of the textbook model ((m/s²)²); 0 = accelerometer only.
+    /// Extra white-acceleration variance of the textbook model ((m/s²)²): the square of the
+    /// engine's `aided_acceleration_noise_std_mps2` (a continuous white acceleration of this
+    /// PSD, m²/s³, on top of the samples' noise); 0 = the accelerometer's own noise only.
     pub textbook_extra_variance_m2ps4: f64,
     /// The site: anchors, reference-point grid and radio (Table 1: [`GridSite::seed_002`]).
     pub site: GridSite,
@@ -94,26 +101,85 @@ pub struct Seed002Run {
     pub first_order: Vec<[f64; 2]>,
     /// Second-order model as printed (eq. (6), (9)–(11)).
     pub second_order: Vec<[f64; 2]>,
-    /// Textbook model: state `[p, v]`, accelerometer as control input.
+    /// Ours: the textbook model (state `[p, v]`, accelerometer as control input) in the
+    /// engine's tracker on [`seed_002_recording`] of the same data, its update at each epoch.
     pub textbook: Vec<[f64; 2]>,
+    /// The engine's position NEES `eᵀ P⁻¹ e` at each epoch (2 on average if consistent).
+    pub textbook_nees: Vec<f64>,
     /// Whether L-WKNN chose the same neighbours as global WKNN (same `n`) at each epoch.
     pub same_neighbours_as_wknn: Vec<bool>,
 }
+
+/// The tag id of the node in [`seed_002_recording`].
+pub const SEED_002_TAG: &str = "node";
 
 /// Runs seed 002's experiment once with `seed`.
 ///
 /// The fingerprint database holds one noisy (`σ²`) RSSI vector per reference point of the
 /// 10 m grid; every second the node's RSSI (`σ_p²`) gives an L-WKNN fix, and its
-/// accelerometer the mean acceleration over the last second. The filters start at the known
-/// initial position with zero covariance (`Q(0) = 0`, §1.2) and observe the fixes with `U`.
+/// accelerometer the mean acceleration over the last second. The printed models start at the
+/// known initial position with zero covariance (`Q(0) = 0`, §1.2) and observe the fixes with
+/// `U`; ours is the engine's tracker on [`seed_002_recording`] of the same fixes and samples.
 ///
 /// # Errors
 /// [`SimError::Positioning`] if the locator fails; [`SimError::Estimation`] if a filter step
-/// fails; the simulators' parameter errors.
+/// fails; the simulators' parameter errors; the engine's errors for a site it refuses, and
+/// [`SimError::EmptyInput`] if it gave no update by some epoch.
 ///
 /// # References
 /// Seed 002 §1–§2, Table 1, Fig. 1 and Fig. 5–6.
 pub fn run_seed_002(config: &Seed002Config, seed: u64) -> Result<Seed002Run> {
+    let (mut run, recording) = simulate(config, seed)?;
+    let tracked = recording.track()?;
+    let times: Vec<f64> = recording.truth.iter().map(|row| row.time_s).collect();
+    for (update, truth) in tracked.latest_at(SEED_002_TAG, &times).into_iter().zip(&run.truth) {
+        let u = update.ok_or(SimError::EmptyInput {
+            what: "seed 002 engine state at an epoch (no track update yet)",
+        })?;
+        let position = [u.position_m[0], u.position_m[1]];
+        // D × D row-major in the first D² entries
+        let (p, d) = (&u.position_covariance_m2, u.dimensions);
+        let covariance = Matrix2::new(p[0], p[1], p[d], p[d + 1]);
+        let error = Vector2::new(position[0] - truth[0], position[1] - truth[1]);
+        // eᵀ P⁻¹ e
+        let nees = covariance
+            .try_inverse()
+            .map(|inverse| (error.transpose() * inverse * error)[0])
+            .ok_or(SimError::EmptyInput {
+                what: "seed 002 engine covariance (singular)",
+            })?;
+        run.textbook.push(position);
+        run.textbook_nees.push(nees);
+    }
+    Ok(run)
+}
+
+/// Seed 002's run `seed` as a [`Recording`]: the site file a user would write from the
+/// sensors' specifications, the records the node would send, and the truth.
+/// [`run_seed_002`] tracks it with the engine for the "ours" row.
+///
+/// - **Readers**: the 25 anchors (their RSSI is turned into fixes on the node's side).
+/// - **Records**: at `t = 0` an enrolment `fix` at the known start (σ 1 cm) and a `velocity`
+///   of 0 (σ 1 cm/s): the node starts at rest at a surveyed point, as the printed models
+///   assume (`x(0)` known, `v(0) = 0`, `Q(0) = 0`); then every second an `accelerometer`
+///   record (the mean acceleration over the last second, with the filter's `ε` as its std;
+///   with noise proportional to the reading, the larger axis's) and the L-WKNN `fix` with
+///   the calibrated covariance `U`.
+/// - **Tracker**: fix-then-filter, the CV model as a KF driven by the accelerometer, with no
+///   noise beyond the samples' own (`aided_acceleration_noise_std_mps2` = the configured
+///   extra, 0 in the paper's comparison): seed 002's textbook `[p, v]` model. Every fix is
+///   taken (`U` is the paper's calibration; an L-WKNN error far outside it is still the only
+///   position there is), at the stated noise (no adaptive scaling).
+///
+/// # Errors
+/// As [`run_seed_002`].
+pub fn seed_002_recording(config: &Seed002Config, seed: u64) -> Result<Recording> {
+    Ok(simulate(config, seed)?.1)
+}
+
+/// One seeded run: the fixes, the printed models' estimates and the recording for the engine
+/// (`textbook` left empty).
+fn simulate(config: &Seed002Config, seed: u64) -> Result<(Seed002Run, Recording)> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let trajectory = match config.trajectory {
         Seed002Trajectory::Tracking => seed_002_trajectory()?,
@@ -143,19 +209,16 @@ pub fn run_seed_002(config: &Seed002Config, seed: u64) -> Result<Seed002Run> {
 
     let kf = KalmanFilter::default();
     let u = NoiseCovariance::diagonal(&config.fix_variance_m2).map_err(SimError::estimation(0.0))?;
-    let fix2 = ComponentSelection::<2>::new(&[0, 1], u.clone()).map_err(SimError::estimation(0.0))?;
-    let fix4 = ComponentSelection::<4>::position(2, u).map_err(SimError::estimation(0.0))?;
+    let fix2 = ComponentSelection::<2>::new(&[0, 1], u).map_err(SimError::estimation(0.0))?;
     let start = samples[0].position_m;
     // known initial position, at rest: zero covariance
     let mut first = Gaussian::new(Vector2::from(start), Matrix2::zeros(), 0.0).map_err(SimError::estimation(0.0))?;
     let mut second = first;
-    let mut textbook = Gaussian::new(Vector4::new(start[0], 0.0, start[1], 0.0), Matrix4::zeros(), 0.0)
-        .map_err(SimError::estimation(0.0))?;
     let (mut dr_first, mut dr_second) = (DeadReckoning::at_rest(), DeadReckoning::at_rest());
     let printed_first = PrintedAccelerometerModel::new(ModelOrder::First);
     let printed_second = PrintedAccelerometerModel::new(ModelOrder::Second);
-    let textbook_model =
-        TextbookAccelerometerModel::new(config.textbook_extra_variance_m2ps4).map_err(SimError::estimation(0.0))?;
+    let [ux, uy] = config.fix_variance_m2;
+    let mut records = enrolment(start);
 
     let mut run = Seed002Run {
         seed,
@@ -164,6 +227,7 @@ pub fn run_seed_002(config: &Seed002Config, seed: u64) -> Result<Seed002Run> {
         first_order: Vec::new(),
         second_order: Vec::new(),
         textbook: Vec::new(),
+        textbook_nees: Vec::new(),
         same_neighbours_as_wknn: Vec::new(),
     };
     for (truth, reading) in samples.iter().skip(1).zip(&readings) {
@@ -188,21 +252,112 @@ pub fn run_seed_002(config: &Seed002Config, seed: u64) -> Result<Seed002Run> {
         };
         (first, dr_first) = step(&first, &printed_first, &dr_first).map_err(SimError::estimation(t))?;
         (second, dr_second) = step(&second, &printed_second, &dr_second).map_err(SimError::estimation(t))?;
-        let model = textbook_model.for_sample(&sample);
-        let a = DVector::from_column_slice(&reading.acceleration_mps2);
-        let prior = kf
-            .predict_with_control(&textbook, &model, &a, t)
-            .map_err(SimError::estimation(t))?;
-        textbook = kf.update(&prior, &fix4, &z).map_err(SimError::estimation(t))?.state;
+        // the engine's records of this second: the sample over it, then the fix at its end
+        records.push(node_record(
+            t,
+            Measurement::Accelerometer {
+                acceleration_mps2: reading.acceleration_mps2.to_vec(),
+                std_mps2: Some(std[0].max(std[1])),
+            },
+        ));
+        records.push(node_record(
+            t,
+            Measurement::Fix {
+                position_m: vec![fix[0], fix[1]],
+                covariance_m2: vec![ux, 0.0, 0.0, uy],
+            },
+        ));
 
         run.truth.push(truth.position_m);
         run.fixes.push([fix[0], fix[1]]);
         run.same_neighbours_as_wknn.push(same_neighbours(&local, &global));
         run.first_order.push([first.mean()[0], first.mean()[1]]);
         run.second_order.push([second.mean()[0], second.mean()[1]]);
-        run.textbook.push([textbook.mean()[0], textbook.mean()[2]]);
     }
-    Ok(run)
+    let truth = samples
+        .iter()
+        .skip(1)
+        .map(|s| TruthSample {
+            time_s: s.time_s,
+            tag: SEED_002_TAG.to_string(),
+            position_m: [s.position_m[0], s.position_m[1], 0.0],
+            // a plan scenario: no height
+            has_z: false,
+            line: 0,
+        })
+        .collect();
+    let recording = Recording {
+        site_toml: site_toml(config),
+        records,
+        truth,
+    };
+    Ok((run, recording))
+}
+
+/// A record of the node.
+fn node_record(time_s: f64, measurement: Measurement) -> Record {
+    Record {
+        time_s,
+        tag: SEED_002_TAG.to_string(),
+        measurement,
+    }
+}
+
+/// The enrolment at `t = 0`: the surveyed start (σ 1 cm) and the node at rest (σ 1 cm/s).
+fn enrolment(start_m: [f64; 2]) -> Vec<Record> {
+    const ENROLMENT_STD_M: f64 = 0.01;
+    const ENROLMENT_SPEED_STD_MPS: f64 = 0.01;
+    let p = ENROLMENT_STD_M * ENROLMENT_STD_M;
+    let v = ENROLMENT_SPEED_STD_MPS * ENROLMENT_SPEED_STD_MPS;
+    vec![
+        node_record(
+            0.0,
+            Measurement::Fix {
+                position_m: start_m.to_vec(),
+                covariance_m2: vec![p, 0.0, 0.0, p],
+            },
+        ),
+        node_record(
+            0.0,
+            Measurement::Velocity {
+                velocity_mps: vec![0.0, 0.0],
+                covariance_m2ps2: Some(vec![v, 0.0, 0.0, v]),
+            },
+        ),
+    ]
+}
+
+/// The site file of [`seed_002_recording`] (see there for the choices).
+fn site_toml(config: &Seed002Config) -> String {
+    let mut site = String::from("name = \"Seed 002: 100 m field, 25 anchors, L-WKNN fixes and an accelerometer\"\n");
+    for (i, [x, y]) in config.site.anchors_m().iter().enumerate() {
+        // writing into a String cannot fail
+        let _ = writeln!(
+            site,
+            "[[readers]]\nid = \"A{}\"\nposition_m = [{x:?}, {y:?}]\ntechnology = \"wifi\"",
+            i + 1
+        );
+    }
+    let _ = write!(
+        site,
+        "[tracker]\n\
+         pipeline = \"fix-then-filter\"\n\
+         motion_model = \"cv\"\n\
+         filter = \"kf\"\n\
+         aided_acceleration_noise_std_mps2 = {:?}\n\
+         gate_probability = 0.999999999\n\
+         initiation = {{ confirm_updates = 1, within_s = 1.0 }}\n\
+         coast_timeout_s = 10.0\n\
+         delete_timeout_s = 600.0\n\
+         reorder_window_s = 0.0\n\
+         output_interval_s = 1.0\n\
+         negative_information = false\n\
+         [tracker.adaptive_noise]\n\
+         enabled = false\n\
+         correlation_s = 0.0\n",
+        config.textbook_extra_variance_m2ps4.sqrt()
+    );
+    site
 }
 
 /// Whether two fixes averaged the same set of reference points (seed 002: "L-WKNN finds the same
