@@ -149,7 +149,7 @@ impl LiveState {
         inside
     }
 
-    /// The recent alarm with this id (its event JSON), if it is among the last [`RECENT_ALARMS`].
+    /// The recent alarm with this id (its event JSON), if it is among the last `RECENT_ALARMS` (10 000).
     #[must_use]
     pub fn recent_alarm(&self, alarm_id: &str) -> Option<Value> {
         self.recent_alarms
