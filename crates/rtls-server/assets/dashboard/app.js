@@ -111,6 +111,16 @@ const replay = new Replay(map, {
 
 // ── WebSocket: locations and alarms ──────────────────────────────────────────────────────────
 let socket = null;
+// one WebSocket message (the server batches: a payload holds every update of an output tick)
+function handleMessage(topic, message) {
+  for (const payload of message.payload || []) {
+    if (topic === "location_updates") {
+      setLive(payload.provider_id, stateFromLocation(payload));
+    } else if (topic === "rtls:alarms") {
+      alarms.add(payload);
+    }
+  }
+}
 function connect() {
   setConnection("connecting");
   const token = store.getItem("rtls.readToken");
@@ -125,14 +135,7 @@ function connect() {
     const message = JSON.parse(event.data);
     if (message.event === "subscribed") { topics.set(message.subscription_id, message.topic); return; }
     if (message.event !== "message") return;
-    const topic = message.topic || topics.get(message.subscription_id);
-    for (const payload of message.payload || []) {
-      if (topic === "location_updates") {
-        setLive(payload.provider_id, stateFromLocation(payload));
-      } else if (topic === "rtls:alarms") {
-        alarms.add(payload);
-      }
-    }
+    handleMessage(message.topic || topics.get(message.subscription_id), message);
   };
   socket.onclose = () => {
     setConnection("closed");
@@ -319,4 +322,4 @@ async function start() {
   every(10000, refreshNames);
 }
 start().catch((e) => { console.error(e); setConnection("closed"); });
-window.rtls = { map, alarms, replay, api, liveTags };
+window.rtls = { map, alarms, replay, api, liveTags, handleMessage };

@@ -8,6 +8,11 @@
 //! `{"event":"message","topic":…,"subscription_id":1,"payload":[…]}` for every update.
 //! `params.provider_id` (or `tag`) filters by tag. A client that falls more than the broadcast
 //! capacity behind misses messages (counted in `rtls_websocket_dropped`).
+//!
+//! Batching: every message waiting in the broadcast queue when the socket is ready is sent
+//! together, one `message` per subscription whose `payload` holds all of them in order (up to
+//! [`MAX_BATCH`]): a screen with ten thousand tags gets one frame per output tick, not one per
+//! tag.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -18,7 +23,10 @@ use axum::http::HeaderMap;
 use axum::response::Response;
 use serde::Deserialize;
 use serde_json::{json, Value};
-use tokio::sync::broadcast::error::RecvError;
+use tokio::sync::broadcast::error::{RecvError, TryRecvError};
+
+/// At most this many hub messages go into one WebSocket send.
+pub const MAX_BATCH: usize = 4096;
 
 use super::{metrics, ApiResult, AppState};
 use crate::auth::Access;
@@ -87,15 +95,23 @@ async fn serve(mut socket: WebSocket, state: AppState) {
                 }
             }
             published = hub.recv() => {
-                let message = match published {
-                    Ok(message) => message,
+                let mut batch = match published {
+                    Ok(message) => vec![message],
                     Err(RecvError::Lagged(missed)) => {
                         metrics.websocket_dropped.inc_by(missed);
                         continue;
                     }
                     Err(RecvError::Closed) => break,
                 };
-                if deliver(&mut socket, &message, &subscriptions, &fences, state.site.frame.as_ref()).await.is_err() {
+                // what else is already waiting goes in the same frames
+                while batch.len() < MAX_BATCH {
+                    match hub.try_recv() {
+                        Ok(message) => batch.push(message),
+                        Err(TryRecvError::Lagged(missed)) => metrics.websocket_dropped.inc_by(missed),
+                        Err(_) => break,
+                    }
+                }
+                if deliver(&mut socket, &batch, &subscriptions, &fences, state.site.frame.as_ref()).await.is_err() {
                     break;
                 }
             }
@@ -163,41 +179,58 @@ fn handle(text: &str, subscriptions: &mut HashMap<u64, Subscription>, next_id: &
     }
 }
 
-/// Sends a hub message to every matching subscription.
+/// Sends hub messages to every matching subscription: one WebSocket message per subscription
+/// with the payloads of all of them, in order.
 async fn deliver(
     socket: &mut WebSocket,
-    message: &Arc<HubMessage>,
+    batch: &[Arc<HubMessage>],
     subscriptions: &HashMap<u64, Subscription>,
     fences: &HashMap<String, Value>,
     frame: Option<&rtls_engine::site::FrameSettings>,
 ) -> Result<(), axum::Error> {
     for (&id, subscription) in subscriptions {
-        let payload = match (message.as_ref(), subscription.topic) {
-            (HubMessage::Location { tag, location }, Topic::LocationUpdates) if wanted(subscription, tag) => {
-                location.clone()
-            }
-            (HubMessage::Location { tag, location }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
-                json!({ "type": "Feature", "geometry": wgs84_geometry(frame, &location["position"]), "properties": location })
-            }
-            (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => event.clone(),
-            (HubMessage::FenceEvent { tag, event }, Topic::FenceEventsGeojson) if wanted(subscription, tag) => {
-                let geometry = event["fence_id"].as_str().and_then(|id| fences.get(id)).cloned();
-                json!({ "type": "Feature", "geometry": geometry, "properties": event })
-            }
-            (HubMessage::Extension { topic, event }, wanted_topic)
-                if *topic == wanted_topic
-                    && subscription
-                        .tag
-                        .as_deref()
-                        .is_none_or(|t| event["tag"].as_str() == Some(t)) =>
-            {
-                event.clone()
-            }
-            _ => continue,
-        };
-        send(socket, &WsMessage::message(subscription.topic, id, vec![payload])).await?;
+        let payloads: Vec<Value> = batch
+            .iter()
+            .filter_map(|message| payload(message, subscription, fences, frame))
+            .collect();
+        if !payloads.is_empty() {
+            send(socket, &WsMessage::message(subscription.topic, id, payloads)).await?;
+        }
     }
     Ok(())
+}
+
+/// A hub message's payload for one subscription, if it wants it.
+fn payload(
+    message: &Arc<HubMessage>,
+    subscription: &Subscription,
+    fences: &HashMap<String, Value>,
+    frame: Option<&rtls_engine::site::FrameSettings>,
+) -> Option<Value> {
+    let payload = match (message.as_ref(), subscription.topic) {
+        (HubMessage::Location { tag, location }, Topic::LocationUpdates) if wanted(subscription, tag) => {
+            location.clone()
+        }
+        (HubMessage::Location { tag, location }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
+            json!({ "type": "Feature", "geometry": wgs84_geometry(frame, &location["position"]), "properties": location })
+        }
+        (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => event.clone(),
+        (HubMessage::FenceEvent { tag, event }, Topic::FenceEventsGeojson) if wanted(subscription, tag) => {
+            let geometry = event["fence_id"].as_str().and_then(|id| fences.get(id)).cloned();
+            json!({ "type": "Feature", "geometry": geometry, "properties": event })
+        }
+        (HubMessage::Extension { topic, event }, wanted_topic)
+            if *topic == wanted_topic
+                && subscription
+                    .tag
+                    .as_deref()
+                    .is_none_or(|t| event["tag"].as_str() == Some(t)) =>
+        {
+            event.clone()
+        }
+        _ => return None,
+    };
+    Some(payload)
 }
 
 fn wanted(subscription: &Subscription, tag: &str) -> bool {
