@@ -85,7 +85,11 @@ fn eval(tab: &Tab, expression: &str) -> Result<Value> {
         serialization_options: None,
     })?;
     if let Some(exception) = reply.exception_details {
-        bail!("{}: {:?}", exception.text, exception.exception.and_then(|e| e.description));
+        bail!(
+            "{}: {:?}",
+            exception.text,
+            exception.exception.and_then(|e| e.description)
+        );
     }
     Ok(reply.result.value.unwrap_or(Value::Null))
 }
@@ -98,7 +102,10 @@ fn main() -> Result<()> {
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));
     if !chromium.exists() {
-        bail!("no chromium at {} (apt-get install chromium, or set RTLS_CHROMIUM)", chromium.display());
+        bail!(
+            "no chromium at {} (apt-get install chromium, or set RTLS_CHROMIUM)",
+            chromium.display()
+        );
     }
 
     // 1. the server, its tags
@@ -133,8 +140,13 @@ fn main() -> Result<()> {
             let _ = stop_rx.await;
         },
     ));
-    let http = bound_rx.recv_timeout(Duration::from_secs(30)).context("the server starts")?.http;
-    let now_s = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH)?.as_secs_f64();
+    let http = bound_rx
+        .recv_timeout(Duration::from_secs(30))
+        .context("the server starts")?
+        .http;
+    let now_s = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)?
+        .as_secs_f64();
     let client = reqwest::Client::new();
     runtime.block_on(async {
         for chunk in (0..tags).collect::<Vec<_>>().chunks(5_000) {
@@ -188,7 +200,8 @@ fn main() -> Result<()> {
             .build()?,
     )?;
     let tab = browser.new_tab()?;
-    tab.navigate_to(&format!("http://{http}/?token={READ}"))?.wait_until_navigated()?;
+    tab.navigate_to(&format!("http://{http}/?token={READ}"))?
+        .wait_until_navigated()?;
     let deadline = Instant::now() + Duration::from_secs(60);
     let first = loop {
         let value = eval(
@@ -229,7 +242,10 @@ fn main() -> Result<()> {
                 .to_string()
         })
         .collect();
-    eval(&tab, &format!("window.benchTicks = {}; true", serde_json::to_string(&ticks)?))?;
+    eval(
+        &tab,
+        &format!("window.benchTicks = {}; true", serde_json::to_string(&ticks)?),
+    )?;
     let result = eval(
         &tab,
         &format!(
@@ -268,7 +284,8 @@ fn main() -> Result<()> {
         result["updates_per_s"].as_f64().unwrap_or(f64::NAN),
     );
     let _ = stop.send(());
-    runtime.block_on(async { tokio::time::timeout(Duration::from_secs(30), server).await })??
+    runtime
+        .block_on(async { tokio::time::timeout(Duration::from_secs(30), server).await })??
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let _ = std::fs::remove_dir_all(&dir);
     Ok(())

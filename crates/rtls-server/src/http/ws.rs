@@ -107,7 +107,9 @@ async fn serve(mut socket: WebSocket, state: AppState) {
                 while batch.len() < MAX_BATCH {
                     match hub.try_recv() {
                         Ok(message) => batch.push(message),
-                        Err(TryRecvError::Lagged(missed)) => metrics.websocket_dropped.inc_by(missed),
+                        Err(TryRecvError::Lagged(missed)) => {
+                            metrics.websocket_dropped.inc_by(missed);
+                        }
                         Err(_) => break,
                     }
                 }
