@@ -7,7 +7,7 @@
 //! (defaults 10 000 tags, 10 Hz, 10 s; chromium from `RTLS_CHROMIUM` or `/usr/bin/chromium`).
 //!
 //! 1. Starts `rtls serve` in-process on a 200 m × 100 m hall (55 readers, a data clock so the
-//!    tags stay confirmed), posts one fix for each of TAGS tags and waits until
+//!    tags keep their state), posts four fixes for each of TAGS tags and waits until
 //!    `/api/v1/tags` lists them all.
 //! 2. Opens the dashboard and reports when the first frame with tags was drawn, counted from
 //!    navigation start and from the page's load event ("first live frame").
@@ -149,17 +149,21 @@ fn main() -> Result<()> {
         .as_secs_f64();
     let client = reqwest::Client::new();
     runtime.block_on(async {
-        for chunk in (0..tags).collect::<Vec<_>>().chunks(5_000) {
-            let body: String = chunk
-                .iter()
-                .map(|&tag| {
-                    let (x, y) = position(tag, tags, 0);
-                    format!(
-                        "{{\"t\":{now_s},\"tag\":\"bench-{tag}\",\"kind\":\"fix\",\"position_m\":[{x},{y}],\
-                         \"covariance_m2\":[0.25,0,0,0.25]}}\n"
-                    )
-                })
-                .collect();
+        // four fixes a tag, 1 s apart, in time order over all tags: the data clock releases a
+        // record once later ones pass the re-ordering window, and refuses one that comes late
+        let lines: Vec<String> = (0..4)
+            .flat_map(|k| (0..tags).map(move |tag| (k, tag)))
+            .map(|(k, tag)| {
+                let (x, y) = position(tag, tags, 0);
+                let t = now_s - 3.0 + f64::from(k);
+                format!(
+                    "{{\"t\":{t},\"tag\":\"bench-{tag}\",\"kind\":\"fix\",\"position_m\":[{x},{y}],\
+                     \"covariance_m2\":[0.25,0,0,0.25]}}\n"
+                )
+            })
+            .collect();
+        for chunk in lines.chunks(5_000) {
+            let body: String = chunk.concat();
             let reply = client
                 .post(format!("http://{http}/api/v1/measurements"))
                 .bearer_auth(WRITE)
@@ -251,18 +255,25 @@ fn main() -> Result<()> {
         &format!(
             "new Promise(resolve => {{ \
                const hz = {hz}, seconds = {seconds}, t0 = performance.now(), frames0 = window.rtls.map.frames; \
-               let rafs = 0, ticks = 0, updates = 0; \
+               let rafs = 0, ticks = 0, updates = 0, parseMs = 0, handleMs = 0, drawMs = 0; \
+               const map = window.rtls.map, draw = map.draw.bind(map); \
+               map.draw = () => {{ const d0 = performance.now(); draw(); drawMs += performance.now() - d0; }}; \
                const raf = () => {{ rafs += 1; if (performance.now() - t0 < seconds * 1000) requestAnimationFrame(raf); }}; \
                requestAnimationFrame(raf); \
                const tick = () => {{ \
+                 const p0 = performance.now(); \
                  const message = JSON.parse(window.benchTicks[ticks % window.benchTicks.length]); \
+                 const p1 = performance.now(); \
                  window.rtls.handleMessage('location_updates', message); \
+                 parseMs += p1 - p0; handleMs += performance.now() - p1; \
                  updates += message.payload.length; ticks += 1; \
                  const elapsed = performance.now() - t0; \
                  if (elapsed < seconds * 1000) setTimeout(tick, Math.max(0, ticks * 1000 / hz - elapsed)); \
                  else setTimeout(() => {{ const s = (performance.now() - t0) / 1000; \
-                   resolve({{ fps: rafs / s, redraws: (window.rtls.map.frames - frames0) / s, \
-                             tick_hz: ticks / s, updates_per_s: updates / s, seconds: s }}); }}, 100); \
+                   const redraws = window.rtls.map.frames - frames0; \
+                   resolve({{ fps: rafs / s, redraws: redraws / s, \
+                             tick_hz: ticks / s, updates_per_s: updates / s, seconds: s, \
+                             parse_ms: parseMs / ticks, handle_ms: handleMs / ticks, draw_ms: drawMs / redraws }}); }}, 100); \
                }}; \
                tick(); \
              }})"
@@ -282,6 +293,13 @@ fn main() -> Result<()> {
         result["redraws"].as_f64().unwrap_or(f64::NAN),
         result["tick_hz"].as_f64().unwrap_or(f64::NAN),
         result["updates_per_s"].as_f64().unwrap_or(f64::NAN),
+    );
+    println!(
+        "where the time went (main thread, per tick or redraw): JSON.parse {:.1} ms, state update {:.1} ms, \
+         canvas redraw {:.1} ms",
+        result["parse_ms"].as_f64().unwrap_or(f64::NAN),
+        result["handle_ms"].as_f64().unwrap_or(f64::NAN),
+        result["draw_ms"].as_f64().unwrap_or(f64::NAN),
     );
     let _ = stop.send(());
     runtime

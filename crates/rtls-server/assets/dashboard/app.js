@@ -46,7 +46,8 @@ async function reconcileTags() {
   for (const t of tags) {
     present.add(t.tag);
     const known = liveTags.get(t.tag);
-    if (!known || !(known.t >= t.t)) setLive(t.tag, stateFromLocation(t.location));
+    const knownS = known && (known.t ?? Date.parse(known.timestamp) / 1000);
+    if (!known || !(knownS >= t.t)) setLive(t.tag, stateFromLocation(t.location));
   }
   for (const tag of [...liveTags.keys()]) {
     if (!present.has(tag)) {
