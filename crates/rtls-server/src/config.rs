@@ -106,6 +106,10 @@ pub struct ServerSection {
     /// `normal` (safe against a process crash, e.g. SIGKILL; the last commits may be lost on
     /// power loss).
     pub sqlite_sync: String,
+    /// Origins whose web pages may call the API from a browser (CORS), e.g.
+    /// `["https://ops.example.com"]`; `["*"]` for any origin; empty (the default): none — the
+    /// dashboard served by this server needs no CORS.
+    pub cors_origins: Vec<String>,
 }
 
 impl Default for ServerSection {
@@ -118,6 +122,7 @@ impl Default for ServerSection {
             log_format: "text".into(),
             default_accuracy_m: 1.0,
             sqlite_sync: "full".into(),
+            cors_origins: Vec::new(),
         }
     }
 }
@@ -229,6 +234,15 @@ impl ServerConfig {
                 format!("must be > 0 m, got {}", s.default_accuracy_m),
             ));
         }
+        for (k, origin) in s.cors_origins.iter().enumerate() {
+            let scheme_ok = origin.starts_with("http://") || origin.starts_with("https://");
+            if origin != "*" && (!scheme_ok || origin.ends_with('/') || origin.parse::<axum::http::HeaderValue>().is_err()) {
+                return Err(invalid(
+                    &format!("server.cors_origins[{k}]"),
+                    format!("`{origin}` is not \"*\" or an origin like https://ops.example.com (scheme, host, port; no path)"),
+                ));
+            }
+        }
         if self.mqtt.mode == MqttMode::External && self.mqtt.url.is_none() {
             return Err(invalid("mqtt.url", "required when mqtt.mode = \"external\"".into()));
         }
@@ -301,6 +315,28 @@ mod tests {
             (9000, 3, 92.0)
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_cors_origin_with_a_path_or_without_a_scheme_is_refused_by_index() {
+        for (origin, ok) in [
+            ("https://ops.example.com", true),
+            ("http://127.0.0.1:3000", true),
+            ("*", true),
+            ("ops.example.com", false),
+            ("https://ops.example.com/", false),
+        ] {
+            let mut config = ServerConfig::default();
+            config.server.cors_origins = vec!["https://a.example".into(), origin.into()];
+            match config.validate() {
+                Ok(()) => assert!(ok, "{origin} accepted"),
+                Err(ConfigError::Invalid { field, .. }) => {
+                    assert!(!ok, "{origin} refused");
+                    assert_eq!(field, "server.cors_origins[1]");
+                }
+                Err(e) => panic!("{e}"),
+            }
+        }
     }
 
     #[test]

@@ -225,7 +225,7 @@ pub async fn serve(
     let (feed_stop_tx, feed_stop_rx) = watch::channel(false);
     let feed_task = feed.map(|start| start(pipeline.clone(), bound, feed_stop_rx));
 
-    let app = router(state);
+    let app = with_cors(router(state), &config.server.cors_origins);
     let http_stopped = stopped(stop_rx.clone());
     let http = tokio::spawn(async move {
         if let Err(e) = axum::serve(listener, app).with_graceful_shutdown(http_stopped).await {
@@ -302,4 +302,28 @@ pub fn init_logging(format: &str) {
     } else {
         builder.try_init()
     };
+}
+
+/// The router with a CORS layer for `origins` (`server.cors_origins`; none: unchanged): simple
+/// and preflight requests from those origins may read responses and send `Authorization`.
+#[must_use]
+pub fn with_cors(app: axum::Router, origins: &[String]) -> axum::Router {
+    use axum::http::{header, HeaderValue, Method};
+    use tower_http::cors::{AllowOrigin, CorsLayer};
+    if origins.is_empty() {
+        return app;
+    }
+    let allow = if origins.iter().any(|o| o == "*") {
+        AllowOrigin::any()
+    } else {
+        // validated by ServerConfig::validate
+        AllowOrigin::list(origins.iter().filter_map(|o| o.parse::<HeaderValue>().ok()))
+    };
+    app.layer(
+        CorsLayer::new()
+            .allow_origin(allow)
+            .allow_methods([Method::GET, Method::POST, Method::PUT, Method::DELETE])
+            .allow_headers([header::AUTHORIZATION, header::CONTENT_TYPE])
+            .max_age(std::time::Duration::from_secs(3600)),
+    )
 }

@@ -779,3 +779,51 @@ async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_a
     assert_eq!(state.pipeline.live().zones().len(), 1);
     state.pipeline.shutdown();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cors_lets_the_configured_origins_call_the_api_and_no_other() {
+    let state = state("api-cors");
+    let plain = rtls_server::http::router(state.clone());
+    let app = rtls_server::serve::with_cors(plain.clone(), &["https://ops.example.com".to_string()]);
+    let preflight = |app: axum::Router, origin: &'static str| async move {
+        app.oneshot(
+            Request::builder()
+                .method(Method::OPTIONS)
+                .uri("/api/v1/tags")
+                .header("origin", origin)
+                .header("access-control-request-method", "GET")
+                .header("access-control-request-headers", "authorization")
+                .body(Body::empty())
+                .unwrap(),
+        )
+        .await
+        .unwrap()
+    };
+    let allowed = preflight(app.clone(), "https://ops.example.com").await;
+    assert_eq!(
+        allowed.headers().get("access-control-allow-origin").map(|v| v.to_str().unwrap()),
+        Some("https://ops.example.com")
+    );
+    let headers = allowed.headers()["access-control-allow-headers"].to_str().unwrap().to_lowercase();
+    assert!(headers.contains("authorization"), "{headers}");
+    let other = preflight(app.clone(), "https://evil.example.net").await;
+    assert!(other.headers().get("access-control-allow-origin").is_none());
+    // without cors_origins, no CORS headers at all
+    let unconfigured = preflight(plain, "https://ops.example.com").await;
+    assert!(unconfigured.headers().get("access-control-allow-origin").is_none());
+    // a real request from the allowed origin carries the header too
+    let get = app
+        .oneshot(
+            Request::builder()
+                .uri("/api/v1/tags")
+                .header("origin", "https://ops.example.com")
+                .header("authorization", format!("Bearer {READ}"))
+                .body(Body::empty())
+                .unwrap(),
+        )
+        .await
+        .unwrap();
+    assert_eq!(get.status(), StatusCode::OK);
+    assert_eq!(get.headers()["access-control-allow-origin"], "https://ops.example.com");
+    state.pipeline.shutdown();
+}
