@@ -236,7 +236,9 @@ impl ServerConfig {
         }
         for (k, origin) in s.cors_origins.iter().enumerate() {
             let scheme_ok = origin.starts_with("http://") || origin.starts_with("https://");
-            if origin != "*" && (!scheme_ok || origin.ends_with('/') || origin.parse::<axum::http::HeaderValue>().is_err()) {
+            if origin != "*"
+                && (!scheme_ok || origin.ends_with('/') || origin.parse::<axum::http::HeaderValue>().is_err())
+            {
                 return Err(invalid(
                     &format!("server.cors_origins[{k}]"),
                     format!("`{origin}` is not \"*\" or an origin like https://ops.example.com (scheme, host, port; no path)"),

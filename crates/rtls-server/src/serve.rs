@@ -306,7 +306,6 @@ pub fn init_logging(format: &str) {
 
 /// The router with a CORS layer for `origins` (`server.cors_origins`; none: unchanged): simple
 /// and preflight requests from those origins may read responses and send `Authorization`.
-#[must_use]
 pub fn with_cors(app: axum::Router, origins: &[String]) -> axum::Router {
     use axum::http::{header, HeaderValue, Method};
     use tower_http::cors::{AllowOrigin, CorsLayer};

@@ -801,10 +801,16 @@ async fn cors_lets_the_configured_origins_call_the_api_and_no_other() {
     };
     let allowed = preflight(app.clone(), "https://ops.example.com").await;
     assert_eq!(
-        allowed.headers().get("access-control-allow-origin").map(|v| v.to_str().unwrap()),
+        allowed
+            .headers()
+            .get("access-control-allow-origin")
+            .map(|v| v.to_str().unwrap()),
         Some("https://ops.example.com")
     );
-    let headers = allowed.headers()["access-control-allow-headers"].to_str().unwrap().to_lowercase();
+    let headers = allowed.headers()["access-control-allow-headers"]
+        .to_str()
+        .unwrap()
+        .to_lowercase();
     assert!(headers.contains("authorization"), "{headers}");
     let other = preflight(app.clone(), "https://evil.example.net").await;
     assert!(other.headers().get("access-control-allow-origin").is_none());
