@@ -756,11 +756,11 @@ async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_a
     );
 
     // the edited set is stored: a restart loads it
-    let stored = {
-        let mut queries = state.queries.lock().unwrap();
-        let store = queries.store_for_tests();
-        rtls_server::http::fences::stored_zones(store).unwrap().unwrap()
-    };
+    // (read on a connection of its own, as `rtls serve` reads it at start)
+    let stored =
+        rtls_server::http::fences::stored_zones(common::open_sqlite(&common::db_path("api-fence-edit")).as_mut())
+            .unwrap()
+            .unwrap();
     assert_eq!(stored.len(), 2);
     assert!(stored.iter().any(|z| z.id == id && z.name == "Staging area"));
 

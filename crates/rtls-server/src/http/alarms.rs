@@ -67,33 +67,34 @@ pub(super) async fn list(
         from_s: parse_time(params.from.as_deref(), "from", f64::MIN)?,
         to_s: parse_time(params.to.as_deref(), "to", f64::MAX)?,
         tag: params.tag.filter(|t| !t.is_empty()),
-        kinds: Vec::new(),
         alarms_only: true,
-        // the store returns the oldest first: read them all up to the cap, keep the newest
-        limit: super::api::MAX_ROWS,
+        limit,
+        newest_first: true,
+        ..EventQuery::default()
     };
-    let (rows, acks) = state
-        .query(move |store| Ok((store.events(&query)?, store.list_config(ACK_KIND)?)))
-        .await?;
-    let acks: std::collections::HashMap<String, Value> = acks
-        .into_iter()
-        .filter_map(|(id, json)| Some((id, serde_json::from_str(&json).ok()?)))
-        .collect();
-    let alarms: Vec<Value> = rows
-        .iter()
-        .rev()
-        .take(limit)
-        .filter_map(|row| {
-            let mut alarm: Value = serde_json::from_str(&row.json).ok()?;
-            let ack = alarm["alarm_id"]
-                .as_str()
-                .and_then(|id| acks.get(id))
-                .cloned()
-                .unwrap_or(Value::Null);
-            alarm.as_object_mut()?.insert("acknowledged".into(), ack);
-            Some(alarm)
+    // each listed alarm's acknowledgement, looked up by its id (not every one ever stored)
+    let alarms = state
+        .query(move |store| {
+            let mut alarms = Vec::new();
+            for row in store.events(&query)? {
+                let Ok(mut alarm) = serde_json::from_str::<Value>(&row.json) else {
+                    continue;
+                };
+                let ack = match alarm["alarm_id"].as_str() {
+                    Some(id) => store.get_config(ACK_KIND, id)?,
+                    None => None,
+                };
+                let ack = ack
+                    .and_then(|json| serde_json::from_str(&json).ok())
+                    .unwrap_or(Value::Null);
+                if let Some(object) = alarm.as_object_mut() {
+                    object.insert("acknowledged".into(), ack);
+                    alarms.push(alarm);
+                }
+            }
+            Ok(alarms)
         })
-        .collect();
+        .await?;
     Ok(Json(Value::Array(alarms)))
 }
 
@@ -126,13 +127,14 @@ pub(super) async fn acknowledge(
         Some(alarm) => alarm,
         None => {
             let wanted = alarm_id.clone();
+            // older than the live state keeps: the newest stored alarms, up to the row cap
             let query = EventQuery {
                 from_s: f64::MIN,
                 to_s: f64::MAX,
-                tag: None,
-                kinds: Vec::new(),
                 alarms_only: true,
                 limit: super::api::MAX_ROWS,
+                newest_first: true,
+                ..EventQuery::default()
             };
             state
                 .query(move |store| {

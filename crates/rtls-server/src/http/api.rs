@@ -332,6 +332,7 @@ pub(super) async fn events(
             .unwrap_or_default(),
         alarms_only: params.alarms.unwrap_or(false),
         limit: parse_limit(params.limit)?,
+        newest_first: false,
     };
     let rows = state.query(move |store| store.events(&query)).await?;
     let events: Vec<Value> = rows.iter().filter_map(|r| serde_json::from_str(&r.json).ok()).collect();

@@ -71,15 +71,6 @@ impl QueryStore {
             .ok_or_else(|| ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "the query connection is closed"))
     }
 
-    /// The store, for tests that inspect what the API stored.
-    ///
-    /// # Panics
-    /// When the connection is closed.
-    #[doc(hidden)]
-    pub fn store_for_tests(&mut self) -> &mut (dyn Store + 'static) {
-        self.0.as_deref_mut().expect("the query connection is open")
-    }
-
     /// Deletes rows stored before `before_ms` (retention).
     ///
     /// # Errors

@@ -123,7 +123,7 @@ impl ReaderMonitor {
     /// Every reader of the site, then any reader records named that the site lacks, at `now_ms`.
     #[must_use]
     pub fn health(&self, now_ms: i64) -> Vec<ReaderHealth> {
-        let mut counters = self.counters.write().map(|c| c.clone()).unwrap_or_default();
+        let mut counters = self.counters.read().map(|c| c.clone()).unwrap_or_default();
         let mut rows: Vec<ReaderHealth> = self
             .site_readers
             .iter()

@@ -95,7 +95,7 @@ pub struct HistoryQuery {
     pub limit: usize,
 }
 
-/// An event query: events in `[from_s, to_s]`, oldest first.
+/// An event query: events in `[from_s, to_s]`, oldest first (or newest first).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct EventQuery {
     /// Start of the range (s, inclusive).
@@ -110,6 +110,8 @@ pub struct EventQuery {
     pub alarms_only: bool,
     /// At most this many rows.
     pub limit: usize,
+    /// Newest first: the limit keeps the latest rows (an alarm console), not the earliest.
+    pub newest_first: bool,
 }
 
 /// What [`Store::prune`] deleted.

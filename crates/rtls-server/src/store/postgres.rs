@@ -247,7 +247,7 @@ impl MigrationTarget for Client {
 
 /// The event query's SQL for the filters present, with its parameters numbered in the order
 /// `from_s, to_s, [tag], [kinds], limit` (each shape is a cached statement).
-fn events_sql(by_tag: bool, by_kinds: bool, alarms_only: bool) -> String {
+fn events_sql(by_tag: bool, by_kinds: bool, alarms_only: bool, newest_first: bool) -> String {
     let mut sql = String::from(
         "SELECT received_ms, time_s, kind, tag, zone, alarm, json FROM events WHERE time_s >= $1 AND time_s <= $2",
     );
@@ -263,7 +263,12 @@ fn events_sql(by_tag: bool, by_kinds: bool, alarms_only: bool) -> String {
     if alarms_only {
         sql.push_str(" AND alarm");
     }
-    sql.push_str(&format!(" ORDER BY time_s, id LIMIT ${next}"));
+    let order = if newest_first {
+        "time_s DESC, id DESC"
+    } else {
+        "time_s, id"
+    };
+    sql.push_str(&format!(" ORDER BY {order} LIMIT ${next}"));
     sql
 }
 
@@ -464,7 +469,12 @@ impl Store for PostgresStore {
             parameters.push(&query.kinds);
         }
         parameters.push(&limit);
-        let sql = events_sql(query.tag.is_some(), !query.kinds.is_empty(), query.alarms_only);
+        let sql = events_sql(
+            query.tag.is_some(),
+            !query.kinds.is_empty(),
+            query.alarms_only,
+            query.newest_first,
+        );
         let rows = self.query(&sql, &parameters, OPERATION)?;
         rows.iter()
             .map(event_from)

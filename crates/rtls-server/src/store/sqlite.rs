@@ -237,7 +237,7 @@ impl MigrationTarget for Connection {
 }
 
 /// The event query's SQL for the filters present (each shape is a cached statement).
-fn events_sql(by_tag: bool, by_kinds: bool, alarms_only: bool) -> String {
+fn events_sql(by_tag: bool, by_kinds: bool, alarms_only: bool, newest_first: bool) -> String {
     let mut sql = String::from(
         "SELECT received_ms, time_s, kind, tag, zone, alarm, json FROM events \
          WHERE time_s >= :from_s AND time_s <= :to_s",
@@ -251,7 +251,11 @@ fn events_sql(by_tag: bool, by_kinds: bool, alarms_only: bool) -> String {
     if alarms_only {
         sql.push_str(" AND alarm = 1");
     }
-    sql.push_str(" ORDER BY time_s, id LIMIT :limit");
+    sql.push_str(if newest_first {
+        " ORDER BY time_s DESC, id DESC LIMIT :limit"
+    } else {
+        " ORDER BY time_s, id LIMIT :limit"
+    });
     sql
 }
 
@@ -447,7 +451,12 @@ impl Store for SqliteStore {
             parameters.push((":kinds", kinds));
         }
         parameters.push((":limit", &limit));
-        let sql = events_sql(query.tag.is_some(), kinds_json.is_some(), query.alarms_only);
+        let sql = events_sql(
+            query.tag.is_some(),
+            kinds_json.is_some(),
+            query.alarms_only,
+            query.newest_first,
+        );
         let mut select = self.connection.prepare_cached(&sql).map_err(fail)?;
         let rows = select
             .query_map(parameters.as_slice(), |row| {

@@ -368,6 +368,18 @@ fn event_filters(store: &mut dyn Store) {
     })
     .is_empty());
 
+    // newest first: the limit keeps the latest rows (the alarm console's query)
+    let newest: Vec<f64> = store
+        .events(&EventQuery {
+            limit: 2,
+            newest_first: true,
+            ..all.clone()
+        })
+        .unwrap()
+        .iter()
+        .map(|row| row.time_s)
+        .collect();
+    assert_eq!(newest, [7.0, 6.0]);
     let limited = store
         .events(&EventQuery {
             limit: 2,

@@ -65,13 +65,21 @@ pub fn temp_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// The SQLite file of [`state`]`(name)`, to open a second connection on it.
+pub fn db_path(name: &str) -> PathBuf {
+    std::env::temp_dir()
+        .join(format!("rtls-server-{name}-{}", std::process::id()))
+        .join("rtls.db")
+}
+
 pub fn open_sqlite(path: &std::path::Path) -> Box<dyn Store> {
     store::open(&format!("sqlite:{}", path.display()), SqliteSync::Normal).expect("sqlite")
 }
 
 /// A state over a fresh SQLite file, with the test site, a data clock (no wall clock).
 pub fn state(name: &str) -> AppState {
-    let path = temp_dir(name).join("rtls.db");
+    temp_dir(name);
+    let path = db_path(name);
     let site = site();
     let config = PipelineConfig {
         partitions: 2,
