@@ -25,12 +25,14 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use headless_chrome::protocol::cdp::Runtime;
-use headless_chrome::{Browser, LaunchOptions, Tab};
+use headless_chrome::Tab;
 use rtls_server::auth::Tokens;
 use rtls_server::config::{MqttMode, ServerConfig};
 use rtls_server::serve::{serve, ServeOptions};
 use serde_json::Value;
+
+#[path = "../tests/devtools/mod.rs"]
+mod devtools;
 
 const READ: &str = "bench-read-token";
 const WRITE: &str = "bench-write-token";
@@ -66,32 +68,7 @@ fn position(tag: usize, tags: usize, k: usize) -> (f64, f64) {
 }
 
 fn eval(tab: &Tab, expression: &str) -> Result<Value> {
-    let reply = tab.call_method(Runtime::Evaluate {
-        expression: expression.to_string(),
-        return_by_value: Some(true),
-        generate_preview: None,
-        silent: Some(false),
-        await_promise: Some(true),
-        include_command_line_api: None,
-        user_gesture: None,
-        object_group: None,
-        context_id: None,
-        throw_on_side_effect: None,
-        timeout: None,
-        disable_breaks: None,
-        repl_mode: None,
-        allow_unsafe_eval_blocked_by_csp: None,
-        unique_context_id: None,
-        serialization_options: None,
-    })?;
-    if let Some(exception) = reply.exception_details {
-        bail!(
-            "{}: {:?}",
-            exception.text,
-            exception.exception.and_then(|e| e.description)
-        );
-    }
-    Ok(reply.result.value.unwrap_or(Value::Null))
+    devtools::eval(tab, expression).map_err(|e| anyhow::anyhow!(e))
 }
 
 fn main() -> Result<()> {
@@ -194,15 +171,7 @@ fn main() -> Result<()> {
     })?;
 
     // 2. the page's first live frame
-    let browser = Browser::new(
-        LaunchOptions::default_builder()
-            .path(Some(chromium))
-            .headless(true)
-            .sandbox(false)
-            .window_size(Some((1500, 900)))
-            .idle_browser_timeout(Duration::from_secs(600))
-            .build()?,
-    )?;
+    let browser = devtools::launch(chromium).map_err(|e| anyhow::anyhow!(e))?;
     let tab = browser.new_tab()?;
     tab.navigate_to(&format!("http://{http}/?token={READ}"))?
         .wait_until_navigated()?;

@@ -10,6 +10,7 @@
 //! floor switch shows one floor's tags and zones.
 
 mod common;
+mod devtools;
 
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
@@ -17,8 +18,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use headless_chrome::protocol::cdp::Page::CaptureScreenshotFormatOption;
-use headless_chrome::protocol::cdp::Runtime;
-use headless_chrome::{Browser, LaunchOptions, Tab};
+use headless_chrome::{Browser, Tab};
 use serde_json::Value;
 
 const READ: &str = "dashboard-read-token";
@@ -75,53 +75,12 @@ fn browser() -> Option<Browser> {
             return None;
         }
     };
-    Some(
-        Browser::new(
-            LaunchOptions::default_builder()
-                .path(Some(path))
-                .headless(true)
-                .sandbox(false)
-                .window_size(Some((1500, 900)))
-                // the alarm wait below can be minutes without a DevTools message
-                .idle_browser_timeout(Duration::from_secs(600))
-                .build()
-                .unwrap(),
-        )
-        .expect("chromium starts"),
-    )
+    Some(devtools::launch(path).unwrap_or_else(|e| panic!("{e}")))
 }
 
-/// The value of a JavaScript expression (a promise is awaited), returned by value; an exception
-/// fails the test with its message.
+/// [`devtools::eval`]; an exception fails the test with its message.
 fn eval(tab: &Tab, expression: &str) -> Value {
-    let reply = tab
-        .call_method(Runtime::Evaluate {
-            expression: expression.to_string(),
-            return_by_value: Some(true),
-            generate_preview: None,
-            silent: Some(false),
-            await_promise: Some(true),
-            include_command_line_api: None,
-            user_gesture: Some(true),
-            object_group: None,
-            context_id: None,
-            throw_on_side_effect: None,
-            timeout: None,
-            disable_breaks: None,
-            repl_mode: None,
-            allow_unsafe_eval_blocked_by_csp: None,
-            unique_context_id: None,
-            serialization_options: None,
-        })
-        .unwrap_or_else(|e| panic!("evaluating {expression}: {e}"));
-    if let Some(exception) = reply.exception_details {
-        panic!(
-            "evaluating {expression}: {} {:?}",
-            exception.text,
-            exception.exception.and_then(|e| e.description)
-        );
-    }
-    reply.result.value.unwrap_or(Value::Null)
+    devtools::eval(tab, expression).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Polls `expression` until it is truthy (not false, null, 0 or ""); returns its value.
