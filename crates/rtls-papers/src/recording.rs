@@ -45,6 +45,22 @@ use crate::error::{Result, SimError};
 /// The file name a recording's site is parsed under (errors name it).
 pub const SITE_FILE: &str = "site.toml";
 
+/// The end of a `[tracker]` table for a reproduction scored once a second on a known start: a
+/// track is confirmed by its first update, coasts 10 s, lives 600 s, records are taken in
+/// order (no re-ordering window), one update per second, no negative information, and no
+/// adaptive noise (the paper's noise is the filter's). It closes the table with
+/// `[tracker.adaptive_noise]`; subtables may follow.
+pub(crate) const SCORED_EACH_SECOND: &str = "initiation = { confirm_updates = 1, within_s = 1.0 }
+coast_timeout_s = 10.0
+delete_timeout_s = 600.0
+reorder_window_s = 0.0
+output_interval_s = 1.0
+negative_information = false
+[tracker.adaptive_noise]
+enabled = false
+correlation_s = 0.0
+";
+
 /// A scenario as files: the site, the records a deployment would send, and the truth.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Recording {

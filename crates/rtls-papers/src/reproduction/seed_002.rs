@@ -346,16 +346,9 @@ fn site_toml(config: &Seed002Config) -> String {
          filter = \"kf\"\n\
          aided_acceleration_noise_std_mps2 = {:?}\n\
          gate_probability = 0.999999999\n\
-         initiation = {{ confirm_updates = 1, within_s = 1.0 }}\n\
-         coast_timeout_s = 10.0\n\
-         delete_timeout_s = 600.0\n\
-         reorder_window_s = 0.0\n\
-         output_interval_s = 1.0\n\
-         negative_information = false\n\
-         [tracker.adaptive_noise]\n\
-         enabled = false\n\
-         correlation_s = 0.0\n",
-        config.textbook_extra_variance_m2ps4.sqrt()
+         {}",
+        config.textbook_extra_variance_m2ps4.sqrt(),
+        crate::recording::SCORED_EACH_SECOND,
     );
     site
 }

@@ -403,21 +403,14 @@ fn site_toml(config: &Seed004Config) -> String {
     // the difference of two headings with white error σ_ψ, over 1 s
     let heading_rate_std = 2f64.sqrt() * odometer.heading_noise_std_rad;
     let offset_std = odometer.heading_noise_std_rad;
+    let scored = crate::recording::SCORED_EACH_SECOND;
     let _ = write!(
         site,
         "[tracker]\n\
          platform = \"vehicle\"\n\
          pipeline = \"tightly-coupled\"\n\
          filter = \"ekf\"\n\
-         initiation = {{ confirm_updates = 1, within_s = 1.0 }}\n\
-         coast_timeout_s = 10.0\n\
-         delete_timeout_s = 600.0\n\
-         reorder_window_s = 0.0\n\
-         output_interval_s = 1.0\n\
-         negative_information = false\n\
-         [tracker.adaptive_noise]\n\
-         enabled = false\n\
-         correlation_s = 0.0\n\
+         {scored}\
          [tracker.heading]\n\
          gyro_noise_std_radps = {heading_rate_std:?}\n\
          odometer_drift_rad_per_sqrt_s = {drift:?}\n\
