@@ -210,7 +210,13 @@ async function refreshReaders() {
 async function refreshNames() {
   // omlox trackables name their location providers (our tags)
   const trackables = await api("/v2/trackables/summary").catch(() => []);
+  const known = map.names.size;
   for (const t of trackables) for (const provider of t.location_providers || []) map.names.set(provider, t.name || provider);
+  // rows drawn before a name was known show it now
+  if (map.names.size !== known) {
+    alarms.render();
+    map.invalidate();
+  }
   const list = $("tag-list");
   list.replaceChildren(...[...liveTags.keys()].sort().map((tag) => {
     const option = document.createElement("option");
@@ -315,12 +321,13 @@ async function start() {
   map.setZones(await api("/api/v1/zones.geojson?crs=local"));
   // the tags' latest states first, so the map is full before the first WebSocket update
   await reconcileTags();
+  await refreshNames();
   alarms.load(await api("/api/v1/alarms?limit=200"));
   connect();
   every(5000, reconcileTags);
   every(2000, refreshZones);
   every(5000, refreshReaders);
-  every(10000, refreshNames);
+  setTimeout(() => every(10000, refreshNames), 10000);
 }
 start().catch((e) => { console.error(e); setConnection("closed"); });
 window.rtls = { map, alarms, replay, api, liveTags, handleMessage };
