@@ -12,8 +12,8 @@
 //! 2. Opens the dashboard and reports when the first frame with tags was drawn, counted from
 //!    navigation start and from the page's load event ("first live frame").
 //! 3. Streams TAGS updates at HZ into the page for SECONDS through the page's own WebSocket
-//!    message handler (`rtls.handleMessage`), each tick one batched `location_updates` message
-//!    as the server sends it: the JSON text is generated before the run (20 distinct ticks,
+//!    message handler (`rtls.handleMessage`), each tick one batched `rtls:positions` message
+//!    (the columnar topic the dashboard subscribes to) as the server sends it: the JSON text is generated before the run (20 distinct ticks,
 //!    cycled), so the measured main thread does what it does live — `JSON.parse`, the state
 //!    update, the canvas redraw. It reports animation frames per second, map redraws per
 //!    second, the tick rate achieved and updates applied per second.
@@ -108,6 +108,7 @@ fn main() -> Result<()> {
                 read: Some(READ.into()),
             },
             trackables: Vec::new(),
+            floor_plans: rtls_server::http::plans::FloorPlans::default(),
             feed: None,
         },
         move |bound| {
@@ -199,19 +200,22 @@ fn main() -> Result<()> {
     // 3. the stream: pre-generated batched messages, parsed and drawn by the page's own code
     let ticks: Vec<String> = (0..20)
         .map(|k| {
-            let payload: Vec<Value> = (0..tags)
-                .map(|tag| {
-                    let (x, y) = position(tag, tags, k);
-                    serde_json::json!({
-                        "provider_id": format!("bench-{tag}"),
-                        "position": { "type": "Point", "coordinates": [x, y] },
-                        "timestamp": "2026-11-26T00:00:00.000Z",
-                        "properties": { "rtls:status": "confirmed", "rtls:predicted": false,
-                                        "rtls:covariance_m2": [0.25, 0.0, 0.0, 0.25] },
-                    })
-                })
-                .collect();
-            serde_json::json!({ "event": "message", "topic": "location_updates", "subscription_id": 1, "payload": payload })
+            // the server's `rtls:positions` columns (millimetres, as ws.rs rounds them)
+            let mm = |v: f64| (v * 1000.0).round() / 1000.0;
+            let points: Vec<(f64, f64)> = (0..tags).map(|tag| position(tag, tags, k)).collect();
+            let payload = serde_json::json!({
+                "tag": (0..tags).map(|tag| format!("bench-{tag}")).collect::<Vec<_>>(),
+                "t": vec![now_s + k as f64 * 0.1; tags],
+                "x": points.iter().map(|p| mm(p.0)).collect::<Vec<_>>(),
+                "y": points.iter().map(|p| mm(p.1)).collect::<Vec<_>>(),
+                "z": vec![Value::Null; tags],
+                "cxx": vec![0.25; tags],
+                "cxy": vec![0.0; tags],
+                "cyy": vec![0.25; tags],
+                "status": vec!["confirmed"; tags],
+                "predicted": vec![0; tags],
+            });
+            serde_json::json!({ "event": "message", "topic": "rtls:positions", "subscription_id": 1, "payload": [payload] })
                 .to_string()
         })
         .collect();
@@ -233,9 +237,9 @@ fn main() -> Result<()> {
                  const p0 = performance.now(); \
                  const message = JSON.parse(window.benchTicks[ticks % window.benchTicks.length]); \
                  const p1 = performance.now(); \
-                 window.rtls.handleMessage('location_updates', message); \
+                 window.rtls.handleMessage('rtls:positions', message); \
                  parseMs += p1 - p0; handleMs += performance.now() - p1; \
-                 updates += message.payload.length; ticks += 1; \
+                 updates += message.payload[0].tag.length; ticks += 1; \
                  const elapsed = performance.now() - t0; \
                  if (elapsed < seconds * 1000) setTimeout(tick, Math.max(0, ticks * 1000 / hz - elapsed)); \
                  else setTimeout(() => {{ const s = (performance.now() - t0) / 1000; \

@@ -16,14 +16,30 @@ use rtls_sim::mine::{MineConfig, MineLayout, MineSimulation, SiteOptions};
 /// The demo's MQTT topic (one gateway forwarding every reader's detections).
 pub const DEMO_TOPIC: &str = "rtls/v1/measurements/demo-gateway";
 
-/// The demo mine's site file (with one zone per drift for head counts).
+/// The demo mine's site file: one zone per drift for head counts, and a portal at the west
+/// end of the first drift as the muster board's entry zone.
 #[must_use]
 pub fn site_toml() -> String {
-    MineLayout::seed000().site_toml(&SiteOptions {
+    let mine = MineLayout::seed000();
+    let mut text = mine.site_toml(&SiteOptions {
         name: Some("Demo mine (seed 000: 307 readers, a roof fall on drift 3)".into()),
         drift_zones: true,
         without_map: false,
-    })
+    });
+    if let Some(first) = mine.drifts.first() {
+        // 8 m of the drift's walkable west end, 3 m either side of its centreline
+        let (west, y) = (first.walkable_x_m[0], first.y_m);
+        text.push_str(&format!(
+            "\n[[zones]]\nid = \"portal\"\nname = \"Portal (lamp room)\"\nkind = \"area-of-interest\"\n\
+             shape = {{ type = \"polygon\", vertices_m = [[{x0:.2}, {y0:.2}], [{x1:.2}, {y0:.2}], [{x1:.2}, {y1:.2}], [{x0:.2}, {y1:.2}]] }}\n\
+             \n[muster]\nentry_zone = \"portal\"\n",
+            x0 = west - 2.0,
+            x1 = west + 8.0,
+            y0 = y - 3.0,
+            y1 = y + 3.0,
+        ));
+    }
+    text
 }
 
 /// Given names and family names the demo's crew is named from (tag `miner-k` gets given name

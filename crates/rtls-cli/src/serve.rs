@@ -10,6 +10,7 @@ use clap::Args;
 use rtls_engine::site::Site;
 use rtls_server::auth::Tokens;
 use rtls_server::config::{MqttMode, ServerConfig};
+use rtls_server::http::plans::FloorPlans;
 use rtls_server::serve::{init_logging, serve, Bound, ServeOptions};
 
 /// Arguments of `rtls serve` (each overrides the config file).
@@ -76,8 +77,8 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
     config.validate()?;
     init_logging(&config.server.log_format);
 
-    let (site_text, site_name) = if args.demo {
-        (crate::demo::site_toml(), "demo mine".to_string())
+    let (site_text, site_name, site_dir) = if args.demo {
+        (crate::demo::site_toml(), "demo mine".to_string(), None)
     } else {
         let path = config
             .server
@@ -86,9 +87,14 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
             .context("a site file is needed: --site PATH (or server.site in the config), or --demo")?;
         let text =
             std::fs::read_to_string(&path).with_context(|| format!("reading the site file {}", path.display()))?;
-        (text, path.display().to_string())
+        let dir = path.parent().map(std::path::Path::to_path_buf).unwrap_or_default();
+        (text, path.display().to_string(), Some(dir))
     };
     let site = Site::from_toml_str(&site_text, &site_name)?;
+    let floor_plans = match &site_dir {
+        Some(dir) => FloorPlans::load(&site, dir).map_err(|e| anyhow::anyhow!("site file {site_name}: {e}"))?,
+        None => FloorPlans::default(),
+    };
 
     let write = match config.auth.write_token.clone() {
         Some(token) => token,
@@ -127,6 +133,7 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
             } else {
                 Vec::new()
             },
+            floor_plans,
             feed,
         };
         serve(options, announce, shutdown_signal()).await

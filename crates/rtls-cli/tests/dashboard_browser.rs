@@ -6,8 +6,10 @@
 //!
 //! What a control room relies on is checked through the page, as an operator sees it: the
 //! text count of live tags equals `/api/v1/tags`; an alarm acknowledged on one screen shows as
-//! acknowledged on another and in the API, with who did it; a minute of history replays; the
-//! floor switch shows one floor's tags and zones.
+//! acknowledged on another and in the API, with who did it; a zone drawn and then reshaped by
+//! dragging its corners counts the miners inside as the API does; the muster board's count
+//! equals the API's; a minute of history replays; the floor switch shows one floor's tags,
+//! zones and floor-plan image.
 
 mod common;
 mod devtools;
@@ -112,6 +114,42 @@ fn wait_until(tab: &Tab, expression: &str, done: impl Fn(&Value) -> bool, timeou
         );
         std::thread::sleep(Duration::from_millis(250));
     }
+}
+
+/// Drags with the left mouse button from `from` to `to` (page pixels) in ten moves, as a hand
+/// does: Leaflet's marker dragging reads the moves between press and release.
+fn drag(tab: &Tab, from: (f64, f64), to: (f64, f64)) {
+    use headless_chrome::protocol::cdp::Input::{DispatchMouseEvent, DispatchMouseEventTypeOption, MouseButton};
+    let event = |kind: DispatchMouseEventTypeOption, (x, y): (f64, f64)| DispatchMouseEvent {
+        Type: kind,
+        x,
+        y,
+        modifiers: None,
+        timestamp: None,
+        button: Some(MouseButton::Left),
+        buttons: Some(1),
+        click_count: Some(1),
+        force: None,
+        tangential_pressure: None,
+        tilt_x: None,
+        tilt_y: None,
+        twist: None,
+        delta_x: None,
+        delta_y: None,
+        pointer_Type: None,
+    };
+    tab.move_mouse_to_point(headless_chrome::browser::tab::point::Point { x: from.0, y: from.1 })
+        .unwrap();
+    tab.call_method(event(DispatchMouseEventTypeOption::MousePressed, from))
+        .unwrap();
+    for k in 1..=10 {
+        let f = f64::from(k) / 10.0;
+        let at = (from.0 + f * (to.0 - from.0), from.1 + f * (to.1 - from.1));
+        tab.call_method(event(DispatchMouseEventTypeOption::MouseMoved, at))
+            .unwrap();
+    }
+    tab.call_method(event(DispatchMouseEventTypeOption::MouseReleased, to))
+        .unwrap();
 }
 
 /// Whether the page's counts agree: the API's tags, the text count, the tags drawn.
@@ -228,9 +266,66 @@ fn the_demo_on_screen_counts_its_tags_acknowledges_an_alarm_everywhere_and_repla
         "the drawn zone's head count on screen equals the API's, with miners inside",
     );
     screenshot(&tab, "dashboard-zones");
+    let id = west["id"].as_str().unwrap().to_string();
+
+    // edit it: drag its two eastern corners past the mine's east end with the mouse, save, and
+    // the stored fence and its head count follow
+    tab.find_element(&format!("tr[data-zone-id='{id}'] .zone-edit"))
+        .unwrap()
+        .click()
+        .unwrap();
+    let handles = eval(
+        &tab,
+        &format!(
+            "{}.then(site => {{ const map = window.rtls.map.map; const box = map.getContainer().getBoundingClientRect();              const east = site.bounds_m.max[0] + 1;              return window.rtls.map.editing.handles.slice(1, 3).map(h => {{ const ll = h.getLatLng();                const from = map.latLngToContainerPoint(ll), to = map.latLngToContainerPoint([ll.lat, east]);                return [box.left + from.x, box.top + from.y, box.left + to.x, box.top + to.y]; }}); }})",
+            api_js("/api/v1/site", READ)
+        ),
+    );
+    for handle in handles.as_array().unwrap() {
+        let p: Vec<f64> = handle.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        drag(&tab, (p[0], p[1]), (p[2], p[3]));
+    }
+    tab.find_element("#zone-save").unwrap().click().unwrap();
+    let whole = wait_until(
+        &tab,
+        &format!(
+            "Promise.all([{}, {}, {}]).then(([fences, occupants, site]) => {{ const f = fences.find(f => f.foreign_id === '{id}');              const xs = f.region.coordinates[0].map(p => p[0]);              const row = document.querySelector(`tr[data-zone-id='{id}'] .head-count`);              return {{ east: Math.max(...xs), mine_east: site.bounds_m.max[0], api: (occupants['{id}'] || []).length,                        screen: row ? Number(row.textContent) : -1 }}; }})",
+            api_js("/v2/fences/summary", READ),
+            api_js("/api/v1/zones/occupants", READ),
+            api_js("/api/v1/site", READ)
+        ),
+        |v| {
+            v["east"].as_f64().zip(v["mine_east"].as_f64()).is_some_and(|(e, m)| (e - (m + 1.0)).abs() < 1.0)
+                && v["screen"] == v["api"]
+                // nearly the whole crew is inside the mine-wide zone now (some may be lost)
+                && v["api"].as_u64().is_some_and(|n| n >= 50)
+        },
+        Duration::from_secs(30),
+        "the dragged corners stored and the head count on screen equal to the API's",
+    );
+    eprintln!("zone edited by dragging its corners: {west} → {whole}");
+
+    // the muster board: its text count equals the API's, missing people first
+    eval(
+        &tab,
+        "document.querySelector(\"nav button[data-panel='muster']\").click(); true",
+    );
+    let muster = wait_until(
+        &tab,
+        &format!(
+            "{}.then(board => ({{ api: board.on_site_total, screen: Number(document.getElementById('muster-summary').dataset.onSite), \
+             rows: document.querySelectorAll('#muster-table tbody tr').length }}))",
+            api_js("/api/v1/muster", READ)
+        ),
+        |v| v["api"].as_u64().is_some_and(|n| n >= 50) && v["screen"] == v["api"] && v["rows"] == v["api"],
+        Duration::from_secs(30),
+        "the muster board's count on screen equals the API's",
+    );
+    eprintln!("muster board: {muster}");
+    screenshot(&tab, "dashboard-muster");
+
     // and it is stored as an omlox fence the trackers watch: deleting it through the API
     // removes it from the screen
-    let id = west["id"].as_str().unwrap().to_string();
     let status = eval(
         &tab,
         &format!(
@@ -385,6 +480,7 @@ technology = "uwb"
 [[floors]]
 id = "ground"
 z_range_m = [0.0, 3.5]
+plan = { image = "ground.svg", bounds_m = [[-2.0, -2.0], [22.0, 12.0]] }
 [[floors]]
 id = "mezzanine"
 z_range_m = [3.5, 7.0]
@@ -402,6 +498,12 @@ shape = { type = "polygon", vertices_m = [[10.0, 0.0], [18.0, 0.0], [18.0, 8.0],
 pipeline = "fix-then-filter"
 dimensions = 3
 "#,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("ground.svg"),
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"240\" height=\"140\">\
+         <rect width=\"240\" height=\"140\" fill=\"#f4f1ea\" stroke=\"#444\" stroke-width=\"4\"/></svg>",
     )
     .unwrap();
     let Some(browser) = browser() else { return };
@@ -450,17 +552,38 @@ dimensions = 3
             &format!(
                 "(() => {{ const s = document.getElementById('floor-select'); s.value = '{floor}'; \
                  s.dispatchEvent(new Event('change')); \
-                 return {{ tags: window.rtls.map.visibleCount(), zones: window.rtls.map.zoneLayer.getLayers().map(l => l.zoneId) }}; }})()"
+                 return {{ tags: window.rtls.map.visibleCount(), zones: window.rtls.map.zoneLayer.getLayers().map(l => l.zoneId), \
+                          plans: [...document.querySelectorAll('img.leaflet-image-layer')].map(i => i.src.startsWith('blob:') && i.complete && i.naturalWidth) }}; }})()"
             ),
         )
     };
     let all = shown("");
     assert_eq!(all["tags"], 2, "{all}");
+    // the ground floor's plan image under the map (fetched with the read token), none upstairs
+    wait_for(
+        &tab,
+        "window.rtls.map.plans.size === 1",
+        Duration::from_secs(10),
+        "the ground floor's plan loaded",
+    );
     let ground = shown("ground");
     assert_eq!(ground["tags"], 1, "{ground}");
     assert_eq!(ground["zones"], serde_json::json!(["dock"]), "{ground}");
+    // a blob: image of the ground floor's plan, decoded at its 240 px width
+    wait_until(
+        &tab,
+        "[...document.querySelectorAll('img.leaflet-image-layer')].map(i => i.src.startsWith('blob:') && i.complete && i.naturalWidth)",
+        |v| v == &serde_json::json!([240]),
+        Duration::from_secs(10),
+        "the ground floor's plan drawn",
+    );
     let mezzanine = shown("mezzanine");
     assert_eq!(mezzanine["tags"], 1, "{mezzanine}");
     assert_eq!(mezzanine["zones"], serde_json::json!(["gallery"]), "{mezzanine}");
+    assert_eq!(
+        mezzanine["plans"],
+        serde_json::json!([]),
+        "no plan upstairs: {mezzanine}"
+    );
     screenshot(&tab, "dashboard-floors");
 }

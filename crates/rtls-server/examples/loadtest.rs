@@ -140,6 +140,7 @@ async fn main() {
             read: None,
         },
         trackables: Vec::new(),
+        floor_plans: rtls_server::http::plans::FloorPlans::default(),
         feed: None,
     };
     let (bound_tx, bound_rx) = tokio::sync::oneshot::channel::<Bound>();

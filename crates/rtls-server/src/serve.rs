@@ -69,6 +69,8 @@ pub struct ServeOptions {
     /// omlox trackables registered at start when the store has none with their id (the demo's
     /// named miners); trackables created through the API are kept as they are.
     pub trackables: Vec<crate::omlox::Trackable>,
+    /// The site's floor-plan images ([`crate::http::plans::FloorPlans::load`]; empty for none).
+    pub floor_plans: crate::http::plans::FloorPlans,
     /// A feed to start once listening (`rtls serve --demo`'s mine), given the pipeline as its
     /// sink and the bound addresses.
     pub feed: Option<Feed>,
@@ -95,6 +97,7 @@ pub async fn serve(
         site_text,
         tokens,
         trackables,
+        floor_plans,
         feed,
     } = options;
     let db = config.server.db.clone();
@@ -160,6 +163,7 @@ pub async fn serve(
         site: Arc::new(site),
         default_accuracy_m: config.server.default_accuracy_m,
         started: Instant::now(),
+        floor_plans: Arc::new(floor_plans),
     };
 
     let (stop_tx, stop_rx) = watch::channel(false);

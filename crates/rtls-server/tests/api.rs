@@ -592,6 +592,7 @@ async fn geojson_is_wgs84_longitude_latitude_when_the_site_is_georeferenced_and_
             longitude_deg: 8.5417,
             height_m: 455.0,
         },
+        x_axis_bearing_deg: 90.0,
     });
     geo_state.site = std::sync::Arc::new(site);
     let geo_app = rtls_server::http::router(geo_state);

@@ -62,6 +62,7 @@ async fn run(mqtt: MqttMode) -> (Bound, f64, Vec<f64>) {
             read: Some(READ.into()),
         },
         trackables: Vec::new(),
+        floor_plans: rtls_server::http::plans::FloorPlans::default(),
         feed: Some(start),
     };
     let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();

@@ -41,6 +41,7 @@ fn accepted_keys() -> BTreeSet<String> {
         ("readers[].radio.range", fields_of::<RangeErrors>("")),
         ("corridors[]", fields_of::<Corridor>("")),
         ("floors[]", fields_of::<Floor>("")),
+        ("floors[].plan", fields_of::<FloorPlan>("")),
         ("zones[]", fields_of::<crate::zones::Zone>("")),
         ("zones[].shape", fields_of::<Shape>("type = \"polygon\"\n")),
         ("zones[].shape", fields_of::<Shape>("type = \"box\"\n")),
@@ -58,6 +59,7 @@ fn accepted_keys() -> BTreeSet<String> {
         ("scheduling", fields_of::<SchedulingSettings>("")),
         ("scheduling.cells[]", fields_of::<SchedulingCell>("")),
         ("alarms", fields_of::<AlarmSettings>("")),
+        ("muster", fields_of::<crate::zones::MusterSettings>("")),
     ];
     // the shape enum's tag
     let mut keys = BTreeSet::from(["zones[].shape.type".to_string()]);

@@ -166,7 +166,46 @@ fn validate(site: &mut Site, text: &str, file: &str) -> Result<()> {
         )?;
     }
 
+    for (i, floor) in site.floors.iter().enumerate() {
+        let Some(plan) = &floor.plan else { continue };
+        let [[x0, y0], [x1, y1]] = plan.bounds_m;
+        check(
+            text,
+            file,
+            &[
+                (
+                    format!("floors[{i}].plan.image"),
+                    plan.media_type().is_some(),
+                    "must name a .png, .jpg, .jpeg, .svg, .webp or .gif file, relative to the site file",
+                ),
+                (
+                    format!("floors[{i}].plan.bounds_m"),
+                    x0 < x1 && y0 < y1,
+                    "must be [[x_min, y_min], [x_max, y_max]] with x_min < x_max and y_min < y_max, m",
+                ),
+            ],
+        )?;
+    }
+
     unique_ids(text, file, "zones", site.zones.iter().map(|z| z.id.as_str()))?;
+    if let Some(muster) = &site.muster {
+        let known_zone = |path: String, id: &str| {
+            if site.zones.iter().any(|z| z.id == id) {
+                Ok(())
+            } else {
+                Err(invalid(
+                    file,
+                    text,
+                    &path,
+                    format!("unknown zone `{id}`: not among the site's zones"),
+                ))
+            }
+        };
+        known_zone("muster.entry_zone".into(), &muster.entry_zone)?;
+        for (j, id) in muster.outside_zones.iter().enumerate() {
+            known_zone(format!("muster.outside_zones[{j}]"), id)?;
+        }
+    }
     for (i, zone) in site.zones.iter_mut().enumerate() {
         for (j, id) in zone.readers.iter().enumerate() {
             known_reader(format!("zones[{i}].readers[{j}]"), id)?;

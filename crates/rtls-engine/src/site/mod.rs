@@ -21,8 +21,8 @@ mod ranges;
 
 pub use limits::{read_text_file, MAX_RADIO_MAP_BYTES, MAX_RADIO_MAP_ROWS, MAX_SITE_BYTES, MAX_ZONE_VERTICES};
 pub use options::{
-    AdaptiveNoiseSettings, AlarmSettings, Corridor, FrameSettings, GeodeticOrigin, GnssSettings, HeadingSettings,
-    ImmModeKind, ImmModeSet, ImmSettings, MapSettings, SchedulingCell, SchedulingSettings,
+    AdaptiveNoiseSettings, AlarmSettings, Corridor, FloorPlan, FrameSettings, GeodeticOrigin, GnssSettings,
+    HeadingSettings, ImmModeKind, ImmModeSet, ImmSettings, MapSettings, SchedulingCell, SchedulingSettings,
 };
 pub use platform::Platform;
 
@@ -107,6 +107,9 @@ pub struct Site {
     /// Predictive hazard alarms (defaults when the section is absent).
     #[serde(default)]
     pub alarms: AlarmSettings,
+    /// The check-in/check-out rule of a muster board: who is on site (`[muster]`).
+    #[serde(default)]
+    pub muster: Option<crate::zones::MusterSettings>,
 }
 
 /// Radio technology of a reader.
@@ -225,6 +228,9 @@ pub struct Floor {
     pub id: String,
     /// Height range `[z_min, z_max]`, m.
     pub z_range_m: [f64; 2],
+    /// A floor-plan image the dashboard draws under the map.
+    #[serde(default)]
+    pub plan: Option<FloorPlan>,
 }
 
 /// File format of a fingerprint database.

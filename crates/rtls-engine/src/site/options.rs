@@ -1,6 +1,8 @@
 //! Optional sections of the site model: `[frame]`, `[tracker.imm]`, `[tracker.adaptive_noise]`,
 //! `[tracker.gnss]`, `[scheduling]` and `[alarms]`.
 
+use std::path::PathBuf;
+
 use serde::Deserialize;
 
 /// `[scheduling]`: seed 003's adaptive node scheduling. From each confirmed track's prediction
@@ -291,13 +293,23 @@ impl Default for AlarmSettings {
 }
 
 /// `[frame]`: where the site frame lies on the Earth. Site coordinates are then a local
-/// east-north-up frame about `origin` (`x` east, `y` north, `z` up along the ellipsoid normal,
-/// m), which GNSS pseudoranges need to be solved in the site's coordinates.
+/// frame about `origin` (`z` up along the ellipsoid normal, m; by default `x` east and `y`
+/// north), which GNSS pseudoranges need to be solved in the site's coordinates and GeoJSON
+/// outputs to be given in longitude and latitude.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FrameSettings {
     /// The site frame's origin.
     pub origin: GeodeticOrigin,
+    /// The compass bearing of the site's `x` axis, degrees clockwise from north (0 ≤ β < 360;
+    /// default 90: `x` east, `y` north). A plan drawn along a building's walls is rarely aligned
+    /// with north; `y` is always 90° counter-clockwise from `x`.
+    #[serde(default = "default_x_axis_bearing_deg")]
+    pub x_axis_bearing_deg: f64,
+}
+
+fn default_x_axis_bearing_deg() -> f64 {
+    90.0
 }
 
 /// A WGS-84 geodetic position: the origin of the site frame.
@@ -313,24 +325,39 @@ pub struct GeodeticOrigin {
 }
 
 impl FrameSettings {
+    /// The site frame: origin and the bearing of its `x` axis
+    /// ([`rtls_positioning::gnss::LocalFrame::with_x_axis_bearing`]).
+    ///
+    /// # Errors
+    /// An invalid origin or bearing (the loader refuses those).
+    pub fn local_frame(
+        &self,
+    ) -> std::result::Result<rtls_positioning::gnss::LocalFrame, rtls_positioning::PositioningError> {
+        rtls_positioning::gnss::LocalFrame::with_x_axis_bearing(self.origin.geodetic(), self.x_axis_bearing_deg)
+    }
+
     /// WGS-84 longitude, latitude (degrees) and ellipsoidal height (m) of a site position
-    /// `[x, y, z]` (m; `z` 0 for a 2-D position): the east-north-up offset from the origin taken
-    /// to ECEF, `ecef = ecef₀ + Rᵀ [x, y, z]`, and back to geodetic — the RFC 7946 GeoJSON
-    /// order. `None` when the origin is not a valid geodetic position (the loader refuses those).
+    /// `[x, y, z]` (m; `z` 0 for a 2-D position): the offset from the origin taken to ECEF,
+    /// `ecef = ecef₀ + R_siteᵀ [x, y, z]` (`R_site` turns ENU by the `x` axis' bearing), and
+    /// back to geodetic — the RFC 7946 GeoJSON order. `None` when the origin is not a valid
+    /// geodetic position (the loader refuses those).
     ///
     /// # Examples
     /// ```
     /// use rtls_engine::site::{FrameSettings, GeodeticOrigin};
-    /// let frame = FrameSettings {
-    ///     origin: GeodeticOrigin { latitude_deg: 47.3769, longitude_deg: 8.5417, height_m: 455.0 },
-    /// };
+    /// let origin = GeodeticOrigin { latitude_deg: 47.3769, longitude_deg: 8.5417, height_m: 455.0 };
+    /// let frame = FrameSettings { origin, x_axis_bearing_deg: 90.0 };
     /// let [lon, lat, h] = frame.wgs84_of([0.0, 111.2, 0.0]).unwrap();
     /// // 111.2 m north is about 0.001° of latitude; the longitude does not change
     /// assert!((lat - 47.3779).abs() < 2e-5 && (lon - 8.5417).abs() < 1e-9 && (h - 455.0).abs() < 0.01);
+    /// // the plan's x axis pointing north (bearing 0): 111.2 m along x is the same point
+    /// let turned = FrameSettings { origin, x_axis_bearing_deg: 0.0 };
+    /// let [lon_x, lat_x, _] = turned.wgs84_of([111.2, 0.0, 0.0]).unwrap();
+    /// assert!((lat_x - lat).abs() < 1e-9 && (lon_x - lon).abs() < 1e-9);
     /// ```
     #[must_use]
     pub fn wgs84_of(&self, position_m: [f64; 3]) -> Option<[f64; 3]> {
-        let frame = rtls_positioning::gnss::LocalFrame::new(self.origin.geodetic()).ok()?;
+        let frame = self.local_frame().ok()?;
         let at = frame
             .geodetic_of_enu(&nalgebra::Vector3::new(position_m[0], position_m[1], position_m[2]))
             .ok()?;
@@ -454,5 +481,41 @@ impl Default for MapSettings {
             junction_radius_m: None,
             vertical_std_m: Self::DEFAULT_VERTICAL_STD_M,
         }
+    }
+}
+
+/// A floor-plan image placed in site coordinates: the picture's lower-left and upper-right
+/// corners (an image drawn north-up on a plan aligned with the site's axes; turn the site with
+/// `[frame] x_axis_bearing_deg`, not the image).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FloorPlan {
+    /// The image (PNG, JPEG, SVG, WebP or GIF), relative to the site file's folder.
+    pub image: PathBuf,
+    /// `[[x_min, y_min], [x_max, y_max]]`: where the image's lower-left and upper-right
+    /// corners lie, m.
+    pub bounds_m: [[f64; 2]; 2],
+}
+
+impl FloorPlan {
+    /// The image's media type from its file extension, or `None` for a kind browsers do not
+    /// draw.
+    ///
+    /// ```
+    /// use rtls_engine::site::FloorPlan;
+    /// let plan = FloorPlan { image: "level-1.PNG".into(), bounds_m: [[0.0, 0.0], [50.0, 30.0]] };
+    /// assert_eq!(plan.media_type(), Some("image/png"));
+    /// ```
+    #[must_use]
+    pub fn media_type(&self) -> Option<&'static str> {
+        let extension = self.image.extension()?.to_str()?.to_ascii_lowercase();
+        Some(match extension.as_str() {
+            "png" => "image/png",
+            "jpg" | "jpeg" => "image/jpeg",
+            "svg" => "image/svg+xml",
+            "webp" => "image/webp",
+            "gif" => "image/gif",
+            _ => return None,
+        })
     }
 }

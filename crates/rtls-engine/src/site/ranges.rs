@@ -136,6 +136,7 @@ const CLUTTER_DENSITY: Bounds = Bounds::closed(1e-12, 1000.0, "per m² or per m"
 const NOISE_FLOOR_DBM: Bounds = Bounds::closed(-150.0, -30.0, "dBm");
 const LATITUDE_DEG: Bounds = Bounds::closed(-90.0, 90.0, "degrees");
 const LONGITUDE_DEG: Bounds = Bounds::closed(-180.0, 180.0, "degrees");
+const BEARING_DEG: Bounds = Bounds::closed(0.0, 360.0, "degrees");
 const ELLIPSOID_HEIGHT_M: Bounds = Bounds::closed(-11_000.0, 100_000.0, "m");
 const PSEUDORANGE_STD_M: Bounds = Bounds::closed(0.01, 1000.0, "m");
 const MIN_ELEVATION_DEG: Bounds = Bounds::closed(0.1, 90.0, "degrees");
@@ -198,6 +199,11 @@ pub(super) fn checks(site: &Site) -> Vec<Check> {
         out.push(within("frame.origin.latitude_deg", o.latitude_deg, LATITUDE_DEG));
         out.push(within("frame.origin.longitude_deg", o.longitude_deg, LONGITUDE_DEG));
         out.push(within("frame.origin.height_m", o.height_m, ELLIPSOID_HEIGHT_M));
+        out.push(within(
+            "frame.x_axis_bearing_deg",
+            frame.x_axis_bearing_deg,
+            BEARING_DEG,
+        ));
     }
     for (i, reader) in site.readers.iter().enumerate() {
         out.push(coordinates(format!("readers[{i}].position_m"), &reader.position_m));
@@ -261,6 +267,11 @@ pub(super) fn checks(site: &Site) -> Vec<Check> {
     }
     for (i, floor) in site.floors.iter().enumerate() {
         out.push(coordinates(format!("floors[{i}].z_range_m"), &floor.z_range_m));
+        if let Some(plan) = &floor.plan {
+            for (k, corner) in plan.bounds_m.iter().enumerate() {
+                out.push(coordinates(format!("floors[{i}].plan.bounds_m[{k}]"), corner));
+            }
+        }
     }
     for (i, zone) in site.zones.iter().enumerate() {
         match &zone.shape {

@@ -327,10 +327,7 @@ impl Tracker {
                 settings.heading.odometer_drift_rad_per_sqrt_s,
                 settings.heading.odometer_offset_std_rad,
             )?,
-            frame: site
-                .frame
-                .map(|f| rtls_positioning::gnss::LocalFrame::new(f.origin.geodetic()))
-                .transpose()?,
+            frame: site.frame.map(|f| f.local_frame()).transpose()?,
             constraints,
         };
         let monitor = site.zone_monitor()?;

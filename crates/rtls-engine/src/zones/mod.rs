@@ -16,8 +16,10 @@
 
 mod geometry;
 mod monitor;
+mod muster;
 
 pub use monitor::{AntiFlap, ZoneEvent, ZoneMonitor};
+pub use muster::{missing_zones, muster_status, MusterSettings, MusterStatus};
 
 use serde::{Deserialize, Serialize};
 

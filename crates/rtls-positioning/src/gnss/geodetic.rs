@@ -228,6 +228,48 @@ impl LocalFrame {
         })
     }
 
+    /// A local frame about `origin` whose `x` axis points along the compass bearing
+    /// `x_axis_bearing_deg` (degrees clockwise from north; 90 gives [`LocalFrame::new`]'s ENU),
+    /// `y` 90° counter-clockwise from it and `z` up: a site drawn on a plan that is not aligned
+    /// with north.
+    ///
+    /// ```text
+    /// x̂ = ( sin β,  cos β, 0)       in ENU, β = x_axis_bearing_deg
+    /// ŷ = (−cos β,  sin β, 0)
+    /// R_site = [x̂; ŷ; û] R(φ, λ)    ECEF → site
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Geodetic::validate`]; [`PositioningError::InvalidParameter`] for a non-finite bearing.
+    ///
+    /// # Example
+    /// ```
+    /// use rtls_positioning::gnss::{Geodetic, LocalFrame};
+    /// let origin = Geodetic { latitude_deg: 52.0, longitude_deg: 4.4, height_m: 0.0 };
+    /// // x along north: 100 m along x is 100 m north
+    /// let site = LocalFrame::with_x_axis_bearing(origin, 0.0)?;
+    /// let enu = LocalFrame::new(origin)?;
+    /// let north = enu.enu_from_ecef(&site.ecef_from_enu(&nalgebra::Vector3::new(100.0, 0.0, 0.0)));
+    /// assert!((north - nalgebra::Vector3::new(0.0, 100.0, 0.0)).norm() < 1e-6);
+    /// # Ok::<(), rtls_positioning::PositioningError>(())
+    /// ```
+    pub fn with_x_axis_bearing(origin: Geodetic, x_axis_bearing_deg: f64) -> Result<Self> {
+        if !x_axis_bearing_deg.is_finite() {
+            return Err(PositioningError::InvalidParameter {
+                name: "x_axis_bearing_deg",
+                reason: "a bearing is a finite angle in degrees",
+            });
+        }
+        let enu = Self::new(origin)?;
+        let (sin_b, cos_b) = x_axis_bearing_deg.to_radians().sin_cos();
+        // Q: rows x̂, ŷ, û of the site axes in ENU
+        let site_from_enu = Matrix3::new(sin_b, cos_b, 0.0, -cos_b, sin_b, 0.0, 0.0, 0.0, 1.0);
+        Ok(Self {
+            rotation: site_from_enu * enu.rotation,
+            ..enu
+        })
+    }
+
     /// The frame's origin.
     #[must_use]
     pub fn origin(&self) -> Geodetic {

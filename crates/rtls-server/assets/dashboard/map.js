@@ -36,6 +36,8 @@ class SiteMap {
     this.names = new Map(); // tag → trackable name
     this.trails = new Map(); // tag → [[x, y], …] (followed tag, replay)
     this.followed = null;
+    this.planLayer = L.layerGroup().addTo(this.map); // floor-plan images, under everything
+    this.plans = new Map(); // floor id → L.imageOverlay
     this.zoneLayer = L.layerGroup().addTo(this.map);
     this.siteLayer = L.layerGroup().addTo(this.map);
     this.canvas = document.createElement("canvas");
@@ -61,6 +63,30 @@ class SiteMap {
 
   // [x, y] in m → Leaflet latlng
   static ll(p) { return L.latLng(p[1], p[0]); }
+
+  // Floor-plan images: `images` maps a floor id to an object URL of its picture; each is placed
+  // by its plan.bounds_m ([[x_min, y_min], [x_max, y_max]], m) and shown on its floor (with
+  // every floor shown: the lowest floor's).
+  setPlans(images) {
+    this.planLayer.clearLayers();
+    this.plans.clear();
+    for (const f of this.floors) {
+      const url = images.get(f.id);
+      if (!url || !f.plan) continue;
+      const [[x0, y0], [x1, y1]] = f.plan.bounds_m;
+      const overlay = L.imageOverlay(url, [[y0, x0], [y1, x1]], { opacity: 0.9, interactive: false });
+      overlay.floorId = f.id;
+      this.plans.set(f.id, overlay);
+    }
+    this.showPlan();
+  }
+
+  showPlan() {
+    this.planLayer.clearLayers();
+    const floor = this.floor || this.floors.find((f) => this.plans.has(f.id));
+    const overlay = floor && this.plans.get(floor.id);
+    if (overlay) overlay.addTo(this.planLayer);
+  }
 
   setSite(site) {
     this.siteLayer.clearLayers();
@@ -143,6 +169,42 @@ class SiteMap {
     this.map.getContainer().style.cursor = "";
   }
 
+  // Zone editor: move the corners of an existing zone — a draggable handle on each corner;
+  // `onMoved(vertices)` after every drag. The zone's drawn polygon follows the handles.
+  startEditing(zoneId, onMoved) {
+    this.stopEditing();
+    const feature = (this.zones || []).find((f) => f.properties.id === zoneId);
+    if (!feature) return false;
+    const ring = feature.geometry.coordinates[0].slice(0, -1); // the closing vertex is the first
+    const vertices = ring.map(([x, y]) => [x, y]);
+    const outline = L.polygon(vertices.map(SiteMap.ll), { color: "#1f6feb", dashArray: "4 4", fillOpacity: 0.05 }).addTo(this.map);
+    const handles = vertices.map((v, i) => {
+      const handle = L.marker(SiteMap.ll(v), {
+        draggable: true,
+        keyboard: false,
+        icon: L.divIcon({ className: "corner-handle", iconSize: [12, 12] }),
+      }).addTo(this.map);
+      handle.on("drag", (e) => {
+        vertices[i] = [e.latlng.lng, e.latlng.lat];
+        outline.setLatLngs(vertices.map(SiteMap.ll));
+      });
+      handle.on("dragend", () => onMoved(vertices.map((p) => p.slice())));
+      return handle;
+    });
+    this.editing = { zoneId, vertices, outline, handles };
+    return true;
+  }
+
+  // The edited corners (m) and the editor closed; [] when nothing was being edited.
+  stopEditing() {
+    if (!this.editing) return [];
+    const { vertices, outline, handles } = this.editing;
+    outline.remove();
+    handles.forEach((h) => h.remove());
+    this.editing = null;
+    return vertices;
+  }
+
   // Whether something on `floorId` or spanning `zRange` shows on the selected floor.
   onFloor(floorId, zRange) {
     if (this.floor === null) return true;
@@ -153,6 +215,7 @@ class SiteMap {
 
   setFloor(floorId) {
     this.floor = this.floors.find((f) => f.id === floorId) || null;
+    this.showPlan();
     this.drawZones();
     this.invalidate();
   }

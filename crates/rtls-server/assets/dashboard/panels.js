@@ -5,6 +5,7 @@ const SEVERITY = {
   "hazard-predicted": (a) => (a.time_to_entry_s !== undefined && a.time_to_entry_s <= 3 ? "critical" : "warning"),
   "no-coverage": () => "warning",
   lifecycle: (a) => (a.event === "lost" ? "critical" : "info"),
+  "zone-enter": (a) => (a.zone_kind === "hazard" ? "critical" : "warning"),
 };
 
 function alarmText(a) {
@@ -12,6 +13,7 @@ function alarmText(a) {
     case "hazard-predicted":
       return `hazard predicted in ${Number(a.time_to_entry_s).toFixed(1)} s (p ${Number(a.probability).toFixed(2)})`;
     case "hazard-cleared": return "hazard cleared";
+    case "zone-enter": return `entered ${a.zone_kind || ""} zone`;
     case "no-coverage": return "no coverage";
     case "model-switch": return `model switch → ${a.to || a.mode || ""}`;
     case "lifecycle": return a.event === "lost" ? "lost (last known position shown)" : a.event;
@@ -112,7 +114,7 @@ class AlarmConsole {
 }
 
 // Zones: kind, head count and who is inside (muster board).
-function renderZones(table, zones, occupants, { onTag, nameOf, onDelete }) {
+function renderZones(table, zones, occupants, { onTag, nameOf, onDelete, onEdit }) {
   const rows = (zones.features || []).map((f) => {
     const id = f.properties.id;
     const inside = occupants[id] || [];
@@ -132,7 +134,14 @@ function renderZones(table, zones, occupants, { onTag, nameOf, onDelete }) {
     remove.className = "zone-delete";
     remove.textContent = "Delete";
     remove.addEventListener("click", () => onDelete(f.properties.id, f.properties.name || id));
-    cell(tr, remove);
+    const edit = document.createElement("button");
+    edit.type = "button";
+    edit.className = "zone-edit";
+    edit.textContent = "Edit";
+    edit.addEventListener("click", () => onEdit(f));
+    const actions = document.createElement("span");
+    actions.append(edit, remove);
+    cell(tr, actions);
     return tr;
   });
   table.tBodies[0].replaceChildren(...rows);
@@ -227,4 +236,33 @@ class Replay {
   step(seconds) { this.pause(); this.advanceTo(Math.min(this.clock + seconds, this.toS)); }
 
   stop() { this.pause(); this.active = false; this.states = []; this.map.clearTags(); }
+}
+
+// Muster board (GET /api/v1/muster): who is on site by the entry zone's check-in/check-out
+// rule — missing people (on site, no longer heard) first.
+const MUSTER_LABEL = { missing: "MISSING", "at-entry": "at entry", "on-site": "on site" };
+function renderMuster(table, summary, board, { onTag, nameOf }) {
+  if (!board.configured) {
+    summary.textContent = "No muster rule: the site file has no [muster] entry_zone.";
+    summary.dataset.onSite = "";
+    table.tBodies[0].replaceChildren();
+    return;
+  }
+  const c = board.counts;
+  summary.dataset.onSite = String(board.on_site_total);
+  summary.dataset.missing = String(c.missing);
+  let text = `${board.on_site_total} on site (${c.missing} missing, ${c["at-entry"]} at the entry ${board.entry_zone}) · ${c["off-site"]} checked out`;
+  if (board.missing_zones.length) text += ` · zones of the rule deleted: ${board.missing_zones.join(", ")}`;
+  summary.textContent = text;
+  const now = Date.now() / 1000;
+  const rows = board.tags.map((t) => {
+    const tr = document.createElement("tr");
+    tr.className = `muster-${t.status}`;
+    cell(tr, tagButton(t.tag, nameOf(t.tag), onTag));
+    cell(tr, MUSTER_LABEL[t.status] || t.status);
+    cell(tr, formatTime(t.time_s));
+    cell(tr, t.status === "missing" ? `${Math.round(now - t.time_s)} s ago at ${t.position_m[0].toFixed(0)}, ${t.position_m[1].toFixed(0)} m` : "");
+    return tr;
+  });
+  table.tBodies[0].replaceChildren(...rows);
 }

@@ -109,13 +109,21 @@ pub(super) async fn site(State(state): State<AppState>, headers: HeaderMap) -> A
     let floors: Vec<Value> = site
         .floors
         .iter()
-        .map(|f| json!({ "id": f.id, "z_range_m": f.z_range_m }))
+        .map(|f| {
+            let plan = state
+                .floor_plans
+                .get(&f.id)
+                .and(f.plan.as_ref())
+                .map(|plan| json!({ "url": super::plans::plan_url(&f.id), "bounds_m": plan.bounds_m }));
+            json!({ "id": f.id, "z_range_m": f.z_range_m, "plan": plan })
+        })
         .collect();
     let origin = site.frame.map(|f| {
         json!({
             "latitude_deg": f.origin.latitude_deg,
             "longitude_deg": f.origin.longitude_deg,
             "height_m": f.origin.height_m,
+            "x_axis_bearing_deg": f.x_axis_bearing_deg,
         })
     });
     Ok(Json(json!({

@@ -11,7 +11,9 @@ mod api;
 mod dashboard;
 pub mod fences;
 mod hub;
+mod muster;
 mod ops;
+pub mod plans;
 mod ws;
 
 use std::sync::{Arc, Mutex};
@@ -51,6 +53,8 @@ pub struct AppState {
     pub default_accuracy_m: f64,
     /// When the server started.
     pub started: Instant,
+    /// The site's floor-plan images.
+    pub floor_plans: Arc<plans::FloorPlans>,
 }
 
 /// The query connection: closed on a thread of its own when dropped, because the PostgreSQL
@@ -245,6 +249,8 @@ pub fn router(state: AppState) -> Router {
         .route("/api/v1/site", get(dashboard::site))
         .route("/api/v1/readers", get(dashboard::readers))
         .route("/api/v1/zones/occupants", get(dashboard::occupants))
+        .route("/api/v1/muster", get(muster::muster))
+        .route("/api/v1/site/floors/{floor_id}/plan", get(plans::floor_plan))
         .route("/api/v1/alarms", get(alarms::list))
         .route("/api/v1/alarms/{alarm_id}/acknowledge", post(alarms::acknowledge))
         .route("/health", get(ops::health))

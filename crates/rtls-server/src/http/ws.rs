@@ -191,10 +191,14 @@ async fn deliver(
     frame: Option<&rtls_engine::site::FrameSettings>,
 ) -> Result<(), axum::Error> {
     for (&id, subscription) in subscriptions {
-        let payloads: Vec<Value> = batch
-            .iter()
-            .filter_map(|message| payload(message, subscription, fences, frame))
-            .collect();
+        let payloads: Vec<Value> = if subscription.topic == Topic::RtlsPositions {
+            compact_positions(batch, subscription).into_iter().collect()
+        } else {
+            batch
+                .iter()
+                .filter_map(|message| payload(message, subscription, fences, frame))
+                .collect()
+        };
         if !payloads.is_empty() {
             send(socket, &WsMessage::message(subscription.topic, id, payloads)).await?;
         }
@@ -210,10 +214,10 @@ fn payload(
     frame: Option<&rtls_engine::site::FrameSettings>,
 ) -> Option<Value> {
     let payload = match (message.as_ref(), subscription.topic) {
-        (HubMessage::Location { tag, location }, Topic::LocationUpdates) if wanted(subscription, tag) => {
+        (HubMessage::Location { tag, location, .. }, Topic::LocationUpdates) if wanted(subscription, tag) => {
             location.clone()
         }
-        (HubMessage::Location { tag, location }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
+        (HubMessage::Location { tag, location, .. }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
             json!({ "type": "Feature", "geometry": wgs84_geometry(frame, &location["position"]), "properties": location })
         }
         (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => event.clone(),
@@ -233,6 +237,56 @@ fn payload(
         _ => return None,
     };
     Some(payload)
+}
+
+/// The batch's location updates as one columnar object (`rtls:positions`): positions rounded
+/// to the millimetre, covariances to single precision — a third of the bytes of the
+/// `Location` objects and a fraction of a browser's parse time, which at ten thousand tags is
+/// the difference between a smooth map and a stuttering one. `None` without updates.
+fn compact_positions(batch: &[Arc<HubMessage>], subscription: &Subscription) -> Option<Value> {
+    let mm = |v: f64| (v * 1000.0).round() / 1000.0;
+    let (mut tags, mut times, mut xs, mut ys, mut zs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut cxx, mut cxy, mut cyy, mut status, mut predicted) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for message in batch {
+        let HubMessage::Location { tag, time_s, location } = message.as_ref() else {
+            continue;
+        };
+        if !wanted(subscription, tag) {
+            continue;
+        }
+        let coordinates = &location["position"]["coordinates"];
+        let properties = &location["properties"];
+        let coordinate = |k: usize| coordinates[k].as_f64();
+        let (Some(x), Some(y)) = (coordinate(0), coordinate(1)) else {
+            continue;
+        };
+        tags.push(Value::String(tag.clone()));
+        times.push(json!(mm(*time_s)));
+        xs.push(json!(mm(x)));
+        ys.push(json!(mm(y)));
+        zs.push(coordinate(2).map_or(Value::Null, |z| json!(mm(z))));
+        // the x–y block of the row-major covariance (2 × 2 or 3 × 3)
+        let covariance = properties["rtls:covariance_m2"].as_array();
+        let dimension = if covariance.is_some_and(|c| c.len() == 9) { 3 } else { 2 };
+        let entry = |k: usize| {
+            covariance
+                .and_then(|c| c.get(k))
+                .and_then(Value::as_f64)
+                .map_or(Value::Null, |v| json!(v as f32))
+        };
+        cxx.push(entry(0));
+        cxy.push(entry(1));
+        cyy.push(entry(dimension + 1));
+        status.push(properties["rtls:status"].clone());
+        predicted.push(json!(u8::from(properties["rtls:predicted"].as_bool().unwrap_or(false))));
+    }
+    (!tags.is_empty()).then(|| {
+        json!({
+            "tag": tags, "t": times, "x": xs, "y": ys, "z": zs,
+            "cxx": cxx, "cxy": cxy, "cyy": cyy, "status": status, "predicted": predicted,
+        })
+    })
 }
 
 fn wanted(subscription: &Subscription, tag: &str) -> bool {

@@ -54,6 +54,12 @@ pub enum Topic {
     /// Extension: every other engine event (zone dwell, lifecycle, schedule, late, rejected).
     #[serde(rename = "rtls:events")]
     RtlsEvents,
+    /// Extension: the location updates of `location_updates` in a compact, columnar form for
+    /// maps with thousands of tags — one object per WebSocket message with one array per field
+    /// (`tag`, `t`, `x`, `y`, `z`, `cxx`, `cxy`, `cyy`, `status`, `predicted`); see
+    /// docs/SERVER.md.
+    #[serde(rename = "rtls:positions")]
+    RtlsPositions,
 }
 
 impl Topic {

@@ -17,6 +17,8 @@ pub enum HubMessage {
     Location {
         /// The tag.
         tag: String,
+        /// The update's time (s, the records' clock: Unix seconds when live).
+        time_s: f64,
         /// The `Location` object.
         location: Value,
     },
@@ -61,6 +63,20 @@ pub struct LiveState {
     occupants: Vec<RwLock<HashMap<String, Vec<String>>>>,
     /// The latest alarms (their event JSON with `alarm_id`), oldest first.
     recent_alarms: RwLock<VecDeque<Value>>,
+    /// Every tag's last known position, kept after its track is deleted: the muster board
+    /// counts a tag that went silent on site as missing, not as gone.
+    last_seen: RwLock<HashMap<String, LastSeen>>,
+}
+
+/// A tag's last known position for the muster board.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LastSeen {
+    /// When (s, the records' clock).
+    pub time_s: f64,
+    /// Where (m).
+    pub position_m: [f64; 3],
+    /// Whether its track is lost or deleted since.
+    pub lost: bool,
 }
 
 /// How many recent alarms the live state keeps (older ones are in the store).
@@ -74,6 +90,7 @@ impl LiveState {
             latest: RwLock::new(HashMap::new()),
             occupants: (0..partitions.max(1)).map(|_| RwLock::new(HashMap::new())).collect(),
             recent_alarms: RwLock::new(VecDeque::new()),
+            last_seen: RwLock::new(HashMap::new()),
         }
     }
 
@@ -170,13 +187,41 @@ impl LiveState {
         }
     }
 
+    /// Every tag ever tracked since the start, with its last known position (tags whose
+    /// track was deleted included, marked lost), ordered by tag.
+    #[must_use]
+    pub fn last_seen(&self) -> BTreeMap<String, LastSeen> {
+        self.last_seen
+            .read()
+            .map(|seen| seen.iter().map(|(k, v)| (k.clone(), *v)).collect())
+            .unwrap_or_default()
+    }
+
     pub(super) fn set_tag(&self, tag: &str, state: TagState) {
+        if let Ok(mut seen) = self.last_seen.write() {
+            let last = LastSeen {
+                time_s: state.time_s,
+                position_m: state.position_m,
+                lost: state.status == "lost",
+            };
+            match seen.get_mut(tag) {
+                Some(slot) => *slot = last,
+                None => {
+                    seen.insert(tag.to_string(), last);
+                }
+            }
+        }
         if let Ok(mut latest) = self.latest.write() {
             latest.insert(tag.to_string(), state);
         }
     }
 
     pub(super) fn remove_tag(&self, tag: &str) {
+        if let Ok(mut seen) = self.last_seen.write() {
+            if let Some(last) = seen.get_mut(tag) {
+                last.lost = true;
+            }
+        }
         if let Ok(mut latest) = self.latest.write() {
             latest.remove(tag);
         }

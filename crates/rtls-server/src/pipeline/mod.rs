@@ -38,7 +38,7 @@ use rtls_engine::site::Site;
 use rtls_engine::tracker::Tracker;
 use tokio::sync::{broadcast, mpsc, oneshot};
 
-pub use live::{HubMessage, LiveState, TagState};
+pub use live::{HubMessage, LastSeen, LiveState, TagState};
 pub use readers::{ReaderHealth, ReaderMonitor};
 
 use crate::metrics::Metrics;

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use rtls_engine::lifecycle::TrackStatus;
 use rtls_engine::tracker::{status_name, Event, Output, TrackUpdate, Tracker};
-use rtls_engine::zones::ZoneEvent;
+use rtls_engine::zones::{ZoneEvent, ZoneKind};
 use serde_json::Value;
 use tokio::sync::broadcast;
 
@@ -182,6 +182,7 @@ impl PartitionWorker {
                 );
                 let _ = self.hub.send(Arc::new(HubMessage::Location {
                     tag: update.tag.to_string(),
+                    time_s: update.time_s,
                     location,
                 }));
                 self.metrics
@@ -199,11 +200,17 @@ impl PartitionWorker {
         let kind = parsed["type"].as_str().unwrap_or("event").to_string();
         let tag = parsed["tag"].as_str().map(str::to_string);
         let zone = parsed["zone"].as_str().map(str::to_string);
-        let alarm = is_alarm(event);
+        // entering a hazard or restricted zone is an alarm too (the fence event says the same
+        // to omlox clients; the control room must see it in its console)
+        let entered_kind = self.entered_guarded_zone(event);
+        let alarm = is_alarm(event) || entered_kind.is_some();
         if alarm {
             // a stable id: the same event (replayed after a restart, too) has the same id
             if let Value::Object(object) = &mut parsed {
                 object.insert("alarm_id".into(), Value::String(alarm_id(&json_line)));
+                if let Some(kind) = entered_kind {
+                    object.insert("zone_kind".into(), Value::String(kind.into()));
+                }
                 json_line = parsed.to_string();
             }
             self.live.note_alarm(&parsed);
@@ -229,6 +236,7 @@ impl PartitionWorker {
             topic: format!("rtls/v1/events/{kind}"),
             payload: json_line.into(),
         });
+        let parsed_alarm = entered_kind.map(|_| parsed.clone());
         let message = match event {
             Event::Zone(zone_event) => {
                 let entry = self.track_zone_entry(zone_event);
@@ -258,6 +266,26 @@ impl PartitionWorker {
         };
         if let Some(message) = message {
             let _ = self.hub.send(Arc::new(message));
+        }
+        if let Some(event) = parsed_alarm {
+            let _ = self.hub.send(Arc::new(HubMessage::Extension {
+                topic: crate::omlox::ws::Topic::RtlsAlarms,
+                event,
+            }));
+        }
+    }
+
+    /// The kind (`hazard`, `restricted`) of the zone an entry event enters, when it is one the
+    /// control room is alarmed about.
+    fn entered_guarded_zone(&self, event: &Event) -> Option<&'static str> {
+        let Event::Zone(ZoneEvent::Enter { zone, .. }) = event else {
+            return None;
+        };
+        let zones = self.live.zones();
+        match zones.iter().find(|z| &z.id == zone)?.kind {
+            ZoneKind::Hazard => Some("hazard"),
+            ZoneKind::Restricted => Some("restricted"),
+            ZoneKind::AreaOfInterest => None,
         }
     }
 

@@ -104,6 +104,7 @@ pub fn state(name: &str) -> AppState {
         site: Arc::new(site),
         default_accuracy_m: 0.5,
         started: Instant::now(),
+        floor_plans: Arc::default(),
     }
 }
 

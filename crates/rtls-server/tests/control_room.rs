@@ -1,0 +1,260 @@
+//! What the control room's screen reads, over a served server on loopback: the columnar
+//! `rtls:positions` WebSocket topic, the alarm for entering a hazard zone, the muster board's
+//! check-in/check-out rule and a floor-plan image.
+
+mod common;
+
+use std::time::Duration;
+
+use futures_util::{SinkExt, StreamExt};
+use rtls_engine::site::Site;
+use rtls_server::auth::Tokens;
+use rtls_server::config::{MqttMode, ServerConfig};
+use rtls_server::http::plans::FloorPlans;
+use rtls_server::serve::{serve, ServeOptions};
+use serde_json::Value;
+use tokio_tungstenite::tungstenite::Message;
+
+use common::{temp_dir, walk, READ, SITE, WRITE};
+
+/// The test floor with a portal (x ∈ [0, 4] m) as the muster's entry zone and a floor plan.
+fn site_text() -> String {
+    format!(
+        "{SITE}\n\
+         [[floors]]\nid = \"ground\"\nz_range_m = [-10.0, 10.0]\n\
+         plan = {{ image = \"plan.png\", bounds_m = [[0.0, 0.0], [30.0, 20.0]] }}\n\
+         [[zones]]\nid = \"portal\"\nname = \"Portal\"\nkind = \"area-of-interest\"\n\
+         shape = {{ type = \"box\", min_m = [0.0, 0.0, -10.0], max_m = [4.0, 20.0, 10.0] }}\n\
+         [muster]\nentry_zone = \"portal\"\n"
+    )
+}
+
+/// The eight bytes every PNG starts with, and a little more: enough for the server, which
+/// does not decode images.
+const PNG: &[u8] = b"\x89PNG\r\n\x1a\n0000IHDR";
+
+type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+async fn next_json(socket: &mut Socket) -> Value {
+    loop {
+        let message = tokio::time::timeout(Duration::from_secs(20), socket.next())
+            .await
+            .expect("a message within 20 s");
+        if let Some(Ok(Message::Text(text))) = message {
+            return serde_json::from_str(&text).unwrap();
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
+    let dir = temp_dir("control-room");
+    std::fs::write(dir.join("plan.png"), PNG).unwrap();
+    let text = site_text();
+    let site = Site::from_toml_str(&text, "control-room.toml").unwrap();
+    let floor_plans = FloorPlans::load(&site, &dir).unwrap();
+    let mut config = ServerConfig::default();
+    config.server.http = "127.0.0.1:0".parse().unwrap();
+    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
+    config.mqtt.mode = MqttMode::Off;
+    config.pipeline.live_clock = false;
+    // one partition: every tag's records advance the same data clock, so silent tags get lost
+    config.pipeline.partitions = 1;
+    let options = ServeOptions {
+        config,
+        site,
+        site_text: text,
+        tokens: Tokens {
+            write: WRITE.into(),
+            read: Some(READ.into()),
+        },
+        trackables: Vec::new(),
+        floor_plans,
+        feed: None,
+    };
+    let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();
+    let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let task = tokio::spawn(serve(
+        options,
+        move |b| {
+            let _ = bound_tx.send(b);
+        },
+        async move {
+            let _ = stop_rx.await;
+        },
+    ));
+    let http = tokio::time::timeout(Duration::from_secs(20), bound_rx)
+        .await
+        .expect("server starts")
+        .unwrap()
+        .http;
+
+    let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{http}/v2/ws/socket?token={READ}"))
+        .await
+        .unwrap();
+    for topic in ["rtls:positions", "rtls:alarms"] {
+        let request = format!(r#"{{"event":"subscribe","topic":"{topic}"}}"#);
+        socket.send(Message::Text(request.into())).await.unwrap();
+        assert_eq!(next_json(&mut socket).await["event"], "subscribed");
+    }
+
+    // three people at the portal at t = 100 s: `in` walks through the forklift lane (x 14–18 m
+    // at 12–16 s) to x = 22 m; `gate` stays in the portal and goes quiet after 1 s (it left);
+    // `stop` walks to x = 8 m and goes quiet after 6 s (missing on site)
+    let mut lines: Vec<(f64, String)> = [("in", 20.0), ("gate", 1.0), ("stop", 6.0)]
+        .iter()
+        .flat_map(|(tag, seconds)| {
+            walk(tag, 100.0, *seconds)
+                .lines()
+                .map(str::to_string)
+                .collect::<Vec<_>>()
+        })
+        .map(|line| {
+            let t = serde_json::from_str::<Value>(&line).unwrap()["t"].as_f64().unwrap();
+            (t, line)
+        })
+        .collect();
+    lines.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let body: String = lines.into_iter().map(|(_, line)| line + "\n").collect();
+    let client = reqwest::Client::new();
+    let reply = client
+        .post(format!("http://{http}/api/v1/measurements"))
+        .bearer_auth(WRITE)
+        .body(body)
+        .send()
+        .await
+        .unwrap();
+    assert!(reply.status().is_success(), "{}", reply.status());
+
+    // the columns: equal lengths, millimetres, the x–y covariance
+    let (mut positions_of_in, mut entered) = (Vec::new(), None);
+    while positions_of_in.len() < 3 || entered.is_none() {
+        let message = next_json(&mut socket).await;
+        match message["topic"].as_str() {
+            Some("rtls:positions") => {
+                let columns = &message["payload"][0];
+                let n = columns["tag"].as_array().unwrap().len();
+                for field in ["t", "x", "y", "z", "cxx", "cxy", "cyy", "status", "predicted"] {
+                    assert_eq!(columns[field].as_array().map(Vec::len), Some(n), "{field}: {columns}");
+                }
+                for i in 0..n {
+                    if columns["tag"][i] == "in" {
+                        let x = columns["x"][i].as_f64().unwrap();
+                        assert_eq!((x * 1000.0).round() / 1000.0, x, "millimetres: {x}");
+                        assert!(columns["cxx"][i].as_f64().unwrap() > 0.0, "{columns}");
+                        assert!(columns["z"][i].is_null(), "2-D tracks have no z");
+                        positions_of_in.push(x);
+                    }
+                }
+            }
+            Some("rtls:alarms") => {
+                for alarm in message["payload"].as_array().unwrap() {
+                    // (`stop` may enter too: its coasting prediction walks on at 1 m/s)
+                    if alarm["type"] == "zone-enter" && alarm["tag"] == "in" {
+                        entered = Some(alarm.clone());
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    assert!(positions_of_in.windows(2).any(|w| w[1] > w[0]), "{positions_of_in:?}");
+    let entered = entered.unwrap();
+    assert_eq!(
+        (
+            entered["tag"].as_str(),
+            entered["zone"].as_str(),
+            entered["zone_kind"].as_str()
+        ),
+        (Some("in"), Some("forklift-lane"), Some("hazard")),
+        "{entered}"
+    );
+    assert!(entered["alarm_id"].is_string(), "{entered}");
+    // entering the portal (an area of interest) is no alarm
+    let stored: Value = client
+        .get(format!("http://{http}/api/v1/alarms"))
+        .bearer_auth(READ)
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let zone_alarms: Vec<&Value> = stored
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|a| a["type"] == "zone-enter")
+        .collect();
+    assert!(
+        zone_alarms.iter().all(|a| a["zone"] == "forklift-lane"),
+        "{zone_alarms:?}"
+    );
+
+    // the muster board: in on site, stop missing, gate checked out at the portal
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    let board = loop {
+        let board: Value = client
+            .get(format!("http://{http}/api/v1/muster"))
+            .bearer_auth(READ)
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        if board["counts"]["missing"] == 1 && board["counts"]["off-site"] == 1 {
+            break board;
+        }
+        assert!(std::time::Instant::now() < deadline, "{board}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    assert_eq!(board["configured"], true);
+    assert_eq!(board["entry_zone"], "portal");
+    assert_eq!(board["on_site_total"], 2, "{board}");
+    let listed: Vec<(&str, &str)> = board["tags"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| (t["tag"].as_str().unwrap(), t["status"].as_str().unwrap()))
+        .collect();
+    assert_eq!(listed, [("stop", "missing"), ("in", "on-site")], "{board}");
+
+    // the floor plan: listed with the site, served with its media type to readers only
+    let site_view: Value = client
+        .get(format!("http://{http}/api/v1/site"))
+        .bearer_auth(READ)
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let plan = &site_view["floors"][0]["plan"];
+    assert_eq!(
+        plan["bounds_m"],
+        serde_json::json!([[0.0, 0.0], [30.0, 20.0]]),
+        "{site_view}"
+    );
+    let url = plan["url"].as_str().unwrap();
+    let image = client
+        .get(format!("http://{http}{url}"))
+        .bearer_auth(READ)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(image.headers()["content-type"], "image/png");
+    assert_eq!(image.bytes().await.unwrap().as_ref(), PNG);
+    let anonymous = client.get(format!("http://{http}{url}")).send().await.unwrap();
+    assert_eq!(anonymous.status(), reqwest::StatusCode::UNAUTHORIZED);
+    let none = client
+        .get(format!("http://{http}/api/v1/site/floors/attic/plan"))
+        .bearer_auth(READ)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(none.status(), reqwest::StatusCode::NOT_FOUND);
+
+    let _ = stop.send(());
+    task.await.unwrap().unwrap();
+}
