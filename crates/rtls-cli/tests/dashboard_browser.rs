@@ -577,6 +577,7 @@ dimensions = 3
         Duration::from_secs(10),
         "the ground floor's plan drawn",
     );
+    screenshot(&tab, "dashboard-floors");
     let mezzanine = shown("mezzanine");
     assert_eq!(mezzanine["tags"], 1, "{mezzanine}");
     assert_eq!(mezzanine["zones"], serde_json::json!(["gallery"]), "{mezzanine}");
@@ -585,5 +586,4 @@ dimensions = 3
         serde_json::json!([]),
         "no plan upstairs: {mezzanine}"
     );
-    screenshot(&tab, "dashboard-floors");
 }
