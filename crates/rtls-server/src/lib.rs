@@ -12,7 +12,7 @@
 //!   its terms; [`auth`] — write and read tokens; [`config`] — the configuration file;
 //!   [`serve`] — starting and stopping it all; [`feed`] — a live feed of records from any
 //!   [`feed::RecordSource`] (the binary's `--demo` mine) through the ingest path;
-//!   [`webhooks`] — alarms POSTed to HTTP(S) endpoints (configuration so far).
+//!   [`webhooks`] — alarms POSTed to HTTP(S) endpoints (signed, retried, in order).
 //!
 //! ## Layer
 //! It owns the service (ingest, pipeline, APIs, storage, auth, live feeds) and may import
