@@ -11,7 +11,8 @@
 //! - [`omlox`] and [`convert`] — the omlox hub API 2.0.0 data model and the engine's outputs in
 //!   its terms; [`auth`] — write and read tokens; [`config`] — the configuration file;
 //!   [`serve`] — starting and stopping it all; [`feed`] — a live feed of records from any
-//!   [`feed::RecordSource`] (the binary's `--demo` mine) through the ingest path.
+//!   [`feed::RecordSource`] (the binary's `--demo` mine) through the ingest path;
+//!   [`webhooks`] — alarms POSTed to HTTP(S) endpoints (signed, retried, in order).
 //!
 //! ## Layer
 //! It owns the service (ingest, pipeline, APIs, storage, auth, live feeds) and may import
@@ -36,6 +37,7 @@ pub mod pipeline;
 pub mod serve;
 pub mod sink;
 pub mod store;
+pub mod webhooks;
 
 pub use error::{Result, ServerError};
 

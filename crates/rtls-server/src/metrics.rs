@@ -51,6 +51,10 @@ pub struct Metrics {
     pub websocket_dropped: Counter,
     /// HTTP requests, by route and status class.
     pub http_requests: Family<Labels, Counter>,
+    /// Webhook deliveries, by `webhook` and `outcome` (`delivered`, `retried` — one per retry,
+    /// `failed` — given up or refused, `dropped` — queue full, missed hub messages, or left at
+    /// shutdown).
+    pub webhook_deliveries: Family<Labels, Counter>,
 }
 
 impl Default for Metrics {
@@ -84,6 +88,7 @@ impl Metrics {
             websocket_clients: Gauge::default(),
             websocket_dropped: Counter::default(),
             http_requests: Family::default(),
+            webhook_deliveries: Family::default(),
             registry: Registry::default(),
         };
         let m = &metrics;
@@ -156,6 +161,11 @@ impl Metrics {
             "http_requests",
             "HTTP requests by route and status",
             m.http_requests.clone(),
+        );
+        registry.register(
+            "webhook_deliveries",
+            "Webhook deliveries by webhook and outcome (delivered, retried, failed, dropped)",
+            m.webhook_deliveries.clone(),
         );
         Self { registry, ..metrics }
     }

@@ -1,6 +1,6 @@
 //! `rtls serve`: opens the store, starts the pipeline, the HTTP/WebSocket server, the MQTT
-//! broker (or the bridge to an external one), retention, and a live [`Feed`] if one is given
-//! (`rtls serve --demo`'s simulated mine); stops them in order on shutdown.
+//! broker (or the bridge to an external one), retention, the webhooks, and a live [`Feed`] if
+//! one is given (`rtls serve --demo`'s simulated mine); stops them in order on shutdown.
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -19,6 +19,7 @@ use crate::mqtt::{BrokerConfig, EmbeddedBroker, ExternalBroker};
 use crate::pipeline::{unix_ms, Pipeline, PipelineConfig};
 use crate::sink::MeasurementSink;
 use crate::store::{self, SqliteSync};
+use crate::webhooks::{Dispatcher, Webhook};
 
 /// How often retention runs.
 const RETENTION_PERIOD: Duration = Duration::from_secs(3600);
@@ -107,6 +108,8 @@ pub async fn serve(
         SqliteSync::Full
     };
     let open = move || store::open(&db, sync);
+    // before anything starts: a missing secret variable is a configuration error
+    let webhooks = Webhook::from_config(&config.webhooks).map_err(|e| ServeError::Config(e.to_string()))?;
     let metrics = Arc::new(Metrics::new());
     let pipeline_config = PipelineConfig {
         partitions: if config.pipeline.partitions == 0 {
@@ -122,7 +125,8 @@ pub async fn serve(
     // them, store the site and start the pipeline (which reads the checkpoint) off the runtime
     let pipeline_site = site.clone();
     let pipeline_metrics = Arc::clone(&metrics);
-    let (pipeline, query_store) = tokio::task::spawn_blocking(move || -> Result<_, ServeError> {
+    let want_hub = !webhooks.is_empty();
+    let (pipeline, query_store, hub) = tokio::task::spawn_blocking(move || -> Result<_, ServeError> {
         let (ingest_store, output_store, mut query_store) = (open()?, open()?, open()?);
         query_store.put_config("site", "current", &site_text)?;
         for trackable in &trackables {
@@ -142,6 +146,9 @@ pub async fn serve(
             pipeline_config,
             pipeline_metrics,
         )?;
+        // the webhooks' subscription, as soon as the hub exists (the trackers' replay of the
+        // ingest log has just started: alarms it raised in these microseconds are not sent)
+        let hub = want_hub.then(|| pipeline.subscribe());
         if let Some(zones) = crate::http::fences::stored_zones(query_store.as_mut()).map_err(ServeError::Config)? {
             tracing::info!(
                 zones = zones.len(),
@@ -149,11 +156,15 @@ pub async fn serve(
             );
             pipeline.live().set_zones(zones);
         }
-        Ok((pipeline, query_store))
+        Ok((pipeline, query_store, hub))
     })
     .await
     .map_err(|e| ServeError::Config(format!("opening the database: {e}")))??;
     tracing::info!(backend = query_store.backend(), db = %crate::config::redact_password(&config.server.db), "database open");
+    let dispatcher = match hub {
+        Some(hub) => Some(Dispatcher::start(webhooks, hub, &metrics).map_err(ServeError::Config)?),
+        None => None,
+    };
     let queries = Arc::new(Mutex::new(QueryStore::new(query_store)));
     let tokens = Arc::new(tokens);
     let state = AppState {
@@ -250,6 +261,11 @@ pub async fn serve(
     tracing::info!("draining the pipeline");
     let draining = pipeline.clone();
     let _ = tokio::task::spawn_blocking(move || draining.shutdown()).await;
+    if let Some(dispatcher) = dispatcher {
+        // after the pipeline: the trackers' last alarms are queued too
+        tracing::info!("delivering the webhooks' queued events (2 s at most)");
+        dispatcher.shutdown().await;
+    }
     tracing::info!("stopped");
     Ok(())
 }
