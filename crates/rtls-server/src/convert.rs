@@ -56,6 +56,7 @@ pub fn uuid_for(namespace: &str, name: &str) -> String {
 /// assert_eq!(wgs84_geometry(None, &local), local);
 /// let frame = rtls_engine::site::FrameSettings {
 ///     origin: rtls_engine::site::GeodeticOrigin { latitude_deg: 0.0, longitude_deg: 10.0, height_m: 0.0 },
+///     x_axis_bearing_deg: 90.0,
 /// };
 /// let origin = wgs84_geometry(Some(&frame), &json!({ "type": "Point", "coordinates": [0.0, 0.0] }));
 /// assert!((origin["coordinates"][0].as_f64().unwrap() - 10.0).abs() < 1e-9);

@@ -106,6 +106,7 @@ async fn start(name: &str, webhooks: Vec<WebhookSection>) -> Running {
             read: Some(READ.into()),
         },
         trackables: Vec::new(),
+        floor_plans: rtls_server::http::plans::FloorPlans::default(),
         feed: None,
     };
     let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();

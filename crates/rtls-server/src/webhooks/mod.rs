@@ -57,8 +57,9 @@ use crate::omlox::ws::Topic;
 use crate::pipeline::HubMessage;
 
 /// Every event type a webhook may ask for in `events`: the `rtls:alarms` topic's.
-pub const EVENT_TYPES: [&str; 7] = [
+pub const EVENT_TYPES: [&str; 8] = [
     "hazard-predicted",
+    "zone-enter",
     "no-coverage",
     "lost",
     "alarm-acknowledged",
@@ -69,7 +70,13 @@ pub const EVENT_TYPES: [&str; 7] = [
 
 /// The types sent when `events` is not given: the alarms (each with an `alarm_id`) and their
 /// acknowledgements.
-pub const DEFAULT_EVENT_TYPES: [&str; 4] = ["hazard-predicted", "no-coverage", "lost", "alarm-acknowledged"];
+pub const DEFAULT_EVENT_TYPES: [&str; 5] = [
+    "hazard-predicted",
+    "zone-enter",
+    "no-coverage",
+    "lost",
+    "alarm-acknowledged",
+];
 
 /// Events waiting per webhook; beyond, new ones are dropped.
 pub const QUEUE_CAPACITY: usize = 10_000;
