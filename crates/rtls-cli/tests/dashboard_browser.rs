@@ -546,6 +546,13 @@ dimensions = 3
         Duration::from_secs(20),
         "both tags on screen",
     );
+    // the text count follows new tags at once, not only at the 5 s reconciliation
+    wait_for(
+        &tab,
+        "document.getElementById('live-count').dataset.count === '2'",
+        Duration::from_secs(2),
+        "the text count of live tags",
+    );
     let shown = |floor: &str| {
         eval(
             &tab,

@@ -220,6 +220,40 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
         .collect();
     assert_eq!(listed, [("stop", "missing"), ("in", "on-site")], "{board}");
 
+    // the columnar snapshot lists what /api/v1/tags lists, with the same positions
+    let get = |path: &str| {
+        let request = client.get(format!("http://{http}{path}")).bearer_auth(READ);
+        async move { request.send().await.unwrap().json::<Value>().await.unwrap() }
+    };
+    let (snapshot, tags) = (get("/api/v1/positions").await, get("/api/v1/tags").await);
+    let listed: Vec<(String, f64)> = tags
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            (
+                t["tag"].as_str().unwrap().to_string(),
+                t["position_m"][0].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    let columns: Vec<(String, f64)> = (0..snapshot["tag"].as_array().unwrap().len())
+        .map(|i| {
+            (
+                snapshot["tag"][i].as_str().unwrap().to_string(),
+                snapshot["x"][i].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(columns.len(), 3, "{snapshot}");
+    for (tag, x) in &listed {
+        let column = columns
+            .iter()
+            .find(|(t, _)| t == tag)
+            .unwrap_or_else(|| panic!("{tag} in {snapshot}"));
+        assert!((column.1 - x).abs() <= 0.0005, "{tag}: {} vs {x}", column.1);
+    }
+
     // the floor plan: listed with the site, served with its media type to readers only
     let site_view: Value = client
         .get(format!("http://{http}/api/v1/site"))

@@ -43,19 +43,28 @@ const map = new SiteMap($("map"));
 // every tag's latest live state (the map shows these, or a replay's)
 const liveTags = new Map();
 function setLive(tag, state) {
+  const added = !liveTags.has(tag);
   liveTags.set(tag, state);
+  // the text count follows a new tag at once, not at the next reconciliation
+  if (added) updateSummary();
   if (!replay.active) map.update(tag, state);
 }
+// the state of entry i of an rtls:positions column set (the topic's messages and the
+// /api/v1/positions snapshot have the same shape)
+function stateFromColumns(c, i) {
+  const cov = c.cxx[i] === null ? null : [c.cxx[i], c.cxy[i], c.cxy[i], c.cyy[i]];
+  return { x: c.x[i], y: c.y[i], z: c.z[i], cov, status: c.status[i] || "confirmed", predicted: c.predicted[i] === 1, t: c.t[i] };
+}
 // the server's tag list is the truth: tags it deleted leave, missed updates are caught up
+// (its columnar snapshot: a fraction of the bytes and parse time of /api/v1/tags)
 async function reconcileTags() {
-  const tags = await api("/api/v1/tags");
-  const present = new Set();
-  for (const t of tags) {
-    present.add(t.tag);
-    const known = liveTags.get(t.tag);
+  const columns = await api("/api/v1/positions");
+  const present = new Set(columns.tag);
+  columns.tag.forEach((tag, i) => {
+    const known = liveTags.get(tag);
     const knownS = known && (known.t ?? Date.parse(known.timestamp) / 1000);
-    if (!known || !(knownS >= t.t)) setLive(t.tag, stateFromLocation(t.location));
-  }
+    if (!known || !(knownS >= columns.t[i])) setLive(tag, stateFromColumns(columns, i));
+  });
   for (const tag of [...liveTags.keys()]) {
     if (!present.has(tag)) {
       liveTags.delete(tag);
@@ -64,6 +73,7 @@ async function reconcileTags() {
   }
   updateSummary();
 }
+
 const nameOf = (tag) => map.names.get(tag) || tag;
 const focusTag = (tag) => {
   map.follow(tag);
@@ -124,11 +134,7 @@ function handleMessage(topic, message) {
   for (const payload of message.payload || []) {
     if (topic === "rtls:positions") {
       // columns: one array per field, one entry per update
-      const { tag, t, x, y, z, cxx, cxy, cyy, status, predicted } = payload;
-      for (let i = 0; i < tag.length; i += 1) {
-        const cov = cxx[i] === null ? null : [cxx[i], cxy[i], cxy[i], cyy[i]];
-        setLive(tag[i], { x: x[i], y: y[i], z: z[i], cov, status: status[i] || "confirmed", predicted: predicted[i] === 1, t: t[i] });
-      }
+      for (let i = 0; i < payload.tag.length; i += 1) setLive(payload.tag[i], stateFromColumns(payload, i));
     } else if (topic === "location_updates") {
       setLive(payload.provider_id, stateFromLocation(payload));
     } else if (topic === "rtls:alarms") {

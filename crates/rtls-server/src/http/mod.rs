@@ -14,6 +14,7 @@ mod hub;
 mod muster;
 mod ops;
 pub mod plans;
+pub mod positions;
 mod ws;
 
 use std::sync::{Arc, Mutex};
@@ -258,6 +259,7 @@ pub fn router(state: AppState) -> Router {
         .route("/openapi.json", get(ops::openapi))
         .route("/api/v1/measurements", post(api::ingest_measurements))
         .route("/api/v1/tags", get(api::tags))
+        .route("/api/v1/positions", get(positions::positions))
         .route("/api/v1/tracks.geojson", get(api::tracks_geojson))
         .route("/api/v1/history", get(api::history))
         .route("/api/v1/events", get(api::events))

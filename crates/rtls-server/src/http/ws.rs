@@ -28,6 +28,7 @@ use tokio::sync::broadcast::error::{RecvError, TryRecvError};
 /// At most this many hub messages go into one WebSocket send.
 pub const MAX_BATCH: usize = 4096;
 
+use super::positions::PositionColumns;
 use super::{metrics, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::{fence_from_zone, wgs84_geometry};
@@ -239,54 +240,18 @@ fn payload(
     Some(payload)
 }
 
-/// The batch's location updates as one columnar object (`rtls:positions`): positions rounded
-/// to the millimetre, covariances to single precision — a third of the bytes of the
-/// `Location` objects and a fraction of a browser's parse time, which at ten thousand tags is
-/// the difference between a smooth map and a stuttering one. `None` without updates.
+/// The batch's location updates as one columnar object (`rtls:positions`,
+/// [`super::positions::PositionColumns`]); `None` without updates.
 fn compact_positions(batch: &[Arc<HubMessage>], subscription: &Subscription) -> Option<Value> {
-    let mm = |v: f64| (v * 1000.0).round() / 1000.0;
-    let (mut tags, mut times, mut xs, mut ys, mut zs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let (mut cxx, mut cxy, mut cyy, mut status, mut predicted) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut columns = PositionColumns::default();
     for message in batch {
-        let HubMessage::Location { tag, time_s, location } = message.as_ref() else {
-            continue;
-        };
-        if !wanted(subscription, tag) {
-            continue;
+        if let HubMessage::Location { tag, time_s, location } = message.as_ref() {
+            if wanted(subscription, tag) {
+                columns.push(tag, *time_s, location);
+            }
         }
-        let coordinates = &location["position"]["coordinates"];
-        let properties = &location["properties"];
-        let coordinate = |k: usize| coordinates[k].as_f64();
-        let (Some(x), Some(y)) = (coordinate(0), coordinate(1)) else {
-            continue;
-        };
-        tags.push(Value::String(tag.clone()));
-        times.push(json!(mm(*time_s)));
-        xs.push(json!(mm(x)));
-        ys.push(json!(mm(y)));
-        zs.push(coordinate(2).map_or(Value::Null, |z| json!(mm(z))));
-        // the x–y block of the row-major covariance (2 × 2 or 3 × 3)
-        let covariance = properties["rtls:covariance_m2"].as_array();
-        let dimension = if covariance.is_some_and(|c| c.len() == 9) { 3 } else { 2 };
-        let entry = |k: usize| {
-            covariance
-                .and_then(|c| c.get(k))
-                .and_then(Value::as_f64)
-                .map_or(Value::Null, |v| json!(v as f32))
-        };
-        cxx.push(entry(0));
-        cxy.push(entry(1));
-        cyy.push(entry(dimension + 1));
-        status.push(properties["rtls:status"].clone());
-        predicted.push(json!(u8::from(properties["rtls:predicted"].as_bool().unwrap_or(false))));
     }
-    (!tags.is_empty()).then(|| {
-        json!({
-            "tag": tags, "t": times, "x": xs, "y": ys, "z": zs,
-            "cxx": cxx, "cxy": cxy, "cyy": cyy, "status": status, "predicted": predicted,
-        })
-    })
+    columns.finish()
 }
 
 fn wanted(subscription: &Subscription, tag: &str) -> bool {

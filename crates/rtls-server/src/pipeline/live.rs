@@ -130,6 +130,15 @@ impl LiveState {
             .unwrap_or_default()
     }
 
+    /// Calls `f` with every tag's latest state, under the read lock (no copies).
+    pub fn for_each_tag(&self, mut f: impl FnMut(&str, &TagState)) {
+        if let Ok(latest) = self.latest.read() {
+            for (tag, state) in latest.iter() {
+                f(tag, state);
+            }
+        }
+    }
+
     /// Number of tags with a state.
     #[must_use]
     pub fn tag_count(&self) -> usize {
