@@ -1,9 +1,13 @@
 //! A bounded load test of `rtls serve` on loopback: an in-process server (embedded MQTT broker,
 //! SQLite in a temp dir, 2-D fix-then-filter site), publishers sending one fix per tag per
 //! period over MQTT QoS 1 (each PUBACK only after the records are committed), and a WebSocket
-//! client subscribed to `location_updates`. Reports the sustained acknowledged records/s and
-//! the ingest-to-WebSocket latency (receive time − the record's time stamp, which is its send
-//! time) percentiles.
+//! client subscribed to `location_updates`. Prints one JSON line at its end:
+//! `{"offered_rps", "sustained_rps", "p50_ms", "p99_ms", "sent", "acknowledged", "lost",
+//! "rss_mb_start", "rss_mb_end", …}` — the sustained acknowledged records/s, the
+//! ingest-to-WebSocket latency percentiles (receive time − the record's time stamp, which is
+//! its send time), records sent and acknowledged (`lost`: sent, never acknowledged) and this
+//! process's resident memory (server and load generator) when the measured run starts and
+//! ends.
 //!
 //! ```text
 //! cargo run --release -p rtls-server --example loadtest -- --tags 600 --rate-hz 10 --seconds 30
@@ -247,12 +251,14 @@ async fn main() {
     }
     tokio::time::sleep(warmup).await;
     measuring.store(true, Ordering::Relaxed);
+    let rss_mb_start = resident_mb();
     let acked_at_start = acked.load(Ordering::Relaxed);
     let measure_start = Instant::now();
     tokio::time::sleep(run).await;
     let acked_in_run = acked.load(Ordering::Relaxed) - acked_at_start;
     let elapsed = measure_start.elapsed().as_secs_f64();
     measuring.store(false, Ordering::Relaxed);
+    let rss_mb_end = resident_mb();
     for publisher in publishers {
         let _ = publisher.await;
     }
@@ -263,16 +269,21 @@ async fn main() {
     } else {
         None
     };
+    // the publishers waited 2 s after their last batch for its acknowledgements
+    let (sent, acknowledged) = (sent.load(Ordering::Relaxed), acked.load(Ordering::Relaxed));
     let report = serde_json::json!({
+        "offered_rps": offered,
+        "sustained_rps": (acked_in_run as f64 / elapsed).round(),
+        "p50_ms": (percentile(&latencies, 0.5) * 1000.0 * 10.0).round() / 10.0,
+        "p99_ms": (percentile(&latencies, 0.99) * 1000.0 * 10.0).round() / 10.0,
+        "sent": sent,
+        "acknowledged": acknowledged,
+        "lost": sent.saturating_sub(acknowledged),
+        "rss_mb_start": rss_mb_start,
+        "rss_mb_end": rss_mb_end,
         "tags": args.tags,
         "rate_hz": args.rate_hz,
-        "offered_records_per_s": offered,
-        "sustained_records_per_s": (acked_in_run as f64 / elapsed).round(),
-        "records_sent": sent.load(Ordering::Relaxed),
-        "records_acknowledged": acked.load(Ordering::Relaxed),
         "location_updates_measured": latencies.len(),
-        "latency_p50_ms": (percentile(&latencies, 0.5) * 1000.0 * 10.0).round() / 10.0,
-        "latency_p99_ms": (percentile(&latencies, 0.99) * 1000.0 * 10.0).round() / 10.0,
         "measured_s": elapsed,
     });
     println!("{report}");
@@ -280,4 +291,19 @@ async fn main() {
     let _ = server.await;
     ws_task.abort();
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// This process's resident memory (server and load generator together), MB, from
+/// `/proc/self/status` (`VmRSS`); `None` where there is no procfs.
+fn resident_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kb: f64 = status
+        .lines()
+        .find_map(|line| line.strip_prefix("VmRSS:"))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some((kb / 1024.0 * 10.0).round() / 10.0)
 }
