@@ -18,6 +18,7 @@ mod load;
 mod options;
 pub mod platform;
 mod ranges;
+mod readers;
 
 pub use limits::{read_text_file, MAX_RADIO_MAP_BYTES, MAX_RADIO_MAP_ROWS, MAX_SITE_BYTES, MAX_ZONE_VERTICES};
 pub use options::{
@@ -25,6 +26,7 @@ pub use options::{
     HeadingSettings, ImmModeKind, ImmModeSet, ImmSettings, MapSettings, SchedulingCell, SchedulingSettings,
 };
 pub use platform::Platform;
+pub use readers::{PathLoss, Radio, RangeErrors, Reader, Technology};
 
 use std::path::PathBuf;
 
@@ -110,114 +112,6 @@ pub struct Site {
     /// The check-in/check-out rule of a muster board: who is on site (`[muster]`).
     #[serde(default)]
     pub muster: Option<crate::zones::MusterSettings>,
-}
-
-/// Radio technology of a reader.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Technology {
-    /// Ultra-wideband (ranges, TDOA).
-    Uwb,
-    /// Bluetooth Low Energy (RSSI).
-    Ble,
-    /// Wi-Fi (RSSI, fingerprints, round-trip time).
-    Wifi,
-    /// Active or passive RFID (RSSI, presence).
-    Rfid,
-    /// Cellular base station (RSSI, TDOA).
-    Cellular,
-    /// Ultrasonic time-of-flight ranges.
-    Ultrasonic,
-}
-
-/// One fixed reader / anchor.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Reader {
-    /// Unique id, as used by measurement records.
-    pub id: String,
-    /// Position `[x, y]` or `[x, y, z]`, m (site frame).
-    pub position_m: Vec<f64>,
-    /// Radio technology.
-    pub technology: Technology,
-    /// `false` for a broken reader: its measurements are ignored and its coverage is a hole
-    /// (seed 000's hazard example). Default `true`.
-    #[serde(default = "yes")]
-    pub working: bool,
-    /// Radio parameters, when known.
-    #[serde(default)]
-    pub radio: Option<Radio>,
-}
-
-fn yes() -> bool {
-    true
-}
-
-impl Reader {
-    /// The position as `[x, y, z]`, m; a 2-D reader (`[x, y]`) is placed at `z = 0`.
-    ///
-    /// # Examples
-    /// ```
-    /// use rtls_engine::site::{Reader, Technology};
-    /// let reader = Reader {
-    ///     id: "A".into(),
-    ///     position_m: vec![1.0, 2.0],
-    ///     technology: Technology::Ble,
-    ///     working: true,
-    ///     radio: None,
-    /// };
-    /// assert_eq!(reader.position_xyz_m(), [1.0, 2.0, 0.0]);
-    /// ```
-    #[must_use]
-    pub fn position_xyz_m(&self) -> [f64; 3] {
-        let at = |k: usize| self.position_m.get(k).copied().unwrap_or(0.0);
-        [at(0), at(1), at(2)]
-    }
-}
-
-/// A reader's radio parameters (both parts optional).
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Radio {
-    /// Log-distance path-loss model for RSSI.
-    #[serde(default)]
-    pub path_loss: Option<PathLoss>,
-    /// Range error model for time-of-flight ranges.
-    #[serde(default)]
-    pub range: Option<RangeErrors>,
-    /// The weakest RSSI the reader reports, dBm. With it and a `path_loss`, a working reader
-    /// that does not hear a tag it should have heard is evidence that the tag is farther away
-    /// (`tracker.negative_information`; seed 000).
-    #[serde(default)]
-    pub sensitivity_dbm: Option<f64>,
-}
-
-/// Log-distance path loss: `P(d) = reference_power_dbm − 10·exponent·log10(d / d₀) + X`,
-/// `X ~ N(0, shadowing_std_db²)`.
-///
-/// # References
-/// T. S. Rappaport, *Wireless Communications*, 2nd ed., §4.9 (log-distance path loss).
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PathLoss {
-    /// Received power at the reference distance, dBm.
-    pub reference_power_dbm: f64,
-    /// Path-loss exponent (> 0; 2 in free space, 1.6–6 indoors and underground).
-    pub exponent: f64,
-    /// Log-normal shadowing, dB (1σ, ≥ 0).
-    pub shadowing_std_db: f64,
-    /// Reference distance `d₀`, m (> 0).
-    pub reference_distance_m: f64,
-}
-
-/// Range measurement errors: `r = d + bias_m + N(0, range_std_m²)`.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RangeErrors {
-    /// Range noise, m (1σ, > 0).
-    pub range_std_m: f64,
-    /// Constant range bias, m (subtracted before use).
-    pub bias_m: f64,
 }
 
 /// A floor (level) and its height range.
@@ -442,7 +336,7 @@ pub struct TrackerSettings {
     /// Negative information (seed 000): a working reader with a `sensitivity_dbm` that did not
     /// hear a tag although, from the estimate, it should have, moves the estimate away from
     /// it. Default true (it needs readers with a sensitivity to do anything).
-    #[serde(default = "yes")]
+    #[serde(default = "readers::yes")]
     pub negative_information: bool,
     /// The largest speed a tag can have, m/s (> 0): a faster estimated velocity is scaled down
     /// to it (a walker cannot run at 6 m/s through a drift). Absent: no limit.
