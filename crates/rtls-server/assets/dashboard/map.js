@@ -66,7 +66,7 @@ class SiteMap {
 
   // Floor-plan images: `images` maps a floor id to an object URL of its picture; each is placed
   // by its plan.bounds_m ([[x_min, y_min], [x_max, y_max]], m) and shown on its floor (with
-  // every floor shown: the lowest floor's).
+  // every floor shown: the first floor's, in the site file's order, that has one).
   setPlans(images) {
     this.planLayer.clearLayers();
     this.plans.clear();
