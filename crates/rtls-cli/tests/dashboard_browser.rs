@@ -339,6 +339,24 @@ fn the_demo_on_screen_counts_its_tags_acknowledges_an_alarm_everywhere_and_repla
         Duration::from_secs(10),
         "the deleted zone leaves the screen",
     );
+
+    // reader health: one row per reader of the site, as the API lists them
+    eval(
+        &tab,
+        "document.querySelector(\"nav button[data-panel='readers']\").click(); true",
+    );
+    let readers = wait_until(
+        &tab,
+        &format!(
+            "{}.then(readers => ({{ api: readers.length, screen: document.querySelectorAll('#reader-table tbody tr').length }}))",
+            api_js("/api/v1/readers", READ)
+        ),
+        |v| v["api"].as_u64().is_some_and(|n| n >= 300) && v["screen"] == v["api"],
+        Duration::from_secs(20),
+        "a row per reader on screen",
+    );
+    eprintln!("reader health: {readers}");
+    screenshot(&tab, "dashboard-readers");
     eval(
         &tab,
         "document.querySelector(\"nav button[data-panel='alarms']\").click(); true",
