@@ -220,6 +220,25 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
         .collect();
     assert_eq!(listed, [("stop", "missing"), ("in", "on-site")], "{board}");
 
+    // a lost tag's frozen position is stored once, not every output interval until deletion
+    // (gate was lost near t = 111 s; the data clock ran on to 120 s)
+    let gate: Value = client
+        .get(format!("http://{http}/api/v1/history?tag=gate"))
+        .bearer_auth(READ)
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let lost_rows = gate
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|state| state["status"] == "lost")
+        .count();
+    assert_eq!(lost_rows, 1, "{gate}");
+
     // the columnar snapshot lists what /api/v1/tags lists, with the same positions
     let get = |path: &str| {
         let request = client.get(format!("http://{http}{path}")).bearer_auth(READ);

@@ -231,6 +231,7 @@ impl Pipeline {
                 live_clock: config.live_clock,
                 clock_lag_s: config.clock_lag_s,
                 zone_entries: Default::default(),
+                reported_lost: Default::default(),
                 source: site.name.clone().unwrap_or_else(|| "rtls".into()),
                 zones_version: 0,
             };

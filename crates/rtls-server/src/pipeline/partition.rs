@@ -1,6 +1,6 @@
 //! A partition thread: one tracker for the tags hashed to it; publishes what it produces.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::sync::atomic::Ordering;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender};
 use std::sync::Arc;
@@ -41,6 +41,10 @@ pub(super) struct PartitionWorker {
     pub clock_lag_s: f64,
     /// Entry time (s) of each (tag, zone) the tag is in, for the exit's `entry_time`.
     pub zone_entries: HashMap<(String, String), f64>,
+    /// Tags whose lost state (the frozen last position) has been stored and published once:
+    /// the tracker repeats it every output interval until the track is deleted, which would
+    /// cost a row per silent tag per interval and say nothing new.
+    pub reported_lost: HashSet<String>,
     /// The omlox `source` of our locations (the site's name).
     pub source: String,
     /// The version of the live zone set the tracker holds.
@@ -147,6 +151,15 @@ impl PartitionWorker {
     }
 
     fn publish_update(&mut self, update: &TrackUpdate, received_ms: i64, batch: &mut OutputBatch) {
+        // a lost track's frozen position: stored and published once, not every interval
+        if update.status == TrackStatus::Lost {
+            if self.reported_lost.contains(&*update.tag) {
+                return;
+            }
+            self.reported_lost.insert(update.tag.to_string());
+        } else if !self.reported_lost.is_empty() {
+            self.reported_lost.remove(&*update.tag);
+        }
         self.metrics.track_updates.inc();
         let json_line = update.to_json_line();
         let d = update.dimensions.clamp(2, 3);
