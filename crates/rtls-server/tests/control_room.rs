@@ -8,10 +8,9 @@ use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
 use rtls_engine::site::Site;
-use rtls_server::auth::Tokens;
 use rtls_server::config::{MqttMode, ServerConfig};
 use rtls_server::http::plans::FloorPlans;
-use rtls_server::serve::{serve, ServeOptions};
+use rtls_server::serve::ServeOptions;
 use serde_json::Value;
 use tokio_tungstenite::tungstenite::Message;
 
@@ -32,6 +31,17 @@ fn site_text() -> String {
 /// The eight bytes every PNG starts with, and a little more: enough for the server, which
 /// does not decode images.
 const PNG: &[u8] = b"\x89PNG\r\n\x1a\n0000IHDR";
+
+/// `GET path` with the read token, as JSON.
+async fn get_json(client: &reqwest::Client, http: std::net::SocketAddr, path: &str) -> Value {
+    let reply = client
+        .get(format!("http://{http}{path}"))
+        .bearer_auth(READ)
+        .send()
+        .await
+        .unwrap();
+    reply.json().await.unwrap()
+}
 
 type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
@@ -60,34 +70,14 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
     config.pipeline.live_clock = false;
     // one partition: every tag's records advance the same data clock, so silent tags get lost
     config.pipeline.partitions = 1;
-    let options = ServeOptions {
-        config,
+    let running = common::serve_on_loopback(ServeOptions {
         site,
         site_text: text,
-        tokens: Tokens {
-            write: WRITE.into(),
-            read: Some(READ.into()),
-        },
-        trackables: Vec::new(),
         floor_plans,
-        feed: None,
-    };
-    let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();
-    let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let task = tokio::spawn(serve(
-        options,
-        move |b| {
-            let _ = bound_tx.send(b);
-        },
-        async move {
-            let _ = stop_rx.await;
-        },
-    ));
-    let http = tokio::time::timeout(Duration::from_secs(20), bound_rx)
-        .await
-        .expect("server starts")
-        .unwrap()
-        .http;
+        ..common::options(config)
+    })
+    .await;
+    let http = running.bound.http;
 
     let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{http}/v2/ws/socket?token={READ}"))
         .await
@@ -171,15 +161,7 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
     );
     assert!(entered["alarm_id"].is_string(), "{entered}");
     // entering the portal (an area of interest) is no alarm
-    let stored: Value = client
-        .get(format!("http://{http}/api/v1/alarms"))
-        .bearer_auth(READ)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let stored: Value = get_json(&client, http, "/api/v1/alarms").await;
     let zone_alarms: Vec<&Value> = stored
         .as_array()
         .unwrap()
@@ -194,15 +176,7 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
     // the muster board: in on site, stop missing, gate checked out at the portal
     let deadline = std::time::Instant::now() + Duration::from_secs(20);
     let board = loop {
-        let board: Value = client
-            .get(format!("http://{http}/api/v1/muster"))
-            .bearer_auth(READ)
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
+        let board: Value = get_json(&client, http, "/api/v1/muster").await;
         if board["counts"]["missing"] == 1 && board["counts"]["off-site"] == 1 {
             break board;
         }
@@ -222,15 +196,7 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
 
     // a lost tag's frozen position is stored once, not every output interval until deletion
     // (gate was lost near t = 111 s; the data clock ran on to 120 s)
-    let gate: Value = client
-        .get(format!("http://{http}/api/v1/history?tag=gate"))
-        .bearer_auth(READ)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let gate: Value = get_json(&client, http, "/api/v1/history?tag=gate").await;
     let lost_rows = gate
         .as_array()
         .unwrap()
@@ -240,11 +206,10 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
     assert_eq!(lost_rows, 1, "{gate}");
 
     // the columnar snapshot lists what /api/v1/tags lists, with the same positions
-    let get = |path: &str| {
-        let request = client.get(format!("http://{http}{path}")).bearer_auth(READ);
-        async move { request.send().await.unwrap().json::<Value>().await.unwrap() }
-    };
-    let (snapshot, tags) = (get("/api/v1/positions").await, get("/api/v1/tags").await);
+    let (snapshot, tags) = (
+        get_json(&client, http, "/api/v1/positions").await,
+        get_json(&client, http, "/api/v1/tags").await,
+    );
     let listed: Vec<(String, f64)> = tags
         .as_array()
         .unwrap()
@@ -274,15 +239,7 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
     }
 
     // the floor plan: listed with the site, served with its media type to readers only
-    let site_view: Value = client
-        .get(format!("http://{http}/api/v1/site"))
-        .bearer_auth(READ)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let site_view: Value = get_json(&client, http, "/api/v1/site").await;
     let plan = &site_view["floors"][0]["plan"];
     assert_eq!(
         plan["bounds_m"],
@@ -308,6 +265,5 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
         .unwrap();
     assert_eq!(none.status(), reqwest::StatusCode::NOT_FOUND);
 
-    let _ = stop.send(());
-    task.await.unwrap().unwrap();
+    running.stop().await;
 }

@@ -9,14 +9,13 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use rtls_engine::record::{parse_json_line, Record};
-use rtls_server::auth::Tokens;
 use rtls_server::config::{MqttMode, ServerConfig};
 use rtls_server::feed::{self, FeedIdentity};
 use rtls_server::pipeline::unix_s;
-use rtls_server::serve::{serve, Bound, Feed, ServeOptions};
+use rtls_server::serve::{Bound, Feed, ServeOptions};
 use serde_json::Value;
 
-use common::{walk, READ, SITE, WRITE};
+use common::{walk, READ, WRITE};
 
 /// A source that returns a 20 s walk through the test floor on its first call and nothing
 /// after, noting the times it was asked for.
@@ -53,33 +52,12 @@ async fn run(mqtt: MqttMode) -> (Bound, f64, Vec<f64>) {
         };
         feed::start(identity, source, pipeline, bound, stop)
     });
-    let options = ServeOptions {
-        config,
-        site: common::site(),
-        site_text: SITE.into(),
-        tokens: Tokens {
-            write: WRITE.into(),
-            read: Some(READ.into()),
-        },
-        trackables: Vec::new(),
-        floor_plans: rtls_server::http::plans::FloorPlans::default(),
+    let running = common::serve_on_loopback(ServeOptions {
         feed: Some(start),
-    };
-    let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();
-    let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let task = tokio::spawn(serve(
-        options,
-        move |b| {
-            let _ = bound_tx.send(b);
-        },
-        async move {
-            let _ = stop_rx.await;
-        },
-    ));
-    let bound = tokio::time::timeout(Duration::from_secs(20), bound_rx)
-        .await
-        .expect("server starts")
-        .unwrap();
+        ..common::options(config)
+    })
+    .await;
+    let bound = running.bound;
     let client = reqwest::Client::new();
     let deadline = std::time::Instant::now() + Duration::from_secs(20);
     let mut last_x = 0.0;
@@ -102,12 +80,7 @@ async fn run(mqtt: MqttMode) -> (Bound, f64, Vec<f64>) {
         }
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
-    stop.send(()).unwrap();
-    tokio::time::timeout(Duration::from_secs(30), task)
-        .await
-        .expect("graceful stop")
-        .unwrap()
-        .unwrap();
+    running.stop().await;
     let asked = asked.lock().unwrap().clone();
     (bound, last_x, asked)
 }

@@ -9,53 +9,18 @@ mod common;
 use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
-use rtls_server::auth::Tokens;
 use rtls_server::config::{MqttMode, ServerConfig};
-use rtls_server::serve::{serve, Bound, ServeOptions};
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use serde_json::Value;
 use tokio_tungstenite::tungstenite::Message;
 
-use common::{walk, READ, SITE, WRITE};
-
-struct Running {
-    bound: Bound,
-    stop: tokio::sync::oneshot::Sender<()>,
-    task: tokio::task::JoinHandle<Result<(), rtls_server::serve::ServeError>>,
-}
+use common::{walk, Running, READ, WRITE};
 
 async fn start(mut config: ServerConfig) -> Running {
     config.server.http = "127.0.0.1:0".parse().unwrap();
     config.mqtt.listen = "127.0.0.1:0".parse().unwrap();
     config.pipeline.live_clock = false;
-    let options = ServeOptions {
-        config,
-        site: common::site(),
-        site_text: SITE.into(),
-        tokens: Tokens {
-            write: WRITE.into(),
-            read: Some(READ.into()),
-        },
-        trackables: Vec::new(),
-        floor_plans: rtls_server::http::plans::FloorPlans::default(),
-        feed: None,
-    };
-    let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();
-    let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let task = tokio::spawn(serve(
-        options,
-        move |b| {
-            let _ = bound_tx.send(b);
-        },
-        async move {
-            let _ = stop_rx.await;
-        },
-    ));
-    let bound = tokio::time::timeout(Duration::from_secs(20), bound_rx)
-        .await
-        .expect("server starts")
-        .unwrap();
-    Running { bound, stop, task }
+    common::serve_on_loopback(common::options(config)).await
 }
 
 type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
@@ -173,12 +138,7 @@ async fn walk_reaches_websocket_and_mqtt(running: &Running, broker: &str, write_
 }
 
 async fn stop(running: Running) {
-    running.stop.send(()).unwrap();
-    tokio::time::timeout(Duration::from_secs(30), running.task)
-        .await
-        .expect("graceful stop")
-        .unwrap()
-        .unwrap();
+    running.stop().await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -11,12 +11,10 @@ use std::time::{Duration, Instant};
 
 use axum::http::{HeaderMap, StatusCode};
 use hmac::{KeyInit, Mac};
-use rtls_server::auth::Tokens;
 use rtls_server::config::{MqttMode, ServerConfig, WebhookSection};
-use rtls_server::serve::{serve, Bound, ServeError, ServeOptions};
 use serde_json::Value;
 
-use common::{walk, READ, SITE, WRITE};
+use common::{walk, Running, READ, WRITE};
 
 const SECRET: &str = "webhook-test-secret";
 
@@ -81,12 +79,6 @@ async fn receivers() -> (std::net::SocketAddr, Arc<Mutex<Vec<Seen>>>) {
     (address, seen)
 }
 
-struct Running {
-    bound: Bound,
-    stop: tokio::sync::oneshot::Sender<()>,
-    task: tokio::task::JoinHandle<Result<(), ServeError>>,
-}
-
 async fn start(name: &str, webhooks: Vec<WebhookSection>) -> Running {
     let dir = common::temp_dir(name);
     let mut config = ServerConfig::default();
@@ -97,46 +89,12 @@ async fn start(name: &str, webhooks: Vec<WebhookSection>) -> Running {
     config.pipeline.live_clock = false;
     config.webhooks = webhooks;
     config.validate().unwrap();
-    let options = ServeOptions {
-        config,
-        site: common::site(),
-        site_text: SITE.into(),
-        tokens: Tokens {
-            write: WRITE.into(),
-            read: Some(READ.into()),
-        },
-        trackables: Vec::new(),
-        floor_plans: rtls_server::http::plans::FloorPlans::default(),
-        feed: None,
-    };
-    let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();
-    let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let task = tokio::spawn(serve(
-        options,
-        move |b| {
-            let _ = bound_tx.send(b);
-        },
-        async move {
-            let _ = stop_rx.await;
-        },
-    ));
-    let bound = tokio::time::timeout(Duration::from_secs(20), bound_rx)
-        .await
-        .expect("server starts")
-        .unwrap();
-    Running { bound, stop, task }
+    common::serve_on_loopback(common::options(config)).await
 }
 
 /// Stops the server; returns how long the stop took.
 async fn stop(running: Running) -> Duration {
-    let started = Instant::now();
-    running.stop.send(()).unwrap();
-    tokio::time::timeout(Duration::from_secs(30), running.task)
-        .await
-        .expect("graceful stop")
-        .unwrap()
-        .unwrap();
-    started.elapsed()
+    running.stop().await
 }
 
 /// Polls `condition` every 20 ms for up to 20 s.

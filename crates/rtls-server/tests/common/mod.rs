@@ -139,3 +139,62 @@ pub async fn eventually(timeout: Duration, mut condition: impl FnMut() -> bool) 
     }
     condition()
 }
+
+/// `rtls serve` running in this test's runtime on loopback ports.
+pub struct Running {
+    /// Where it listens.
+    pub bound: rtls_server::serve::Bound,
+    stop: tokio::sync::oneshot::Sender<()>,
+    task: tokio::task::JoinHandle<Result<(), rtls_server::serve::ServeError>>,
+}
+
+/// Options for [`serve_on_loopback`]: `config` (its addresses should be `127.0.0.1:0`), the
+/// test site, the test tokens, no trackables, floor plans or feed.
+pub fn options(config: rtls_server::config::ServerConfig) -> rtls_server::serve::ServeOptions {
+    rtls_server::serve::ServeOptions {
+        config,
+        site: site(),
+        site_text: SITE.into(),
+        tokens: Tokens {
+            write: WRITE.into(),
+            read: Some(READ.into()),
+        },
+        trackables: Vec::new(),
+        floor_plans: rtls_server::http::plans::FloorPlans::default(),
+        feed: None,
+    }
+}
+
+/// Starts `rtls serve` with `options` and waits (≤ 20 s) until it listens.
+pub async fn serve_on_loopback(options: rtls_server::serve::ServeOptions) -> Running {
+    let (bound_tx, bound_rx) = tokio::sync::oneshot::channel();
+    let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let task = tokio::spawn(rtls_server::serve::serve(
+        options,
+        move |b| {
+            let _ = bound_tx.send(b);
+        },
+        async move {
+            let _ = stop_rx.await;
+        },
+    ));
+    let bound = tokio::time::timeout(Duration::from_secs(20), bound_rx)
+        .await
+        .expect("server starts")
+        .unwrap();
+    Running { bound, stop, task }
+}
+
+impl Running {
+    /// Stops the server gracefully (≤ 30 s) and returns how long the stop took.
+    pub async fn stop(self) -> Duration {
+        let started = Instant::now();
+        self.stop.send(()).unwrap();
+        tokio::time::timeout(Duration::from_secs(30), self.task)
+            .await
+            .expect("graceful stop")
+            .unwrap()
+            .unwrap();
+        started.elapsed()
+    }
+}
