@@ -51,8 +51,9 @@ acceleration_noise_std_mps2 = 0.5
 coast_timeout_s = 10.0
 delete_timeout_s = 300.0
 initiation = { confirm_updates = 2, within_s = 5.0 }
-reorder_window_s = 0.05
-output_interval_s = 0.1
+reorder_window_s = 0.0
+rewind_horizon_s = 2.0
+output_interval_s = 0.5
 dimensions = 2
 "#;
 

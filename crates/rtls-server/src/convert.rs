@@ -145,7 +145,8 @@ pub fn course_deg(vx_mps: f64, vy_mps: f64) -> Option<f64> {
 /// A track update as an omlox Location: `crs: "local"`, `provider_id` the tag, `source` the
 /// omlox zone id of the site, accuracy and course as in the module docs, speed the horizontal
 /// speed, and `properties` `rtls:predicted`, `rtls:status`, `rtls:source`, `rtls:covariance_m2`
-/// (and `rtls:mode` under IMM).
+/// (and `rtls:mode` under IMM; `rtls:revised: true` on an update that replaces one already
+/// published — a late record re-filtered).
 ///
 /// # Errors
 /// [`ServerError::Unrepresentable`] when the time cannot be written as a timestamp.
@@ -154,6 +155,9 @@ pub fn location_from_update(update: &TrackUpdate, source: &str, provider_type: P
     let [vx, vy, _] = update.velocity_mps;
     let mut properties = Properties::new();
     properties.insert("rtls:predicted".into(), json!(update.predicted));
+    if update.revised {
+        properties.insert("rtls:revised".into(), json!(true));
+    }
     properties.insert("rtls:status".into(), json!(status_name(update.status)));
     properties.insert("rtls:source".into(), json!(update.source.name()));
     properties.insert(

@@ -63,6 +63,7 @@ fn update() -> TrackUpdate {
         status: TrackStatus::Coasting,
         source: UpdateSource::Prediction,
         mode: Some("CV"),
+        revised: false,
     }
 }
 
@@ -112,6 +113,15 @@ fn location_from_update_matches_schema_and_hand_values() {
     assert_eq!(value["properties"]["rtls:predicted"], true);
     assert_eq!(value["properties"]["rtls:status"], "coasting");
     assert_eq!(value["properties"]["rtls:mode"], "CV");
+    // only a revision says so (a late record re-filtered)
+    assert!(value["properties"].get("rtls:revised").is_none());
+    let revised = TrackUpdate {
+        revised: true,
+        ..update()
+    };
+    let revised = serde_json::to_value(location_from_update(&revised, "site-a", ProviderType::Uwb).unwrap()).unwrap();
+    assert_eq!(revised["properties"]["rtls:revised"], true);
+    assert_valid("Location", &revised, |_| {});
     // Round trip.
     let back: crate::omlox::Location = serde_json::from_value(value).unwrap();
     assert_eq!(back, location);

@@ -284,6 +284,14 @@ pub struct TrackerSettings {
     /// late, s (≥ 0). Default 0.5.
     #[serde(default = "platform::default_reorder_window_s")]
     pub reorder_window_s: f64,
+    /// A record older than its tag's newest input by up to this much (beyond the re-ordering
+    /// window) is not dropped: the track rewinds to a stored state before it and re-filters
+    /// what followed, and the updates it revises are flagged `revised`; older records are
+    /// reported late, s (0 = off: records beyond the window are reported late). Lets a live
+    /// server run with `reorder_window_s = 0`, publishing each update as it is produced.
+    /// Default 0.
+    #[serde(default)]
+    pub rewind_horizon_s: f64,
     /// Tracked dimensions: 2 (x, y) or 3 (x, y, z). Default 2.
     #[serde(default = "default_dimensions")]
     pub dimensions: u8,

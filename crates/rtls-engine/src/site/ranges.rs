@@ -106,6 +106,8 @@ const GATE_PROBABILITY: Bounds = Bounds::closed(0.5, 1.0 - 1e-9, "");
 const PROBABILITY: Bounds = Bounds::open(0.0, 1.0, "");
 const WINDOW_S: Bounds = Bounds::closed(1e-3, 86_400.0, "s");
 const REORDER_WINDOW_S: Bounds = Bounds::closed(0.0, 3600.0, "s");
+/// The per-track history a rewind keeps: minutes at most (it holds every input in the horizon).
+const REWIND_HORIZON_S: Bounds = Bounds::closed(0.0, 600.0, "s");
 const EPOCH_S: Bounds = Bounds::closed(0.0, 60.0, "s");
 const OUTPUT_INTERVAL_S: Bounds = Bounds::closed(1e-3, 3600.0, "s");
 const SPEED_STD_MPS: Bounds = Bounds::closed(1e-3, 1000.0, "m/s");
@@ -407,6 +409,7 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
     let delete = Bounds::closed(t.coast_timeout_s, DELETE_TIMEOUT_MAX_S, "s (≥ coast_timeout_s)");
     out.push(within(at("delete_timeout_s"), t.delete_timeout_s, delete));
     out.push(within(at("reorder_window_s"), t.reorder_window_s, REORDER_WINDOW_S));
+    out.push(within(at("rewind_horizon_s"), t.rewind_horizon_s, REWIND_HORIZON_S));
     out.push(count(at("dimensions"), usize::from(t.dimensions), 2, 3));
     out.push(within(at("epoch_s"), t.epoch_s, EPOCH_S));
     if let Some(height) = t.tag_height_m {

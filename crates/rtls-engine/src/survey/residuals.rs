@@ -232,7 +232,7 @@ pub fn residuals(
 ///     position_m: [1.0, 2.0, 1.2], velocity_mps: [0.5, 0.0, 0.0],
 ///     position_covariance_m2: [0.04, 0.0, 0.0, 0.04, 0.0, 0.0, 0.0, 0.0, 0.0],
 ///     predicted: true, status: TrackStatus::Coasting, source: UpdateSource::Prediction,
-///     mode: None,
+///     mode: None, revised: false,
 /// };
 /// let samples = samples_from_updates(&[update]);
 /// assert!(samples[0].predicted && !samples[0].has_z);

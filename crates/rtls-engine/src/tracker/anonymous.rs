@@ -186,6 +186,7 @@ impl AnonymousFront {
                     UpdateSource::Anchors
                 },
                 mode: None,
+                revised: false,
             });
         }
         for event in &report.events {

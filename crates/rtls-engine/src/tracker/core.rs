@@ -8,7 +8,7 @@ use super::aided::HeldAcceleration;
 use super::alarms::position_of;
 use super::direct::direct_measurement;
 use super::divergence::{divergence, reset, reset_if_diverged};
-use super::epoch::{anchor_reading, close_due_epoch};
+use super::epoch::{anchor_reading, close_due_epoch, opens_epoch, straggles};
 use super::gnss::{close_due_gnss_epoch, pseudorange};
 use super::output::{Event, Output, UpdateSource};
 use super::report::{clear_alarms, coast, report, track_update};
@@ -21,6 +21,7 @@ use crate::zones::{Zone, ZoneKind, ZoneMonitor};
 use rtls_estimation::{EstimationError, Gaussian};
 
 use super::constraints::close_epoch_if_due;
+use super::rewind::{History, Input};
 use super::track::{rejected, Shared, Track};
 
 /// All tracks of one state size.
@@ -29,6 +30,9 @@ pub(crate) struct Core<const N: usize> {
     pub(crate) shared: Shared,
     index: HashMap<Arc<str>, usize>,
     tracks: Vec<Track<N>>,
+    /// Each track's recent inputs and copies, for re-filtering a late record (empty and
+    /// unused when `rewind_horizon_s` is 0); indexed as `tracks`.
+    histories: Vec<History<N>>,
     pub(crate) monitor: ZoneMonitor,
 }
 
@@ -72,6 +76,7 @@ impl<const N: usize> Core<N> {
             shared,
             index: HashMap::new(),
             tracks: Vec::new(),
+            histories: Vec::new(),
             monitor,
         }
     }
@@ -92,9 +97,12 @@ impl<const N: usize> Core<N> {
         self.index.get(tag).and_then(|&i| self.tracks[i].status())
     }
 
-    /// Applies one in-order record. One record never aborts the run: a failure while applying
+    /// Applies one record of `tag`. One record never aborts the run: a failure while applying
     /// it is reported as a `rejected` event naming the error, and a track it leaves diverged
     /// (see [`divergence`](super::divergence)) restarts from its next fix.
+    ///
+    /// With `rewind_horizon_s` > 0 a record older than its track's newest input is re-filtered
+    /// ([`Self::refilter`]); without, the caller passes records in time order.
     ///
     /// # Errors
     /// None today; the `Result` is kept for failures that concern the whole tracker.
@@ -103,27 +111,135 @@ impl<const N: usize> Core<N> {
             Some(&i) => i,
             None => {
                 let tag: Arc<str> = Arc::from(tag);
-                self.tracks
-                    .push(Track::new(Arc::clone(&tag), self.shared.alarm_zones.len()));
+                let track = Track::new(Arc::clone(&tag), self.shared.alarm_zones.len());
+                if self.shared.settings.rewind_horizon_s > 0.0 {
+                    self.histories.push(History::new(&track));
+                }
+                self.tracks.push(track);
                 self.index.insert(tag, self.tracks.len() - 1);
                 self.tracks.len() - 1
             }
         };
-        let track = &mut self.tracks[index];
-        let shared = &self.shared;
-        let kind = measurement.kind();
-        if let Err(error) = apply_record(shared, track, &mut self.monitor, time_s, measurement, out) {
-            let numerical = matches!(&error, EngineError::Estimation(e)
-                if !matches!(e, EstimationError::TimeWentBackwards { .. }));
-            if numerical && track.state.is_some() {
-                // the track's own state failed (its prediction or combination): start afresh
-                reset(track, time_s, kind, &format!("{error}"), out);
+        let horizon_s = self.shared.settings.rewind_horizon_s;
+        if horizon_s > 0.0 {
+            let track = &mut self.tracks[index];
+            let reading = match measurement {
+                Measurement::Range { .. } | Measurement::Rssi { .. } | Measurement::Tdoa { .. } => {
+                    self.shared.anchors.resolve(measurement).ok().flatten()
+                }
+                _ => None,
+            };
+            if let Some(start_s) = reading.and_then(|r| straggles(&self.shared, track, time_s, &r)) {
+                // the epoch it belongs to closed without it: re-solve that epoch with it,
+                // closing it at its deadline this time
+                return self.refilter(index, time_s, measurement, Some(start_s), out);
+            }
+            if time_s < self.histories[index].newest_s() {
+                return self.refilter(index, time_s, measurement, None, out);
+            }
+            let history = &mut self.histories[index];
+            let input = Input::Record(measurement.clone());
+            if reading.is_some() && opens_epoch(&self.shared, track, time_s) && !track.expected_readers.is_empty() {
+                // an epoch that may close early: a straggler rewinds to its start
+                history.push_with_copy(time_s, input, track.clone(), horizon_s);
             } else {
-                let reason = format!("not applied: {error}");
-                out.events.push(rejected(&track.tag, time_s, kind, reason));
+                let copy = history.copy_due(time_s, horizon_s).then(|| track.clone());
+                history.push(time_s, input, copy, horizon_s);
             }
         }
-        reset_if_diverged(&shared.bounds, track, time_s, kind, out);
+        apply_to_track(
+            &self.shared,
+            &mut self.tracks[index],
+            &mut self.monitor,
+            time_s,
+            measurement,
+            out,
+        );
+        Ok(())
+    }
+
+    /// A record older than its track's newest input: the track rewinds to its newest copy at or
+    /// before the record and re-applies what followed with the record in its place. Updates the
+    /// replay produces from the record's time on are output, flagged `revised` where they
+    /// replace ones already out; what it produces before the record's time repeats what was
+    /// output, and its events (zones, alarms, lifecycle) are not repeated — those already out
+    /// stand, and the alarms the control room was told of stay raised. A record older than the
+    /// history reaches is reported [`Event::Late`].
+    ///
+    /// `reopen_epoch_s`: the start of an epoch closed early that the record belongs to (a
+    /// straggler); in the replay that epoch closes at its deadline, holding the record.
+    fn refilter(
+        &mut self,
+        index: usize,
+        time_s: f64,
+        measurement: &Measurement,
+        reopen_epoch_s: Option<f64>,
+        out: &mut Output,
+    ) -> Result<()> {
+        let horizon_s = self.shared.settings.rewind_horizon_s;
+        let newest_s = self.histories[index].newest_s();
+        let Some(rewind) = self.histories[index].rewind(time_s) else {
+            out.events.push(Event::Late {
+                tag: Arc::clone(&self.tracks[index].tag),
+                time_s,
+                kind: measurement.kind(),
+                lateness_s: newest_s - time_s,
+            });
+            return Ok(());
+        };
+        // what the control room has been told: the revisions are judged against it
+        let told_reported_s = self.tracks[index].last_reported_s;
+        let told_alarms = self.tracks[index].alarmed.clone();
+        self.tracks[index] = rewind.track;
+        self.tracks[index].last_reported_s = told_reported_s;
+        if reopen_epoch_s.is_some() {
+            self.tracks[index].held_open_epoch_s = reopen_epoch_s;
+        }
+        let mut inputs = rewind.inputs;
+        // after every input of the same or an earlier time (those arrived first)
+        let at = inputs.partition_point(|(t, _)| *t <= time_s);
+        inputs.insert(at, (time_s, Input::Record(measurement.clone())));
+        let (updates_before, events_before) = (out.updates.len(), out.events.len());
+        let mut deleted = false;
+        for (input_s, input) in inputs {
+            let track = &mut self.tracks[index];
+            let history = &mut self.histories[index];
+            let copy = history.copy_due(input_s, horizon_s).then(|| track.clone());
+            history.push(input_s, input.clone(), copy, horizon_s);
+            match &input {
+                Input::Record(m) => apply_to_track(&self.shared, track, &mut self.monitor, input_s, m, out),
+                Input::Tick => deleted |= tick_one(&self.shared, track, &mut self.monitor, input_s, out),
+            }
+        }
+        let track = &mut self.tracks[index];
+        if track.alarmed.len() == told_alarms.len() {
+            track.alarmed = told_alarms;
+        }
+        // the replay before the late record repeats the updates that were output
+        let mut k = 0;
+        out.updates.retain(|u| {
+            k += 1;
+            k <= updates_before || u.time_s >= time_s || u.time_s > told_reported_s
+        });
+        // events: the late record's rejection, and the zones and alarms of positions reported
+        // for the first time; the rest repeat what the records said when they were applied
+        let mut k = 0;
+        let kind = measurement.kind();
+        out.events.retain(|e| {
+            k += 1;
+            k <= events_before
+                || match e {
+                    Event::Rejected { time_s: t, kind: k, .. } => *t == time_s && *k == kind,
+                    Event::Zone(_)
+                    | Event::HazardPredicted { .. }
+                    | Event::HazardCleared { .. }
+                    | Event::NoCoverage { .. } => e.time_s() > told_reported_s,
+                    _ => false,
+                }
+        });
+        if deleted {
+            self.forget_deleted();
+        }
         Ok(())
     }
 
@@ -136,21 +252,77 @@ impl<const N: usize> Core<N> {
     /// None today; the `Result` is kept for failures that concern the whole tracker.
     pub(crate) fn tick(&mut self, now_s: f64, out: &mut Output) -> Result<()> {
         let shared = &self.shared;
+        let horizon_s = shared.settings.rewind_horizon_s;
         let mut deleted = false;
-        for track in &mut self.tracks {
-            match tick_track(shared, track, &mut self.monitor, now_s, out) {
-                Ok(gone) => deleted |= gone,
-                Err(error) => reset(track, now_s, "track", &format!("{error}"), out),
+        if horizon_s <= 0.0 {
+            for track in &mut self.tracks {
+                deleted |= tick_one(shared, track, &mut self.monitor, now_s, out);
+            }
+        }
+        for (track, history) in self.tracks.iter_mut().zip(&mut self.histories) {
+            if history.newest_s() > now_s {
+                // a late record re-filtered past this tick: its replay ran the ticks it needed
+                continue;
+            }
+            // a tick that changed the track is an input to re-apply if a late record rewinds
+            // it; one that changed nothing (the usual case) is not, so a record of another
+            // tag that overtook this one does not force a rewind
+            let before = TickMark::of(track, now_s);
+            let copy = history.copy_due(now_s, horizon_s).then(|| track.clone());
+            deleted |= tick_one(shared, track, &mut self.monitor, now_s, out);
+            if TickMark::of(track, now_s) != before {
+                history.push(now_s, Input::Tick, copy, horizon_s);
             }
         }
         if deleted {
-            self.tracks.retain(|t| t.status() != Some(TrackStatus::Deleted));
-            self.index = self
-                .tracks
-                .iter()
-                .enumerate()
-                .map(|(i, t)| (Arc::clone(&t.tag), i))
-                .collect();
+            self.forget_deleted();
+        }
+        Ok(())
+    }
+
+    /// Drops deleted tracks (and their histories) and re-indexes the rest.
+    fn forget_deleted(&mut self) {
+        let keep: Vec<bool> = self
+            .tracks
+            .iter()
+            .map(|t| t.status() != Some(TrackStatus::Deleted))
+            .collect();
+        let mut k = 0;
+        self.tracks.retain(|_| {
+            k += 1;
+            keep[k - 1]
+        });
+        if !self.histories.is_empty() {
+            let mut k = 0;
+            self.histories.retain(|_| {
+                k += 1;
+                keep[k - 1]
+            });
+        }
+        self.index = self
+            .tracks
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (Arc::clone(&t.tag), i))
+            .collect();
+    }
+
+    /// Reports every track's pending update now, instead of when the tag's next record or the
+    /// next tick closes its time: a live server calls this after each batch of records so an
+    /// update leaves as soon as it is produced. A record of the same time arriving afterwards
+    /// updates the track again, and that update is flagged `revised`.
+    ///
+    /// # Errors
+    /// None today; a track whose report fails is reset and reported (`rejected`, kind `track`).
+    pub(crate) fn report_pending(&mut self, out: &mut Output) -> Result<()> {
+        for track in &mut self.tracks {
+            if track.unreported.is_none() {
+                continue;
+            }
+            if let Err(error) = report(&self.shared, track, &mut self.monitor, out) {
+                let time_s = track.state.as_ref().map_or(track.epoch_start_s, Gaussian::time_s);
+                reset(track, time_s, "track", &format!("{error}"), out);
+            }
         }
         Ok(())
     }
@@ -175,6 +347,75 @@ impl<const N: usize> Core<N> {
             }
         }
         Ok(())
+    }
+}
+
+/// One record applied to one track: its failure is reported (`rejected`, naming the error),
+/// a numerical failure of the track's own state restarts it, and a diverged track restarts.
+fn apply_to_track<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    monitor: &mut ZoneMonitor,
+    time_s: f64,
+    measurement: &Measurement,
+    out: &mut Output,
+) {
+    let kind = measurement.kind();
+    if let Err(error) = apply_record(shared, track, monitor, time_s, measurement, out) {
+        let numerical = matches!(&error, EngineError::Estimation(e)
+            if !matches!(e, EstimationError::TimeWentBackwards { .. }));
+        if numerical && track.state.is_some() {
+            // the track's own state failed (its prediction or combination): start afresh
+            reset(track, time_s, kind, &format!("{error}"), out);
+        } else {
+            let reason = format!("not applied: {error}");
+            out.events.push(rejected(&track.tag, time_s, kind, reason));
+        }
+    }
+    reset_if_diverged(&shared.bounds, track, time_s, kind, out);
+}
+
+/// One track's clock tick at `now_s`; a failure restarts the track. `true` when the track was
+/// deleted.
+fn tick_one<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    monitor: &mut ZoneMonitor,
+    now_s: f64,
+    out: &mut Output,
+) -> bool {
+    match tick_track(shared, track, monitor, now_s, out) {
+        Ok(gone) => gone,
+        Err(error) => {
+            reset(track, now_s, "track", &format!("{error}"), out);
+            false
+        }
+    }
+}
+
+/// What a clock tick can change in a track besides reporting its pending update: its state's
+/// time or presence, its lifecycle, its open epochs and held records, its coasting output.
+#[derive(Debug, PartialEq)]
+struct TickMark {
+    state_s: Option<f64>,
+    status: Option<TrackStatus>,
+    epoch: usize,
+    deferred: usize,
+    output_at_tick: bool,
+    gnss_pending: bool,
+}
+
+impl TickMark {
+    fn of<const N: usize>(track: &Track<N>, now_s: f64) -> Self {
+        Self {
+            state_s: track.state.as_ref().map(Gaussian::time_s),
+            status: track.status(),
+            epoch: track.epoch.len(),
+            deferred: track.deferred.len(),
+            // a coasting or lost output is dated at the tick (a report, at its state's time)
+            output_at_tick: track.last_output_s >= now_s,
+            gnss_pending: track.gnss.holds_readings_before(f64::INFINITY),
+        }
     }
 }
 
@@ -307,8 +548,10 @@ fn tick_track<const N: usize>(
                     let mut update =
                         track_update(shared, track, frozen, true, TrackStatus::Lost, UpdateSource::Prediction);
                     update.time_s = now_s;
+                    update.revised = now_s <= track.last_reported_s;
                     out.updates.push(update);
                     track.last_output_s = now_s;
+                    track.last_reported_s = track.last_reported_s.max(now_s);
                 }
             }
             _ => {}

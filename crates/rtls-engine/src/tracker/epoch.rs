@@ -52,7 +52,46 @@ pub(super) fn anchor_reading<const N: usize>(
         track.epoch_start_s = time_s;
     }
     track.epoch.push((time_s, reading));
+    // rewinding (a straggler re-opens it): the epoch closes once every reader of the last one
+    // has reported, not at its deadline
+    if shared.settings.rewind_horizon_s > 0.0 && holds_expected_readers(track) {
+        let start_s = track.epoch_start_s;
+        close_epoch(shared, track, out)?;
+        track.early_closed_s = Some(start_s);
+    }
     Ok(())
+}
+
+/// Whether the open epoch holds a reading of every reader of the tag's last epoch.
+fn holds_expected_readers<const N: usize>(track: &Track<N>) -> bool {
+    track.held_open_epoch_s != Some(track.epoch_start_s)
+        && !track.expected_readers.is_empty()
+        && track
+            .expected_readers
+            .iter()
+            .all(|&a| track.epoch.iter().any(|(_, r)| r.anchor() == a))
+}
+
+/// The start of the epoch closed early whose window `reading` at `time_s` falls in, when it
+/// comes from a reader that epoch did not wait for: it belongs to that epoch, which is
+/// re-solved with it.
+pub(super) fn straggles<const N: usize>(
+    shared: &Shared,
+    track: &Track<N>,
+    time_s: f64,
+    reading: &AnchorReading,
+) -> Option<f64> {
+    track.early_closed_s.filter(|&start_s| {
+        time_s >= start_s
+            && time_s - start_s <= shared.settings.epoch_s
+            && !track.expected_readers.contains(&reading.anchor())
+    })
+}
+
+/// Whether a reading at `time_s` opens a new epoch (fix-then-filter).
+pub(super) fn opens_epoch<const N: usize>(shared: &Shared, track: &Track<N>, time_s: f64) -> bool {
+    shared.settings.pipeline == Pipeline::FixThenFilter
+        && (track.epoch.is_empty() || time_s - track.epoch_start_s > shared.settings.epoch_s)
 }
 
 /// A fix as `(position, row-major covariance, method)` on the tracked axes.
@@ -145,6 +184,14 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
     let Some(&(time_s, _)) = epoch.last() else {
         return Ok(());
     };
+    // the readers the next epoch waits for (an early close sets its start after this)
+    track.early_closed_s = None;
+    track.expected_readers.clear();
+    for (_, reading) in &epoch {
+        if !track.expected_readers.contains(&reading.anchor()) {
+            track.expected_readers.push(reading.anchor());
+        }
+    }
     // direct measurements held while the epoch was open: those before its fix come first
     apply_deferred(shared, track, time_s, out)?;
     let readings: Vec<AnchorReading> = epoch.iter().map(|(_, r)| *r).collect();

@@ -50,7 +50,10 @@
 //!
 //! # Time, order and output
 //! Records pass a re-ordering window (`reorder_window_s`); later ones are reported as
-//! [`Event::Late`], never applied silently out of order. A track's update is reported once all
+//! [`Event::Late`], never applied silently out of order — unless `rewind_horizon_s` > 0: then a
+//! record up to that much older than its track's newest input is re-filtered (the track
+//! rewinds to a stored copy and re-applies what followed; revised updates are flagged), so a
+//! live server can run without a window. [`Tracker::report_pending`] reports updates at once. A track's update is reported once all
 //! readings of its time stamp are in (when a later record of the tag arrives, or at the next
 //! tick). The tracker ticks every half `output_interval_s` of record time, in time order with
 //! the records: the ticks before a record's time run before it is applied (so a tag's outputs do
@@ -138,6 +141,7 @@ mod anonymous;
 mod bounds;
 mod constraint_model;
 mod constraints;
+mod construct;
 mod core;
 mod direct;
 mod divergence;
@@ -151,6 +155,7 @@ mod modes;
 mod noise;
 mod output;
 mod report;
+mod rewind;
 mod schedule;
 mod solve;
 #[cfg(test)]
@@ -166,6 +171,8 @@ mod tests_heading;
 #[cfg(test)]
 mod tests_imm;
 #[cfg(test)]
+mod tests_rewind;
+#[cfg(test)]
 mod tests_robust;
 #[cfg(test)]
 mod tests_schedule;
@@ -179,26 +186,14 @@ pub use noise::{InnovationTotals, Innovations, NoiseClass};
 pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
 pub(crate) use schedule::scheduling_layout;
 
-use rtls_estimation::adaptive::AdaptiveNoise;
-use rtls_estimation::aided::HeadingModel;
-use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, SigmaPointParameters, UnscentedKalmanFilter};
-use rtls_estimation::motion::{ConstantVelocity, ProcessNoise};
-use rtls_estimation::stats::chi_square_quantile;
-
-use self::anchors::Anchors;
-use std::sync::Arc;
-
 use self::anonymous::AnonymousFront;
 use self::core::Core;
-use self::modes::Manoeuvres;
-use self::schedule::Scheduling;
 use self::track::Shared;
 use crate::error::{EngineError, Result};
 use crate::lifecycle::{LifecycleEvent, TrackStatus};
 use crate::radio_map::RadioMap;
 use crate::record::{Emitted, Record, Reorderer, TimeGate};
-use crate::site::{MotionModelKind, Site};
-use crate::zones::{Zone, ZoneKind};
+use crate::zones::Zone;
 
 /// Ticks run to catch up after a silence of the whole input, at most: after a longer silence
 /// (or when a tick step is lost in rounding) the tick grid restarts at the record's time, so
@@ -234,123 +229,11 @@ pub struct Tracker {
     reorderer: Reorderer,
     next_tick_s: Option<f64>,
     output_interval_s: f64,
+    rewind_horizon_s: f64,
     now_s: f64,
 }
 
 impl Tracker {
-    /// A tracker for `site` (its readers, zones, `[tracker]`, `[zone_events]` and `[alarms]`).
-    ///
-    /// # Errors
-    /// [`EngineError::InvalidParameter`] for a motion model other than `cv` (the tracker's
-    /// measurement models assume the CV state `[x, vx, y, vy(, z, vz)]`), or settings the
-    /// lifecycle or zone monitor reject.
-    pub fn new(site: &Site) -> Result<Self> {
-        let settings = site.tracker;
-        let manoeuvres = match settings.motion_model {
-            MotionModelKind::Cv => None,
-            MotionModelKind::Imm | MotionModelKind::Ct => Some(Arc::new(Manoeuvres::new(&settings)?)),
-            MotionModelKind::Ca | MotionModelKind::RandomWalk => {
-                return Err(EngineError::InvalidParameter {
-                    name: "tracker.motion_model",
-                    reason: "the tracker runs the constant-velocity model (\"cv\"), the coordinated turn \
-                             (\"ct\") or the interacting multiple models (\"imm\", which can include a \
-                             constant acceleration); a lone \"ca\" or \"random-walk\" is available in \
-                             rtls-estimation but not wired into the tracker",
-                });
-            }
-        };
-        let lifecycle = settings.lifecycle();
-        lifecycle.validate()?;
-        // q = σ_a² (continuous white acceleration)
-        let noise = ProcessNoise::continuous(settings.acceleration_noise_std_mps2.powi(2));
-        let motion = ConstantVelocity::new(noise)?;
-        let mut gates = [0.0; 3];
-        for (dof, gate) in gates.iter_mut().enumerate() {
-            *gate = chi_square_quantile(settings.gate_probability, (dof + 1) as f64)?;
-        }
-        let no_coverage_zones: Vec<String> = site
-            .zones
-            .iter()
-            .filter(|z| !z.readers.is_empty() && z.readers.iter().all(|r| site.reader(r).is_some_and(|r| !r.working)))
-            .map(|z| z.id.clone())
-            .collect();
-        let alarm_zones = site
-            .zones
-            .iter()
-            .filter(|z| z.kind == ZoneKind::Hazard || no_coverage_zones.contains(&z.id))
-            .cloned()
-            .collect();
-
-        let anchors = Anchors::new(site);
-        let shadows = site
-            .zones
-            .iter()
-            .filter(|z| no_coverage_zones.contains(&z.id))
-            .cloned()
-            .collect();
-        let constraints = constraint_model::Constraints::new(site, &anchors, shadows);
-        let shared = Shared {
-            settings,
-            alarms: site.alarms,
-            lifecycle,
-            anchors,
-            radio_map: None,
-            motion,
-            // the accelerometer-driven model: the residual noise σ_r (absent: σ_a)
-            aided_motion: match settings.aided_acceleration_noise_std_mps2 {
-                Some(sigma) => ConstantVelocity::new(ProcessNoise::continuous(sigma * sigma))?,
-                None => motion,
-            }
-            .with_acceleration_input(),
-            kf: KalmanFilter::default(),
-            ekf: ExtendedKalmanFilter::default(),
-            ukf: UnscentedKalmanFilter::new(SigmaPointParameters::default()),
-            gates,
-            tag_height_m: settings.tag_height_m.unwrap_or(0.0),
-            alarm_zones,
-            no_coverage_zones,
-            manoeuvres,
-            scheduling: Scheduling::new(site)?.map(Arc::new),
-            adaptive: if settings.adaptive_noise.enabled {
-                Some(AdaptiveNoise::new(
-                    settings.adaptive_noise.memory_s,
-                    settings.adaptive_noise.max_scale,
-                )?)
-            } else {
-                None
-            },
-            bounds: bounds::SiteBounds::new(site),
-            heading_model: HeadingModel::new(
-                settings.heading.gyro_bias_std_radps,
-                settings.heading.gyro_bias_random_walk_radps_per_sqrt_s,
-                settings.heading.heading_random_walk_rad_per_sqrt_s,
-                settings.heading.odometer_drift_rad_per_sqrt_s,
-                settings.heading.odometer_offset_std_rad,
-            )?,
-            frame: site.frame.map(|f| f.local_frame()).transpose()?,
-            constraints,
-        };
-        let monitor = site.zone_monitor()?;
-        let tracks = if settings.dimensions == 3 {
-            Tracks::Spatial(Core::new(shared, monitor))
-        } else {
-            Tracks::Planar(Core::new(shared, monitor))
-        };
-        let anonymous = match site.anonymous {
-            Some(anonymous) => Some(AnonymousFront::new(anonymous, settings.tag_height_m.unwrap_or(0.0))?),
-            None => None,
-        };
-        Ok(Self {
-            tracks,
-            anonymous,
-            time_gate: TimeGate::new(settings.max_time_jump_s)?,
-            reorderer: Reorderer::new(settings.reorder_window_s)?,
-            next_tick_s: None,
-            output_interval_s: settings.output_interval_s,
-            now_s: f64::NEG_INFINITY,
-        })
-    }
-
     /// The heading channel of `tag`'s track (tests).
     #[cfg(test)]
     pub(crate) fn heading_state(&self, tag: &str) -> Option<rtls_estimation::aided::HeadingState> {
@@ -428,7 +311,14 @@ impl Tracker {
     }
 
     fn emitted(&mut self, emitted: Emitted, out: &mut Output) -> Result<()> {
+        let rewinds = self.rewind_horizon_s > 0.0;
         match emitted {
+            // behind the clock or the window: its track re-filters it (or reports it late)
+            Emitted::InOrder(record) | Emitted::Late { record, .. }
+                if rewinds && record.tag != ANONYMOUS_TAG && record.time_s < self.now_s =>
+            {
+                self.apply(&record, out)
+            }
             // the live clock ticked past it (it arrived after the window had closed on it)
             Emitted::InOrder(record) if record.time_s < self.now_s => {
                 out.events.push(Event::Late {
@@ -553,6 +443,18 @@ impl Tracker {
             self.run_ticks(clock_s, TicksDue::Through, out)?;
         }
         Ok(())
+    }
+
+    /// Reports every track's pending update now (see the module's *Time, order and output*):
+    /// a live server calls it after each batch so updates leave when produced.
+    ///
+    /// # Errors
+    /// None today.
+    pub fn report_pending(&mut self, out: &mut Output) -> Result<()> {
+        match &mut self.tracks {
+            Tracks::Planar(core) => core.report_pending(out),
+            Tracks::Spatial(core) => core.report_pending(out),
+        }
     }
 
     /// End of input: releases the re-ordering window, closes open epochs and reports every

@@ -62,6 +62,10 @@ pub struct TrackUpdate {
     pub source: UpdateSource,
     /// Under `motion_model = "imm"` (or "ct"): the most probable motion mode ("CV", "CA", "CT").
     pub mode: Option<&'static str>,
+    /// `true` when this update replaces one already reported for the same or a later time:
+    /// a late record was re-filtered (`tracker.rewind_horizon_s`), or a record with the time
+    /// of an update already published arrived after it.
+    pub revised: bool,
 }
 
 /// The name of a track status as written in JSON.
@@ -89,7 +93,7 @@ fn lifecycle_name(event: LifecycleEvent) -> &'static str {
 
 impl TrackUpdate {
     /// The update as one JSON object on one line:
-    /// `{"t","tag","x","y"[,"z"],"vx","vy"[,"vz"],"cov":[D² entries],"predicted","status","source"[,"mode"]}`.
+    /// `{"t","tag","x","y"[,"z"],"vx","vy"[,"vz"],"cov":[D² entries],"predicted","status","source"[,"mode"][,"revised"]}`.
     ///
     /// # Examples
     /// ```
@@ -100,7 +104,7 @@ impl TrackUpdate {
     ///     position_m: [1.0, 2.0, 0.0], velocity_mps: [0.5, 0.0, 0.0],
     ///     position_covariance_m2: [0.04, 0.0, 0.0, 0.04, 0.0, 0.0, 0.0, 0.0, 0.0],
     ///     predicted: false, status: TrackStatus::Confirmed, source: UpdateSource::Fix,
-    ///     mode: None,
+    ///     mode: None, revised: false,
     /// };
     /// let value: serde_json::Value = serde_json::from_str(&update.to_json_line()).unwrap();
     /// assert_eq!(value["cov"].as_array().unwrap().len(), 4);
@@ -109,21 +113,49 @@ impl TrackUpdate {
     #[must_use]
     pub fn to_json_line(&self) -> String {
         let d = self.dimensions;
-        let mut object = located(self.time_s, &self.tag, d, &self.position_m);
-        object.insert("vx".into(), json!(self.velocity_mps[0]));
-        object.insert("vy".into(), json!(self.velocity_mps[1]));
-        if d == 3 {
-            object.insert("vz".into(), json!(self.velocity_mps[2]));
-        }
-        object.insert("cov".into(), json!(&self.position_covariance_m2[..d * d]));
-        object.insert("predicted".into(), json!(self.predicted));
-        object.insert("status".into(), json!(status_name(self.status)));
-        object.insert("source".into(), json!(self.source.name()));
-        if let Some(mode) = self.mode {
-            object.insert("mode".into(), json!(mode));
-        }
-        Value::Object(object).to_string()
+        // written straight from the fields, keys in the order a JSON object map sorts them
+        // (as the other lines of a track file): no map is built per update, the server's hot path
+        let line = TrackLine {
+            cov: &self.position_covariance_m2[..d * d],
+            mode: self.mode,
+            predicted: self.predicted,
+            revised: self.revised.then_some(true),
+            source: self.source.name(),
+            status: status_name(self.status),
+            t: self.time_s,
+            tag: &self.tag,
+            vx: self.velocity_mps[0],
+            vy: self.velocity_mps[1],
+            vz: (d == 3).then_some(self.velocity_mps[2]),
+            x: self.position_m[0],
+            y: self.position_m[1],
+            z: (d == 3).then_some(self.position_m[2]),
+        };
+        serde_json::to_string(&line).unwrap_or_else(|error| unreachable!("a track line always serialises: {error}"))
     }
+}
+
+/// A track-file line as written ([`TrackUpdate::to_json_line`]); non-finite numbers are `null`.
+#[derive(serde::Serialize)]
+struct TrackLine<'a> {
+    cov: &'a [f64],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mode: Option<&'static str>,
+    predicted: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    revised: Option<bool>,
+    source: &'static str,
+    status: &'static str,
+    t: f64,
+    tag: &'a str,
+    vx: f64,
+    vy: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    vz: Option<f64>,
+    x: f64,
+    y: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    z: Option<f64>,
 }
 
 /// The keys every track-file line starts with: `t`, `tag`, `x`, `y` and, in 3-D, `z`.

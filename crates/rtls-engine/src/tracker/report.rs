@@ -39,6 +39,7 @@ pub(super) fn track_update<const N: usize>(
         status,
         source,
         mode: shared.manoeuvres.as_ref().map(|m| m.name(track.mode)),
+        revised: state.time_s() <= track.last_reported_s,
     }
 }
 
@@ -55,6 +56,7 @@ pub(super) fn report<const N: usize>(
     out.updates
         .push(track_update(shared, track, &state, false, status, source));
     track.last_output_s = state.time_s();
+    track.last_reported_s = track.last_reported_s.max(state.time_s());
     if matches!(status, TrackStatus::Confirmed | TrackStatus::Coasting) {
         zones_and_alarms(shared, track, &state, monitor, out)?;
     }
@@ -82,6 +84,7 @@ pub(super) fn coast<const N: usize>(
         UpdateSource::Prediction,
     ));
     track.last_output_s = now_s;
+    track.last_reported_s = track.last_reported_s.max(now_s);
     zones_and_alarms(shared, track, &predicted, monitor, out)
 }
 
@@ -94,7 +97,15 @@ pub(super) fn zones_and_alarms<const N: usize>(
     out: &mut Output,
 ) -> Result<()> {
     let (position_m, _) = position_of(state, shared.tag_height_m);
-    for zone_event in monitor.update(&track.tag, state.time_s(), position_m)? {
+    // a revision of a time before the zones' latest position for the tag (a re-filtered late
+    // record): the zones have been decided on newer positions, and stand
+    let zones_behind = monitor.last_time_s(&track.tag).is_some_and(|t| state.time_s() < t);
+    let zone_events = if zones_behind {
+        Vec::new()
+    } else {
+        monitor.update(&track.tag, state.time_s(), position_m)?
+    };
+    for zone_event in zone_events {
         if let ZoneEvent::Enter { zone, time_s, .. } = &zone_event {
             if shared.no_coverage_zones.iter().any(|z| z == zone) {
                 out.events.push(Event::NoCoverage {

@@ -8,6 +8,7 @@ use rand_distr::{Distribution, Normal};
 use super::*;
 use crate::lifecycle::LifecycleEvent;
 use crate::record::Measurement;
+use crate::site::Site;
 use crate::zones::ZoneEvent;
 
 /// Four UWB anchors on a 20 m × 20 m square at 2.5 m height, plus a broken one, a hazard box at

@@ -8,6 +8,7 @@ use rand_distr::{Distribution, Normal};
 use super::tests::{run, site, site_text, slant, ANCHORS};
 use super::*;
 use crate::record::Measurement;
+use crate::site::Site;
 
 /// Target A walks east at 0.4 m/s from (9, 9.4); target B walks west at 0.4 m/s from
 /// (11, 10.6): they pass each other 1.2 m apart in the middle of the square.

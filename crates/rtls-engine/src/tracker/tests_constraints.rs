@@ -11,6 +11,7 @@ use rand_distr::{Distribution, Normal};
 
 use super::*;
 use crate::record::Measurement;
+use crate::site::Site;
 
 /// Drift A at y = 0, drift B at y = 40, both x ∈ [0, 300]; the cross-cut at x = 150.
 const DRIFT_B_Y_M: f64 = 40.0;

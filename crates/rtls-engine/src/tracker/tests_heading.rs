@@ -8,6 +8,7 @@ use rand_distr::{Distribution, Normal};
 
 use super::*;
 use crate::record::Measurement;
+use crate::site::Site;
 
 /// Loop centre (m), radius (m), speed (m/s).
 const CENTRE: [f64; 2] = [30.0, 30.0];

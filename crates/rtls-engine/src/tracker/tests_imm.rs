@@ -3,6 +3,7 @@
 
 use super::tests::{range_records, rmse, run, site, site_text};
 use super::*;
+use crate::site::Site;
 
 /// Straight east at 1.5 m/s from (2, 10) for 6 s; a left turn at 0.6 rad/s (radius 2.5 m,
 /// centripetal acceleration 0.9 m/s²) for 4 s; straight on at the new heading.

@@ -9,6 +9,7 @@ use rand_distr::{Distribution, Normal};
 
 use super::*;
 use crate::record::Measurement;
+use crate::site::Site;
 
 /// A site with `anchors` random readers in a 60 m × 60 m square at 0–5 m height.
 fn random_site(rng: &mut ChaCha8Rng, pipeline: &str, filter: &str, motion_model: &str) -> (Site, Vec<[f64; 3]>) {

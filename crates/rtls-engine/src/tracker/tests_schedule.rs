@@ -4,6 +4,7 @@
 use super::tests::run;
 use super::*;
 use crate::record::Measurement;
+use crate::site::Site;
 
 /// Seed 003's bed: readers `r{row}{column}` on the corners of 2 m cells, 3 task nodes, 0.3 m
 /// edge margin, a 0.3 s cycle.

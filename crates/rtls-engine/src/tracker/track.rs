@@ -91,6 +91,9 @@ pub(crate) struct Track<const N: usize> {
     /// An update not yet reported, and what produced it.
     pub(super) unreported: Option<UpdateSource>,
     pub(super) last_output_s: f64,
+    /// Time of the latest update reported (measured or predicted), s: an update at or before
+    /// it revises one already out.
+    pub(super) last_reported_s: f64,
     /// Alarm zones with a raised predictive alarm.
     pub(super) alarmed: Vec<bool>,
     /// The state frozen when the track was lost (its last position is kept and reported).
@@ -113,6 +116,14 @@ pub(crate) struct Track<const N: usize> {
     pub(super) gnss: GnssTrack,
     /// The open epoch's readers, for negative information and the map at its close.
     pub(super) hearing: Hearing,
+    /// Fix-then-filter with `rewind_horizon_s` > 0: the readers of the tag's last epoch. An
+    /// epoch holding a reading of each closes at once instead of at its deadline.
+    pub(super) expected_readers: Vec<usize>,
+    /// Start time of the last epoch closed early, s: a reading of a new reader within its
+    /// window re-opens it (the track rewinds and re-solves it with the reading).
+    pub(super) early_closed_s: Option<f64>,
+    /// Start time of an epoch re-opened for a straggler: it closes at its deadline, not early.
+    pub(super) held_open_epoch_s: Option<f64>,
 }
 
 impl<const N: usize> Track<N> {
@@ -127,6 +138,7 @@ impl<const N: usize> Track<N> {
             acceleration: None,
             unreported: None,
             last_output_s: f64::NEG_INFINITY,
+            last_reported_s: f64::NEG_INFINITY,
             alarmed: vec![false; alarm_zones],
             lost_state: None,
             modes: None,
@@ -138,6 +150,9 @@ impl<const N: usize> Track<N> {
             heading: HeadingChannel::default(),
             gnss: GnssTrack::default(),
             hearing: Hearing::default(),
+            expected_readers: Vec::new(),
+            early_closed_s: None,
+            held_open_epoch_s: None,
         }
     }
 

@@ -320,6 +320,13 @@ impl ZoneMonitor {
         &self.zones
     }
 
+    /// The time of `tag`'s latest position, s; `None` for a tag the monitor has not seen (or
+    /// when there are no zones).
+    #[must_use]
+    pub fn last_time_s(&self, tag: &str) -> Option<f64> {
+        self.tags.get(tag).map(|state| state.last_time_s)
+    }
+
     /// Feeds one position of a tag and returns the events it causes, in zone-id order.
     ///
     /// # Units

@@ -50,7 +50,7 @@ pub(super) async fn tags(State(state): State<AppState>, headers: HeaderMap) -> A
         .tags()
         .into_iter()
         .map(|(tag, s)| {
-            json!({ "tag": tag, "t": s.time_s, "position_m": s.position_m, "status": s.status, "location": s.location })
+            json!({ "tag": tag, "t": s.time_s, "position_m": s.position_m, "status": s.status, "location": *s.location })
         })
         .collect();
     Ok(Json(Value::Array(tags)))

@@ -94,7 +94,13 @@ fn server_error(error: ServerError) -> ApiError {
 pub(super) async fn get_locations(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Value>>> {
     state.authorize(&headers, Access::Read)?;
     Ok(Json(
-        state.pipeline.live().tags().into_values().map(|t| t.location).collect(),
+        state
+            .pipeline
+            .live()
+            .tags()
+            .into_values()
+            .map(|t| Value::clone(&t.location))
+            .collect(),
     ))
 }
 
@@ -109,7 +115,7 @@ pub(super) async fn get_provider_location(
         .pipeline
         .live()
         .tag(&provider_id)
-        .map(|t| Json(t.location))
+        .map(|t| Json(Value::clone(&t.location)))
         .ok_or_else(|| ApiError::not_found(format!("provider `{provider_id}` has no location")))
 }
 
@@ -314,7 +320,7 @@ pub(super) async fn get_trackable_location(
         .iter()
         .filter_map(|provider| live.tag(provider))
         .max_by(|a, b| a.time_s.total_cmp(&b.time_s))
-        .map(|t| Json(t.location))
+        .map(|t| Json(Value::clone(&t.location)))
         .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
 }
 

@@ -216,10 +216,10 @@ fn payload(
 ) -> Option<Value> {
     let payload = match (message.as_ref(), subscription.topic) {
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdates) if wanted(subscription, tag) => {
-            location.clone()
+            Value::clone(location)
         }
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
-            json!({ "type": "Feature", "geometry": wgs84_geometry(frame, &location["position"]), "properties": location })
+            json!({ "type": "Feature", "geometry": wgs84_geometry(frame, &location["position"]), "properties": **location })
         }
         (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => event.clone(),
         (HubMessage::FenceEvent { tag, event }, Topic::FenceEventsGeojson) if wanted(subscription, tag) => {

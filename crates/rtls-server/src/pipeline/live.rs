@@ -19,8 +19,8 @@ pub enum HubMessage {
         tag: String,
         /// The update's time (s, the records' clock: Unix seconds when live).
         time_s: f64,
-        /// The `Location` object.
-        location: Value,
+        /// The `Location` object (shared with [`TagState`]: built once per update).
+        location: Arc<Value>,
     },
     /// A zone entry or exit as an omlox `FenceEvent` (`fence_events`).
     FenceEvent {
@@ -47,8 +47,8 @@ pub struct TagState {
     pub position_m: [f64; 3],
     /// Its lifecycle status (`tentative`, `confirmed`, `coasting`, `lost`).
     pub status: &'static str,
-    /// The omlox `Location`.
-    pub location: Value,
+    /// The omlox `Location` (shared with the hub message that published it).
+    pub location: Arc<Value>,
 }
 
 /// Latest locations and head counts, written by the partition threads.

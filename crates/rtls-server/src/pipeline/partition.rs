@@ -71,6 +71,11 @@ impl PartitionWorker {
                         }
                         processed = Some(id);
                     }
+                    // each update leaves with the batch that produced it, not with the tag's
+                    // next record (a later record of the same time is a flagged revision)
+                    if let Err(e) = self.tracker.report_pending(&mut out) {
+                        tracing::warn!(partition = self.index, error = %e, "reporting the batch's updates failed");
+                    }
                     self.metrics.tracking_seconds.observe(started.elapsed().as_secs_f64());
                 }
                 Err(RecvTimeoutError::Timeout) => {}
@@ -184,13 +189,14 @@ impl PartitionWorker {
         }
         match location_from_update(update, &self.source, ProviderType::Uwb).map(serde_json::to_value) {
             Ok(Ok(location)) => {
+                let location = Arc::new(location);
                 self.live.set_tag(
                     &update.tag,
                     TagState {
                         time_s: update.time_s,
                         position_m: update.position_m,
                         status: status_name(update.status),
-                        location: location.clone(),
+                        location: Arc::clone(&location),
                     },
                 );
                 let _ = self.hub.send(Arc::new(HubMessage::Location {

@@ -188,7 +188,7 @@ async fn only_the_types_in_events_on_the_alarm_topic_are_sent() {
         HubMessage::Location {
             tag: "m1".into(),
             time_s: 0.0,
-            location: json!({}),
+            location: json!({}).into(),
         },
     ] {
         hub.send(Arc::new(message)).unwrap();

@@ -41,7 +41,8 @@ gate_probability = 0.999
 initiation = { confirm_updates = 3, within_s = 5.0 }
 coast_timeout_s = 10.0
 delete_timeout_s = 120.0
-reorder_window_s = 1.0
+reorder_window_s = 0.0
+rewind_horizon_s = 2.0
 output_interval_s = 1.0
 
 [alarms]
