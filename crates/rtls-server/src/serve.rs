@@ -227,6 +227,7 @@ pub async fn serve(
     tasks.push(tokio::spawn(retention(
         Arc::clone(&queries),
         config.server.retention_days,
+        config.server.raw_retention_days,
         stopped(stop_rx.clone()),
     )));
 
@@ -278,14 +279,33 @@ fn listen_error(what: &'static str, address: SocketAddr, error: &std::io::Error)
     }
 }
 
-/// Deletes what is older than the retention period, hourly.
-async fn retention(queries: Arc<Mutex<QueryStore>>, retention_days: f64, stopped: impl Future<Output = ()>) {
+/// Deletes what is older than the retention period, and raw records older than theirs, hourly.
+async fn retention(
+    queries: Arc<Mutex<QueryStore>>,
+    retention_days: f64,
+    raw_retention_days: f64,
+    stopped: impl Future<Output = ()>,
+) {
     tokio::pin!(stopped);
     loop {
         let cutoff_ms = unix_ms() - (retention_days * 86_400_000.0) as i64;
+        let raw_cutoff_ms = unix_ms() - (raw_retention_days * 86_400_000.0) as i64;
         let store = Arc::clone(&queries);
         let pruned = tokio::task::spawn_blocking(move || match store.lock() {
-            Ok(mut store) => Ok(store.prune(cutoff_ms)),
+            Ok(mut store) => {
+                match store.prune_ingest_log(raw_cutoff_ms) {
+                    Ok(records) if records > 0 => {
+                        tracing::info!(
+                            records,
+                            raw_retention_days,
+                            "raw-record retention pruned the ingest log"
+                        );
+                    }
+                    Ok(_) => {}
+                    Err(e) => tracing::error!(error = %e, "raw-record retention failed"),
+                }
+                Ok(store.prune(cutoff_ms))
+            }
             Err(_) => Err(()),
         })
         .await;

@@ -6,6 +6,7 @@
 //! site = "site.toml"             # the site file (readers, zones, tracker settings)
 //! db = "sqlite:rtls.db"          # or "postgres://user:password@host/db"
 //! retention_days = 92            # history, events and the ingest log (mine rules: ≥ 3 months)
+//! raw_retention_days = 1         # raw records in the ingest log (once their outputs are stored)
 //! log_format = "text"            # or "json"
 //! default_accuracy_m = 1.0       # omlox locations without `accuracy`
 //! sqlite_sync = "full"           # or "normal": safe against a crash, not a power loss
@@ -117,6 +118,10 @@ pub struct ServerSection {
     pub db: String,
     /// Days of history, events and ingest log kept.
     pub retention_days: f64,
+    /// Days of raw records kept in the ingest log (> 0): older ones whose outputs are stored
+    /// are deleted hourly. The ingest log is most of the database (docs/SERVER.md, sizing);
+    /// the tracks and events it produced are kept for `retention_days`.
+    pub raw_retention_days: f64,
     /// `text` or `json` logs.
     pub log_format: String,
     /// Accuracy of omlox locations without one (m).
@@ -138,6 +143,7 @@ impl Default for ServerSection {
             site: None,
             db: "sqlite:rtls.db".into(),
             retention_days: 92.0,
+            raw_retention_days: 1.0,
             log_format: "text".into(),
             default_accuracy_m: 1.0,
             sqlite_sync: "full".into(),
@@ -233,6 +239,12 @@ impl ServerConfig {
             return Err(invalid(
                 "server.retention_days",
                 format!("must be > 0 days, got {}", s.retention_days),
+            ));
+        }
+        if !(s.raw_retention_days.is_finite() && s.raw_retention_days > 0.0) {
+            return Err(invalid(
+                "server.raw_retention_days",
+                format!("must be > 0 days, got {}", s.raw_retention_days),
             ));
         }
         if !matches!(s.log_format.as_str(), "text" | "json") {

@@ -86,6 +86,22 @@ impl QueryStore {
             .prune(before_ms)
             .map_err(|e| e.to_string())
     }
+
+    /// Deletes ingest-log records stored before `before_ms` that are behind the output
+    /// checkpoint (raw-record retention); returns how many.
+    ///
+    /// # Errors
+    /// The store's error, or a closed connection.
+    pub fn prune_ingest_log(&mut self, before_ms: i64) -> Result<u64, String> {
+        let store = self.get().map_err(|e| e.message)?;
+        let Some(through_id) = store
+            .checkpoint(crate::pipeline::CHECKPOINT)
+            .map_err(|e| e.to_string())?
+        else {
+            return Ok(0);
+        };
+        store.prune_ingest_log(before_ms, through_id).map_err(|e| e.to_string())
+    }
 }
 
 impl Drop for QueryStore {

@@ -234,6 +234,13 @@ pub trait Store: Send {
     /// # Errors
     /// [`StoreError::Database`].
     fn prune(&mut self, before_ms: i64) -> Result<Pruned, StoreError>;
+    /// Deletes ingest-log records stored before `before_ms` whose id is at most `through_id`
+    /// (the checkpoint: their outputs are stored, so a restart does not replay them); returns
+    /// how many (the raw-record retention, shorter than the history's).
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn prune_ingest_log(&mut self, before_ms: i64, through_id: i64) -> Result<u64, StoreError>;
 }
 
 mod migrations;

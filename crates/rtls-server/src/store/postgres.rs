@@ -552,6 +552,14 @@ impl Store for PostgresStore {
         .map(|_| ())
     }
 
+    fn prune_ingest_log(&mut self, before_ms: i64, through_id: i64) -> Result<u64, StoreError> {
+        const OPERATION: &str = "prune the ingest log";
+        let statement = self.statement("DELETE FROM records WHERE received_ms < $1 AND id <= $2", OPERATION)?;
+        self.client
+            .execute(&statement, &[&before_ms, &through_id])
+            .map_err(database(OPERATION))
+    }
+
     fn prune(&mut self, before_ms: i64) -> Result<Pruned, StoreError> {
         const OPERATION: &str = "prune";
         let fail = database(OPERATION);

@@ -551,6 +551,18 @@ impl Store for SqliteStore {
         upsert.execute(params![name, value]).map(|_| ()).map_err(fail)
     }
 
+    fn prune_ingest_log(&mut self, before_ms: i64, through_id: i64) -> Result<u64, StoreError> {
+        let fail = database("prune the ingest log");
+        let mut delete = self
+            .connection
+            .prepare_cached("DELETE FROM records WHERE received_ms < ?1 AND id <= ?2")
+            .map_err(fail)?;
+        delete
+            .execute(params![before_ms, through_id])
+            .map(|deleted| deleted as u64)
+            .map_err(fail)
+    }
+
     fn prune(&mut self, before_ms: i64) -> Result<Pruned, StoreError> {
         let fail = database("prune");
         let transaction = self
