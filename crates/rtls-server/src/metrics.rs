@@ -33,6 +33,9 @@ pub struct Metrics {
     pub tracking_seconds: Histogram,
     /// Track updates produced.
     pub track_updates: Counter,
+    /// Track updates that replace one already published (a late record re-filtered, or a
+    /// record of an update's time arriving after it).
+    pub track_updates_revised: Counter,
     /// Records the tracker refused.
     pub tracker_errors: Counter,
     /// Alarms raised, by type.
@@ -79,6 +82,7 @@ impl Metrics {
             pipeline_latency_seconds: latency(),
             tracking_seconds: latency(),
             track_updates: Counter::default(),
+            track_updates_revised: Counter::default(),
             tracker_errors: Counter::default(),
             alarms: Family::default(),
             stored_locations: Counter::default(),
@@ -133,6 +137,11 @@ impl Metrics {
             m.tracking_seconds.clone(),
         );
         registry.register("track_updates", "Track updates produced", m.track_updates.clone());
+        registry.register(
+            "track_updates_revised",
+            "Track updates that replace one already published (late records re-filtered)",
+            m.track_updates_revised.clone(),
+        );
         registry.register(
             "tracker_errors",
             "Records the tracker refused",

@@ -267,3 +267,96 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
 
     running.stop().await;
 }
+
+/// A record that arrives after later ones of its tag (a second request, 3 s of data late) with
+/// the site rewinding: it is re-filtered, and the updates it revises are stored and counted as
+/// revisions.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_late_record_is_refiltered_and_its_revisions_flagged() {
+    let dir = temp_dir("late-record");
+    let text = SITE.replace(
+        "reorder_window_s = 0.2",
+        "reorder_window_s = 0.0\nrewind_horizon_s = 5.0",
+    );
+    let site = Site::from_toml_str(&text, "late-record.toml").unwrap();
+    let mut config = ServerConfig::default();
+    config.server.http = "127.0.0.1:0".parse().unwrap();
+    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
+    config.mqtt.mode = MqttMode::Off;
+    config.pipeline.live_clock = false;
+    let running = common::serve_on_loopback(ServeOptions {
+        site,
+        site_text: text,
+        ..common::options(config)
+    })
+    .await;
+    let http = running.bound.http;
+    let client = reqwest::Client::new();
+    let post = |body: String| {
+        client
+            .post(format!("http://{http}/api/v1/measurements"))
+            .bearer_auth(WRITE)
+            .body(body)
+            .send()
+    };
+    // a walk at 2 Hz for 6 s; its fix at t = 103 s is held back and sent after the rest
+    let (late, in_time): (Vec<&str>, Vec<&str>) = walk("late", 100.0, 6.0)
+        .leak()
+        .lines()
+        .partition(|line| serde_json::from_str::<Value>(line).unwrap()["t"].as_f64() == Some(103.0));
+    assert_eq!(late.len(), 1);
+    for body in [in_time.join("\n"), late.join("\n")] {
+        let reply = post(body).await.unwrap();
+        assert!(reply.status().is_success(), "{}", reply.status());
+    }
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    let revised = loop {
+        let metrics = client
+            .get(format!("http://{http}/metrics"))
+            .bearer_auth(READ)
+            .send()
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        let revised: f64 = metrics
+            .lines()
+            .find_map(|l| l.strip_prefix("rtls_track_updates_revised_total "))
+            .and_then(|v| v.trim().parse().ok())
+            .unwrap_or(0.0);
+        if revised > 0.0 || std::time::Instant::now() > deadline {
+            break revised;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    // the updates from 103 s to the walk's end (103.5–106 s) are revised
+    assert!(revised >= 1.0, "revisions counted: {revised}");
+    // stored by the output thread, after publication
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    let history = loop {
+        let history = client
+            .get(format!(
+                "http://{http}/api/v1/history?tag=late&from=0&to=200&format=json"
+            ))
+            .bearer_auth(READ)
+            .send()
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        if history.contains("\"revised\"") || std::time::Instant::now() > deadline {
+            break history;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    assert!(history.contains("\"revised\""), "a stored revision: {history}");
+    let events = get_json(&client, http, "/api/v1/events?type=late").await;
+    assert_eq!(
+        events.as_array().map(Vec::len),
+        Some(0),
+        "nothing reported late: {events}"
+    );
+    running.stop().await;
+}

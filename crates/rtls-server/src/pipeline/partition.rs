@@ -166,6 +166,9 @@ impl PartitionWorker {
             self.reported_lost.remove(&*update.tag);
         }
         self.metrics.track_updates.inc();
+        if update.revised {
+            self.metrics.track_updates_revised.inc();
+        }
         let json_line = update.to_json_line();
         let d = update.dimensions.clamp(2, 3);
         batch.locations.push(LocationRow {
