@@ -73,7 +73,7 @@ async fn run(mqtt: MqttMode) -> (Bound, f64, Vec<f64>) {
             .unwrap();
         if let Some(tag) = tags.as_array().unwrap().iter().find(|t| t["tag"] == "feed-tag") {
             last_x = tag["position_m"][0].as_f64().unwrap();
-            // the newest records wait for later data (reorder window, epoch): x ≈ 20 m at the end
+            // the walk ends at x ≈ 20 m
             if last_x > 19.0 {
                 break;
             }
