@@ -43,6 +43,32 @@ async fn get_json(client: &reqwest::Client, http: std::net::SocketAddr, path: &s
     reply.json().await.unwrap()
 }
 
+/// `GET path` with the read token, as text, every 100 ms until `done` holds of it or 20 s
+/// have passed; the last answer.
+async fn poll_text(
+    client: &reqwest::Client,
+    http: std::net::SocketAddr,
+    path: &str,
+    done: impl Fn(&str) -> bool,
+) -> String {
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    loop {
+        let text = client
+            .get(format!("http://{http}{path}"))
+            .bearer_auth(READ)
+            .send()
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        if done(&text) || std::time::Instant::now() > deadline {
+            return text;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
 type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
 async fn next_json(socket: &mut Socket) -> Value {
@@ -309,48 +335,24 @@ async fn a_late_record_is_refiltered_and_its_revisions_flagged() {
         let reply = post(body).await.unwrap();
         assert!(reply.status().is_success(), "{}", reply.status());
     }
-    let deadline = std::time::Instant::now() + Duration::from_secs(20);
-    let revised = loop {
-        let metrics = client
-            .get(format!("http://{http}/metrics"))
-            .bearer_auth(READ)
-            .send()
-            .await
-            .unwrap()
-            .text()
-            .await
-            .unwrap();
-        let revised: f64 = metrics
+    let revised_count = |metrics: &str| -> f64 {
+        metrics
             .lines()
             .find_map(|l| l.strip_prefix("rtls_track_updates_revised_total "))
             .and_then(|v| v.trim().parse().ok())
-            .unwrap_or(0.0);
-        if revised > 0.0 || std::time::Instant::now() > deadline {
-            break revised;
-        }
-        tokio::time::sleep(Duration::from_millis(100)).await;
+            .unwrap_or(0.0)
     };
+    let metrics = poll_text(&client, http, "/metrics", |m| revised_count(m) > 0.0).await;
     // the updates from 103 s to the walk's end (103.5–106 s) are revised
-    assert!(revised >= 1.0, "revisions counted: {revised}");
+    assert!(revised_count(&metrics) >= 1.0, "revisions counted: {metrics}");
     // stored by the output thread, after publication
-    let deadline = std::time::Instant::now() + Duration::from_secs(20);
-    let history = loop {
-        let history = client
-            .get(format!(
-                "http://{http}/api/v1/history?tag=late&from=0&to=200&format=json"
-            ))
-            .bearer_auth(READ)
-            .send()
-            .await
-            .unwrap()
-            .text()
-            .await
-            .unwrap();
-        if history.contains("\"revised\"") || std::time::Instant::now() > deadline {
-            break history;
-        }
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    };
+    let history = poll_text(
+        &client,
+        http,
+        "/api/v1/history?tag=late&from=0&to=200&format=json",
+        |h| h.contains("\"revised\""),
+    )
+    .await;
     assert!(history.contains("\"revised\""), "a stored revision: {history}");
     let events = get_json(&client, http, "/api/v1/events?type=late").await;
     assert_eq!(

@@ -33,6 +33,9 @@ pub(crate) struct Core<const N: usize> {
     /// Each track's recent inputs and copies, for re-filtering a late record (empty and
     /// unused when `rewind_horizon_s` is 0); indexed as `tracks`.
     histories: Vec<History<N>>,
+    /// Tracks given a record since the last [`Self::report_pending`] (indices, may repeat):
+    /// the only ones that can have an update pending, so a report does not walk every track.
+    touched: Vec<usize>,
     pub(crate) monitor: ZoneMonitor,
 }
 
@@ -77,6 +80,7 @@ impl<const N: usize> Core<N> {
             index: HashMap::new(),
             tracks: Vec::new(),
             histories: Vec::new(),
+            touched: Vec::new(),
             monitor,
         }
     }
@@ -120,16 +124,28 @@ impl<const N: usize> Core<N> {
                 self.tracks.len() - 1
             }
         };
+        self.touched.push(index);
+        if self.touched.len() > 2 * self.tracks.len() + 64 {
+            // a caller that never reports (a file run) keeps it to a list of the tracks
+            self.touched.sort_unstable();
+            self.touched.dedup();
+        }
         let horizon_s = self.shared.settings.rewind_horizon_s;
         if horizon_s > 0.0 {
             let track = &mut self.tracks[index];
-            let reading = match measurement {
-                Measurement::Range { .. } | Measurement::Rssi { .. } | Measurement::Tdoa { .. } => {
-                    self.shared.anchors.resolve(measurement).ok().flatten()
-                }
-                _ => None,
+            let anchor_reading = matches!(
+                measurement,
+                Measurement::Range { .. } | Measurement::Rssi { .. } | Measurement::Tdoa { .. }
+            );
+            // only after an early close can a reading straggle: resolving its reader (which the
+            // record's application does again) is needed then only
+            let straggler = if anchor_reading && track.early_closed_s.is_some() {
+                let reading = self.shared.anchors.resolve(measurement).ok().flatten();
+                reading.and_then(|r| straggles(&self.shared, track, time_s, &r))
+            } else {
+                None
             };
-            if let Some(start_s) = reading.and_then(|r| straggles(&self.shared, track, time_s, &r)) {
+            if let Some(start_s) = straggler {
                 // the epoch it belongs to closed without it: re-solve that epoch with it,
                 // closing it at its deadline this time
                 return self.refilter(index, time_s, measurement, Some(start_s), out);
@@ -139,7 +155,7 @@ impl<const N: usize> Core<N> {
             }
             let history = &mut self.histories[index];
             let input = Input::Record(measurement.clone());
-            if reading.is_some() && opens_epoch(&self.shared, track, time_s) && !track.expected_readers.is_empty() {
+            if anchor_reading && opens_epoch(&self.shared, track, time_s) && !track.expected_readers.is_empty() {
                 // an epoch that may close early: a straggler rewinds to its start
                 history.push_with_copy(time_s, input, track.clone(), horizon_s);
             } else {
@@ -216,27 +232,23 @@ impl<const N: usize> Core<N> {
             track.alarmed = told_alarms;
         }
         // the replay before the late record repeats the updates that were output
-        let mut k = 0;
-        out.updates.retain(|u| {
-            k += 1;
-            k <= updates_before || u.time_s >= time_s || u.time_s > told_reported_s
-        });
+        let replayed = out.updates.split_off(updates_before);
+        out.updates.extend(
+            replayed
+                .into_iter()
+                .filter(|u| u.time_s >= time_s || u.time_s > told_reported_s),
+        );
         // events: the late record's rejection, and the zones and alarms of positions reported
         // for the first time; the rest repeat what the records said when they were applied
-        let mut k = 0;
         let kind = measurement.kind();
-        out.events.retain(|e| {
-            k += 1;
-            k <= events_before
-                || match e {
-                    Event::Rejected { time_s: t, kind: k, .. } => *t == time_s && *k == kind,
-                    Event::Zone(_)
-                    | Event::HazardPredicted { .. }
-                    | Event::HazardCleared { .. }
-                    | Event::NoCoverage { .. } => e.time_s() > told_reported_s,
-                    _ => false,
-                }
-        });
+        let replayed = out.events.split_off(events_before);
+        out.events.extend(replayed.into_iter().filter(|e| match e {
+            Event::Rejected { time_s: t, kind: k, .. } => *t == time_s && *k == kind,
+            Event::Zone(_) | Event::HazardPredicted { .. } | Event::HazardCleared { .. } | Event::NoCoverage { .. } => {
+                e.time_s() > told_reported_s
+            }
+            _ => false,
+        }));
         if deleted {
             self.forget_deleted();
         }
@@ -305,6 +317,10 @@ impl<const N: usize> Core<N> {
             .enumerate()
             .map(|(i, t)| (Arc::clone(&t.tag), i))
             .collect();
+        // the indices moved: the tracks with an update pending, anew (deletions are rare)
+        self.touched = (0..self.tracks.len())
+            .filter(|&i| self.tracks[i].unreported.is_some())
+            .collect();
     }
 
     /// Reports every track's pending update now, instead of when the tag's next record or the
@@ -315,7 +331,8 @@ impl<const N: usize> Core<N> {
     /// # Errors
     /// None today; a track whose report fails is reset and reported (`rejected`, kind `track`).
     pub(crate) fn report_pending(&mut self, out: &mut Output) -> Result<()> {
-        for track in &mut self.tracks {
+        for index in std::mem::take(&mut self.touched) {
+            let track = &mut self.tracks[index];
             if track.unreported.is_none() {
                 continue;
             }

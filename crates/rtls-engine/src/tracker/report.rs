@@ -99,7 +99,9 @@ pub(super) fn zones_and_alarms<const N: usize>(
     let (position_m, _) = position_of(state, shared.tag_height_m);
     // a revision of a time before the zones' latest position for the tag (a re-filtered late
     // record): the zones have been decided on newer positions, and stand
-    let zones_behind = monitor.last_time_s(&track.tag).is_some_and(|t| state.time_s() < t);
+    // (only a revision can be behind: the monitor is not asked on the usual, newer report)
+    let zones_behind =
+        track.last_reported_s > state.time_s() && monitor.last_time_s(&track.tag).is_some_and(|t| state.time_s() < t);
     let zone_events = if zones_behind {
         Vec::new()
     } else {
