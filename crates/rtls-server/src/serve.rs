@@ -230,6 +230,11 @@ pub async fn serve(
         config.server.raw_retention_days,
         stopped(stop_rx.clone()),
     )));
+    tasks.push(tokio::spawn(compaction(
+        Arc::clone(&queries),
+        config.server.compact_after_s,
+        stopped(stop_rx.clone()),
+    )));
 
     let bound = Bound {
         http: http_addr,
@@ -276,6 +281,59 @@ fn listen_error(what: &'static str, address: SocketAddr, error: &std::io::Error)
         what,
         address: address.to_string(),
         reason: error.to_string(),
+    }
+}
+
+/// Track states and tracked records packed per compaction transaction (the query connection
+/// is free between two).
+const COMPACTION_CHUNK_ROWS: usize = 100_000;
+
+/// Packs track states and tracked raw records older than `compact_after_s` into compressed
+/// blocks, every `compact_after_s` (store/history_blocks.rs, store/log_blocks.rs).
+async fn compaction(queries: Arc<Mutex<QueryStore>>, compact_after_s: f64, stopped: impl Future<Output = ()>) {
+    tokio::pin!(stopped);
+    let period = Duration::from_secs_f64(compact_after_s);
+    loop {
+        tokio::select! {
+            () = &mut stopped => return,
+            () = tokio::time::sleep(period) => {}
+        }
+        let before_ms = unix_ms() - (compact_after_s * 1000.0) as i64;
+        let (mut states, mut records) = (0u64, 0u64);
+        let started = Instant::now();
+        loop {
+            let store = Arc::clone(&queries);
+            let chunk = tokio::task::spawn_blocking(move || match store.lock() {
+                Ok(mut store) => store.compact(before_ms, COMPACTION_CHUNK_ROWS),
+                Err(_) => Err("the query store's lock is poisoned".to_owned()),
+            })
+            .await;
+            match chunk {
+                Ok(Ok((0, 0))) => break,
+                Ok(Ok((packed_states, packed_records))) => {
+                    states += packed_states;
+                    records += packed_records;
+                }
+                Ok(Err(e)) => {
+                    tracing::error!(error = %e, "compaction failed; the rows stay as they are");
+                    break;
+                }
+                Err(e) => {
+                    tracing::error!(error = %e, "compaction task failed");
+                    break;
+                }
+            }
+        }
+        if states + records > 0 {
+            let elapsed_ms = started.elapsed().as_millis() as u64;
+            tracing::info!(
+                states,
+                records,
+                elapsed_ms,
+                compact_after_s,
+                "compacted history and ingest log into blocks"
+            );
+        }
     }
 }
 

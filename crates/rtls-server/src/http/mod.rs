@@ -104,6 +104,28 @@ impl QueryStore {
     }
 }
 
+impl QueryStore {
+    /// Packs up to `max_rows` track states and up to `max_rows` tracked raw records stored
+    /// before `before_ms` into compressed blocks; returns how many of each.
+    ///
+    /// # Errors
+    /// The store's error, or a closed connection.
+    pub fn compact(&mut self, before_ms: i64, max_rows: usize) -> Result<(u64, u64), String> {
+        let store = self.get().map_err(|e| e.message)?;
+        let states = store.compact_history(before_ms, max_rows).map_err(|e| e.to_string())?;
+        let records = match store
+            .checkpoint(crate::pipeline::CHECKPOINT)
+            .map_err(|e| e.to_string())?
+        {
+            Some(through_id) => store
+                .compact_ingest_log(before_ms, through_id, max_rows)
+                .map_err(|e| e.to_string())?,
+            None => 0,
+        };
+        Ok((states, records))
+    }
+}
+
 impl Drop for QueryStore {
     fn drop(&mut self) {
         if let Some(store) = self.0.take() {

@@ -41,6 +41,11 @@ pub(crate) const SQLITE_MIGRATIONS: &[Migration] = &[
         name: "locations_by_time",
         sql: include_str!("../../migrations/sqlite/V2__locations_by_time.sql"),
     },
+    Migration {
+        version: 3,
+        name: "compacted_blocks",
+        sql: include_str!("../../migrations/sqlite/V3__compacted_blocks.sql"),
+    },
 ];
 
 /// The PostgreSQL schema's migrations, oldest first.
@@ -54,6 +59,11 @@ pub(crate) const POSTGRES_MIGRATIONS: &[Migration] = &[
         version: 2,
         name: "locations_by_time",
         sql: include_str!("../../migrations/postgres/V2__locations_by_time.sql"),
+    },
+    Migration {
+        version: 3,
+        name: "compacted_blocks",
+        sql: include_str!("../../migrations/postgres/V3__compacted_blocks.sql"),
     },
 ];
 

@@ -241,9 +241,27 @@ pub trait Store: Send {
     /// # Errors
     /// [`StoreError::Database`].
     fn prune_ingest_log(&mut self, before_ms: i64, through_id: i64) -> Result<u64, StoreError>;
+    /// Packs up to `max_rows` track states stored before `before_ms` into compressed blocks,
+    /// one per tag, and deletes their rows, in one transaction; returns how many it packed
+    /// (0: none is left). Queries read them as before, to the precision the block format
+    /// keeps (module `history_blocks`: 1 µs, 1 mm, 1 mm/s, σ to 0.1 mm).
+    ///
+    /// # Errors
+    /// [`StoreError::Database`]; then nothing is changed.
+    fn compact_history(&mut self, before_ms: i64, max_rows: usize) -> Result<u64, StoreError>;
+    /// Packs up to `max_rows` ingest-log records stored before `before_ms` whose id is at most
+    /// `through_id` (the output checkpoint) into compressed blocks and deletes their rows, in
+    /// one transaction; returns how many it packed. They read back exactly.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`]; then nothing is changed.
+    fn compact_ingest_log(&mut self, before_ms: i64, through_id: i64, max_rows: usize) -> Result<u64, StoreError>;
 }
 
+mod history_blocks;
+mod log_blocks;
 mod migrations;
+mod packing;
 pub mod postgres;
 pub mod sqlite;
 #[cfg(test)]

@@ -14,6 +14,9 @@ use super::migrations::{self, AppliedMigration, Migration, MigrationTarget, POST
 use super::{EventQuery, EventRow, HistoryQuery, LocationRow, NewRecord, Pruned, Store, StoreError, StoredRecord};
 use crate::config::redact_password;
 
+#[path = "postgres_blocks.rs"]
+mod blocks;
+
 /// The advisory lock that serialises migrations of concurrent processes (an arbitrary key:
 /// "rtls" in ASCII).
 const MIGRATION_LOCK_KEY: i64 = 0x7274_6c73;
@@ -343,30 +346,16 @@ impl Store for PostgresStore {
     }
 
     fn records_after(&mut self, after_id: i64, limit: usize) -> Result<Vec<StoredRecord>, StoreError> {
-        const OPERATION: &str = "read records";
-        let rows = self.query(
-            "SELECT id, received_ms, source, time_s, tag, json FROM records WHERE id > $1 ORDER BY id LIMIT $2",
-            &[&after_id, &limit_from(limit)],
-            OPERATION,
-        )?;
-        rows.iter()
-            .map(|row| {
-                Ok(StoredRecord {
-                    id: row.try_get(0)?,
-                    received_ms: row.try_get(1)?,
-                    source: row.try_get(2)?,
-                    time_s: row.try_get(3)?,
-                    tag: row.try_get(4)?,
-                    json: row.try_get(5)?,
-                })
-            })
-            .collect::<Result<_, _>>()
-            .map_err(database(OPERATION))
+        self.records_after_with_blocks(after_id, limit)
     }
 
     fn record_count(&mut self) -> Result<u64, StoreError> {
         const OPERATION: &str = "count records";
-        let rows = self.query("SELECT count(*) FROM records", &[], OPERATION)?;
+        let rows = self.query(
+            "SELECT (SELECT count(*) FROM records) + (SELECT coalesce(sum(count), 0)::BIGINT FROM record_blocks)",
+            &[],
+            OPERATION,
+        )?;
         match rows.first() {
             Some(row) => row.try_get::<_, i64>(0).map(count_from).map_err(database(OPERATION)),
             None => Ok(0),
@@ -436,26 +425,7 @@ impl Store for PostgresStore {
     }
 
     fn history(&mut self, query: &HistoryQuery) -> Result<Vec<LocationRow>, StoreError> {
-        const OPERATION: &str = "history query";
-        let limit = limit_from(query.limit);
-        let rows = match &query.tag {
-            Some(tag) => self.query(
-                "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
-                 WHERE tag = $1 AND time_s >= $2 AND time_s <= $3 ORDER BY time_s, id LIMIT $4",
-                &[tag, &query.from_s, &query.to_s, &limit],
-                OPERATION,
-            )?,
-            None => self.query(
-                "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
-                 WHERE time_s >= $1 AND time_s <= $2 ORDER BY time_s, id LIMIT $3",
-                &[&query.from_s, &query.to_s, &limit],
-                OPERATION,
-            )?,
-        };
-        rows.iter()
-            .map(location_from)
-            .collect::<Result<_, _>>()
-            .map_err(database(OPERATION))
+        self.history_with_blocks(query)
     }
 
     fn events(&mut self, query: &EventQuery) -> Result<Vec<EventRow>, StoreError> {
@@ -554,10 +524,39 @@ impl Store for PostgresStore {
 
     fn prune_ingest_log(&mut self, before_ms: i64, through_id: i64) -> Result<u64, StoreError> {
         const OPERATION: &str = "prune the ingest log";
-        let statement = self.statement("DELETE FROM records WHERE received_ms < $1 AND id <= $2", OPERATION)?;
-        self.client
-            .execute(&statement, &[&before_ms, &through_id])
-            .map_err(database(OPERATION))
+        let fail = database(OPERATION);
+        let statements = [
+            self.statement(
+                "SELECT coalesce(sum(count), 0)::BIGINT FROM record_blocks WHERE received_ms < $1 AND last_id <= $2",
+                OPERATION,
+            )?,
+            self.statement(
+                "DELETE FROM record_blocks WHERE received_ms < $1 AND last_id <= $2",
+                OPERATION,
+            )?,
+            self.statement("DELETE FROM records WHERE received_ms < $1 AND id <= $2", OPERATION)?,
+        ];
+        let mut transaction = self.client.transaction().map_err(fail)?;
+        let in_blocks: i64 = transaction
+            .query_one(&statements[0], &[&before_ms, &through_id])
+            .and_then(|row| row.try_get(0))
+            .map_err(fail)?;
+        transaction
+            .execute(&statements[1], &[&before_ms, &through_id])
+            .map_err(fail)?;
+        let rows = transaction
+            .execute(&statements[2], &[&before_ms, &through_id])
+            .map_err(fail)?;
+        transaction.commit().map_err(fail)?;
+        Ok(count_from(in_blocks) + rows)
+    }
+
+    fn compact_history(&mut self, before_ms: i64, max_rows: usize) -> Result<u64, StoreError> {
+        self.compact_history_blocks(before_ms, max_rows)
+    }
+
+    fn compact_ingest_log(&mut self, before_ms: i64, through_id: i64, max_rows: usize) -> Result<u64, StoreError> {
+        self.compact_ingest_log_blocks(before_ms, through_id, max_rows)
     }
 
     fn prune(&mut self, before_ms: i64) -> Result<Pruned, StoreError> {
@@ -568,10 +567,30 @@ impl Store for PostgresStore {
             self.statement("DELETE FROM locations WHERE received_ms < $1", OPERATION)?,
             self.statement("DELETE FROM events WHERE received_ms < $1", OPERATION)?,
         ];
+        // blocks: their rows' counts, as what they packed
+        let block_statements = [
+            self.statement(
+                "WITH gone AS (DELETE FROM record_blocks WHERE received_ms < $1 RETURNING count) \
+                 SELECT coalesce(sum(count), 0)::BIGINT FROM gone",
+                OPERATION,
+            )?,
+            self.statement(
+                "WITH gone AS (DELETE FROM location_blocks WHERE received_ms < $1 RETURNING count) \
+                 SELECT coalesce(sum(count), 0)::BIGINT FROM gone",
+                OPERATION,
+            )?,
+        ];
         let mut transaction = self.client.transaction().map_err(fail)?;
         let mut deleted = [0_u64; 3];
+        for (count, statement) in deleted.iter_mut().zip(&block_statements) {
+            let packed: i64 = transaction
+                .query_one(statement, &[&before_ms])
+                .and_then(|row| row.try_get(0))
+                .map_err(fail)?;
+            *count = count_from(packed);
+        }
         for (count, statement) in deleted.iter_mut().zip(&statements) {
-            *count = transaction.execute(statement, &[&before_ms]).map_err(fail)?;
+            *count += transaction.execute(statement, &[&before_ms]).map_err(fail)?;
         }
         transaction.commit().map_err(fail)?;
         Ok(Pruned {

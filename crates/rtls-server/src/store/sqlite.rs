@@ -12,6 +12,9 @@ use rusqlite::{params, Connection, OptionalExtension, ToSql, TransactionBehavior
 use super::migrations::{self, AppliedMigration, Migration, MigrationTarget, SQLITE_MIGRATIONS};
 use super::{EventQuery, EventRow, HistoryQuery, LocationRow, NewRecord, Pruned, Store, StoreError, StoredRecord};
 
+#[path = "sqlite_blocks.rs"]
+mod blocks;
+
 /// How long a statement waits for another connection's lock before failing (ms).
 const BUSY_TIMEOUT_MS: u64 = 5_000;
 
@@ -298,33 +301,16 @@ impl Store for SqliteStore {
     }
 
     fn records_after(&mut self, after_id: i64, limit: usize) -> Result<Vec<StoredRecord>, StoreError> {
-        let fail = database("read records");
-        let mut select = self
-            .connection
-            .prepare_cached(
-                "SELECT id, received_ms, source, time_s, tag, json FROM records WHERE id > ?1 ORDER BY id LIMIT ?2",
-            )
-            .map_err(fail)?;
-        let rows = select
-            .query_map(params![after_id, limit_from(limit)], |row| {
-                Ok(StoredRecord {
-                    id: row.get(0)?,
-                    received_ms: row.get(1)?,
-                    source: row.get(2)?,
-                    time_s: row.get(3)?,
-                    tag: row.get(4)?,
-                    json: row.get(5)?,
-                })
-            })
-            .map_err(fail)?;
-        rows.collect::<Result<_, _>>().map_err(fail)
+        blocks::records_after(&mut self.connection, after_id, limit)
     }
 
     fn record_count(&mut self) -> Result<u64, StoreError> {
         let fail = database("count records");
         let mut count = self
             .connection
-            .prepare_cached("SELECT count(*) FROM records")
+            .prepare_cached(
+                "SELECT (SELECT count(*) FROM records) + (SELECT coalesce(sum(count), 0) FROM record_blocks)",
+            )
             .map_err(fail)?;
         count.query_row([], |row| row.get(0)).map(count_from).map_err(fail)
     }
@@ -398,35 +384,7 @@ impl Store for SqliteStore {
     }
 
     fn history(&mut self, query: &HistoryQuery) -> Result<Vec<LocationRow>, StoreError> {
-        let fail = database("history query");
-        // one statement per shape, so each uses its index (tag, time_s) or (time_s)
-        let sql = if query.tag.is_some() {
-            "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
-             WHERE tag = ?1 AND time_s >= ?2 AND time_s <= ?3 ORDER BY time_s, id LIMIT ?4"
-        } else {
-            "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
-             WHERE ?1 IS NULL AND time_s >= ?2 AND time_s <= ?3 ORDER BY time_s, id LIMIT ?4"
-        };
-        let mut select = self.connection.prepare_cached(sql).map_err(fail)?;
-        let rows = select
-            .query_map(
-                params![query.tag, query.from_s, query.to_s, limit_from(query.limit)],
-                |row| {
-                    Ok(LocationRow {
-                        received_ms: row.get(0)?,
-                        time_s: row.get(1)?,
-                        tag: row.get(2)?,
-                        x_m: row.get(3)?,
-                        y_m: row.get(4)?,
-                        z_m: row.get(5)?,
-                        accuracy_m: row.get(6)?,
-                        predicted: row.get(7)?,
-                        json: row.get(8)?,
-                    })
-                },
-            )
-            .map_err(fail)?;
-        rows.collect::<Result<_, _>>().map_err(fail)
+        blocks::history(&mut self.connection, query)
     }
 
     fn events(&mut self, query: &EventQuery) -> Result<Vec<EventRow>, StoreError> {
@@ -553,14 +511,39 @@ impl Store for SqliteStore {
 
     fn prune_ingest_log(&mut self, before_ms: i64, through_id: i64) -> Result<u64, StoreError> {
         let fail = database("prune the ingest log");
-        let mut delete = self
+        let transaction = self
             .connection
-            .prepare_cached("DELETE FROM records WHERE received_ms < ?1 AND id <= ?2")
+            .transaction_with_behavior(TransactionBehavior::Immediate)
             .map_err(fail)?;
-        delete
-            .execute(params![before_ms, through_id])
-            .map(|deleted| deleted as u64)
-            .map_err(fail)
+        let in_blocks: i64 = transaction
+            .prepare_cached(
+                "SELECT coalesce(sum(count), 0) FROM record_blocks WHERE received_ms < ?1 AND last_id <= ?2",
+            )
+            .and_then(|mut statement| statement.query_row(params![before_ms, through_id], |row| row.get(0)))
+            .map_err(fail)?;
+        let mut deleted = count_from(in_blocks);
+        for sql in [
+            "DELETE FROM record_blocks WHERE received_ms < ?1 AND last_id <= ?2",
+            "DELETE FROM records WHERE received_ms < ?1 AND id <= ?2",
+        ] {
+            let rows = transaction
+                .prepare_cached(sql)
+                .and_then(|mut statement| statement.execute(params![before_ms, through_id]))
+                .map_err(fail)?;
+            if sql.contains("FROM records") {
+                deleted += rows as u64;
+            }
+        }
+        transaction.commit().map_err(fail)?;
+        Ok(deleted)
+    }
+
+    fn compact_history(&mut self, before_ms: i64, max_rows: usize) -> Result<u64, StoreError> {
+        blocks::compact_history(&mut self.connection, before_ms, max_rows)
+    }
+
+    fn compact_ingest_log(&mut self, before_ms: i64, through_id: i64, max_rows: usize) -> Result<u64, StoreError> {
+        blocks::compact_ingest_log(&mut self.connection, before_ms, through_id, max_rows)
     }
 
     fn prune(&mut self, before_ms: i64) -> Result<Pruned, StoreError> {
@@ -576,9 +559,20 @@ impl Store for SqliteStore {
                 .map(|deleted| deleted as u64)
                 .map_err(fail)
         };
+        let in_blocks = |sql: &str| {
+            transaction
+                .prepare_cached(sql)
+                .and_then(|mut statement| statement.query_row([before_ms], |row| row.get::<_, i64>(0)))
+                .map(count_from)
+                .map_err(fail)
+        };
+        let records_in_blocks = in_blocks("SELECT coalesce(sum(count), 0) FROM record_blocks WHERE received_ms < ?1")?;
+        let states_in_blocks = in_blocks("SELECT coalesce(sum(count), 0) FROM location_blocks WHERE received_ms < ?1")?;
+        delete("DELETE FROM record_blocks WHERE received_ms < ?1")?;
+        delete("DELETE FROM location_blocks WHERE received_ms < ?1")?;
         let pruned = Pruned {
-            records: delete("DELETE FROM records WHERE received_ms < ?1")?,
-            locations: delete("DELETE FROM locations WHERE received_ms < ?1")?,
+            records: records_in_blocks + delete("DELETE FROM records WHERE received_ms < ?1")?,
+            locations: states_in_blocks + delete("DELETE FROM locations WHERE received_ms < ?1")?,
             events: delete("DELETE FROM events WHERE received_ms < ?1")?,
         };
         transaction.commit().map_err(fail)?;

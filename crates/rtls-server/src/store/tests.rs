@@ -5,8 +5,10 @@
 //! `tests/backends.rs`.
 
 mod backends;
+mod compaction;
 mod harness;
 
+use self::compaction::{compaction_keeps_the_history, compaction_keeps_the_ingest_log};
 use self::harness::{event, location, record, PgSchema, TempDb};
 use super::{EventQuery, HistoryQuery, NewRecord, Pruned, SqliteStore, Store, StoreError};
 
@@ -50,6 +52,8 @@ conformance!(
     checkpoints,
     prune_deletes_exactly_the_older_rows,
     ingest_log_pruning_stops_at_the_checkpoint,
+    compaction_keeps_the_history,
+    compaction_keeps_the_ingest_log,
 );
 
 /// Whether `ids` strictly increase.

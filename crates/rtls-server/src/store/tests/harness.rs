@@ -117,6 +117,44 @@ pub(crate) fn location(received_ms: i64, time_s: f64, tag: &str) -> LocationRow 
     }
 }
 
+/// A state as the pipeline stores it (an engine track line), with numbers on the compacted
+/// blocks' grid (µs, mm, mm/s, σ in 0.1 mm, ρ in 10⁻⁴), so it reads back exactly after
+/// compaction.
+pub(crate) fn track_state(received_ms: i64, time_s: f64, tag: &str) -> LocationRow {
+    use rtls_engine::lifecycle::TrackStatus;
+    use rtls_engine::tracker::{TrackUpdate, UpdateSource};
+    let predicted = (time_s as i64) % 4 == 0;
+    let update = TrackUpdate {
+        time_s,
+        tag: tag.into(),
+        dimensions: 2,
+        position_m: [time_s * 2.0 + 0.125, 0.5 - time_s, 0.0],
+        velocity_mps: [0.5, -0.25, 0.0],
+        // σ = 0.5 m on both axes, ρ = 0.5
+        position_covariance_m2: [0.25, 0.125, 0.125, 0.25, 0.0, 0.0, 0.0, 0.0, 0.0],
+        predicted,
+        status: if predicted {
+            TrackStatus::Coasting
+        } else {
+            TrackStatus::Confirmed
+        },
+        source: UpdateSource::Fix,
+        mode: None,
+        revised: false,
+    };
+    LocationRow {
+        received_ms,
+        time_s,
+        tag: tag.to_owned(),
+        x_m: update.position_m[0],
+        y_m: update.position_m[1],
+        z_m: None,
+        accuracy_m: Some(0.75),
+        predicted,
+        json: update.to_json_line(),
+    }
+}
+
 pub(crate) fn event(received_ms: i64, time_s: f64, kind: &str, tag: Option<&str>, alarm: bool) -> EventRow {
     EventRow {
         received_ms,

@@ -1,0 +1,29 @@
+-- Compacted history and ingest log (src/store/history_blocks.rs, src/store/log_blocks.rs):
+-- rows older than `server.compact_after_s` are packed into DEFLATE-compressed blocks and
+-- deleted from `locations` / `records` in the same transaction. Queries read both.
+
+-- One tag's consecutive track states (at most an hour, 4 096 states).
+CREATE TABLE location_blocks (
+    id          INTEGER PRIMARY KEY AUTOINCREMENT,
+    tag         TEXT    NOT NULL,
+    from_s      REAL    NOT NULL,
+    to_s        REAL    NOT NULL,
+    received_ms INTEGER NOT NULL,
+    count       INTEGER NOT NULL,
+    payload     BLOB    NOT NULL
+) STRICT;
+CREATE INDEX location_blocks_tag_from_s ON location_blocks (tag, from_s);
+CREATE INDEX location_blocks_from_s ON location_blocks (from_s);
+CREATE INDEX location_blocks_received_ms ON location_blocks (received_ms);
+
+-- Consecutive ingest-log records behind the output checkpoint (ids first_id..=last_id, with
+-- the ids of records still in `records` possibly between them).
+CREATE TABLE record_blocks (
+    first_id    INTEGER PRIMARY KEY,
+    last_id     INTEGER NOT NULL,
+    received_ms INTEGER NOT NULL,
+    count       INTEGER NOT NULL,
+    payload     BLOB    NOT NULL
+) STRICT;
+CREATE INDEX record_blocks_last_id ON record_blocks (last_id);
+CREATE INDEX record_blocks_received_ms ON record_blocks (received_ms);
