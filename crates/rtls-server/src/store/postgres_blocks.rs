@@ -37,7 +37,7 @@ impl PostgresStore {
         let fail = database(OPERATION);
         let select = self.statement(
             "SELECT id, received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
-             WHERE received_ms < $1 ORDER BY tag, time_s, id LIMIT $2 FOR UPDATE",
+             WHERE received_ms < $1 ORDER BY id LIMIT $2",
             OPERATION,
         )?;
         let insert = self.statement(
@@ -45,7 +45,8 @@ impl PostgresStore {
              VALUES ($1, $2, $3, $4, $5, $6)",
             OPERATION,
         )?;
-        let delete = self.statement("DELETE FROM locations WHERE id = ANY($1::BIGINT[])", OPERATION)?;
+        // exactly the rows read: older than the cut, up to the last id read
+        let delete = self.statement("DELETE FROM locations WHERE received_ms < $1 AND id <= $2", OPERATION)?;
         let mut transaction = self.client.transaction().map_err(fail)?;
         let rows = transaction
             .query(&select, &[&before_ms, &limit_from(max_rows)])
@@ -71,10 +72,10 @@ impl PostgresStore {
             .collect::<Result<_, ::postgres::Error>>()
             .map_err(fail)?;
         let packed = rows.len() as u64;
-        if packed == 0 {
+        let Some(last_id) = rows.iter().map(|(id, _)| *id).max() else {
             return Ok(0);
-        }
-        for (ids, block) in history_blocks::pack(rows) {
+        };
+        for (_, block) in history_blocks::pack(rows) {
             transaction
                 .execute(
                     &insert,
@@ -88,8 +89,8 @@ impl PostgresStore {
                     ],
                 )
                 .map_err(fail)?;
-            transaction.execute(&delete, &[&ids]).map_err(fail)?;
         }
+        transaction.execute(&delete, &[&before_ms, &last_id]).map_err(fail)?;
         transaction.commit().map_err(fail)?;
         Ok(packed)
     }
@@ -105,14 +106,15 @@ impl PostgresStore {
         let fail = database(OPERATION);
         let select = self.statement(
             "SELECT id, received_ms, source, time_s, tag, json FROM records \
-             WHERE received_ms < $1 AND id <= $2 ORDER BY id LIMIT $3 FOR UPDATE",
+             WHERE received_ms < $1 AND id <= $2 ORDER BY id LIMIT $3",
             OPERATION,
         )?;
         let insert = self.statement(
             "INSERT INTO record_blocks (first_id, last_id, received_ms, count, payload) VALUES ($1, $2, $3, $4, $5)",
             OPERATION,
         )?;
-        let delete = self.statement("DELETE FROM records WHERE id = ANY($1::BIGINT[])", OPERATION)?;
+        // exactly the rows read: older than the cut, up to the last id read (≤ the checkpoint)
+        let delete = self.statement("DELETE FROM records WHERE received_ms < $1 AND id <= $2", OPERATION)?;
         let mut transaction = self.client.transaction().map_err(fail)?;
         let records: Vec<StoredRecord> = transaction
             .query(&select, &[&before_ms, &through_id, &limit_from(max_rows)])
@@ -138,8 +140,8 @@ impl PostgresStore {
                 )
                 .map_err(fail)?;
         }
-        let ids: Vec<i64> = records.iter().map(|record| record.id).collect();
-        transaction.execute(&delete, &[&ids]).map_err(fail)?;
+        let last_id = records.last().map_or(0, |record| record.id);
+        transaction.execute(&delete, &[&before_ms, &last_id]).map_err(fail)?;
         transaction.commit().map_err(fail)?;
         Ok(records.len() as u64)
     }

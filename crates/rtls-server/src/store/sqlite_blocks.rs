@@ -2,7 +2,7 @@
 //! [`super::super::history_blocks`], [`super::super::log_blocks`]) — packing rows into them and
 //! reading them back with the rows.
 
-use rusqlite::{params, Connection, Transaction, TransactionBehavior};
+use rusqlite::{params, Connection, TransactionBehavior};
 
 use super::super::history_blocks::{self, HistoryCollector};
 use super::super::log_blocks::{self, RecordCollector};
@@ -32,22 +32,6 @@ fn location_row(row: &rusqlite::Row<'_>, first: usize) -> rusqlite::Result<Locat
     })
 }
 
-/// Deletes rows of `table` by id inside a transaction.
-fn delete_ids(
-    transaction: &Transaction<'_>,
-    table: &str,
-    ids: &[i64],
-    operation: &'static str,
-) -> Result<(), StoreError> {
-    let mut delete = transaction
-        .prepare_cached(&format!("DELETE FROM {table} WHERE id = ?1"))
-        .map_err(database(operation))?;
-    for id in ids {
-        delete.execute([id]).map_err(database(operation))?;
-    }
-    Ok(())
-}
-
 /// [`super::super::Store::compact_history`].
 pub(super) fn compact_history(connection: &mut Connection, before_ms: i64, max_rows: usize) -> Result<u64, StoreError> {
     const OPERATION: &str = "compact the history";
@@ -55,12 +39,12 @@ pub(super) fn compact_history(connection: &mut Connection, before_ms: i64, max_r
     // Read and packed outside the write transaction, which then only inserts and deletes: the
     // pipeline's commits wait for that alone. Rows are never updated, and only this
     // connection deletes them, so what was read is still there.
-    // By tag and time: each tag's states in as few blocks as the limit allows.
+    // The oldest rows by id: the same set is then deleted by one range statement.
     let rows: Vec<(i64, LocationRow)> = {
         let mut select = connection
             .prepare_cached(
                 "SELECT id, received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
-                 WHERE received_ms < ?1 ORDER BY tag, time_s, id LIMIT ?2",
+                 WHERE received_ms < ?1 ORDER BY id LIMIT ?2",
             )
             .map_err(fail)?;
         let rows = select
@@ -71,9 +55,9 @@ pub(super) fn compact_history(connection: &mut Connection, before_ms: i64, max_r
         rows.collect::<Result<_, _>>().map_err(fail)?
     };
     let packed = rows.len() as u64;
-    if packed == 0 {
+    let Some(last_id) = rows.iter().map(|(id, _)| *id).max() else {
         return Ok(0);
-    }
+    };
     let blocks = history_blocks::pack(rows);
     let transaction = connection
         .transaction_with_behavior(TransactionBehavior::Immediate)
@@ -85,7 +69,7 @@ pub(super) fn compact_history(connection: &mut Connection, before_ms: i64, max_r
                  VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
             )
             .map_err(fail)?;
-        for (ids, block) in blocks {
+        for (_, block) in blocks {
             insert
                 .execute(params![
                     block.tag,
@@ -96,9 +80,13 @@ pub(super) fn compact_history(connection: &mut Connection, before_ms: i64, max_r
                     block.payload
                 ])
                 .map_err(fail)?;
-            delete_ids(&transaction, "locations", &ids, OPERATION)?;
         }
     }
+    // exactly the rows read: older than the cut, up to the last id read
+    transaction
+        .prepare_cached("DELETE FROM locations WHERE received_ms < ?1 AND id <= ?2")
+        .and_then(|mut delete| delete.execute(params![before_ms, last_id]))
+        .map_err(fail)?;
     transaction.commit().map_err(fail)?;
     Ok(packed)
 }
@@ -150,8 +138,12 @@ pub(super) fn compact_ingest_log(
                 .map_err(fail)?;
         }
     }
-    let ids: Vec<i64> = records.iter().map(|record| record.id).collect();
-    delete_ids(&transaction, "records", &ids, OPERATION)?;
+    // exactly the rows read: older than the cut, up to the last id read (≤ the checkpoint)
+    let last_id = records.last().map_or(0, |record| record.id);
+    transaction
+        .prepare_cached("DELETE FROM records WHERE received_ms < ?1 AND id <= ?2")
+        .and_then(|mut delete| delete.execute(params![before_ms, last_id]))
+        .map_err(fail)?;
     transaction.commit().map_err(fail)?;
     Ok(records.len() as u64)
 }
