@@ -30,3 +30,8 @@ CREATE TABLE record_blocks (
 ALTER TABLE record_blocks ALTER COLUMN payload SET STORAGE EXTERNAL;
 CREATE INDEX record_blocks_last_id ON record_blocks (last_id);
 CREATE INDEX record_blocks_received_ms ON record_blocks (received_ms);
+
+-- The row tables now hold only the last minutes: compaction reads them oldest first by id and
+-- retention scans them, so an index by server time costs every insert and serves nothing.
+DROP INDEX locations_received_ms;
+DROP INDEX records_received_ms;

@@ -123,7 +123,7 @@ async fn serve(mut socket: WebSocket, state: AppState) {
     metrics.websocket_clients.dec();
 }
 
-async fn send(socket: &mut WebSocket, message: &WsMessage) -> Result<(), axum::Error> {
+async fn send(socket: &mut WebSocket, message: &impl serde::Serialize) -> Result<(), axum::Error> {
     let text =
         serde_json::to_string(message).unwrap_or_else(|e| format!("{{\"event\":\"error\",\"description\":\"{e}\"}}"));
     socket.send(Message::Text(text.into())).await
@@ -192,8 +192,11 @@ async fn deliver(
     frame: Option<&rtls_engine::site::FrameSettings>,
 ) -> Result<(), axum::Error> {
     for (&id, subscription) in subscriptions {
-        let payloads: Vec<Value> = if subscription.topic == Topic::RtlsPositions {
-            compact_positions(batch, subscription).into_iter().collect()
+        let payloads: Vec<Payload<'_>> = if subscription.topic == Topic::RtlsPositions {
+            compact_positions(batch, subscription)
+                .into_iter()
+                .map(Payload::Built)
+                .collect()
         } else {
             batch
                 .iter()
@@ -201,27 +204,53 @@ async fn deliver(
                 .collect()
         };
         if !payloads.is_empty() {
-            send(socket, &WsMessage::message(subscription.topic, id, payloads)).await?;
+            let delivery = Delivery {
+                event: WsEvent::Message,
+                topic: subscription.topic,
+                subscription_id: id,
+                payload: payloads,
+            };
+            send(socket, &delivery).await?;
         }
     }
     Ok(())
 }
 
+/// One object of a `message`'s payload: the hub message's own (shared by every connection and
+/// written from there, not copied) or one built for this subscription.
+#[derive(serde::Serialize)]
+#[serde(untagged)]
+enum Payload<'a> {
+    Shared(&'a Value),
+    Built(Value),
+}
+
+/// A `message` to a subscription, written as [`WsMessage::message`] is (same keys, same order).
+#[derive(serde::Serialize)]
+struct Delivery<'a> {
+    event: WsEvent,
+    topic: Topic,
+    subscription_id: u64,
+    payload: Vec<Payload<'a>>,
+}
+
 /// A hub message's payload for one subscription, if it wants it.
-fn payload(
-    message: &Arc<HubMessage>,
+fn payload<'a>(
+    message: &'a Arc<HubMessage>,
     subscription: &Subscription,
     fences: &HashMap<String, Value>,
     frame: Option<&rtls_engine::site::FrameSettings>,
-) -> Option<Value> {
+) -> Option<Payload<'a>> {
     let payload = match (message.as_ref(), subscription.topic) {
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdates) if wanted(subscription, tag) => {
-            Value::clone(location)
+            return Some(Payload::Shared(location));
         }
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
             json!({ "type": "Feature", "geometry": wgs84_geometry(frame, &location["position"]), "properties": **location })
         }
-        (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => event.clone(),
+        (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => {
+            return Some(Payload::Shared(event));
+        }
         (HubMessage::FenceEvent { tag, event }, Topic::FenceEventsGeojson) if wanted(subscription, tag) => {
             let geometry = event["fence_id"].as_str().and_then(|id| fences.get(id)).cloned();
             json!({ "type": "Feature", "geometry": geometry, "properties": event })
@@ -233,11 +262,11 @@ fn payload(
                     .as_deref()
                     .is_none_or(|t| event["tag"].as_str() == Some(t)) =>
         {
-            event.clone()
+            return Some(Payload::Shared(event));
         }
         _ => return None,
     };
-    Some(payload)
+    Some(Payload::Built(payload))
 }
 
 /// The batch's location updates as one columnar object (`rtls:positions`,

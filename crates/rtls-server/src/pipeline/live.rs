@@ -221,7 +221,13 @@ impl LiveState {
             }
         }
         if let Ok(mut latest) = self.latest.write() {
-            latest.insert(tag.to_string(), state);
+            // the key is allocated once per tag, not per update
+            match latest.get_mut(tag) {
+                Some(slot) => *slot = state,
+                None => {
+                    latest.insert(tag.to_string(), state);
+                }
+            }
         }
     }
 
