@@ -58,6 +58,11 @@ pub struct Metrics {
     /// `failed` — given up or refused, `dropped` — queue full, missed hub messages, or left at
     /// shutdown).
     pub webhook_deliveries: Family<Labels, Counter>,
+    /// Rows packed into compressed blocks by the compaction pass, by `kind` (`states`,
+    /// `records`).
+    pub store_compacted: Family<Labels, Counter>,
+    /// Compaction passes that failed (the rows stay as they are; the log says why).
+    pub store_compaction_failures: Counter,
 }
 
 impl Default for Metrics {
@@ -93,6 +98,8 @@ impl Metrics {
             websocket_dropped: Counter::default(),
             http_requests: Family::default(),
             webhook_deliveries: Family::default(),
+            store_compacted: Family::default(),
+            store_compaction_failures: Counter::default(),
             registry: Registry::default(),
         };
         let m = &metrics;
@@ -150,6 +157,16 @@ impl Metrics {
         registry.register("alarms", "Alarms raised", m.alarms.clone());
         registry.register("stored_locations", "Track states stored", m.stored_locations.clone());
         registry.register("stored_events", "Events stored", m.stored_events.clone());
+        registry.register(
+            "store_compacted",
+            "Track states and raw records packed into compressed blocks",
+            m.store_compacted.clone(),
+        );
+        registry.register(
+            "store_compaction_failures",
+            "Compaction passes that failed",
+            m.store_compaction_failures.clone(),
+        );
         registry.register(
             "output_store_failures",
             "Output writes that failed",

@@ -232,6 +232,7 @@ pub async fn serve(
     )));
     tasks.push(tokio::spawn(compaction(
         Arc::clone(&queries),
+        Arc::clone(&metrics),
         config.server.compact_after_s,
         stopped(stop_rx.clone()),
     )));
@@ -290,7 +291,19 @@ const COMPACTION_CHUNK_ROWS: usize = 100_000;
 
 /// Packs track states and tracked raw records older than `compact_after_s` into compressed
 /// blocks, every `compact_after_s` (store/history_blocks.rs, store/log_blocks.rs).
-async fn compaction(queries: Arc<Mutex<QueryStore>>, compact_after_s: f64, stopped: impl Future<Output = ()>) {
+async fn compaction(
+    queries: Arc<Mutex<QueryStore>>,
+    metrics: Arc<Metrics>,
+    compact_after_s: f64,
+    stopped: impl Future<Output = ()>,
+) {
+    let counter = |kind: &str| {
+        metrics
+            .store_compacted
+            .get_or_create(&vec![("kind".to_owned(), kind.to_owned())])
+            .clone()
+    };
+    let (states_packed, records_packed) = (counter("states"), counter("records"));
     tokio::pin!(stopped);
     let period = Duration::from_secs_f64(compact_after_s);
     loop {
@@ -303,22 +316,32 @@ async fn compaction(queries: Arc<Mutex<QueryStore>>, compact_after_s: f64, stopp
         let started = Instant::now();
         loop {
             let store = Arc::clone(&queries);
-            let chunk = tokio::task::spawn_blocking(move || match store.lock() {
+            let packing = tokio::task::spawn_blocking(move || match store.lock() {
                 Ok(mut store) => store.compact(before_ms, COMPACTION_CHUNK_ROWS),
                 Err(_) => Err("the query store's lock is poisoned".to_owned()),
-            })
-            .await;
+            });
+            // a shutdown does not wait for the rest of the pass (each chunk is a transaction
+            // of its own: what is packed is committed, the rest waits for the next start)
+            let chunk = tokio::select! {
+                biased;
+                () = &mut stopped => return,
+                chunk = packing => chunk,
+            };
             match chunk {
                 Ok(Ok((0, 0))) => break,
                 Ok(Ok((packed_states, packed_records))) => {
                     states += packed_states;
                     records += packed_records;
+                    states_packed.inc_by(packed_states);
+                    records_packed.inc_by(packed_records);
                 }
                 Ok(Err(e)) => {
+                    metrics.store_compaction_failures.inc();
                     tracing::error!(error = %e, "compaction failed; the rows stay as they are");
                     break;
                 }
                 Err(e) => {
+                    metrics.store_compaction_failures.inc();
                     tracing::error!(error = %e, "compaction task failed");
                     break;
                 }

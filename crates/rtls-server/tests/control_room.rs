@@ -362,3 +362,78 @@ async fn a_late_record_is_refiltered_and_its_revisions_flagged() {
     );
     running.stop().await;
 }
+
+/// Compaction in `rtls serve`: with `compact_after_s = 1` the states and the tracked records
+/// are packed into blocks (counted by `rtls_store_compacted_total`), and the history still
+/// answers with every state, its keys and its position (to the block's 1 mm).
+#[tokio::test]
+async fn old_states_and_records_are_compacted_and_still_read() {
+    let dir = temp_dir("compaction");
+    let site = Site::from_toml_str(SITE, "compaction.toml").unwrap();
+    let mut config = ServerConfig::default();
+    config.server.http = "127.0.0.1:0".parse().unwrap();
+    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
+    config.server.compact_after_s = 1.0;
+    config.mqtt.mode = MqttMode::Off;
+    config.pipeline.live_clock = false;
+    let running = common::serve_on_loopback(ServeOptions {
+        site,
+        site_text: SITE.into(),
+        ..common::options(config)
+    })
+    .await;
+    let http = running.bound.http;
+    let client = reqwest::Client::new();
+    let reply = client
+        .post(format!("http://{http}/api/v1/measurements"))
+        .bearer_auth(WRITE)
+        .body(walk("packed", 100.0, 5.0))
+        .send()
+        .await
+        .unwrap();
+    assert!(reply.status().is_success(), "{}", reply.status());
+    let history_path = "/api/v1/history?tag=packed&from=0&to=200&format=json";
+    let states_before = poll_text(&client, http, history_path, |h| h.matches("\"t\"").count() >= 10).await;
+    let stored = states_before.matches("\"t\"").count();
+    assert!(stored >= 10, "the walk's states are stored: {states_before}");
+    let compacted = |metrics: &str, kind: &str| -> f64 {
+        metrics
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("rtls_store_compacted_total{{kind=\"{kind}\"}} ")))
+            .and_then(|v| v.trim().parse().ok())
+            .unwrap_or(0.0)
+    };
+    // the walk's 11 records and every stored state, a pass or two after they are 1 s old
+    let metrics = poll_text(&client, http, "/metrics", |m| {
+        compacted(m, "states") >= stored as f64 && compacted(m, "records") >= 11.0
+    })
+    .await;
+    assert!(
+        compacted(&metrics, "states") >= stored as f64 && compacted(&metrics, "records") >= 11.0,
+        "packed: {metrics}"
+    );
+    let history = get_json(&client, http, history_path).await;
+    let states = history.as_array().expect("an array of states");
+    assert!(states.len() >= stored, "every state still read: {history}");
+    let on_the_mm_grid = |state: &&Value| {
+        let x = state["x"].as_f64().unwrap_or(f64::NAN);
+        x == (x * 1000.0).round() / 1000.0
+    };
+    assert!(
+        states.iter().filter(on_the_mm_grid).count() >= stored,
+        "the packed states are read from their blocks (positions to the mm): {history}"
+    );
+    for state in states {
+        for key in ["cov", "predicted", "source", "status", "t", "tag", "vx", "vy", "x", "y"] {
+            assert!(state.get(key).is_some(), "{key} in {state}");
+        }
+        // the walk is at x = 2 + (t − 100) m, y = 10 m
+        let t = state["t"].as_f64().unwrap();
+        let x = state["x"].as_f64().unwrap();
+        assert!(
+            (x - (2.0 + t - 100.0)).abs() < 0.5 && (state["y"].as_f64().unwrap() - 10.0).abs() < 0.5,
+            "{state}"
+        );
+    }
+    running.stop().await;
+}

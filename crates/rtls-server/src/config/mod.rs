@@ -123,7 +123,7 @@ pub struct ServerSection {
     /// are deleted hourly. The ingest log is most of the database (docs/SERVER.md, sizing);
     /// the tracks and events it produced are kept for `retention_days`.
     pub raw_retention_days: f64,
-    /// Track states and tracked raw records older than this (s, 10–86 400) are packed into
+    /// Track states and tracked raw records older than this (s, 1–86 400) are packed into
     /// compressed blocks (about 15× smaller; states keep 1 mm, 1 mm/s, σ to 0.1 mm), every
     /// this often. Queries read blocks and rows alike.
     pub compact_after_s: f64,
@@ -253,10 +253,10 @@ impl ServerConfig {
                 format!("must be > 0 days, got {}", s.raw_retention_days),
             ));
         }
-        if !(s.compact_after_s.is_finite() && (10.0..=86_400.0).contains(&s.compact_after_s)) {
+        if !(s.compact_after_s.is_finite() && (1.0..=86_400.0).contains(&s.compact_after_s)) {
             return Err(invalid(
                 "server.compact_after_s",
-                format!("must be 10–86400 s, got {}", s.compact_after_s),
+                format!("must be 1–86400 s, got {}", s.compact_after_s),
             ));
         }
         if !matches!(s.log_format.as_str(), "text" | "json") {

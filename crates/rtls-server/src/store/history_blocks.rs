@@ -556,7 +556,7 @@ impl<'q> HistoryCollector<'q> {
     }
 
     fn sort_and_truncate(&mut self) {
-        // stable: states at the same time keep their order (blocks before newer rows)
+        // stable: states at the same time keep their order (the rows first, then the blocks')
         self.states.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
         self.states.truncate(self.query.limit);
     }

@@ -521,21 +521,17 @@ impl Store for SqliteStore {
             )
             .and_then(|mut statement| statement.query_row(params![before_ms, through_id], |row| row.get(0)))
             .map_err(fail)?;
-        let mut deleted = count_from(in_blocks);
-        for sql in [
-            "DELETE FROM record_blocks WHERE received_ms < ?1 AND last_id <= ?2",
-            "DELETE FROM records WHERE received_ms < ?1 AND id <= ?2",
-        ] {
-            let rows = transaction
+        let delete = |sql: &str| {
+            transaction
                 .prepare_cached(sql)
                 .and_then(|mut statement| statement.execute(params![before_ms, through_id]))
-                .map_err(fail)?;
-            if sql.contains("FROM records") {
-                deleted += rows as u64;
-            }
-        }
+                .map(|deleted| deleted as u64)
+                .map_err(fail)
+        };
+        delete("DELETE FROM record_blocks WHERE received_ms < ?1 AND last_id <= ?2")?;
+        let rows = delete("DELETE FROM records WHERE received_ms < ?1 AND id <= ?2")?;
         transaction.commit().map_err(fail)?;
-        Ok(deleted)
+        Ok(count_from(in_blocks) + rows)
     }
 
     fn compact_history(&mut self, before_ms: i64, max_rows: usize) -> Result<u64, StoreError> {
