@@ -91,7 +91,7 @@ fn server_error(error: ServerError) -> ApiError {
 }
 
 /// `GET /v2/providers/locations`: every tag's latest location.
-pub(super) async fn get_locations(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Value>>> {
+pub(super) async fn get_locations(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Location>>> {
     state.authorize(&headers, Access::Read)?;
     Ok(Json(
         state
@@ -99,7 +99,7 @@ pub(super) async fn get_locations(State(state): State<AppState>, headers: Header
             .live()
             .tags()
             .into_values()
-            .map(|t| Value::clone(&t.location))
+            .map(|t| Location::clone(&t.location))
             .collect(),
     ))
 }
@@ -109,13 +109,13 @@ pub(super) async fn get_provider_location(
     State(state): State<AppState>,
     Path(provider_id): Path<String>,
     headers: HeaderMap,
-) -> ApiResult<Json<Value>> {
+) -> ApiResult<Json<Location>> {
     state.authorize(&headers, Access::Read)?;
     state
         .pipeline
         .live()
         .tag(&provider_id)
-        .map(|t| Json(Value::clone(&t.location)))
+        .map(|t| Json(Location::clone(&t.location)))
         .ok_or_else(|| ApiError::not_found(format!("provider `{provider_id}` has no location")))
 }
 
@@ -308,7 +308,7 @@ pub(super) async fn get_trackable_location(
     State(state): State<AppState>,
     Path(trackable_id): Path<String>,
     headers: HeaderMap,
-) -> ApiResult<Json<Value>> {
+) -> ApiResult<Json<Location>> {
     state.authorize(&headers, Access::Read)?;
     let trackable: Trackable = get_stored(&state, TRACKABLE, &trackable_id)
         .await?
@@ -320,7 +320,7 @@ pub(super) async fn get_trackable_location(
         .iter()
         .filter_map(|provider| live.tag(provider))
         .max_by(|a, b| a.time_s.total_cmp(&b.time_s))
-        .map(|t| Json(Value::clone(&t.location)))
+        .map(|t| Json(Location::clone(&t.location)))
         .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
 }
 

@@ -16,10 +16,11 @@
 use axum::extract::State;
 use axum::http::HeaderMap;
 use axum::Json;
-use serde_json::{json, Value};
+use serde_json::{json, Map, Value};
 
 use super::{ApiResult, AppState};
 use crate::auth::Access;
+use crate::omlox::Location;
 
 /// Builds the columns from omlox `Location` objects.
 #[derive(Debug, Default)]
@@ -43,10 +44,11 @@ fn mm(v: f64) -> f64 {
 
 impl PositionColumns {
     /// Adds a tag's location at `time_s` (s); a location without an x–y position is skipped.
-    pub fn push(&mut self, tag: &str, time_s: f64, location: &Value) {
-        let coordinates = &location["position"]["coordinates"];
-        let properties = &location["properties"];
-        let coordinate = |k: usize| coordinates[k].as_f64();
+    pub fn push(&mut self, tag: &str, time_s: f64, location: &Location) {
+        let coordinates = &location.position.coordinates;
+        let no_properties = Map::new();
+        let properties = location.properties.as_ref().unwrap_or(&no_properties);
+        let coordinate = |k: usize| coordinates.get(k).copied();
         let (Some(x), Some(y)) = (coordinate(0), coordinate(1)) else {
             return;
         };
@@ -56,7 +58,7 @@ impl PositionColumns {
         self.y.push(json!(mm(y)));
         self.z.push(coordinate(2).map_or(Value::Null, |z| json!(mm(z))));
         // the x–y block of the row-major covariance (2 × 2 or 3 × 3)
-        let covariance = properties["rtls:covariance_m2"].as_array();
+        let covariance = properties.get("rtls:covariance_m2").and_then(Value::as_array);
         let dimension = if covariance.is_some_and(|c| c.len() == 9) { 3 } else { 2 };
         let entry = |k: usize| {
             covariance
@@ -67,9 +69,10 @@ impl PositionColumns {
         self.cxx.push(entry(0));
         self.cxy.push(entry(1));
         self.cyy.push(entry(dimension + 1));
-        self.status.push(properties["rtls:status"].clone());
-        self.predicted
-            .push(json!(u8::from(properties["rtls:predicted"].as_bool().unwrap_or(false))));
+        self.status
+            .push(properties.get("rtls:status").cloned().unwrap_or(Value::Null));
+        let predicted = properties.get("rtls:predicted").and_then(Value::as_bool);
+        self.predicted.push(json!(u8::from(predicted.unwrap_or(false))));
     }
 
     /// The columns, or `None` when no tag was added.
@@ -106,18 +109,27 @@ mod tests {
     #[test]
     fn locations_become_columns_in_millimetres_with_the_xy_covariance() {
         let mut columns = PositionColumns::default();
-        let planar = json!({
+        let location = |value: Value| -> Location {
+            let mut object = json!({ "source": "test", "provider_type": "uwb", "provider_id": "p" });
+            object
+                .as_object_mut()
+                .unwrap()
+                .extend(value.as_object().unwrap().clone());
+            serde_json::from_value(object).unwrap()
+        };
+        let planar = location(json!({
             "position": { "type": "Point", "coordinates": [1.23456, 2.0] },
             "properties": { "rtls:covariance_m2": [0.04, 0.01, 0.01, 0.09], "rtls:status": "confirmed" },
-        });
-        let spatial = json!({
+        }));
+        let spatial = location(json!({
             "position": { "type": "Point", "coordinates": [3.0, 4.0, 1.5004] },
             "properties": { "rtls:covariance_m2": [0.1, 0.2, 0.3, 0.2, 0.5, 0.6, 0.3, 0.6, 0.9],
                             "rtls:status": "coasting", "rtls:predicted": true },
-        });
+        }));
+        let no_position = location(json!({ "position": { "type": "Point", "coordinates": [] } }));
         columns.push("a", 10.00049, &planar);
         columns.push("b", 11.0, &spatial);
-        columns.push("no position", 12.0, &json!({ "properties": {} }));
+        columns.push("no position", 12.0, &no_position);
         let value = columns.finish().unwrap();
         assert_eq!(value["tag"], json!(["a", "b"]));
         assert_eq!(value["t"], json!([10.0, 11.0]));

@@ -33,6 +33,7 @@ use super::{metrics, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::{fence_from_zone, wgs84_geometry};
 use crate::omlox::ws::{Topic, WsErrorCode, WsEvent, WsMessage};
+use crate::omlox::Location;
 use crate::pipeline::HubMessage;
 
 /// Query of the upgrade request.
@@ -221,6 +222,7 @@ async fn deliver(
 #[derive(serde::Serialize)]
 #[serde(untagged)]
 enum Payload<'a> {
+    Location(&'a Location),
     Shared(&'a Value),
     Built(Value),
 }
@@ -243,10 +245,11 @@ fn payload<'a>(
 ) -> Option<Payload<'a>> {
     let payload = match (message.as_ref(), subscription.topic) {
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdates) if wanted(subscription, tag) => {
-            return Some(Payload::Shared(location));
+            return Some(Payload::Location(location));
         }
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
-            json!({ "type": "Feature", "geometry": wgs84_geometry(frame, &location["position"]), "properties": **location })
+            let position = json!(location.position);
+            json!({ "type": "Feature", "geometry": wgs84_geometry(frame, &position), "properties": **location })
         }
         (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => {
             return Some(Payload::Shared(event));

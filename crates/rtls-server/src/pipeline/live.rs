@@ -9,6 +9,7 @@ use rtls_engine::zones::Zone;
 use serde_json::Value;
 
 use crate::omlox::ws::Topic;
+use crate::omlox::Location;
 
 /// A message for WebSocket subscribers, already in omlox JSON.
 #[derive(Debug, Clone, PartialEq)]
@@ -19,8 +20,9 @@ pub enum HubMessage {
         tag: String,
         /// The update's time (s, the records' clock: Unix seconds when live).
         time_s: f64,
-        /// The `Location` object (shared with [`TagState`]: built once per update).
-        location: Arc<Value>,
+        /// The `Location` object (shared with [`TagState`]: built once per update, written by
+        /// each reader from the struct — no JSON value tree is built per update).
+        location: Arc<Location>,
     },
     /// A zone entry or exit as an omlox `FenceEvent` (`fence_events`).
     FenceEvent {
@@ -48,7 +50,7 @@ pub struct TagState {
     /// Its lifecycle status (`tentative`, `confirmed`, `coasting`, `lost`).
     pub status: &'static str,
     /// The omlox `Location` (shared with the hub message that published it).
-    pub location: Arc<Value>,
+    pub location: Arc<Location>,
 }
 
 /// Latest locations and head counts, written by the partition threads.

@@ -190,8 +190,8 @@ impl PartitionWorker {
             self.live.remove_tag(&update.tag);
             return;
         }
-        match location_from_update(update, &self.source, ProviderType::Uwb).map(serde_json::to_value) {
-            Ok(Ok(location)) => {
+        match location_from_update(update, &self.source, ProviderType::Uwb) {
+            Ok(location) => {
                 let location = Arc::new(location);
                 self.live.set_tag(
                     &update.tag,
@@ -211,7 +211,6 @@ impl PartitionWorker {
                     .pipeline_latency_seconds
                     .observe((unix_s() - update.time_s).max(0.0));
             }
-            Ok(Err(e)) => tracing::warn!(tag = %update.tag, error = %e, "location not serialisable"),
             Err(e) => tracing::warn!(tag = %update.tag, error = %e, "location not representable"),
         }
     }

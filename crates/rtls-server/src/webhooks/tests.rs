@@ -188,7 +188,13 @@ async fn only_the_types_in_events_on_the_alarm_topic_are_sent() {
         HubMessage::Location {
             tag: "m1".into(),
             time_s: 0.0,
-            location: json!({}).into(),
+            location: Arc::new(
+                serde_json::from_value(json!({
+                    "position": {"type": "Point", "coordinates": [1.0, 2.0]},
+                    "source": "test", "provider_type": "uwb", "provider_id": "m1"
+                }))
+                .unwrap(),
+            ),
         },
     ] {
         hub.send(Arc::new(message)).unwrap();
