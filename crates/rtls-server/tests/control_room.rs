@@ -318,13 +318,6 @@ async fn a_late_record_is_refiltered_and_its_revisions_flagged() {
     .await;
     let http = running.bound.http;
     let client = reqwest::Client::new();
-    let post = |body: String| {
-        client
-            .post(format!("http://{http}/api/v1/measurements"))
-            .bearer_auth(WRITE)
-            .body(body)
-            .send()
-    };
     // a walk at 2 Hz for 6 s; its fix at t = 103 s is held back and sent after the rest
     let (late, in_time): (Vec<&str>, Vec<&str>) = walk("late", 100.0, 6.0)
         .leak()
@@ -332,16 +325,10 @@ async fn a_late_record_is_refiltered_and_its_revisions_flagged() {
         .partition(|line| serde_json::from_str::<Value>(line).unwrap()["t"].as_f64() == Some(103.0));
     assert_eq!(late.len(), 1);
     for body in [in_time.join("\n"), late.join("\n")] {
-        let reply = post(body).await.unwrap();
+        let reply = common::post_measurements(&client, http, body).await;
         assert!(reply.status().is_success(), "{}", reply.status());
     }
-    let revised_count = |metrics: &str| -> f64 {
-        metrics
-            .lines()
-            .find_map(|l| l.strip_prefix("rtls_track_updates_revised_total "))
-            .and_then(|v| v.trim().parse().ok())
-            .unwrap_or(0.0)
-    };
+    let revised_count = |metrics: &str| common::metric_value(metrics, "rtls_track_updates_revised_total");
     let metrics = poll_text(&client, http, "/metrics", |m| revised_count(m) > 0.0).await;
     // the updates from 103 s to the walk's end (103.5–106 s) are revised
     assert!(revised_count(&metrics) >= 1.0, "revisions counted: {metrics}");
@@ -384,24 +371,14 @@ async fn old_states_and_records_are_compacted_and_still_read() {
     .await;
     let http = running.bound.http;
     let client = reqwest::Client::new();
-    let reply = client
-        .post(format!("http://{http}/api/v1/measurements"))
-        .bearer_auth(WRITE)
-        .body(walk("packed", 100.0, 5.0))
-        .send()
-        .await
-        .unwrap();
+    let reply = common::post_measurements(&client, http, walk("packed", 100.0, 5.0)).await;
     assert!(reply.status().is_success(), "{}", reply.status());
     let history_path = "/api/v1/history?tag=packed&from=0&to=200&format=json";
     let states_before = poll_text(&client, http, history_path, |h| h.matches("\"t\"").count() >= 10).await;
     let stored = states_before.matches("\"t\"").count();
     assert!(stored >= 10, "the walk's states are stored: {states_before}");
-    let compacted = |metrics: &str, kind: &str| -> f64 {
-        metrics
-            .lines()
-            .find_map(|l| l.strip_prefix(&format!("rtls_store_compacted_total{{kind=\"{kind}\"}} ")))
-            .and_then(|v| v.trim().parse().ok())
-            .unwrap_or(0.0)
+    let compacted = |metrics: &str, kind: &str| {
+        common::metric_value(metrics, &format!("rtls_store_compacted_total{{kind=\"{kind}\"}}"))
     };
     // the walk's 11 records and every stored state, a pass or two after they are 1 s old
     let metrics = poll_text(&client, http, "/metrics", |m| {

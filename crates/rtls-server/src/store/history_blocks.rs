@@ -29,7 +29,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::packing::{deflate, inflate, put_bytes, put_f64, put_signed, put_varint, Reader};
+use super::packing::{deflate, inflate, put_bytes, put_f64, put_signed, put_strings, put_varint, string_at, Reader};
 use super::{HistoryQuery, LocationRow};
 use crate::convert::accuracy_m;
 
@@ -263,10 +263,7 @@ pub(crate) fn encode_block(tag: &str, rows: &[LocationRow]) -> LocationBlock {
     put_varint(&mut fields, rows.len() as u64);
     put_f64(&mut fields, t0_s);
     put_signed(&mut fields, r0_ms);
-    put_varint(&mut fields, strings.len() as u64);
-    for text in &strings {
-        put_bytes(&mut fields, text.as_bytes());
-    }
+    put_strings(&mut fields, &strings);
     let mut previous = Previous::default();
     for (row, state) in rows.iter().zip(&states) {
         let t_us = quantise(row.time_s - t0_s, 1e6);
@@ -359,16 +356,8 @@ pub(crate) fn decode_block(tag: &str, payload: &[u8]) -> Result<Vec<LocationRow>
     }
     let t0_s = reader.f64()?;
     let r0_ms = reader.signed()?;
-    let string_count = reader.varint()?;
-    let strings = (0..string_count)
-        .map(|_| reader.text().map(str::to_owned))
-        .collect::<Result<Vec<_>, _>>()?;
-    let string = |index: u64| -> Result<String, String> {
-        strings
-            .get(usize::try_from(index).unwrap_or(usize::MAX))
-            .cloned()
-            .ok_or_else(|| format!("string {index} of {}", strings.len()))
-    };
+    let strings = reader.strings()?;
+    let string = |index: u64| string_at(&strings, index).map(str::to_owned);
     let mut previous = Previous::default();
     let mut rows = Vec::with_capacity(count);
     for _ in 0..count {
@@ -485,29 +474,24 @@ pub(crate) fn decode_block(tag: &str, payload: &[u8]) -> Result<Vec<LocationRow>
 }
 
 /// Groups rows `(id, row)` into blocks: by tag, in time order, cut at [`MAX_BLOCK_SPAN_S`] and
-/// [`MAX_BLOCK_STATES`]. Returns each block with the ids of the rows it holds.
-pub(crate) fn pack(mut rows: Vec<(i64, LocationRow)>) -> Vec<(Vec<i64>, LocationBlock)> {
-    rows.sort_by(|(a_id, a), (b_id, b)| {
-        a.tag
-            .cmp(&b.tag)
-            .then(a.time_s.total_cmp(&b.time_s))
-            .then(a_id.cmp(b_id))
-    });
+/// [`MAX_BLOCK_STATES`]. `rows` come in the order they were stored, which states of one tag at
+/// one time keep.
+pub(crate) fn pack(mut rows: Vec<LocationRow>) -> Vec<LocationBlock> {
+    // stable: ties keep the stored order
+    rows.sort_by(|a, b| a.tag.cmp(&b.tag).then(a.time_s.total_cmp(&b.time_s)));
     let mut blocks = Vec::new();
     let mut start = 0;
     while start < rows.len() {
-        let first = &rows[start].1;
+        let first = &rows[start];
         let mut end = start + 1;
         while end < rows.len()
             && end - start < MAX_BLOCK_STATES
-            && rows[end].1.tag == first.tag
-            && rows[end].1.time_s - first.time_s <= MAX_BLOCK_SPAN_S
+            && rows[end].tag == first.tag
+            && rows[end].time_s - first.time_s <= MAX_BLOCK_SPAN_S
         {
             end += 1;
         }
-        let group: Vec<LocationRow> = rows[start..end].iter().map(|(_, row)| row.clone()).collect();
-        let ids = rows[start..end].iter().map(|(id, _)| *id).collect();
-        blocks.push((ids, encode_block(&first.tag, &group)));
+        blocks.push(encode_block(&first.tag, &rows[start..end]));
         start = end;
     }
     blocks
@@ -518,12 +502,19 @@ pub(crate) fn pack(mut rows: Vec<(i64, LocationRow)>) -> Vec<(Vec<i64>, Location
 pub(crate) struct HistoryCollector<'q> {
     query: &'q HistoryQuery,
     states: Vec<LocationRow>,
+    /// The `limit`-th earliest time when last sorted: no later block can enter once it starts
+    /// after it (it only falls as states are added, so a stale one reads more, never less).
+    bound_s: Option<f64>,
 }
 
 impl<'q> HistoryCollector<'q> {
     /// Starts with the query's rows from `locations` (the first `limit` in time order).
     pub(crate) fn new(query: &'q HistoryQuery, rows: Vec<LocationRow>) -> Self {
-        Self { query, states: rows }
+        Self {
+            query,
+            states: rows,
+            bound_s: None,
+        }
     }
 
     /// The earliest first-state time a block may start at and still hold a state in range.
@@ -534,11 +525,17 @@ impl<'q> HistoryCollector<'q> {
     /// Whether a block starting at `from_s` (blocks come in order of it) can still enter the
     /// first `limit` states; `false`: stop reading blocks.
     pub(crate) fn wants_block_from(&mut self, from_s: f64) -> bool {
-        if self.states.len() < self.query.limit {
-            return true;
+        let limit = self.query.limit;
+        if limit == 0 {
+            return false;
         }
-        self.sort_and_truncate();
-        self.states.last().is_none_or(|last| last.time_s >= from_s)
+        // sorted when the limit is first reached, then only when twice as many are held
+        let full = self.states.len() >= limit;
+        if (full && self.bound_s.is_none()) || self.states.len() >= 2 * limit {
+            self.sort_and_truncate();
+            self.bound_s = self.states.last().map(|last| last.time_s);
+        }
+        self.bound_s.is_none_or(|bound| bound >= from_s)
     }
 
     /// Adds a block's states that are in the query's range.

@@ -151,20 +151,22 @@ fn a_corrupt_or_foreign_block_is_an_error() {
 
 #[test]
 fn packing_cuts_blocks_per_tag_and_at_the_span() {
-    let mut rows: Vec<(i64, LocationRow)> = Vec::new();
-    for (id, row) in walk("b", 5, 2).into_iter().chain(walk("a", 5, 2)).enumerate() {
-        rows.push((id as i64, row));
-    }
+    let mut rows: Vec<LocationRow> = walk("b", 5, 2).into_iter().chain(walk("a", 5, 2)).collect();
     // one state of `a` an hour and more later: a block of its own
     let mut late = walk("a", 1, 2).remove(0);
     late.time_s += MAX_BLOCK_SPAN_S + 10.0;
     late.json = late.json.replace("1795697830.8533072", &late.time_s.to_string());
-    rows.push((99, late));
-    let blocks = pack(rows);
-    let shape: Vec<(&str, usize)> = blocks.iter().map(|(ids, b)| (b.tag.as_str(), ids.len())).collect();
+    // stored first, packed last: by tag, then time
+    rows.insert(0, late.clone());
+    let blocks = pack(rows.clone());
+    let shape: Vec<(&str, i64)> = blocks.iter().map(|b| (b.tag.as_str(), b.count)).collect();
     assert_eq!(shape, [("a", 5), ("a", 1), ("b", 5)]);
-    assert_eq!(blocks[0].0, [5, 6, 7, 8, 9]);
-    assert_eq!(blocks[1].0, [99]);
+    assert_close(&late, &decode_block("a", &blocks[1].payload).unwrap()[0]);
+    let first_a = decode_block("a", &blocks[0].payload).unwrap();
+    assert_eq!(first_a.len(), 5);
+    for (read, stored) in first_a.iter().zip(&rows[6..11]) {
+        assert_close(stored, read);
+    }
 }
 
 #[test]

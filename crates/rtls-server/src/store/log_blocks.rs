@@ -14,7 +14,7 @@
 
 use std::collections::HashMap;
 
-use super::packing::{deflate, inflate, put_bytes, put_f64, put_signed, put_varint, Reader};
+use super::packing::{deflate, inflate, put_bytes, put_f64, put_signed, put_strings, put_varint, string_at, Reader};
 use super::StoredRecord;
 
 /// A block holds at most this many records.
@@ -57,10 +57,7 @@ fn encode_block(records: &[StoredRecord]) -> RecordBlock {
     let index = |text: &str| numbers.get(text).copied().unwrap_or(0);
     let mut fields = Vec::with_capacity(records.iter().map(|r| r.json.len() + 16).sum());
     put_varint(&mut fields, records.len() as u64);
-    put_varint(&mut fields, strings.len() as u64);
-    for text in &strings {
-        put_bytes(&mut fields, text.as_bytes());
-    }
+    put_strings(&mut fields, &strings);
     let (mut previous_id, mut previous_ms) = (0i64, 0i64);
     for record in records {
         put_signed(&mut fields, record.id - previous_id);
@@ -94,16 +91,9 @@ pub(crate) fn decode_block(payload: &[u8]) -> Result<Vec<StoredRecord>, String> 
     if count > MAX_BLOCK_RECORDS * 16 {
         return Err(format!("{count} records in one block"));
     }
-    let string_count = reader.varint()?;
-    let strings = (0..string_count)
-        .map(|_| reader.text())
-        .collect::<Result<Vec<_>, _>>()?;
+    let strings = reader.strings()?;
     let string = |reader: &mut Reader<'_>| -> Result<String, String> {
-        let index = reader.varint()?;
-        strings
-            .get(usize::try_from(index).unwrap_or(usize::MAX))
-            .map(|s| (*s).to_owned())
-            .ok_or_else(|| format!("string {index} of {}", strings.len()))
+        string_at(&strings, reader.varint()?).map(str::to_owned)
     };
     let (mut id, mut received_ms) = (0i64, 0i64);
     let mut records = Vec::with_capacity(count);
@@ -135,6 +125,9 @@ pub(crate) struct RecordCollector {
     after_id: i64,
     limit: usize,
     records: Vec<StoredRecord>,
+    /// The `limit`-th smallest id when last sorted: no later block can enter once its first
+    /// id is past it (it only falls as records are added, so a stale one reads more, never less).
+    bound_id: Option<i64>,
 }
 
 impl RecordCollector {
@@ -144,17 +137,23 @@ impl RecordCollector {
             after_id,
             limit,
             records: rows,
+            bound_id: None,
         }
     }
 
     /// Whether a block whose first id is `first_id` (blocks come in order of it) can still
     /// enter the first `limit` records; `false`: stop reading blocks.
     pub(crate) fn wants_block_from(&mut self, first_id: i64) -> bool {
-        if self.records.len() < self.limit {
-            return true;
+        if self.limit == 0 {
+            return false;
         }
-        self.sort_and_truncate();
-        self.records.last().is_none_or(|last| last.id > first_id)
+        // sorted when the limit is first reached, then only when twice as many are held
+        let full = self.records.len() >= self.limit;
+        if (full && self.bound_id.is_none()) || self.records.len() >= 2 * self.limit {
+            self.sort_and_truncate();
+            self.bound_id = self.records.last().map(|last| last.id);
+        }
+        self.bound_id.is_none_or(|bound| bound > first_id)
     }
 
     /// Adds a block's records after the id.

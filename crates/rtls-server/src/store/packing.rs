@@ -30,6 +30,25 @@ pub(crate) fn put_bytes(out: &mut Vec<u8>, bytes: &[u8]) {
     out.extend_from_slice(bytes);
 }
 
+/// Appends a string table: the number of strings, then each as [`put_bytes`].
+pub(crate) fn put_strings<S: AsRef<str>>(out: &mut Vec<u8>, strings: &[S]) {
+    put_varint(out, strings.len() as u64);
+    for text in strings {
+        put_bytes(out, text.as_ref().as_bytes());
+    }
+}
+
+/// The string at `index` of a table read by [`Reader::strings`].
+///
+/// # Errors
+/// An index past the table's end.
+pub(crate) fn string_at<'a>(table: &[&'a str], index: u64) -> Result<&'a str, String> {
+    usize::try_from(index)
+        .ok()
+        .and_then(|i| table.get(i).copied())
+        .ok_or_else(|| format!("string {index} of {}", table.len()))
+}
+
 /// Appends an `f64`'s IEEE-754 bits, little-endian (exact).
 pub(crate) fn put_f64(out: &mut Vec<u8>, value: f64) {
     out.extend_from_slice(&value.to_le_bytes());
@@ -87,6 +106,16 @@ impl<'a> Reader<'a> {
 
     pub(crate) fn text(&mut self) -> Result<&'a str, String> {
         std::str::from_utf8(self.bytes()?).map_err(|e| format!("text not UTF-8: {e}"))
+    }
+
+    /// A string table written by [`put_strings`].
+    pub(crate) fn strings(&mut self) -> Result<Vec<&'a str>, String> {
+        let count = self.varint()?;
+        // each string takes at least its length byte: a count beyond what is left is corrupt
+        if count > self.bytes.len() as u64 {
+            return Err(format!("{count} strings in {} bytes", self.bytes.len()));
+        }
+        (0..count).map(|_| self.text()).collect()
     }
 
     pub(crate) fn f64(&mut self) -> Result<f64, String> {

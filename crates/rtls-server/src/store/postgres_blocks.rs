@@ -36,7 +36,7 @@ impl PostgresStore {
         const OPERATION: &str = "compact the history";
         let fail = database(OPERATION);
         let select = self.statement(
-            "SELECT id, received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json FROM locations \
+            "SELECT received_ms, time_s, tag, x_m, y_m, z_m, accuracy_m, predicted, json, id FROM locations \
              WHERE received_ms < $1 ORDER BY id LIMIT $2",
             OPERATION,
         )?;
@@ -51,31 +51,17 @@ impl PostgresStore {
         let rows = transaction
             .query(&select, &[&before_ms, &limit_from(max_rows)])
             .map_err(fail)?;
-        // a state's columns after its id
+        // the state's columns as `location_from` reads them, then its id
         let rows: Vec<(i64, LocationRow)> = rows
             .iter()
-            .map(|row| {
-                let id: i64 = row.try_get(0)?;
-                let state = LocationRow {
-                    received_ms: row.try_get(1)?,
-                    time_s: row.try_get(2)?,
-                    tag: row.try_get(3)?,
-                    x_m: row.try_get(4)?,
-                    y_m: row.try_get(5)?,
-                    z_m: row.try_get(6)?,
-                    accuracy_m: row.try_get(7)?,
-                    predicted: row.try_get(8)?,
-                    json: row.try_get(9)?,
-                };
-                Ok((id, state))
-            })
+            .map(|row| Ok((row.try_get(9)?, location_from(row)?)))
             .collect::<Result<_, ::postgres::Error>>()
             .map_err(fail)?;
         let packed = rows.len() as u64;
         let Some(last_id) = rows.iter().map(|(id, _)| *id).max() else {
             return Ok(0);
         };
-        for (_, block) in history_blocks::pack(rows) {
+        for block in history_blocks::pack(rows.into_iter().map(|(_, row)| row).collect()) {
             transaction
                 .execute(
                     &insert,

@@ -58,7 +58,7 @@ pub(super) fn compact_history(connection: &mut Connection, before_ms: i64, max_r
     let Some(last_id) = rows.iter().map(|(id, _)| *id).max() else {
         return Ok(0);
     };
-    let blocks = history_blocks::pack(rows);
+    let blocks = history_blocks::pack(rows.into_iter().map(|(_, row)| row).collect());
     let transaction = connection
         .transaction_with_behavior(TransactionBehavior::Immediate)
         .map_err(fail)?;
@@ -69,7 +69,7 @@ pub(super) fn compact_history(connection: &mut Connection, before_ms: i64, max_r
                  VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
             )
             .map_err(fail)?;
-        for (_, block) in blocks {
+        for block in blocks {
             insert
                 .execute(params![
                     block.tag,

@@ -198,3 +198,27 @@ impl Running {
         started.elapsed()
     }
 }
+
+/// POSTs measurement lines to `/api/v1/measurements` with the write token.
+pub async fn post_measurements(
+    client: &reqwest::Client,
+    http: std::net::SocketAddr,
+    lines: String,
+) -> reqwest::Response {
+    client
+        .post(format!("http://{http}/api/v1/measurements"))
+        .bearer_auth(WRITE)
+        .body(lines)
+        .send()
+        .await
+        .unwrap()
+}
+
+/// The value of one series (`name` or `name{labels}`) in a `/metrics` text; 0 when absent.
+pub fn metric_value(metrics: &str, series: &str) -> f64 {
+    metrics
+        .lines()
+        .find_map(|line| line.strip_prefix(series)?.strip_prefix(' '))
+        .and_then(|value| value.trim().parse().ok())
+        .unwrap_or(0.0)
+}
