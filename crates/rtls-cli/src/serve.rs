@@ -122,7 +122,7 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
         .enable_all()
         .build()
         .context("starting the async runtime")?;
-    runtime.block_on(async move {
+    let served = runtime.block_on(async move {
         let options = ServeOptions {
             config,
             site,
@@ -137,7 +137,10 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
             feed,
         };
         serve(options, announce, shutdown_signal()).await
-    })?;
+    });
+    // a pipeline thread that did not drain (a stalled partition) must not hold the exit
+    runtime.shutdown_timeout(std::time::Duration::from_secs(1));
+    served?;
     Ok(())
 }
 

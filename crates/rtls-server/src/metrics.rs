@@ -20,6 +20,8 @@ pub struct Metrics {
     pub ingest_commits: Counter,
     /// Payloads refused with a client error, by transport.
     pub ingest_rejected: Family<Labels, Counter>,
+    /// Payloads refused at ingest, by reason (`format`, `site`, `time_window`).
+    pub ingest_refused: Family<Labels, Counter>,
     /// Payloads refused because the ingest queue stayed full.
     pub ingest_overloaded: Counter,
     /// Ingest-log appends that failed.
@@ -38,6 +40,8 @@ pub struct Metrics {
     pub track_updates_revised: Counter,
     /// Records the tracker refused.
     pub tracker_errors: Counter,
+    /// Records quarantined: their partition's tracker failed on them (an error or a panic).
+    pub records_quarantined: Counter,
     /// Alarms raised, by type.
     pub alarms: Family<Labels, Counter>,
     /// Track states stored.
@@ -81,6 +85,7 @@ impl Metrics {
             ingest_records: Counter::default(),
             ingest_commits: Counter::default(),
             ingest_rejected: Family::default(),
+            ingest_refused: Family::default(),
             ingest_overloaded: Counter::default(),
             ingest_store_failures: Counter::default(),
             ingest_ack_seconds: latency(),
@@ -89,6 +94,7 @@ impl Metrics {
             track_updates: Counter::default(),
             track_updates_revised: Counter::default(),
             tracker_errors: Counter::default(),
+            records_quarantined: Counter::default(),
             alarms: Family::default(),
             stored_locations: Counter::default(),
             stored_events: Counter::default(),
@@ -117,6 +123,11 @@ impl Metrics {
             "ingest_rejected",
             "Payloads refused with a client error",
             m.ingest_rejected.clone(),
+        );
+        registry.register(
+            "ingest_refused",
+            "Payloads refused at ingest (nothing of them stored), by reason: format, site, time_window",
+            m.ingest_refused.clone(),
         );
         registry.register(
             "ingest_overloaded",
@@ -153,6 +164,11 @@ impl Metrics {
             "tracker_errors",
             "Records the tracker refused",
             m.tracker_errors.clone(),
+        );
+        registry.register(
+            "records_quarantined",
+            "Records quarantined: their partition's tracker failed on them (stored apart, skipped by replay)",
+            m.records_quarantined.clone(),
         );
         registry.register("alarms", "Alarms raised", m.alarms.clone());
         registry.register("stored_locations", "Track states stored", m.stored_locations.clone());

@@ -16,7 +16,7 @@ use crate::http::QueryStore;
 use crate::http::{router, AppState};
 use crate::metrics::Metrics;
 use crate::mqtt::{BrokerConfig, EmbeddedBroker, ExternalBroker};
-use crate::pipeline::{unix_ms, Pipeline, PipelineConfig};
+use crate::pipeline::{unix_ms, Pipeline, PipelineConfig, TimeWindow};
 use crate::sink::MeasurementSink;
 use crate::store::{self, SqliteSync};
 use crate::webhooks::{Dispatcher, Webhook};
@@ -46,7 +46,17 @@ pub enum ServeError {
         /// The OS error.
         reason: String,
     },
+    /// The pipeline did not drain within [`DRAIN_DEADLINE`] at shutdown (a stalled partition).
+    #[error(
+        "the pipeline did not drain within {0:?} (a stalled partition?); stopped anyway: every \
+         acknowledged record is in the ingest log and is replayed on the next start"
+    )]
+    Drain(Duration),
 }
+
+/// How long a shutdown waits for the pipeline to drain (the trackers flush, the outputs and
+/// the checkpoint are stored) before it gives up on a stalled thread.
+pub const DRAIN_DEADLINE: Duration = Duration::from_secs(10);
 
 /// Where the running server listens (ports resolved, for `:0`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -119,6 +129,10 @@ pub async fn serve(
         },
         live_clock: config.pipeline.live_clock,
         clock_lag_s: config.pipeline.clock_lag_s,
+        time_window: Some(TimeWindow {
+            max_age_s: config.pipeline.max_record_age_s,
+            max_lead_s: config.pipeline.max_record_lead_s,
+        }),
         ..PipelineConfig::default()
     };
     // the stores are synchronous (the PostgreSQL client blocks on a runtime of its own): open
@@ -267,11 +281,16 @@ pub async fn serve(
     }
     tracing::info!("draining the pipeline");
     let draining = pipeline.clone();
-    let _ = tokio::task::spawn_blocking(move || draining.shutdown()).await;
+    let drained = tokio::time::timeout(DRAIN_DEADLINE, tokio::task::spawn_blocking(move || draining.shutdown())).await;
     if let Some(dispatcher) = dispatcher {
         // after the pipeline: the trackers' last alarms are queued too
         tracing::info!("delivering the webhooks' queued events (2 s at most)");
         dispatcher.shutdown().await;
+    }
+    if drained.is_err() {
+        let error = ServeError::Drain(DRAIN_DEADLINE);
+        tracing::error!(error = %error, "shutdown");
+        return Err(error);
     }
     tracing::info!("stopped");
     Ok(())

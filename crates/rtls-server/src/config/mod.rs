@@ -25,6 +25,8 @@
 //! partitions = 2                 # tag partitions (worker threads); default: the CPU count
 //! live_clock = true              # advance tracks with the wall clock (records in Unix time)
 //! clock_lag_s = 2.0
+//! max_record_age_s = 86400.0     # with live_clock: older records are refused at ingest
+//! max_record_lead_s = 60.0       # with live_clock: records this far ahead of the clock are refused
 //!
 //! [[webhooks]]                   # zero or more: alarms POSTed as JSON (docs/SERVER.md, Webhooks)
 //! url = "https://ops.example.com/rtls/alarms"   # http:// or https://
@@ -200,6 +202,12 @@ pub struct PipelineSection {
     pub live_clock: bool,
     /// How far behind the wall clock (s).
     pub clock_lag_s: f64,
+    /// With `live_clock`: records more than this behind the server clock are refused at ingest
+    /// (s, > 0; a relative clock, a long-buffered replay).
+    pub max_record_age_s: f64,
+    /// With `live_clock`: records more than this ahead of the server clock are refused at
+    /// ingest (s, > 0; a reader whose clock is wrong).
+    pub max_record_lead_s: f64,
 }
 
 impl Default for PipelineSection {
@@ -208,6 +216,8 @@ impl Default for PipelineSection {
             partitions: 0,
             live_clock: true,
             clock_lag_s: 2.0,
+            max_record_age_s: 86_400.0,
+            max_record_lead_s: 60.0,
         }
     }
 }
@@ -297,6 +307,14 @@ impl ServerConfig {
                 "pipeline.clock_lag_s",
                 format!("must be ≥ 0 s, got {}", p.clock_lag_s),
             ));
+        }
+        for (field, value) in [
+            ("pipeline.max_record_age_s", p.max_record_age_s),
+            ("pipeline.max_record_lead_s", p.max_record_lead_s),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(invalid(field, format!("must be a finite number > 0 s, got {value}")));
+            }
         }
         for (field, token) in [
             ("auth.write_token", &self.auth.write_token),

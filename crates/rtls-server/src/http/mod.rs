@@ -295,6 +295,7 @@ pub fn router(state: AppState) -> Router {
         .route("/health", get(ops::health))
         .route("/metrics", get(ops::metrics_text))
         .route("/openapi.json", get(ops::openapi))
+        .route("/api/v1/quarantine", get(ops::quarantine))
         .route("/api/v1/measurements", post(api::ingest_measurements))
         .route("/api/v1/tags", get(api::tags))
         .route("/api/v1/positions", get(positions::positions))

@@ -1,20 +1,21 @@
-//! Operations: `/health`, `/metrics` (Prometheus), `/openapi.json`.
+//! Operations: `/health`, `/metrics` (Prometheus), `/openapi.json`, `/api/v1/quarantine`.
 
 use std::time::Duration;
 
 use axum::extract::State;
-use axum::http::{header, StatusCode};
+use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde_json::{json, Value};
 
-use super::{metrics, AppState};
+use super::{metrics, Access, ApiError, ApiResult, AppState};
 
 /// The OpenAPI 3 description of this server's API (ours; the omlox paths follow the hub API).
 pub const OPENAPI: &str = include_str!("../../openapi.json");
 
 /// `GET /health`: 200 when the store answers a cheap query (the restart checkpoint) within
-/// 2 s, else 503; with the live tag count.
+/// 2 s and no tag partition is stalled (`[pipeline]`'s stall time, 10 s), else 503 saying
+/// which; with the live tag count and each partition's seconds since it last came round.
 pub(super) async fn health(State(state): State<AppState>) -> Response {
     let store = tokio::time::timeout(
         Duration::from_secs(2),
@@ -30,9 +31,20 @@ pub(super) async fn health(State(state): State<AppState>) -> Response {
             None,
         ),
     };
+    let partitions = state.pipeline.partition_health();
+    let status = if partitions.iter().any(|p| p.stalled) {
+        StatusCode::SERVICE_UNAVAILABLE
+    } else {
+        status
+    };
     let body = json!({
         "status": if status == StatusCode::OK { "ok" } else { "degraded" },
         "store": store_state,
+        "partitions": partitions.iter().enumerate().map(|(index, p)| json!({
+            "partition": index,
+            "silent_s": (p.silent_s * 10.0).round() / 10.0,
+            "stalled": p.stalled,
+        })).collect::<Vec<_>>(),
         "tracked_record_id": records,
         "tags": state.pipeline.live().tag_count(),
         "uptime_s": state.started.elapsed().as_secs_f64(),
@@ -65,4 +77,26 @@ pub(super) async fn openapi() -> Response {
         Ok(document) => Json(document).into_response(),
         Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, format!("openapi.json: {e}")).into_response(),
     }
+}
+
+/// `GET /api/v1/quarantine`: the records a partition's tracker failed on (an error or a panic),
+/// oldest first — `record_id`, `partition`, `tag`, `reason`, `quarantined_ms` and the `record`
+/// itself — kept apart and skipped by the replay after a restart.
+pub(super) async fn quarantine(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Value>> {
+    state.authorize(&headers, Access::Read)?;
+    let rows = state
+        .query(|store| store.list_config(crate::pipeline::QUARANTINE))
+        .await?;
+    let entries: Vec<Value> = rows
+        .into_iter()
+        .map(|(id, json)| {
+            serde_json::from_str(&json).map_err(|e| {
+                ApiError::new(
+                    StatusCode::INTERNAL_SERVER_ERROR,
+                    format!("quarantined record `{id}` is corrupt: {e}"),
+                )
+            })
+        })
+        .collect::<ApiResult<_>>()?;
+    Ok(Json(json!({ "quarantined": entries })))
 }

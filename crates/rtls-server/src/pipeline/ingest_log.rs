@@ -1,6 +1,7 @@
 //! The ingest-log thread: appends payloads to the store with group commit, acknowledges them,
 //! and dispatches their records to the tag partitions in id order.
 
+use std::collections::HashSet;
 use std::sync::atomic::Ordering;
 use std::sync::mpsc::SyncSender;
 use std::sync::Arc;
@@ -8,7 +9,7 @@ use std::sync::Arc;
 use rtls_engine::record::{parse_json_line, Record};
 use tokio::sync::mpsc;
 
-use super::{partition_of, IngestBatch, Progress};
+use super::{partition_of, quarantine, IngestBatch, Progress};
 use crate::metrics::Metrics;
 use crate::sink::IngestError;
 use crate::store::Store;
@@ -106,6 +107,12 @@ impl IngestLogWorker {
     fn replay(&mut self) {
         let mut after = self.replay_after_id;
         let mut replayed = 0usize;
+        let mut skipped = 0usize;
+        // a record that failed its partition before must not fail it again
+        let quarantined = quarantine::quarantined_ids(self.store.as_mut()).unwrap_or_else(|e| {
+            tracing::error!(error = %e, "reading the quarantined records failed; the replay skips none");
+            HashSet::new()
+        });
         loop {
             let page = match self.store.records_after(after, REPLAY_PAGE) {
                 Ok(page) => page,
@@ -118,6 +125,10 @@ impl IngestLogWorker {
             after = last.id;
             let mut records = Vec::with_capacity(page.len());
             for stored in page {
+                if quarantined.contains(&stored.id) {
+                    skipped += 1;
+                    continue;
+                }
                 match parse_json_line(&stored.json, "ingest log", 0) {
                     Ok(record) => records.push((stored.id, record)),
                     Err(e) => tracing::error!(id = stored.id, error = %e, "stored record does not parse; skipped"),
@@ -126,9 +137,10 @@ impl IngestLogWorker {
             replayed += records.len();
             self.dispatch(records);
         }
-        if replayed > 0 {
+        if replayed > 0 || skipped > 0 {
             tracing::info!(
                 records = replayed,
+                quarantined_skipped = skipped,
                 after_id = self.replay_after_id,
                 "replayed the ingest log"
             );

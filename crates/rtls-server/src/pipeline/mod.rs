@@ -22,10 +22,12 @@
 //! acknowledged record is in the ingest log, so it is never lost; its outputs may be stored
 //! twice if the server died between storing them and the next checkpoint.
 
+mod admission;
 mod ingest_log;
 mod live;
 mod outputs;
 mod partition;
+mod quarantine;
 pub mod readers;
 
 use std::sync::atomic::{AtomicI64, Ordering};
@@ -35,18 +37,24 @@ use std::time::Duration;
 
 use rtls_engine::record::{parse_json_line, to_json_line, Record};
 use rtls_engine::site::Site;
-use rtls_engine::tracker::Tracker;
+use rtls_engine::tracker::{Output, Tracker};
 use tokio::sync::{broadcast, mpsc, oneshot};
 
+pub use admission::TimeWindow;
 pub use live::{HubMessage, LastSeen, LiveState, TagState};
+pub use quarantine::QUARANTINE;
 pub use readers::{ReaderHealth, ReaderMonitor};
 
 use crate::metrics::Metrics;
 use crate::sink::{IngestError, IngestFuture, MeasurementSink, Publication};
 use crate::store::{NewRecord, Store, StoreError};
 
+/// One record into a partition's tracker: [`Tracker::push`] (the default). Its error or panic
+/// quarantines the record (tests put in a failing step to exercise that path).
+pub type TrackStep = fn(&mut Tracker, Record, &mut Output) -> rtls_engine::Result<()>;
+
 /// Sizes of the pipeline's queues and threads.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct PipelineConfig {
     /// Tag partitions, each a worker thread with its own tracker.
     pub partitions: usize,
@@ -69,6 +77,14 @@ pub struct PipelineConfig {
     /// How far behind the wall clock the trackers are advanced (s): records may arrive this
     /// late without being judged late.
     pub clock_lag_s: f64,
+    /// With `live_clock`: records outside this window around the server clock are refused at
+    /// ingest ([`TimeWindow`]); `None`: any time the parser accepts.
+    pub time_window: Option<TimeWindow>,
+    /// One record into a partition's tracker.
+    pub track_step: TrackStep,
+    /// A partition that has not come round its loop for this long (s) is stalled: `/health`
+    /// answers 503 (an idle partition comes round every 250 ms).
+    pub stall_after_s: f64,
 }
 
 impl Default for PipelineConfig {
@@ -83,8 +99,23 @@ impl Default for PipelineConfig {
             submit_timeout: Duration::from_secs(5),
             live_clock: true,
             clock_lag_s: 2.0,
+            time_window: Some(TimeWindow {
+                max_age_s: 86_400.0,
+                max_lead_s: 60.0,
+            }),
+            track_step: Tracker::push,
+            stall_after_s: 10.0,
         }
     }
+}
+
+/// A partition's liveness ([`Pipeline::partition_health`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PartitionHealth {
+    /// Seconds since it last came round its loop.
+    pub silent_s: f64,
+    /// Silent for longer than [`PipelineConfig::stall_after_s`].
+    pub stalled: bool,
 }
 
 /// A failure to start the pipeline.
@@ -119,6 +150,8 @@ struct Progress {
     dispatched: Vec<AtomicI64>,
     /// Highest ingest-log id whose outputs are stored, per partition.
     stored: Vec<AtomicI64>,
+    /// When each partition last came round its loop (ms since the Unix epoch).
+    heartbeat_ms: Vec<AtomicI64>,
 }
 
 impl Progress {
@@ -126,7 +159,13 @@ impl Progress {
         Self {
             dispatched: (0..partitions).map(|_| AtomicI64::new(start_id)).collect(),
             stored: (0..partitions).map(|_| AtomicI64::new(start_id)).collect(),
+            heartbeat_ms: (0..partitions).map(|_| AtomicI64::new(unix_ms())).collect(),
         }
+    }
+
+    /// Partition `index` is alive now.
+    fn beat(&self, index: usize) {
+        self.heartbeat_ms[index].store(unix_ms(), Ordering::Release);
     }
 
     /// The highest id at or below which every record's outputs are stored: the lowest stored
@@ -166,6 +205,7 @@ struct Inner {
     publications: broadcast::Sender<Publication>,
     metrics: Arc<Metrics>,
     threads: Mutex<Vec<JoinHandle<()>>>,
+    progress: Arc<Progress>,
 }
 
 /// The checkpoint's name in the store.
@@ -211,6 +251,7 @@ impl Pipeline {
             rx: output_rx,
             progress: Arc::clone(&progress),
             metrics: Arc::clone(&metrics),
+            quarantine_stored: 0,
         };
         threads.push(spawn("rtls-outputs".into(), Box::new(move || output_worker.run()))?);
 
@@ -234,6 +275,8 @@ impl Pipeline {
                 reported_lost: Default::default(),
                 source: site.name.clone().unwrap_or_else(|| "rtls".into()),
                 zones_version: 0,
+                track_step: config.track_step,
+                pending_events: Vec::new(),
             };
             threads.push(spawn(
                 format!("rtls-partition-{index}"),
@@ -247,7 +290,7 @@ impl Pipeline {
             store: ingest_store,
             rx: ingest_rx,
             partitions: partition_txs,
-            progress,
+            progress: Arc::clone(&progress),
             metrics: Arc::clone(&metrics),
             replay_after_id: checkpoint,
         };
@@ -264,6 +307,7 @@ impl Pipeline {
                 publications,
                 metrics,
                 threads: Mutex::new(threads),
+                progress,
             }),
         })
     }
@@ -272,6 +316,25 @@ impl Pipeline {
     #[must_use]
     pub fn live(&self) -> &Arc<LiveState> {
         &self.inner.live
+    }
+
+    /// Each partition's seconds since it last came round its loop, and whether that is more
+    /// than [`PipelineConfig::stall_after_s`] (a stalled partition).
+    #[must_use]
+    pub fn partition_health(&self) -> Vec<PartitionHealth> {
+        let now_ms = unix_ms();
+        self.inner
+            .progress
+            .heartbeat_ms
+            .iter()
+            .map(|beat| {
+                let silent_s = (now_ms - beat.load(Ordering::Acquire)).max(0) as f64 / 1e3;
+                PartitionHealth {
+                    silent_s,
+                    stalled: silent_s > self.inner.config.stall_after_s,
+                }
+            })
+            .collect()
     }
 
     /// Each reader's health (last heard, record rate).
@@ -326,7 +389,7 @@ impl Pipeline {
                     self.inner.config.max_records_per_payload
                 )));
             }
-            let record = parse_json_line(line, source, index + 1).map_err(|e| IngestError::Invalid(e.to_string()))?;
+            let record = parse_json_line(line, source, index + 1).map_err(|e| self.refused("format", e.to_string()))?;
             records.push((index + 1, record));
         }
         self.submit_numbered(source, records).await
@@ -355,7 +418,15 @@ impl Pipeline {
             for (line, record) in &records {
                 validator
                     .check_record(record, source, *line)
-                    .map_err(|e| IngestError::Invalid(e.to_string()))?;
+                    .map_err(|e| self.refused("site", e.to_string()))?;
+            }
+        }
+        if let Some(window) = self.inner.config.time_window.filter(|_| self.inner.config.live_clock) {
+            let now_s = unix_s();
+            for (line, record) in &records {
+                if let Some(reason) = window.refusal(record.time_s, now_s) {
+                    return Err(self.refused("time_window", format!("{source}:{line}: field `t`: {reason}")));
+                }
             }
         }
         let received_ms = unix_ms();
@@ -404,6 +475,17 @@ impl Pipeline {
             .ingest_ack_seconds
             .observe(started.elapsed().as_secs_f64());
         result.map(|_| count)
+    }
+
+    /// A payload refused for `reason` (`format`, `site`, `time_window`): counted in
+    /// `rtls_ingest_refused_total{reason}` (nothing of the payload is stored).
+    fn refused(&self, reason: &str, message: String) -> IngestError {
+        self.inner
+            .metrics
+            .ingest_refused
+            .get_or_create(&vec![("reason".into(), reason.into())])
+            .inc();
+        IngestError::Invalid(message)
     }
 
     /// Stops taking records, lets every thread drain its queue (the trackers flush, the
@@ -460,6 +542,3 @@ fn partition_of(tag: &str, partitions: usize) -> usize {
         .fold(0x811c_9dc5_u32, |h, b| (h ^ u32::from(b)).wrapping_mul(0x0100_0193));
     hash as usize % partitions.max(1)
 }
-
-#[cfg(test)]
-mod tests;

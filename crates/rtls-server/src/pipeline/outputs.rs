@@ -5,6 +5,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use super::quarantine::{self, Quarantined, MAX_STORED_PER_RUN};
 use super::{Progress, CHECKPOINT};
 use crate::metrics::Metrics;
 use crate::store::{EventRow, LocationRow, Store};
@@ -21,6 +22,8 @@ pub(super) struct OutputBatch {
     pub processed_id: Option<i64>,
     pub locations: Vec<LocationRow>,
     pub events: Vec<EventRow>,
+    /// Records the partition's tracker failed on, to be stored apart.
+    pub quarantined: Vec<Quarantined>,
 }
 
 pub(super) struct OutputWorker {
@@ -28,6 +31,8 @@ pub(super) struct OutputWorker {
     pub rx: Receiver<OutputBatch>,
     pub progress: Arc<Progress>,
     pub metrics: Arc<Metrics>,
+    /// Quarantined records stored in this run ([`MAX_STORED_PER_RUN`] at most).
+    pub quarantine_stored: usize,
 }
 
 impl OutputWorker {
@@ -68,11 +73,14 @@ impl OutputWorker {
         let mut processed = Vec::with_capacity(batches.len());
         let mut locations = Vec::new();
         let mut events = Vec::new();
+        let mut quarantined = Vec::new();
         for batch in batches {
             processed.push((batch.partition, batch.processed_id));
             locations.extend(batch.locations);
             events.extend(batch.events);
+            quarantined.extend(batch.quarantined);
         }
+        self.store_quarantined(&quarantined);
         let result = self
             .store
             .append_locations(&locations)
@@ -93,6 +101,27 @@ impl OutputWorker {
                 self.metrics.output_store_failures.inc();
                 tracing::error!(error = %e, locations = locations.len(), events = events.len(), "storing outputs failed");
             }
+        }
+    }
+
+    /// Stores quarantined records apart — before the outputs, so that the checkpoint can pass
+    /// them only once a restart would skip them — up to [`MAX_STORED_PER_RUN`] per run.
+    fn store_quarantined(&mut self, quarantined: &[Quarantined]) {
+        if quarantined.is_empty() {
+            return;
+        }
+        let room = MAX_STORED_PER_RUN.saturating_sub(self.quarantine_stored);
+        let (kept, dropped) = quarantined.split_at(room.min(quarantined.len()));
+        if !dropped.is_empty() {
+            tracing::error!(
+                records = dropped.len(),
+                limit = MAX_STORED_PER_RUN,
+                "quarantined records not stored: this run's limit is reached (they are counted and logged)"
+            );
+        }
+        match quarantine::store(self.store.as_mut(), kept) {
+            Ok(()) => self.quarantine_stored += kept.len(),
+            Err(e) => tracing::error!(error = %e, records = kept.len(), "storing quarantined records failed"),
         }
     }
 

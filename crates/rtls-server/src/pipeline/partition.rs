@@ -15,6 +15,7 @@ use tokio::sync::broadcast;
 use super::ingest_log::PartitionBatch;
 use super::live::{HubMessage, LiveState, TagState};
 use super::outputs::OutputBatch;
+use super::quarantine::{guarded, Quarantined};
 use super::{unix_ms, unix_s, Progress};
 use crate::convert::{
     accuracy_m, alarm_id, extension_payload, fence_event_from_zone_event, is_alarm, location_from_update, ZoneEventOut,
@@ -49,6 +50,10 @@ pub(super) struct PartitionWorker {
     pub source: String,
     /// The version of the live zone set the tracker holds.
     pub zones_version: u64,
+    /// One record into the tracker ([`super::TrackStep`]).
+    pub track_step: super::TrackStep,
+    /// Events of the partition's own (quarantined records) waiting for the next batch.
+    pub pending_events: Vec<EventRow>,
 }
 
 impl PartitionWorker {
@@ -57,6 +62,8 @@ impl PartitionWorker {
         let mut last_clock = Instant::now();
         loop {
             let mut processed = None;
+            let mut quarantined = Vec::new();
+            self.progress.beat(self.index);
             self.follow_zone_edits();
             match self.rx.recv_timeout(CLOCK_TICK) {
                 Ok(batch) => {
@@ -65,9 +72,9 @@ impl PartitionWorker {
                     let started = Instant::now();
                     for (id, record) in batch {
                         let tag = record.tag.clone();
-                        if let Err(e) = self.tracker.push(record, &mut out) {
-                            self.metrics.tracker_errors.inc();
-                            tracing::warn!(partition = self.index, record_id = id, tag = %tag, error = %e, "record not tracked");
+                        let (tracker, step) = (&mut self.tracker, self.track_step);
+                        if let Err(reason) = guarded(|| step(tracker, record, &mut out)) {
+                            self.quarantine(id, tag, reason, &mut quarantined);
                         }
                         processed = Some(id);
                     }
@@ -83,7 +90,7 @@ impl PartitionWorker {
                     if let Err(e) = self.tracker.finish(&mut out) {
                         tracing::warn!(partition = self.index, error = %e, "flushing the tracker failed");
                     }
-                    self.emit(&mut out, None);
+                    self.emit(&mut out, None, Vec::new());
                     return;
                 }
             }
@@ -93,14 +100,51 @@ impl PartitionWorker {
                     tracing::warn!(partition = self.index, error = %e, "advancing the clock failed");
                 }
             }
-            self.emit(&mut out, processed);
+            self.emit(&mut out, processed, quarantined);
         }
+    }
+
+    /// A record the tracker failed on (an error or a panic): counted, logged, published as a
+    /// `record-quarantined` event, and handed to the output thread to be stored apart.
+    fn quarantine(&mut self, record_id: i64, tag: String, reason: String, quarantined: &mut Vec<Quarantined>) {
+        self.metrics.tracker_errors.inc();
+        self.metrics.records_quarantined.inc();
+        tracing::error!(partition = self.index, record_id, tag = %tag, reason = %reason, "record quarantined");
+        let event = serde_json::json!({
+            "type": "record-quarantined",
+            "t": unix_s(),
+            "tag": tag,
+            "record_id": record_id,
+            "partition": self.index,
+            "reason": reason,
+        });
+        let json = event.to_string();
+        let _ = self.publications.send(Publication {
+            topic: "rtls/v1/events/record-quarantined".into(),
+            payload: json.clone().into(),
+        });
+        quarantined.push(Quarantined {
+            record_id,
+            partition: self.index,
+            tag,
+            reason,
+            quarantined_ms: unix_ms(),
+        });
+        self.pending_events.push(EventRow {
+            received_ms: unix_ms(),
+            time_s: unix_s(),
+            kind: "record-quarantined".into(),
+            tag: event["tag"].as_str().map(str::to_string),
+            zone: None,
+            alarm: false,
+            json,
+        });
     }
 
     /// Publishes and queues for storage what the tracker produced; `processed` is the last
     /// ingest-log id whose record it has taken.
-    fn emit(&mut self, out: &mut Output, processed: Option<i64>) {
-        if out.updates.is_empty() && out.events.is_empty() && processed.is_none() {
+    fn emit(&mut self, out: &mut Output, processed: Option<i64>, quarantined: Vec<Quarantined>) {
+        if out.updates.is_empty() && out.events.is_empty() && processed.is_none() && quarantined.is_empty() {
             return;
         }
         let received_ms = unix_ms();
@@ -108,7 +152,8 @@ impl PartitionWorker {
             partition: self.index,
             processed_id: processed,
             locations: Vec::with_capacity(out.updates.len()),
-            events: Vec::with_capacity(out.events.len()),
+            events: std::mem::take(&mut self.pending_events),
+            quarantined,
         };
         for update in &out.updates {
             self.publish_update(update, received_ms, &mut batch);

@@ -6,12 +6,16 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use axum::body::Body;
+use axum::http::{Method, Request, StatusCode};
 use rtls_engine::site::Site;
 use rtls_server::auth::Tokens;
 use rtls_server::http::{AppState, QueryStore};
 use rtls_server::metrics::Metrics;
 use rtls_server::pipeline::{Pipeline, PipelineConfig};
 use rtls_server::store::{self, SqliteSync, Store};
+use serde_json::Value;
+use tower::ServiceExt;
 
 pub const WRITE: &str = "write-token-0123";
 pub const READ: &str = "read-token-4567";
@@ -79,13 +83,22 @@ pub fn open_sqlite(path: &std::path::Path) -> Box<dyn Store> {
 /// A state over a fresh SQLite file, with the test site, a data clock (no wall clock).
 pub fn state(name: &str) -> AppState {
     temp_dir(name);
+    state_on(
+        name,
+        PipelineConfig {
+            partitions: 2,
+            live_clock: false,
+            ..PipelineConfig::default()
+        },
+    )
+}
+
+/// A state with the test site and `config` over the SQLite file of `name` as it is (a fresh
+/// one unless an earlier state of `name` wrote it: a restart).
+pub fn state_on(name: &str, config: PipelineConfig) -> AppState {
+    std::fs::create_dir_all(db_path(name).parent().expect("dir")).expect("temp dir");
     let path = db_path(name);
     let site = site();
-    let config = PipelineConfig {
-        partitions: 2,
-        live_clock: false,
-        ..PipelineConfig::default()
-    };
     let pipeline = Pipeline::start(
         &site,
         open_sqlite(&path),
@@ -221,4 +234,48 @@ pub fn metric_value(metrics: &str, series: &str) -> f64 {
         .find_map(|line| line.strip_prefix(series)?.strip_prefix(' '))
         .and_then(|value| value.trim().parse().ok())
         .unwrap_or(0.0)
+}
+
+/// A response read in full.
+pub struct Reply {
+    pub status: StatusCode,
+    pub content_type: String,
+    pub body: Vec<u8>,
+}
+
+impl Reply {
+    pub fn json(&self) -> Value {
+        serde_json::from_slice(&self.body).unwrap_or_else(|e| panic!("not JSON ({e}): {}", self.text()))
+    }
+    pub fn text(&self) -> String {
+        String::from_utf8_lossy(&self.body).into_owned()
+    }
+}
+
+/// One request through the router, without a port (`tower::ServiceExt::oneshot`).
+pub async fn call(app: &axum::Router, method: Method, uri: &str, token: Option<&str>, body: &str) -> Reply {
+    let mut request = Request::builder().method(method).uri(uri);
+    if let Some(token) = token {
+        request = request.header("authorization", format!("Bearer {token}"));
+    }
+    let response = app
+        .clone()
+        .oneshot(request.body(Body::from(body.to_string())).unwrap())
+        .await
+        .unwrap();
+    let status = response.status();
+    let content_type = response
+        .headers()
+        .get("content-type")
+        .map(|v| v.to_str().unwrap().to_string())
+        .unwrap_or_default();
+    let body = axum::body::to_bytes(response.into_body(), usize::MAX)
+        .await
+        .unwrap()
+        .to_vec();
+    Reply {
+        status,
+        content_type,
+        body,
+    }
 }
