@@ -23,13 +23,14 @@ pub struct Tokens {
 
 impl Tokens {
     /// What `presented` (e.g. a bearer token or an MQTT password) allows. Tokens are compared
-    /// in constant time.
+    /// in constant time. Without a read token, presenting none reads; presenting a wrong one
+    /// allows nothing (a mistyped or guessed credential is refused, never downgraded).
     #[must_use]
     pub fn access(&self, presented: Option<&str>) -> Access {
         let matches = |expected: &str| presented.is_some_and(|p| constant_time_eq(p, expected));
         if matches(&self.write) {
             Access::Write
-        } else if self.read.as_deref().is_none_or(matches) {
+        } else if self.read.as_deref().map_or(presented.is_none(), matches) {
             Access::Read
         } else {
             Access::None
@@ -69,5 +70,10 @@ mod tests {
         };
         assert_eq!(open_reads.access(None), Access::Read);
         assert_eq!(open_reads.access(Some("w")), Access::Write);
+        assert_eq!(
+            open_reads.access(Some("guess")),
+            Access::None,
+            "a wrong token is refused"
+        );
     }
 }

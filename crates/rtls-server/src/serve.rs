@@ -208,7 +208,13 @@ pub async fn serve(
     let mut mqtt_addr = None;
     match config.mqtt.mode {
         MqttMode::Embedded => {
-            let broker_config = BrokerConfig::new((*tokens).clone());
+            let broker_config = BrokerConfig {
+                max_connections: config.mqtt.max_connections,
+                max_read_connections: config.mqtt.max_read_connections,
+                max_connections_per_ip: config.mqtt.max_connections_per_ip,
+                max_pending_connects: config.mqtt.max_pending_connects,
+                ..BrokerConfig::new((*tokens).clone())
+            };
             let broker = EmbeddedBroker::bind(
                 config.mqtt.listen,
                 broker_config,

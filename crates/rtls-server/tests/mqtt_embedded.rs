@@ -6,11 +6,12 @@ use std::time::Duration;
 
 use bytes::{BufMut, Bytes, BytesMut};
 use mqtt_support::{
-    client_options, record_line, test_config, TestBroker, TestClient, TestSink, READ_TOKEN, WRITE_TOKEN,
+    client_options, raw_connect, read_until_closed, record_line, test_config, TestBroker, TestClient, TestSink,
+    CONNACK_ACCEPTED, READ_TOKEN, WRITE_TOKEN,
 };
 use rtls_server::mqtt::error_topic;
 use rtls_server::sink::{IngestError, Publication};
-use rumqttc::mqttbytes::v4::{Connect, SubscribeReasonCode};
+use rumqttc::mqttbytes::v4::SubscribeReasonCode;
 use rumqttc::{ConnectReturnCode, ConnectionError, Event, Outgoing, Packet, QoS};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
@@ -25,35 +26,6 @@ fn measurement_topic(reader: &str) -> String {
 fn is_puback(packet: &Packet) -> bool {
     matches!(packet, Packet::PubAck(_))
 }
-
-/// Reads from a raw connection until the server closes it; panics if it stays open `within`.
-/// Returns what was read before the close.
-async fn read_until_closed(stream: &mut TcpStream, within: Duration) -> Vec<u8> {
-    let mut received = Vec::new();
-    let deadline = Instant::now() + within;
-    let mut chunk = [0u8; 256];
-    loop {
-        let left = deadline.saturating_duration_since(Instant::now());
-        match tokio::time::timeout(left, stream.read(&mut chunk)).await {
-            Ok(Ok(0) | Err(_)) => return received,
-            Ok(Ok(n)) => received.extend_from_slice(&chunk[..n]),
-            Err(_) => panic!("the server kept the connection open for {within:?} (read {received:?})"),
-        }
-    }
-}
-
-/// The bytes of a CONNECT with the write token and the given keep-alive.
-fn raw_connect(client_id: &str, keep_alive_s: u16) -> BytesMut {
-    let mut connect = Connect::new(client_id);
-    connect.keep_alive = keep_alive_s;
-    connect.set_login("raw", WRITE_TOKEN);
-    let mut bytes = BytesMut::new();
-    connect.write(&mut bytes).expect("encodable CONNECT");
-    bytes
-}
-
-/// CONNACK "accepted, no session present".
-const CONNACK_ACCEPTED: [u8; 4] = [0x20, 0x02, 0x00, 0x00];
 
 #[tokio::test]
 async fn the_puback_leaves_only_after_the_sink_stored_the_payload() {

@@ -2,7 +2,7 @@
 //! ingest with the reason; a record that makes its partition's tracker fail — an error or a
 //! panic — is quarantined (stored apart, counted, listed by the API, published as an event)
 //! while the partition tracks the rest, and a restart's replay skips it; a stalled partition
-//! turns `/health` to 503.
+//! turns `/health` to 503; a write without the token is refused before its body is read.
 
 mod common;
 
@@ -305,5 +305,39 @@ async fn the_default_state_has_partitions_that_are_not_stalled() {
         .unwrap()
         .iter()
         .all(|p| p["stalled"] == false && p["silent_s"].as_f64().unwrap() < 1.0));
+    state.pipeline.shutdown();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_write_without_the_token_is_refused_before_its_body_is_read() {
+    use axum::body::Body;
+    use axum::http::Request;
+    use futures_util::stream::{self, StreamExt};
+    use tower::ServiceExt;
+
+    let state = state("poison-body");
+    let app = rtls_server::http::router(state.clone());
+    for token in [None, Some(READ), Some("guess-the-token")] {
+        // a body whose first megabyte arrives and whose end never does
+        let endless =
+            stream::iter([Ok::<_, std::io::Error>(bytes::Bytes::from(vec![b' '; 1 << 20]))]).chain(stream::pending());
+        let mut request = Request::builder().method(Method::POST).uri("/api/v1/measurements");
+        if let Some(token) = token {
+            request = request.header("authorization", format!("Bearer {token}"));
+        }
+        let response = tokio::time::timeout(
+            Duration::from_secs(2),
+            app.clone().oneshot(request.body(Body::from_stream(endless)).unwrap()),
+        )
+        .await
+        .expect("answered without waiting for the body")
+        .unwrap();
+        let expected = if token.is_none() {
+            StatusCode::UNAUTHORIZED
+        } else {
+            StatusCode::FORBIDDEN
+        };
+        assert_eq!(response.status(), expected, "token {token:?}");
+    }
     state.pipeline.shutdown();
 }

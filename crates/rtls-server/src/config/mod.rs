@@ -20,6 +20,10 @@
 //! mode = "embedded"              # "embedded", "external" or "off"
 //! listen = "127.0.0.1:1883"      # the embedded broker
 //! url = "mqtt://broker:1883?client_id=rtls-server"   # the external broker
+//! max_connections = 1024         # embedded broker: sessions at most …
+//! max_read_connections = 512     # … of which read-only (subscribers) at most
+//! max_connections_per_ip = 128   # connections of one IP address at most
+//! max_pending_connects = 256     # sockets waiting for their CONNECT at most
 //!
 //! [pipeline]
 //! partitions = 2                 # tag partitions (worker threads); default: the CPU count
@@ -180,6 +184,15 @@ pub struct MqttSection {
     pub listen: SocketAddr,
     /// The external broker's URL.
     pub url: Option<String>,
+    /// The embedded broker's sessions at most.
+    pub max_connections: usize,
+    /// Of them, read-only (subscriber) sessions at most (capped at `max_connections`); the
+    /// rest stays free for writers.
+    pub max_read_connections: usize,
+    /// Connections one IP address may hold at most.
+    pub max_connections_per_ip: usize,
+    /// Connections waiting for their CONNECT at most (idle sockets hold no session slot).
+    pub max_pending_connects: usize,
 }
 
 impl Default for MqttSection {
@@ -188,6 +201,10 @@ impl Default for MqttSection {
             mode: MqttMode::Embedded,
             listen: SocketAddr::from(([127, 0, 0, 1], 1883)),
             url: None,
+            max_connections: crate::mqtt::BrokerConfig::DEFAULT_MAX_CONNECTIONS,
+            max_read_connections: crate::mqtt::BrokerConfig::DEFAULT_MAX_READ_CONNECTIONS,
+            max_connections_per_ip: crate::mqtt::BrokerConfig::DEFAULT_MAX_CONNECTIONS_PER_IP,
+            max_pending_connects: crate::mqtt::BrokerConfig::DEFAULT_MAX_PENDING_CONNECTS,
         }
     }
 }
@@ -296,6 +313,17 @@ impl ServerConfig {
                     &format!("server.cors_origins[{k}]"),
                     format!("`{origin}` is not \"*\" or an origin like https://ops.example.com (scheme, host, port; no path)"),
                 ));
+            }
+        }
+        let m = &self.mqtt;
+        for (field, value) in [
+            ("mqtt.max_connections", m.max_connections),
+            ("mqtt.max_read_connections", m.max_read_connections),
+            ("mqtt.max_connections_per_ip", m.max_connections_per_ip),
+            ("mqtt.max_pending_connects", m.max_pending_connects),
+        ] {
+            if value == 0 {
+                return Err(invalid(field, "must be at least 1".into()));
             }
         }
         if self.mqtt.mode == MqttMode::External && self.mqtt.url.is_none() {

@@ -344,8 +344,29 @@ pub fn router(state: AppState) -> Router {
         .route("/api/v1/zones/edits", delete(fences::reset))
         .route("/v2/ws/socket", get(ws::socket))
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            authorize_writes_first,
+        ))
         .layer(axum::middleware::from_fn_with_state(state.clone(), count_requests))
         .with_state(state)
+}
+
+/// Every request that changes something (any method but GET, HEAD and OPTIONS) needs the
+/// write token, checked here before its body is read: an unauthenticated client cannot make
+/// the server buffer a body (up to the body limit) just to be refused. The handlers check
+/// again, with their own access.
+async fn authorize_writes_first(State(state): State<AppState>, request: Request, next: Next) -> Response {
+    let reads = matches!(
+        *request.method(),
+        axum::http::Method::GET | axum::http::Method::HEAD | axum::http::Method::OPTIONS
+    );
+    if !reads {
+        if let Err(refused) = state.authorize(request.headers(), Access::Write) {
+            return refused.into_response();
+        }
+    }
+    next.run(request).await
 }
 
 /// Counts requests by route and status class, and logs failures.

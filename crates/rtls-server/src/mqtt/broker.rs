@@ -9,14 +9,14 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{broadcast, watch, Semaphore};
+use tokio::sync::{broadcast, watch};
 use tokio::task::JoinSet;
 
 use crate::sink::{MeasurementSink, Publication};
 
 use super::config::{BrokerConfig, BrokerError};
 use super::connection;
-use super::shared::{ClientRegistry, Shared};
+use super::shared::{ClientRegistry, Limits, Shared};
 use super::stats::{add, BrokerStats, BrokerStatsHandle};
 
 /// The embedded MQTT 3.1.1 broker, bound to its address and ready to [`run`](Self::run).
@@ -82,11 +82,12 @@ impl EmbeddedBroker {
             listener,
             local_addr,
             shared: Arc::new(Shared {
-                config,
                 sink,
                 publications,
                 counters: Arc::default(),
                 clients: ClientRegistry::default(),
+                limits: Limits::new(&config),
+                config,
             }),
         })
     }
@@ -120,7 +121,6 @@ impl EmbeddedBroker {
         } = self;
         tracing::info!(%local_addr, "mqtt: embedded broker listening");
         let (stop_tx, stop_rx) = watch::channel(false);
-        let permits = Arc::new(Semaphore::new(shared.config.max_connections));
         let mut tasks = JoinSet::new();
         let mut connection_no = 0u64;
         tokio::pin!(shutdown);
@@ -132,7 +132,7 @@ impl EmbeddedBroker {
                         connection_no += 1;
                         add(&shared.counters.connections_accepted, 1);
                         let _ = stream.set_nodelay(true);
-                        spawn_connection(&mut tasks, &permits, stream, peer, connection_no, &shared, &stop_rx);
+                        spawn_connection(&mut tasks, stream, peer, connection_no, &shared, &stop_rx);
                     }
                     Err(error) => {
                         tracing::warn!(%error, "mqtt: accept failed");
@@ -152,11 +152,12 @@ impl EmbeddedBroker {
     }
 }
 
-/// Starts the task of one accepted connection: a session when a connection permit is free,
-/// else a refusal with CONNACK "server unavailable".
+/// Starts the task of one accepted connection — its handshake, then its session — when its IP
+/// address is under [`BrokerConfig::max_connections_per_ip`] and a handshake slot is free
+/// ([`BrokerConfig::max_pending_connects`]); else it is refused (CONNACK "server unavailable")
+/// or, with every handshake slot taken, closed at once.
 fn spawn_connection(
     tasks: &mut JoinSet<()>,
-    permits: &Arc<Semaphore>,
     stream: TcpStream,
     peer: SocketAddr,
     connection_no: u64,
@@ -164,20 +165,27 @@ fn spawn_connection(
     stop: &watch::Receiver<bool>,
 ) {
     let shared = Arc::clone(shared);
-    match Arc::clone(permits).try_acquire_owned() {
-        Ok(permit) => {
-            let stop = stop.clone();
-            tasks.spawn(async move {
-                connection::serve(stream, peer, connection_no, shared, stop).await;
-                drop(permit);
-            });
-        }
-        Err(_) => {
-            tracing::warn!(%peer, limit = shared.config.max_connections, "mqtt: connection limit reached, refusing");
-            add(&shared.counters.connections_refused, 1);
-            tasks.spawn(connection::refuse_unavailable(stream, peer, shared, REFUSAL_TIMEOUT));
-        }
-    }
+    let Some(ip_slot) = shared
+        .limits
+        .per_ip
+        .take(peer.ip(), shared.config.max_connections_per_ip)
+    else {
+        tracing::warn!(%peer, limit = shared.config.max_connections_per_ip, "mqtt: connection limit of this address reached, refusing");
+        add(&shared.counters.connections_refused, 1);
+        tasks.spawn(connection::refuse_unavailable(stream, peer, shared, REFUSAL_TIMEOUT));
+        return;
+    };
+    let Ok(handshake) = Arc::clone(&shared.limits.pending).try_acquire_owned() else {
+        tracing::warn!(%peer, limit = shared.config.max_pending_connects, "mqtt: too many connections waiting for CONNECT, closing");
+        add(&shared.counters.connections_refused, 1);
+        drop(stream);
+        return;
+    };
+    let stop = stop.clone();
+    tasks.spawn(async move {
+        connection::serve(stream, peer, connection_no, shared, stop, handshake).await;
+        drop(ip_slot);
+    });
 }
 
 /// Logs a connection task that panicked (a bug: sessions handle every input as a value).

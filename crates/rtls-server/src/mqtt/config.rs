@@ -21,9 +21,20 @@ pub struct BrokerConfig {
     /// How many payloads of one connection may be in the sink at once. While that many are
     /// pending, the broker reads nothing more from the connection.
     pub max_inflight_per_connection: usize,
-    /// How many client connections may be open at once; one more is refused with CONNACK
+    /// How many client sessions may be open at once; one more is refused with CONNACK
     /// "server unavailable".
     pub max_connections: usize,
+    /// How many of them may be read-only (subscribers with the read token, or none when reads
+    /// are open): the rest stays free for writers, so subscribers cannot lock readers out.
+    /// Above `max_connections` it is `max_connections`.
+    pub max_read_connections: usize,
+    /// How many connections (sessions and handshakes) one IP address may hold; one more is
+    /// refused.
+    pub max_connections_per_ip: usize,
+    /// How many connections may be waiting for their CONNECT at once (each for at most
+    /// [`CONNECT_TIMEOUT`](super::CONNECT_TIMEOUT)); one more is closed at once. Idle sockets
+    /// hold no session slot.
+    pub max_pending_connects: usize,
 }
 
 impl BrokerConfig {
@@ -33,6 +44,12 @@ impl BrokerConfig {
     pub const DEFAULT_MAX_INFLIGHT_PER_CONNECTION: usize = 32;
     /// Default for [`BrokerConfig::max_connections`].
     pub const DEFAULT_MAX_CONNECTIONS: usize = 1024;
+    /// Default for [`BrokerConfig::max_read_connections`]: half the sessions.
+    pub const DEFAULT_MAX_READ_CONNECTIONS: usize = 512;
+    /// Default for [`BrokerConfig::max_connections_per_ip`].
+    pub const DEFAULT_MAX_CONNECTIONS_PER_IP: usize = 128;
+    /// Default for [`BrokerConfig::max_pending_connects`].
+    pub const DEFAULT_MAX_PENDING_CONNECTS: usize = 256;
 
     /// The default configuration with the given tokens: measurements under
     /// [`MEASUREMENT_PREFIX`](super::MEASUREMENT_PREFIX) and the `DEFAULT_*` limits.
@@ -53,6 +70,9 @@ impl BrokerConfig {
             max_packet_bytes: Self::DEFAULT_MAX_PACKET_BYTES,
             max_inflight_per_connection: Self::DEFAULT_MAX_INFLIGHT_PER_CONNECTION,
             max_connections: Self::DEFAULT_MAX_CONNECTIONS,
+            max_read_connections: Self::DEFAULT_MAX_READ_CONNECTIONS,
+            max_connections_per_ip: Self::DEFAULT_MAX_CONNECTIONS_PER_IP,
+            max_pending_connects: Self::DEFAULT_MAX_PENDING_CONNECTS,
         }
     }
 
@@ -78,6 +98,15 @@ impl BrokerConfig {
         }
         if self.max_connections == 0 {
             return invalid("max_connections", "must be at least 1");
+        }
+        if self.max_read_connections == 0 {
+            return invalid("max_read_connections", "must be at least 1");
+        }
+        if self.max_connections_per_ip == 0 {
+            return invalid("max_connections_per_ip", "must be at least 1");
+        }
+        if self.max_pending_connects == 0 {
+            return invalid("max_pending_connects", "must be at least 1");
         }
         Ok(())
     }
@@ -119,7 +148,7 @@ mod tests {
     fn the_default_configuration_is_valid_and_bad_fields_are_named() {
         assert!(BrokerConfig::new(tokens()).validate().is_ok());
         type Spoil = fn(&mut BrokerConfig);
-        let cases: [(Spoil, &str); 5] = [
+        let cases: [(Spoil, &str); 8] = [
             (
                 |c| c.measurement_prefix = "rtls/v1/measurements".into(),
                 "measurement_prefix",
@@ -131,6 +160,9 @@ mod tests {
             (|c| c.max_packet_bytes = 10, "max_packet_bytes"),
             (|c| c.max_inflight_per_connection = 0, "max_inflight_per_connection"),
             (|c| c.max_connections = 0, "max_connections"),
+            (|c| c.max_read_connections = 0, "max_read_connections"),
+            (|c| c.max_connections_per_ip = 0, "max_connections_per_ip"),
+            (|c| c.max_pending_connects = 0, "max_pending_connects"),
         ];
         for (spoil, expected_field) in cases {
             let mut config = BrokerConfig::new(tokens());

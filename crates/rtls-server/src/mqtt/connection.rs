@@ -12,7 +12,7 @@ use rumqttc::mqttbytes::v4::{ConnAck, Connect, ConnectReturnCode, Packet};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use tokio::net::TcpStream;
-use tokio::sync::watch;
+use tokio::sync::{watch, OwnedSemaphorePermit};
 use tokio::time::timeout;
 
 use crate::auth::{Access, Tokens};
@@ -30,6 +30,7 @@ pub(crate) async fn serve(
     connection_no: u64,
     shared: Arc<Shared>,
     mut stop: watch::Receiver<bool>,
+    handshake: OwnedSemaphorePermit,
 ) {
     let (mut reader, mut writer) = stream.into_split();
     let mut inbox = BytesMut::with_capacity(4096);
@@ -74,13 +75,32 @@ pub(crate) async fn serve(
             return;
         }
     };
+    drop(handshake);
+    // a session slot, and for a read-only one a read slot: subscribers cannot fill the broker
+    let limits = &shared.limits;
+    let session_slot = Arc::clone(&limits.sessions).try_acquire_owned().ok();
+    let read_slot = match access {
+        Access::Read => Arc::clone(&limits.read_sessions).try_acquire_owned().ok().map(Some),
+        _ => Some(None),
+    };
+    let (Some(_session_slot), Some(_read_slot)) = (session_slot, read_slot) else {
+        add(&shared.counters.connections_refused, 1);
+        tracing::warn!(%peer, client_id = %connect.client_id, ?access, "mqtt: session limit reached, refusing");
+        send_connack(&mut writer, ConnectReturnCode::ServiceUnavailable).await;
+        return;
+    };
     let client_id = if connect.client_id.is_empty() {
         format!("rtls-anonymous-{connection_no}")
     } else {
         connect.client_id
     };
     let user = connect.login.map(|login| login.username).unwrap_or_default();
-    let taken_over = shared.clients.register(&client_id, connection_no);
+    let Some(taken_over) = shared.clients.register(&client_id, connection_no, access) else {
+        add(&shared.counters.connections_refused, 1);
+        tracing::warn!(%peer, %client_id, ?access, "mqtt: refusing CONNECT: the client id is held by a session of another access");
+        send_connack(&mut writer, ConnectReturnCode::BadClientId).await;
+        return;
+    };
     let _open = OpenConnection::new(&shared);
     tracing::info!(%peer, %client_id, %user, ?access, keep_alive_s = connect.keep_alive, "mqtt: client connected");
 
@@ -229,6 +249,11 @@ mod tests {
             read: None,
         };
         assert_eq!(admit(&connect("r1", true, None), &open_reads), Ok(Access::Read));
+        // … but a wrong password is refused, not admitted as a reader
+        assert_eq!(
+            admit(&connect("r1", true, Some("guess")), &open_reads),
+            Err(ConnectReturnCode::BadUserNamePassword)
+        );
     }
 
     #[test]

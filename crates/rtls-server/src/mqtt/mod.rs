@@ -49,7 +49,9 @@
 //! the connection. This is safe for QoS 1 ingest because the client — not the broker — holds
 //! every PUBLISH it has not seen acknowledged and sends it again on its next connection
 //! (MQTT 3.1.1 §4.4), and the server acknowledges only stored records. A second connection with
-//! the same client id takes over: the first one is closed (MQTT 3.1.1 §3.1.4). Last-will
+//! the same client id and the same access takes over: the first one is closed (MQTT 3.1.1
+//! §3.1.4); one with another access (a subscriber reusing a reader's id) is refused with
+//! CONNACK "identifier rejected". Last-will
 //! messages are accepted and ignored: the broker relays no client-to-client messages.
 //!
 //! # Authentication
@@ -58,7 +60,8 @@
 //! free (readers may put their name there, it is only logged). The write token allows
 //! publishing measurements and subscribing; the read token (or no token, when no read token is
 //! configured) allows subscribing only, and a PUBLISH on such a connection closes it. A wrong
-//! password is refused with CONNACK "bad user name or password", a missing one with "not
+//! password is refused with CONNACK "bad user name or password" (also when reads need no
+//! token: a wrong credential is never admitted as a reader), a missing one with "not
 //! authorized". Use TLS in front of the broker (a terminating proxy) where the network is not
 //! trusted: MQTT sends the password in clear.
 //!
@@ -66,8 +69,11 @@
 //!
 //! [`BrokerConfig`] bounds the size of one packet, the payloads of one connection being stored
 //! at once (while that many are pending the broker reads no further packets from the
-//! connection: TCP back-pressure throttles the reader), and the number of connections (the one
-//! over the limit gets CONNACK "server unavailable"). A client must send its CONNECT within
+//! connection: TCP back-pressure throttles the reader), the connections of one IP address,
+//! the handshakes waiting for CONNECT (idle sockets take no session slot; beyond the limit a
+//! new socket is closed at once), and the sessions — of which read-only ones may take only
+//! [`BrokerConfig::max_read_connections`], so that subscribers cannot lock readers out (a
+//! session over a limit gets CONNACK "server unavailable"). A client must send its CONNECT within
 //! [`CONNECT_TIMEOUT`] of opening the connection and then a packet at least every
 //! 1.5 × its keep-alive interval (keep-alive 0 disables this). A malformed or oversize packet,
 //! or one the protocol forbids at that point, closes that connection and no other.

@@ -37,6 +37,10 @@ const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
 /// How long a closing connection tries to write what is left in its output buffer.
 pub(crate) const CLOSE_WRITE_TIMEOUT: Duration = Duration::from_secs(1);
 
+/// The longest reader name a measurement topic (`rtls/v1/measurements/{reader}`) may carry, in
+/// bytes.
+pub(crate) const MAX_READER_NAME_BYTES: usize = 256;
+
 /// A payload in the sink: what to do when its future resolves.
 type PendingIngest = Pin<Box<dyn Future<Output = IngestDone> + Send>>;
 
@@ -276,6 +280,13 @@ impl Session {
             )));
         }
         let prefix = &self.shared.config.measurement_prefix;
+        // MQTT 3.1.1 §1.5.3: no U+0000 in a topic name; ours name a reader, 256 bytes at most
+        if topic.contains('\0') || topic.len() > prefix.len() + MAX_READER_NAME_BYTES {
+            return Some(self.violation(format!(
+                "PUBLISH on {:?}…: a topic must hold no NUL and name a reader in at most {MAX_READER_NAME_BYTES} bytes",
+                topic.chars().take(64).collect::<String>()
+            )));
+        }
         if !valid_topic(topic) || !topic.starts_with(prefix.as_str()) || topic.len() == prefix.len() {
             return Some(self.violation(format!(
                 "PUBLISH on {topic:?}: clients may publish only to {prefix}{{reader}}"

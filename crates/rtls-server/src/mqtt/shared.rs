@@ -2,39 +2,113 @@
 //! publication channel, the counters and the registry of client ids.
 
 use std::collections::HashMap;
+use std::net::IpAddr;
 use std::sync::{Arc, Mutex, PoisonError};
 
-use tokio::sync::{broadcast, Notify};
+use tokio::sync::{broadcast, Notify, Semaphore};
 
+use crate::auth::Access;
 use crate::sink::{MeasurementSink, Publication};
 
 use super::config::BrokerConfig;
 use super::stats::Counters;
 
 /// The sessions by client id, so that a new CONNECT with an id in use closes the older session
-/// (MQTT 3.1.1 §3.1.4).
+/// (MQTT 3.1.1 §3.1.4) — when it comes with the same access: a subscriber cannot disconnect a
+/// reader by reusing its client id.
 #[derive(Debug, Default)]
 pub(crate) struct ClientRegistry {
-    sessions: Mutex<HashMap<String, (u64, Arc<Notify>)>>,
+    sessions: Mutex<HashMap<String, Registered>>,
 }
 
+/// A registered session: its connection number, its access, and how to tell it to close.
+type Registered = (u64, Access, Arc<Notify>);
+
 impl ClientRegistry {
-    /// Registers session `connection_no` as `client_id`, tells the session it replaces (if any)
-    /// to close, and returns the signal by which this session will be told.
-    pub(crate) fn register(&self, client_id: &str, connection_no: u64) -> Arc<Notify> {
-        let taken_over = Arc::new(Notify::new());
+    /// Registers session `connection_no` with `access` as `client_id`, tells the session it
+    /// replaces (if any) to close, and returns the signal by which this session will be told;
+    /// `None` (nothing registered) when the id is held by a session of another access.
+    pub(crate) fn register(&self, client_id: &str, connection_no: u64, access: Access) -> Option<Arc<Notify>> {
         let mut sessions = self.sessions.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some((_, previous)) = sessions.insert(client_id.to_owned(), (connection_no, Arc::clone(&taken_over))) {
+        if sessions.get(client_id).is_some_and(|(_, held, _)| *held != access) {
+            return None;
+        }
+        let taken_over = Arc::new(Notify::new());
+        if let Some((_, _, previous)) =
+            sessions.insert(client_id.to_owned(), (connection_no, access, Arc::clone(&taken_over)))
+        {
             previous.notify_one();
         }
-        taken_over
+        Some(taken_over)
     }
 
     /// Removes `client_id` unless a newer session registered it since.
     pub(crate) fn unregister(&self, client_id: &str, connection_no: u64) {
         let mut sessions = self.sessions.lock().unwrap_or_else(PoisonError::into_inner);
-        if sessions.get(client_id).is_some_and(|(no, _)| *no == connection_no) {
+        if sessions.get(client_id).is_some_and(|(no, _, _)| *no == connection_no) {
             sessions.remove(client_id);
+        }
+    }
+}
+
+/// Connections per IP address ([`BrokerConfig::max_connections_per_ip`]).
+#[derive(Debug, Default)]
+pub(crate) struct IpSlots {
+    held: Mutex<HashMap<IpAddr, usize>>,
+}
+
+impl IpSlots {
+    /// One more connection of `ip`, held until the returned slot drops; `None` when `ip`
+    /// already holds `limit`.
+    pub(crate) fn take(self: &Arc<Self>, ip: IpAddr, limit: usize) -> Option<IpSlot> {
+        let mut held = self.held.lock().unwrap_or_else(PoisonError::into_inner);
+        let count = held.entry(ip).or_insert(0);
+        if *count >= limit {
+            return None;
+        }
+        *count += 1;
+        Some(IpSlot {
+            slots: Arc::clone(self),
+            ip,
+        })
+    }
+}
+
+/// A connection counted against its IP address.
+#[derive(Debug)]
+pub(crate) struct IpSlot {
+    slots: Arc<IpSlots>,
+    ip: IpAddr,
+}
+
+impl Drop for IpSlot {
+    fn drop(&mut self) {
+        let mut held = self.slots.held.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(count) = held.get_mut(&self.ip) {
+            *count -= 1;
+            if *count == 0 {
+                held.remove(&self.ip);
+            }
+        }
+    }
+}
+
+/// The broker's connection limits as semaphores: handshakes waiting for CONNECT, sessions,
+/// read-only sessions; and the connections per IP address.
+pub(crate) struct Limits {
+    pub(crate) pending: Arc<Semaphore>,
+    pub(crate) sessions: Arc<Semaphore>,
+    pub(crate) read_sessions: Arc<Semaphore>,
+    pub(crate) per_ip: Arc<IpSlots>,
+}
+
+impl Limits {
+    pub(crate) fn new(config: &BrokerConfig) -> Self {
+        Self {
+            pending: Arc::new(Semaphore::new(config.max_pending_connects)),
+            sessions: Arc::new(Semaphore::new(config.max_connections)),
+            read_sessions: Arc::new(Semaphore::new(config.max_read_connections.min(config.max_connections))),
+            per_ip: Arc::default(),
         }
     }
 }
@@ -46,6 +120,7 @@ pub(crate) struct Shared {
     pub(crate) publications: broadcast::Sender<Publication>,
     pub(crate) counters: Arc<Counters>,
     pub(crate) clients: ClientRegistry,
+    pub(crate) limits: Limits,
 }
 
 #[cfg(test)]
@@ -57,9 +132,11 @@ mod tests {
     #[test]
     fn a_second_session_with_the_same_client_id_takes_over() {
         let registry = ClientRegistry::default();
-        let first = registry.register("reader-1", 1);
-        let other = registry.register("reader-2", 2);
-        let second = registry.register("reader-1", 3);
+        let first = registry.register("reader-1", 1, Access::Write).expect("free id");
+        let other = registry.register("reader-2", 2, Access::Write).expect("free id");
+        // a subscriber cannot take a writer's id
+        assert!(registry.register("reader-1", 5, Access::Read).is_none());
+        let second = registry.register("reader-1", 3, Access::Write).expect("same access");
         // The first session was told; a notified() future now completes at once.
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_time()
@@ -78,12 +155,25 @@ mod tests {
         });
         // The first session's unregister must not remove the second one's entry.
         registry.unregister("reader-1", 1);
-        let third = registry.register("reader-1", 4);
+        let third = registry.register("reader-1", 4, Access::Write);
         runtime.block_on(async {
             tokio::time::timeout(Duration::from_millis(100), second.notified())
                 .await
                 .expect("the second session is still registered and is told");
         });
         drop(third);
+    }
+
+    #[test]
+    fn an_ip_holds_at_most_its_limit_and_a_dropped_slot_is_free_again() {
+        let slots = Arc::new(IpSlots::default());
+        let ip: IpAddr = "192.0.2.7".parse().unwrap();
+        let other: IpAddr = "192.0.2.8".parse().unwrap();
+        let first = slots.take(ip, 2).expect("1 of 2");
+        let _second = slots.take(ip, 2).expect("2 of 2");
+        assert!(slots.take(ip, 2).is_none(), "a third is refused");
+        assert!(slots.take(other, 2).is_some(), "another address is not");
+        drop(first);
+        assert!(slots.take(ip, 2).is_some(), "a freed slot is taken again");
     }
 }

@@ -7,11 +7,14 @@ use std::net::SocketAddr;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
-use bytes::Bytes;
+use bytes::{Bytes, BytesMut};
 use rtls_server::auth::Tokens;
 use rtls_server::mqtt::{BrokerConfig, BrokerStatsHandle, EmbeddedBroker};
 use rtls_server::sink::{IngestError, IngestFuture, MeasurementSink, Publication};
+use rumqttc::mqttbytes::v4::Connect;
 use rumqttc::{AsyncClient, ConnectionError, Event, MqttOptions, Packet};
+use tokio::io::AsyncReadExt;
+use tokio::net::TcpStream;
 use tokio::sync::{broadcast, mpsc, oneshot};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
@@ -358,3 +361,32 @@ impl Drop for TestBroker {
         }
     }
 }
+
+/// Reads from a raw connection until the server closes it; panics if it stays open `within`.
+/// Returns what was read before the close.
+pub async fn read_until_closed(stream: &mut TcpStream, within: Duration) -> Vec<u8> {
+    let mut received = Vec::new();
+    let deadline = Instant::now() + within;
+    let mut chunk = [0u8; 256];
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        match tokio::time::timeout(left, stream.read(&mut chunk)).await {
+            Ok(Ok(0) | Err(_)) => return received,
+            Ok(Ok(n)) => received.extend_from_slice(&chunk[..n]),
+            Err(_) => panic!("the server kept the connection open for {within:?} (read {received:?})"),
+        }
+    }
+}
+
+/// The bytes of a CONNECT with the write token and the given keep-alive.
+pub fn raw_connect(client_id: &str, keep_alive_s: u16) -> BytesMut {
+    let mut connect = Connect::new(client_id);
+    connect.keep_alive = keep_alive_s;
+    connect.set_login("raw", WRITE_TOKEN);
+    let mut bytes = BytesMut::new();
+    connect.write(&mut bytes).expect("encodable CONNECT");
+    bytes
+}
+
+/// CONNACK "accepted, no session present".
+pub const CONNACK_ACCEPTED: [u8; 4] = [0x20, 0x02, 0x00, 0x00];
