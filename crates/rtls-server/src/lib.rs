@@ -30,6 +30,7 @@ pub mod convert;
 mod error;
 pub mod feed;
 pub mod http;
+pub mod limits;
 pub mod metrics;
 pub mod mqtt;
 pub mod omlox;

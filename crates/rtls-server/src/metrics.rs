@@ -58,6 +58,8 @@ pub struct Metrics {
     pub websocket_dropped: Counter,
     /// HTTP requests, by route and status class.
     pub http_requests: Family<Labels, Counter>,
+    /// HTTP connections closed at accept by a limit (`reason`: `per_ip`, `total`).
+    pub http_connections_refused: Family<Labels, Counter>,
     /// Webhook deliveries, by `webhook` and `outcome` (`delivered`, `retried` — one per retry,
     /// `failed` — given up or refused, `dropped` — queue full, missed hub messages, or left at
     /// shutdown).
@@ -103,6 +105,7 @@ impl Metrics {
             websocket_clients: Gauge::default(),
             websocket_dropped: Counter::default(),
             http_requests: Family::default(),
+            http_connections_refused: Family::default(),
             webhook_deliveries: Family::default(),
             store_compacted: Family::default(),
             store_compaction_failures: Counter::default(),
@@ -203,6 +206,11 @@ impl Metrics {
             "http_requests",
             "HTTP requests by route and status",
             m.http_requests.clone(),
+        );
+        registry.register(
+            "http_connections_refused",
+            "HTTP connections closed at accept by a limit (reason: per_ip, total)",
+            m.http_connections_refused.clone(),
         );
         registry.register(
             "webhook_deliveries",

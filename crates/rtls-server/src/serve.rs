@@ -12,6 +12,7 @@ use tokio::sync::watch;
 
 use crate::auth::Tokens;
 use crate::config::{MqttMode, ServerConfig};
+use crate::http::listener::{GuardedListener, HttpLimits};
 use crate::http::QueryStore;
 use crate::http::{router, AppState};
 use crate::metrics::Metrics;
@@ -269,6 +270,15 @@ pub async fn serve(
 
     let app = with_cors(router(state), &config.server.cors_origins);
     let http_stopped = stopped(stop_rx.clone());
+    let listener = GuardedListener::new(
+        listener,
+        HttpLimits {
+            max_connections: config.server.max_connections,
+            max_connections_per_ip: config.server.max_connections_per_ip,
+            idle: Duration::from_secs_f64(config.server.idle_timeout_s),
+        },
+        Arc::clone(&metrics),
+    );
     let http = tokio::spawn(async move {
         if let Err(e) = axum::serve(listener, app).with_graceful_shutdown(http_stopped).await {
             tracing::error!(error = %e, "HTTP server failed");

@@ -11,6 +11,9 @@
 //! log_format = "text"            # or "json"
 //! default_accuracy_m = 1.0       # omlox locations without `accuracy`
 //! sqlite_sync = "full"           # or "normal": safe against a crash, not a power loss
+//! max_connections = 4096         # open HTTP connections at most (WebSockets included)
+//! max_connections_per_ip = 256   # of one IP address at most
+//! idle_timeout_s = 120.0         # a connection moving no byte this long is closed
 //!
 //! [auth]
 //! write_token = "…"              # or the environment variable RTLS_WRITE_TOKEN
@@ -145,6 +148,12 @@ pub struct ServerSection {
     /// `["https://ops.example.com"]`; `["*"]` for any origin; empty (the default): none — the
     /// dashboard served by this server needs no CORS.
     pub cors_origins: Vec<String>,
+    /// Open HTTP connections at most (WebSockets included); more are closed at accept.
+    pub max_connections: usize,
+    /// Open HTTP connections of one IP address at most.
+    pub max_connections_per_ip: usize,
+    /// An HTTP connection that moves no byte for this long is closed (s, > 0).
+    pub idle_timeout_s: f64,
 }
 
 impl Default for ServerSection {
@@ -160,6 +169,9 @@ impl Default for ServerSection {
             default_accuracy_m: 1.0,
             sqlite_sync: "full".into(),
             cors_origins: Vec::new(),
+            max_connections: 4096,
+            max_connections_per_ip: 256,
+            idle_timeout_s: 120.0,
         }
     }
 }
@@ -302,6 +314,20 @@ impl ServerConfig {
             return Err(invalid(
                 "server.default_accuracy_m",
                 format!("must be > 0 m, got {}", s.default_accuracy_m),
+            ));
+        }
+        for (field, value) in [
+            ("server.max_connections", s.max_connections),
+            ("server.max_connections_per_ip", s.max_connections_per_ip),
+        ] {
+            if value == 0 {
+                return Err(invalid(field, "must be at least 1".into()));
+            }
+        }
+        if !(s.idle_timeout_s.is_finite() && s.idle_timeout_s > 0.0) {
+            return Err(invalid(
+                "server.idle_timeout_s",
+                format!("must be a finite number > 0 s, got {}", s.idle_timeout_s),
             ));
         }
         for (k, origin) in s.cors_origins.iter().enumerate() {

@@ -11,6 +11,7 @@ mod api;
 mod dashboard;
 pub mod fences;
 mod hub;
+pub mod listener;
 mod muster;
 mod ops;
 pub mod plans;
@@ -348,8 +349,31 @@ pub fn router(state: AppState) -> Router {
             state.clone(),
             authorize_writes_first,
         ))
+        .layer(axum::middleware::from_fn(limit_headers))
         .layer(axum::middleware::from_fn_with_state(state.clone(), count_requests))
         .with_state(state)
+}
+
+/// The request line's target and headers together, at most (bytes): a request over it is
+/// answered 431 before any handler runs.
+pub const MAX_HEADER_BYTES: usize = 16 * 1024;
+
+/// Refuses a request whose target and headers exceed [`MAX_HEADER_BYTES`] (431).
+async fn limit_headers(request: Request, next: Next) -> Response {
+    let header_bytes: usize = request
+        .headers()
+        .iter()
+        .map(|(name, value)| name.as_str().len() + value.len() + 4)
+        .sum::<usize>()
+        + request.uri().to_string().len();
+    if header_bytes > MAX_HEADER_BYTES {
+        return ApiError::new(
+            StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
+            format!("the request's target and headers take {header_bytes} bytes; at most {MAX_HEADER_BYTES}"),
+        )
+        .into_response();
+    }
+    next.run(request).await
 }
 
 /// Every request that changes something (any method but GET, HEAD and OPTIONS) needs the

@@ -57,6 +57,9 @@ pub(super) async fn socket(
     Ok(upgrade.on_upgrade(move |socket| serve(socket, state)))
 }
 
+/// How often the server pings a WebSocket client.
+const PING_PERIOD: std::time::Duration = std::time::Duration::from_secs(30);
+
 /// One subscription.
 struct Subscription {
     topic: Topic,
@@ -82,8 +85,16 @@ async fn serve(mut socket: WebSocket, state: AppState) {
         .collect();
     let mut subscriptions: HashMap<u64, Subscription> = HashMap::new();
     let mut next_id = 1u64;
+    // a ping every PING_PERIOD keeps a quiet subscription open through the listener's idle
+    // timeout, and finds dead peers
+    let mut ping = tokio::time::interval_at(tokio::time::Instant::now() + PING_PERIOD, PING_PERIOD);
     loop {
         tokio::select! {
+            _ = ping.tick() => {
+                if socket.send(Message::Ping(axum::body::Bytes::new())).await.is_err() {
+                    break;
+                }
+            }
             incoming = socket.recv() => {
                 let Some(Ok(message)) = incoming else { break };
                 let text = match message {

@@ -2,12 +2,12 @@
 //! publication channel, the counters and the registry of client ids.
 
 use std::collections::HashMap;
-use std::net::IpAddr;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use tokio::sync::{broadcast, Notify, Semaphore};
 
 use crate::auth::Access;
+use crate::limits::IpSlots;
 use crate::sink::{MeasurementSink, Publication};
 
 use super::config::BrokerConfig;
@@ -47,48 +47,6 @@ impl ClientRegistry {
         let mut sessions = self.sessions.lock().unwrap_or_else(PoisonError::into_inner);
         if sessions.get(client_id).is_some_and(|(no, _, _)| *no == connection_no) {
             sessions.remove(client_id);
-        }
-    }
-}
-
-/// Connections per IP address ([`BrokerConfig::max_connections_per_ip`]).
-#[derive(Debug, Default)]
-pub(crate) struct IpSlots {
-    held: Mutex<HashMap<IpAddr, usize>>,
-}
-
-impl IpSlots {
-    /// One more connection of `ip`, held until the returned slot drops; `None` when `ip`
-    /// already holds `limit`.
-    pub(crate) fn take(self: &Arc<Self>, ip: IpAddr, limit: usize) -> Option<IpSlot> {
-        let mut held = self.held.lock().unwrap_or_else(PoisonError::into_inner);
-        let count = held.entry(ip).or_insert(0);
-        if *count >= limit {
-            return None;
-        }
-        *count += 1;
-        Some(IpSlot {
-            slots: Arc::clone(self),
-            ip,
-        })
-    }
-}
-
-/// A connection counted against its IP address.
-#[derive(Debug)]
-pub(crate) struct IpSlot {
-    slots: Arc<IpSlots>,
-    ip: IpAddr,
-}
-
-impl Drop for IpSlot {
-    fn drop(&mut self) {
-        let mut held = self.slots.held.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(count) = held.get_mut(&self.ip) {
-            *count -= 1;
-            if *count == 0 {
-                held.remove(&self.ip);
-            }
         }
     }
 }
@@ -162,18 +120,5 @@ mod tests {
                 .expect("the second session is still registered and is told");
         });
         drop(third);
-    }
-
-    #[test]
-    fn an_ip_holds_at_most_its_limit_and_a_dropped_slot_is_free_again() {
-        let slots = Arc::new(IpSlots::default());
-        let ip: IpAddr = "192.0.2.7".parse().unwrap();
-        let other: IpAddr = "192.0.2.8".parse().unwrap();
-        let first = slots.take(ip, 2).expect("1 of 2");
-        let _second = slots.take(ip, 2).expect("2 of 2");
-        assert!(slots.take(ip, 2).is_none(), "a third is refused");
-        assert!(slots.take(other, 2).is_some(), "another address is not");
-        drop(first);
-        assert!(slots.take(ip, 2).is_some(), "a freed slot is taken again");
     }
 }
