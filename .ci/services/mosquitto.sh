@@ -2,7 +2,8 @@
 # Starts a local mosquitto broker for the external-broker tests of rtls-server
 # (crates/rtls-server/tests/mqtt_mosquitto.rs).
 #
-# - installs Debian's mosquitto when it is missing (needs root, as on the project's machines);
+# - installs Debian's mosquitto when it is missing (needs root, as on the project's machines),
+#   and mosquitto-clients and curl for the TLS test;
 # - runs it as a background daemon (not through systemd) with its own configuration in a
 #   temporary directory: one listener on 127.0.0.1:18830, anonymous clients allowed, no
 #   persistence;
@@ -16,6 +17,16 @@ set -euo pipefail
 host=127.0.0.1
 port=18830
 url="mqtt://${host}:${port}"
+
+# the TLS test of `rtls serve` (crates/rtls-cli/tests/serve_tls.rs) drives real clients
+if ! command -v mosquitto_pub >/dev/null || ! command -v curl >/dev/null; then
+    echo "mosquitto.sh: installing mosquitto-clients and curl (apt-get)" >&2
+    export DEBIAN_FRONTEND=noninteractive
+    if ! apt-get install -y --no-install-recommends mosquitto-clients curl >&2; then
+        apt-get update >&2
+        apt-get install -y --no-install-recommends mosquitto-clients curl >&2
+    fi
+fi
 
 port_accepts() {
     # bash's /dev/tcp: succeeds when something accepts a TCP connection on host:port.

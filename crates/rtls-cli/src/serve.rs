@@ -52,6 +52,16 @@ pub struct ServeArgs {
     /// Records' times are not the wall clock (replays): only records move the trackers' time.
     #[arg(long)]
     data_clock: bool,
+    /// TLS certificate chain (PEM), with `--tls-key`: HTTPS / WSS and MQTTS.
+    #[arg(long, requires = "tls_key")]
+    tls_cert: Option<PathBuf>,
+    /// TLS private key (PEM), with `--tls-cert`.
+    #[arg(long, requires = "tls_cert")]
+    tls_key: Option<PathBuf>,
+    /// Serve TLS with a self-signed certificate for localhost (generated at `--tls-cert` /
+    /// `--tls-key`, or rtls-self-signed.crt / .key here, unless there already).
+    #[arg(long)]
+    tls_self_signed: bool,
     /// `text` or `json` logs (stderr).
     #[arg(long)]
     log_format: Option<String>,
@@ -149,6 +159,7 @@ fn announce(bound: Bound) {
     let line = serde_json::json!({
         "http": bound.http.to_string(),
         "mqtt": bound.mqtt.map(|a| a.to_string()),
+        "tls": bound.tls,
     });
     println!("{line}");
 }
@@ -181,6 +192,13 @@ fn apply_overrides(config: &mut ServerConfig, args: &ServeArgs) {
     }
     if args.data_clock {
         config.pipeline.live_clock = false;
+    }
+    if let (Some(cert), Some(key)) = (&args.tls_cert, &args.tls_key) {
+        config.tls.cert = Some(cert.clone());
+        config.tls.key = Some(key.clone());
+    }
+    if args.tls_self_signed {
+        config.tls.self_signed = true;
     }
     if let Some(format) = &args.log_format {
         config.server.log_format.clone_from(format);

@@ -61,7 +61,7 @@ pub struct FeedIdentity {
 }
 
 /// Starts the feed: every 100 ms, `source`'s records up to now are published over the
-/// embedded broker (when `bound.mqtt` is set) or pushed into `pipeline`'s sink. Stops when
+/// embedded broker (when `bound.mqtt` is set, without TLS) or pushed into `pipeline`'s sink. Stops when
 /// `stop` turns true.
 pub fn start(
     identity: FeedIdentity,
@@ -77,8 +77,10 @@ pub fn start(
             topic,
             write_token,
         } = identity;
+        // over MQTTS the feed hands its records to the sink (same path after the transport)
         let mut publisher = bound
             .mqtt
+            .filter(|_| !bound.tls)
             .map(|address| connect(address, &client_id, &name, &write_token));
         let mut tick = tokio::time::interval(PERIOD);
         tracing::info!(

@@ -38,6 +38,7 @@ pub mod pipeline;
 pub mod serve;
 pub mod sink;
 pub mod store;
+pub mod tls;
 pub mod webhooks;
 
 pub use error::{Result, ServerError};

@@ -20,6 +20,7 @@ use crate::mqtt::{BrokerConfig, EmbeddedBroker, ExternalBroker};
 use crate::pipeline::{unix_ms, Pipeline, PipelineConfig, TimeWindow};
 use crate::sink::MeasurementSink;
 use crate::store::{self, SqliteSync};
+use crate::tls::{self, CertificateStore, TlsFiles};
 use crate::webhooks::{Dispatcher, Webhook};
 
 /// How often retention runs.
@@ -47,6 +48,9 @@ pub enum ServeError {
         /// The OS error.
         reason: String,
     },
+    /// The TLS certificate or key cannot be used.
+    #[error(transparent)]
+    Tls(#[from] tls::TlsError),
     /// The pipeline did not drain within [`DRAIN_DEADLINE`] at shutdown (a stalled partition).
     #[error(
         "the pipeline did not drain within {0:?} (a stalled partition?); stopped anyway: every \
@@ -66,6 +70,8 @@ pub struct Bound {
     pub http: SocketAddr,
     /// The embedded MQTT broker, if it runs.
     pub mqtt: Option<SocketAddr>,
+    /// Whether both speak TLS (HTTPS / WSS, MQTTS).
+    pub tls: bool,
 }
 
 /// A site and what to do with it.
@@ -197,6 +203,7 @@ pub async fn serve(
         let _ = rx.wait_for(|stop| *stop).await;
     };
 
+    let certificates = tls_certificates(&config)?;
     let listener = tokio::net::TcpListener::bind(config.server.http)
         .await
         .map_err(|e| listen_error("HTTP", config.server.http, &e))?;
@@ -206,6 +213,13 @@ pub async fn serve(
 
     let sink: Arc<dyn MeasurementSink> = Arc::new(pipeline.clone());
     let mut tasks = Vec::new();
+    if let Some((store, files)) = &certificates {
+        tasks.push(tokio::spawn(tls::watch_files(
+            Arc::clone(store),
+            files.clone(),
+            stop_rx.clone(),
+        )));
+    }
     let mut mqtt_addr = None;
     match config.mqtt.mode {
         MqttMode::Embedded => {
@@ -229,6 +243,10 @@ pub async fn serve(
                 reason: e.to_string(),
             })?;
             mqtt_addr = Some(broker.local_addr());
+            let broker = match &certificates {
+                Some((store, _)) => broker.with_tls(store.acceptor(&[])?),
+                None => broker,
+            };
             tasks.push(tokio::spawn(broker.run(stopped(stop_rx.clone()))));
         }
         MqttMode::External => {
@@ -261,6 +279,7 @@ pub async fn serve(
     let bound = Bound {
         http: http_addr,
         mqtt: mqtt_addr,
+        tls: certificates.is_some(),
     };
     tracing::info!(http = %http_addr, mqtt = ?mqtt_addr, "listening");
     on_bound(bound);
@@ -270,6 +289,10 @@ pub async fn serve(
 
     let app = with_cors(router(state), &config.server.cors_origins);
     let http_stopped = stopped(stop_rx.clone());
+    let https = match &certificates {
+        Some((store, _)) => Some(store.acceptor(&[b"http/1.1"])?),
+        None => None,
+    };
     let listener = GuardedListener::new(
         listener,
         HttpLimits {
@@ -277,6 +300,7 @@ pub async fn serve(
             max_connections_per_ip: config.server.max_connections_per_ip,
             idle: Duration::from_secs_f64(config.server.idle_timeout_s),
         },
+        https,
         Arc::clone(&metrics),
     );
     let http = tokio::spawn(async move {
@@ -310,6 +334,33 @@ pub async fn serve(
     }
     tracing::info!("stopped");
     Ok(())
+}
+
+/// The TLS certificate store and its files when `[tls]` is on: a self-signed pair generated
+/// first if asked for and absent.
+fn tls_certificates(config: &ServerConfig) -> Result<Option<(Arc<CertificateStore>, TlsFiles)>, ServeError> {
+    let Some((cert, key)) = config.tls.files() else {
+        return Ok(None);
+    };
+    if config.tls.self_signed {
+        let mut names = vec!["localhost".to_string(), "127.0.0.1".to_string(), "::1".to_string()];
+        for address in [config.server.http.ip(), config.mqtt.listen.ip()] {
+            if !address.is_unspecified() && !names.contains(&address.to_string()) {
+                names.push(address.to_string());
+            }
+        }
+        if tls::ensure_self_signed(&cert, &key, &names)? {
+            tracing::info!(cert = %cert.display(), key = %key.display(), ?names, "tls: generated a self-signed certificate (clients trust it by this file)");
+        }
+    }
+    let store = CertificateStore::new(tls::load(&cert, &key)?);
+    tracing::info!(cert = %cert.display(), "tls: HTTPS, WSS and MQTTS on");
+    let files = TlsFiles {
+        cert,
+        key,
+        reload_every: Duration::from_secs_f64(config.tls.reload_s),
+    };
+    Ok(Some((store, files)))
 }
 
 fn listen_error(what: &'static str, address: SocketAddr, error: &std::io::Error) -> ServeError {

@@ -22,7 +22,7 @@ async fn serve(limits: HttpLimits) -> (SocketAddr, Arc<Metrics>) {
     let listener = TcpListener::bind("127.0.0.1:0").await.expect("bind");
     let addr = listener.local_addr().expect("addr");
     let metrics = Arc::new(Metrics::new());
-    let guarded = GuardedListener::new(listener, limits, Arc::clone(&metrics));
+    let guarded = GuardedListener::new(listener, limits, None, Arc::clone(&metrics));
     let app = Router::new().route("/", get(|| async { "ok" }));
     tokio::spawn(async move {
         let _ = axum::serve(guarded, app).await;

@@ -35,6 +35,12 @@
 //! max_record_age_s = 86400.0     # with live_clock: older records are refused at ingest
 //! max_record_lead_s = 60.0       # with live_clock: records this far ahead of the clock are refused
 //!
+//! [tls]                          # HTTPS / WSS and MQTTS (plain HTTP and MQTT without it)
+//! cert = "tls/server.crt"        # PEM chain, with key
+//! key = "tls/server.key"         # PEM private key
+//! self_signed = false            # true: generate one for localhost (a demo) if the files are absent
+//! reload_s = 10.0                # a renewed certificate is picked up within this
+//!
 //! [[webhooks]]                   # zero or more: alarms POSTed as JSON (docs/SERVER.md, Webhooks)
 //! url = "https://ops.example.com/rtls/alarms"   # http:// or https://
 //! name = "ops"                   # the `webhook` label of metrics and logs; default: the URL's host[:port]
@@ -114,6 +120,52 @@ pub struct ServerConfig {
     pub pipeline: PipelineSection,
     /// `[[webhooks]]`: where alarms are POSTed ([`crate::webhooks`]).
     pub webhooks: Vec<WebhookSection>,
+    /// `[tls]`: HTTPS / WSS and MQTTS.
+    pub tls: TlsSection,
+}
+
+/// `[tls]`: with a certificate, the HTTP listener serves HTTPS (and WSS) only and the embedded
+/// MQTT broker MQTTS only.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TlsSection {
+    /// The certificate chain (PEM); with `key`.
+    pub cert: Option<PathBuf>,
+    /// The private key (PEM); with `cert`.
+    pub key: Option<PathBuf>,
+    /// Generate a self-signed certificate for localhost and the listen addresses (a demo, a
+    /// test bench) at `cert` / `key`, or `rtls-self-signed.crt` / `.key` in the working
+    /// directory; an existing pair is reused.
+    pub self_signed: bool,
+    /// How often the files are checked for a change (s, > 0): a renewed certificate is served
+    /// from the next connection on, without a restart.
+    pub reload_s: f64,
+}
+
+impl Default for TlsSection {
+    fn default() -> Self {
+        Self {
+            cert: None,
+            key: None,
+            self_signed: false,
+            reload_s: 10.0,
+        }
+    }
+}
+
+impl TlsSection {
+    /// The certificate and key files TLS uses, or `None` when TLS is off.
+    #[must_use]
+    pub fn files(&self) -> Option<(PathBuf, PathBuf)> {
+        match (&self.cert, &self.key) {
+            (Some(cert), Some(key)) => Some((cert.clone(), key.clone())),
+            _ if self.self_signed => Some((
+                PathBuf::from("rtls-self-signed.crt"),
+                PathBuf::from("rtls-self-signed.key"),
+            )),
+            _ => None,
+        }
+    }
 }
 
 /// `[server]`.
@@ -377,6 +429,16 @@ impl ServerConfig {
             if token.as_deref().is_some_and(|t| t.len() < 8) {
                 return Err(invalid(field, "must be at least 8 characters".into()));
             }
+        }
+        let t = &self.tls;
+        if t.cert.is_some() != t.key.is_some() {
+            return Err(invalid("tls.cert", "tls.cert and tls.key go together".into()));
+        }
+        if !(t.reload_s.is_finite() && t.reload_s > 0.0) {
+            return Err(invalid(
+                "tls.reload_s",
+                format!("must be a finite number > 0 s, got {}", t.reload_s),
+            ));
         }
         validate_webhooks(&self.webhooks)?;
         Ok(())

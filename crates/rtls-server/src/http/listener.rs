@@ -1,11 +1,13 @@
-//! The HTTP listener: bounded connections — in all and per IP address — and an idle timeout,
-//! so that no client can exhaust the server by holding sockets open.
+//! The HTTP listener: bounded connections — in all and per IP address — an idle timeout, so
+//! that no client can exhaust the server by holding sockets open, and TLS (HTTPS, WSS) when a
+//! certificate is configured ([`crate::tls`]). The TLS handshake runs in the connection's own
+//! task (a slow client cannot hold up the accept loop) and is bounded by the idle timeout.
 //!
 //! A connection over a limit is closed as soon as it is accepted (counted in
 //! `rtls_http_connections_refused_total`, logged at most once a second). A connection that
 //! moves no byte either way for `idle` is closed: a keep-alive socket nobody uses, a client that
 //! stopped halfway through its request. WebSocket connections stay open through the server's
-//! pings ([`super::ws`]).
+//! pings (every 30 s).
 
 use std::future::Future;
 use std::io;
@@ -19,6 +21,8 @@ use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio::time::Sleep;
+use tokio_rustls::server::TlsStream;
+use tokio_rustls::{Accept, TlsAcceptor};
 
 use crate::limits::{IpSlot, IpSlots};
 use crate::metrics::Metrics;
@@ -51,6 +55,7 @@ impl Default for HttpLimits {
 /// A TCP listener that enforces [`HttpLimits`]; serve it with `axum::serve`.
 pub struct GuardedListener {
     inner: TcpListener,
+    tls: Option<TlsAcceptor>,
     limits: HttpLimits,
     per_ip: Arc<IpSlots>,
     open: Arc<Semaphore>,
@@ -59,11 +64,12 @@ pub struct GuardedListener {
 }
 
 impl GuardedListener {
-    /// Wraps a bound listener.
+    /// Wraps a bound listener; with `tls`, every connection is HTTPS.
     #[must_use]
-    pub fn new(inner: TcpListener, limits: HttpLimits, metrics: Arc<Metrics>) -> Self {
+    pub fn new(inner: TcpListener, limits: HttpLimits, tls: Option<TlsAcceptor>, metrics: Arc<Metrics>) -> Self {
         Self {
             inner,
+            tls,
             per_ip: Arc::default(),
             open: Arc::new(Semaphore::new(limits.max_connections)),
             limits,
@@ -88,7 +94,7 @@ impl GuardedListener {
 }
 
 impl axum::serve::Listener for GuardedListener {
-    type Io = GuardedStream;
+    type Io = ServedStream;
     type Addr = SocketAddr;
 
     async fn accept(&mut self) -> (Self::Io, Self::Addr) {
@@ -110,7 +116,12 @@ impl axum::serve::Listener for GuardedListener {
                 continue;
             };
             let _ = stream.set_nodelay(true);
-            return (GuardedStream::new(stream, slot, permit, self.limits.idle), peer);
+            let guarded = GuardedStream::new(stream, slot, permit, self.limits.idle);
+            let served = match &self.tls {
+                Some(acceptor) => ServedStream::Tls(TlsState::Handshake(Box::new(acceptor.accept(guarded)))),
+                None => ServedStream::Plain(guarded),
+            };
+            return (served, peer);
         }
     }
 
@@ -214,5 +225,95 @@ impl AsyncWrite for GuardedStream {
 
     fn is_write_vectored(&self) -> bool {
         self.inner.is_write_vectored()
+    }
+}
+
+/// A connection as the HTTP server reads it: plain, or TLS once its handshake is done.
+pub enum ServedStream {
+    /// HTTP.
+    Plain(GuardedStream),
+    /// HTTPS.
+    Tls(TlsState),
+}
+
+/// Where a TLS connection is.
+pub enum TlsState {
+    /// The handshake is under way.
+    Handshake(Box<Accept<GuardedStream>>),
+    /// Established.
+    Ready(Box<TlsStream<GuardedStream>>),
+    /// The handshake failed (the connection is dropped).
+    Failed,
+}
+
+impl ServedStream {
+    /// Drives a TLS handshake to its end; ready at once for a plain connection.
+    fn poll_handshake(&mut self, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        let Self::Tls(state) = self else {
+            return Poll::Ready(Ok(()));
+        };
+        loop {
+            match state {
+                TlsState::Handshake(accept) => match Pin::new(accept.as_mut()).poll(cx) {
+                    Poll::Ready(Ok(stream)) => *state = TlsState::Ready(Box::new(stream)),
+                    Poll::Ready(Err(error)) => {
+                        tracing::debug!(%error, "http: TLS handshake failed");
+                        *state = TlsState::Failed;
+                        return Poll::Ready(Err(error));
+                    }
+                    Poll::Pending => return Poll::Pending,
+                },
+                TlsState::Ready(_) => return Poll::Ready(Ok(())),
+                TlsState::Failed => {
+                    return Poll::Ready(Err(io::Error::new(
+                        io::ErrorKind::NotConnected,
+                        "the TLS handshake failed",
+                    )))
+                }
+            }
+        }
+    }
+}
+
+/// Runs `$call` on the established stream, after the handshake.
+macro_rules! on_stream {
+    ($self:ident, $cx:ident, |$stream:ident| $call:expr) => {{
+        let this = $self.get_mut();
+        match this.poll_handshake($cx) {
+            Poll::Ready(Ok(())) => {}
+            Poll::Ready(Err(error)) => return Poll::Ready(Err(error)),
+            Poll::Pending => return Poll::Pending,
+        }
+        match this {
+            ServedStream::Plain($stream) => {
+                let $stream = Pin::new($stream);
+                $call
+            }
+            ServedStream::Tls(TlsState::Ready(stream)) => {
+                let $stream = Pin::new(stream.as_mut());
+                $call
+            }
+            ServedStream::Tls(_) => Poll::Ready(Err(io::Error::new(io::ErrorKind::NotConnected, "no TLS session"))),
+        }
+    }};
+}
+
+impl AsyncRead for ServedStream {
+    fn poll_read(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &mut ReadBuf<'_>) -> Poll<io::Result<()>> {
+        on_stream!(self, cx, |stream| stream.poll_read(cx, buf))
+    }
+}
+
+impl AsyncWrite for ServedStream {
+    fn poll_write(self: Pin<&mut Self>, cx: &mut Context<'_>, data: &[u8]) -> Poll<io::Result<usize>> {
+        on_stream!(self, cx, |stream| stream.poll_write(cx, data))
+    }
+
+    fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        on_stream!(self, cx, |stream| stream.poll_flush(cx))
+    }
+
+    fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        on_stream!(self, cx, |stream| stream.poll_shutdown(cx))
     }
 }

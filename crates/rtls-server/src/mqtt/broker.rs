@@ -11,6 +11,7 @@ use std::time::Duration;
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{broadcast, watch};
 use tokio::task::JoinSet;
+use tokio_rustls::TlsAcceptor;
 
 use crate::sink::{MeasurementSink, Publication};
 
@@ -18,6 +19,7 @@ use super::config::{BrokerConfig, BrokerError};
 use super::connection;
 use super::shared::{ClientRegistry, Limits, Shared};
 use super::stats::{add, BrokerStats, BrokerStatsHandle};
+use super::CONNECT_TIMEOUT;
 
 /// The embedded MQTT 3.1.1 broker, bound to its address and ready to [`run`](Self::run).
 ///
@@ -38,6 +40,7 @@ pub struct EmbeddedBroker {
     listener: TcpListener,
     local_addr: SocketAddr,
     shared: Arc<Shared>,
+    tls: Option<TlsAcceptor>,
 }
 
 impl std::fmt::Debug for EmbeddedBroker {
@@ -89,7 +92,16 @@ impl EmbeddedBroker {
                 limits: Limits::new(&config),
                 config,
             }),
+            tls: None,
         })
+    }
+
+    /// Serves MQTT over TLS (MQTTS) only: each connection's TLS handshake, in its own task,
+    /// must end within [`CONNECT_TIMEOUT`](super::CONNECT_TIMEOUT) like its CONNECT.
+    #[must_use]
+    pub fn with_tls(mut self, acceptor: TlsAcceptor) -> Self {
+        self.tls = Some(acceptor);
+        self
     }
 
     /// The address the broker listens on.
@@ -118,6 +130,7 @@ impl EmbeddedBroker {
             listener,
             local_addr,
             shared,
+            tls,
         } = self;
         tracing::info!(%local_addr, "mqtt: embedded broker listening");
         let (stop_tx, stop_rx) = watch::channel(false);
@@ -132,7 +145,7 @@ impl EmbeddedBroker {
                         connection_no += 1;
                         add(&shared.counters.connections_accepted, 1);
                         let _ = stream.set_nodelay(true);
-                        spawn_connection(&mut tasks, stream, peer, connection_no, &shared, &stop_rx);
+                        spawn_connection(&mut tasks, stream, peer, connection_no, &shared, tls.as_ref(), &stop_rx);
                     }
                     Err(error) => {
                         tracing::warn!(%error, "mqtt: accept failed");
@@ -162,6 +175,7 @@ fn spawn_connection(
     peer: SocketAddr,
     connection_no: u64,
     shared: &Arc<Shared>,
+    tls: Option<&TlsAcceptor>,
     stop: &watch::Receiver<bool>,
 ) {
     let shared = Arc::clone(shared);
@@ -172,7 +186,10 @@ fn spawn_connection(
     else {
         tracing::warn!(%peer, limit = shared.config.max_connections_per_ip, "mqtt: connection limit of this address reached, refusing");
         add(&shared.counters.connections_refused, 1);
-        tasks.spawn(connection::refuse_unavailable(stream, peer, shared, REFUSAL_TIMEOUT));
+        if tls.is_none() {
+            let halves = connection::plain_halves(stream);
+            tasks.spawn(connection::refuse_unavailable(halves, peer, shared, REFUSAL_TIMEOUT));
+        }
         return;
     };
     let Ok(handshake) = Arc::clone(&shared.limits.pending).try_acquire_owned() else {
@@ -182,8 +199,24 @@ fn spawn_connection(
         return;
     };
     let stop = stop.clone();
+    let tls = tls.cloned();
     tasks.spawn(async move {
-        connection::serve(stream, peer, connection_no, shared, stop, handshake).await;
+        let halves = match tls {
+            None => connection::plain_halves(stream),
+            Some(acceptor) => match tokio::time::timeout(CONNECT_TIMEOUT, acceptor.accept(stream)).await {
+                Ok(Ok(tls_stream)) => connection::halves(tls_stream),
+                Ok(Err(error)) => {
+                    add(&shared.counters.protocol_violations, 1);
+                    tracing::warn!(%peer, %error, "mqtt: TLS handshake failed");
+                    return;
+                }
+                Err(_) => {
+                    tracing::warn!(%peer, "mqtt: no TLS handshake in time, closing");
+                    return;
+                }
+            },
+        };
+        connection::serve(halves, peer, connection_no, shared, stop, handshake).await;
         drop(ip_slot);
     });
 }

@@ -9,8 +9,7 @@ use std::time::Duration;
 
 use bytes::BytesMut;
 use rumqttc::mqttbytes::v4::{ConnAck, Connect, ConnectReturnCode, Packet};
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::TcpStream;
 use tokio::sync::{watch, OwnedSemaphorePermit};
 use tokio::time::timeout;
@@ -23,16 +22,32 @@ use super::shared::Shared;
 use super::stats::add;
 use super::CONNECT_TIMEOUT;
 
+/// The reading half of a connection (TCP, or TLS over TCP).
+pub(crate) type Reader = Box<dyn AsyncRead + Send + Unpin>;
+/// The writing half of a connection.
+pub(crate) type Writer = Box<dyn AsyncWrite + Send + Unpin>;
+
+/// The halves of a plain TCP connection (no lock between them).
+pub(crate) fn plain_halves(stream: TcpStream) -> (Reader, Writer) {
+    let (reader, writer) = stream.into_split();
+    (Box::new(reader), Box::new(writer))
+}
+
+/// The halves of any other stream (TLS).
+pub(crate) fn halves(stream: impl AsyncRead + AsyncWrite + Send + Unpin + 'static) -> (Reader, Writer) {
+    let (reader, writer) = tokio::io::split(stream);
+    (Box::new(reader), Box::new(writer))
+}
+
 /// Serves one accepted connection until it closes: the handshake, then the session.
 pub(crate) async fn serve(
-    stream: TcpStream,
+    (mut reader, mut writer): (Reader, Writer),
     peer: SocketAddr,
     connection_no: u64,
     shared: Arc<Shared>,
     mut stop: watch::Receiver<bool>,
     handshake: OwnedSemaphorePermit,
 ) {
-    let (mut reader, mut writer) = stream.into_split();
     let mut inbox = BytesMut::with_capacity(4096);
     let max_packet_bytes = shared.config.max_packet_bytes;
     let first = tokio::select! {
@@ -123,8 +138,12 @@ pub(crate) async fn serve(
 
 /// Answers a connection over the connection limit: waits (at most `wait`) for its CONNECT,
 /// answers CONNACK "server unavailable" and closes.
-pub(crate) async fn refuse_unavailable(stream: TcpStream, peer: SocketAddr, shared: Arc<Shared>, wait: Duration) {
-    let (mut reader, mut writer) = stream.into_split();
+pub(crate) async fn refuse_unavailable(
+    (mut reader, mut writer): (Reader, Writer),
+    peer: SocketAddr,
+    shared: Arc<Shared>,
+    wait: Duration,
+) {
     let mut inbox = BytesMut::new();
     let first = timeout(
         wait,
@@ -170,7 +189,7 @@ enum HandshakeError {
 
 /// Reads until one whole packet has arrived and decodes it.
 async fn read_packet(
-    reader: &mut OwnedReadHalf,
+    reader: &mut Reader,
     inbox: &mut BytesMut,
     max_packet_bytes: usize,
 ) -> Result<Packet, HandshakeError> {
@@ -188,7 +207,7 @@ async fn read_packet(
 }
 
 /// Writes a CONNACK (best effort: the connection closes next anyway).
-async fn send_connack(writer: &mut OwnedWriteHalf, code: ConnectReturnCode) {
+async fn send_connack(writer: &mut Writer, code: ConnectReturnCode) {
     let mut out = BytesMut::new();
     if frame::encode(&Packet::ConnAck(ConnAck::new(code, false)), &mut out).is_ok() {
         let _ = timeout(CLOSE_WRITE_TIMEOUT, async {

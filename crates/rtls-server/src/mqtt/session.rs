@@ -14,7 +14,6 @@ use rumqttc::mqttbytes::v4::{
 };
 use rumqttc::mqttbytes::{matches, valid_filter, valid_topic, QoS};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use tokio::sync::broadcast::error::RecvError;
 use tokio::sync::{broadcast, watch, Notify};
 use tokio::time::{timeout, timeout_at, Instant};
@@ -22,6 +21,7 @@ use tokio::time::{timeout, timeout_at, Instant};
 use crate::auth::Access;
 use crate::sink::{IngestError, Publication};
 
+use super::connection::{Reader, Writer};
 use super::error_topic;
 use super::frame::{self, Next};
 use super::shared::Shared;
@@ -102,8 +102,8 @@ pub(crate) struct Session {
     access: Access,
     /// 1.5 × the keep-alive interval; `None` when the client asked for none.
     keep_alive_grace: Option<Duration>,
-    reader: OwnedReadHalf,
-    writer: OwnedWriteHalf,
+    reader: Reader,
+    writer: Writer,
     /// Bytes read and not yet decoded.
     inbox: BytesMut,
     /// Packets encoded and not yet written.
@@ -134,7 +134,7 @@ impl Session {
         client_id: String,
         access: Access,
         keep_alive_s: u16,
-        (reader, writer): (OwnedReadHalf, OwnedWriteHalf),
+        (reader, writer): (Reader, Writer),
         inbox: BytesMut,
     ) -> Self {
         let mut session = Self {
