@@ -19,6 +19,7 @@ use super::config::{BrokerConfig, BrokerError};
 use super::connection;
 use super::shared::{ClientRegistry, Limits, Shared};
 use super::stats::{add, BrokerStats, BrokerStatsHandle};
+use super::stream;
 use super::CONNECT_TIMEOUT;
 
 /// The embedded MQTT 3.1.1 broker, bound to its address and ready to [`run`](Self::run).
@@ -187,7 +188,7 @@ fn spawn_connection(
         tracing::warn!(%peer, limit = shared.config.max_connections_per_ip, "mqtt: connection limit of this address reached, refusing");
         add(&shared.counters.connections_refused, 1);
         if tls.is_none() {
-            let halves = connection::plain_halves(stream);
+            let halves = stream::plain_halves(stream);
             tasks.spawn(connection::refuse_unavailable(halves, peer, shared, REFUSAL_TIMEOUT));
         }
         return;
@@ -202,9 +203,9 @@ fn spawn_connection(
     let tls = tls.cloned();
     tasks.spawn(async move {
         let halves = match tls {
-            None => connection::plain_halves(stream),
+            None => stream::plain_halves(stream),
             Some(acceptor) => match tokio::time::timeout(CONNECT_TIMEOUT, acceptor.accept(stream)).await {
-                Ok(Ok(tls_stream)) => connection::halves(tls_stream),
+                Ok(Ok(tls_stream)) => stream::halves(tls_stream),
                 Ok(Err(error)) => {
                     add(&shared.counters.protocol_violations, 1);
                     tracing::warn!(%peer, %error, "mqtt: TLS handshake failed");

@@ -9,8 +9,7 @@ use std::time::Duration;
 
 use bytes::BytesMut;
 use rumqttc::mqttbytes::v4::{ConnAck, Connect, ConnectReturnCode, Packet};
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
-use tokio::net::TcpStream;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::sync::{watch, OwnedSemaphorePermit};
 use tokio::time::timeout;
 
@@ -20,24 +19,8 @@ use super::frame::{self, FrameError, Next};
 use super::session::{packet_name, Session, CLOSE_WRITE_TIMEOUT};
 use super::shared::Shared;
 use super::stats::add;
+use super::stream::{Reader, Writer};
 use super::CONNECT_TIMEOUT;
-
-/// The reading half of a connection (TCP, or TLS over TCP).
-pub(crate) type Reader = Box<dyn AsyncRead + Send + Unpin>;
-/// The writing half of a connection.
-pub(crate) type Writer = Box<dyn AsyncWrite + Send + Unpin>;
-
-/// The halves of a plain TCP connection (no lock between them).
-pub(crate) fn plain_halves(stream: TcpStream) -> (Reader, Writer) {
-    let (reader, writer) = stream.into_split();
-    (Box::new(reader), Box::new(writer))
-}
-
-/// The halves of any other stream (TLS).
-pub(crate) fn halves(stream: impl AsyncRead + AsyncWrite + Send + Unpin + 'static) -> (Reader, Writer) {
-    let (reader, writer) = tokio::io::split(stream);
-    (Box::new(reader), Box::new(writer))
-}
 
 /// Serves one accepted connection until it closes: the handshake, then the session.
 pub(crate) async fn serve(

@@ -86,6 +86,7 @@ mod frame;
 mod session;
 mod shared;
 mod stats;
+mod stream;
 
 pub use bridge::{BridgeError, BridgeStats, BridgeStatsHandle, ExternalBroker, DEFAULT_CLIENT_ID};
 pub use broker::EmbeddedBroker;

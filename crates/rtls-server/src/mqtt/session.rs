@@ -21,11 +21,11 @@ use tokio::time::{timeout, timeout_at, Instant};
 use crate::auth::Access;
 use crate::sink::{IngestError, Publication};
 
-use super::connection::{Reader, Writer};
 use super::error_topic;
 use super::frame::{self, Next};
 use super::shared::Shared;
 use super::stats::add;
+use super::stream::{Reader, Writer};
 
 /// How long a closing session (DISCONNECT, server shutdown) waits for the payloads it already
 /// handed to the sink, to acknowledge them, before it closes anyway.
