@@ -4,7 +4,8 @@
 # On a Debian machine, as root: installs PostgreSQL if it is missing, starts a cluster without
 # systemd (pg_ctlcluster, which falls back to pg_ctl), listening on 127.0.0.1:5432 only,
 # creates the role `rtls` (password `rtls`) and the database `rtls_test` if they do not exist,
-# and prints the variable the tests read on its LAST line (everything else goes to stderr):
+# offers TLS with a certificate for 127.0.0.1 from a test CA of its own, and prints the
+# variables the tests read on its LAST line (everything else goes to stderr):
 #
 #     eval "$(bash .ci/services/postgres.sh | tail -1)"
 #
@@ -31,18 +32,48 @@ if ! command -v pg_lsclusters >/dev/null 2>&1 || ! ls /usr/lib/postgresql/*/bin/
     apt-get install -y -qq postgresql >&2
 fi
 
+if ! command -v openssl >/dev/null 2>&1; then
+    log "installing openssl (for the test certificates)"
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get install -y -qq openssl >&2 || { apt-get update -qq >&2; apt-get install -y -qq openssl >&2; }
+fi
+
 version="$(ls /usr/lib/postgresql | sort -V | tail -1)"
 if ! pg_lsclusters -h | awk -v v="$version" -v c="$cluster" '$1 == v && $2 == c { found = 1 } END { exit !found }'; then
     log "creating cluster $version/$cluster"
     pg_createcluster "$version" "$cluster" >&2
 fi
 
-# Loopback only, on the port the tests use, in a file of its own under conf.d (which Debian's
-# postgresql.conf includes last, so it wins); restart a running cluster when the file changes.
+# TLS for the store's TLS test: a CA of its own and a server certificate for 127.0.0.1 signed
+# by it (made once), so that a client verifying the chain and the address succeeds; the CA's
+# path goes out with the URL.
+tls_dir="/etc/postgresql/$version/$cluster/rtls-tls"
+if [ ! -f "$tls_dir/server.crt" ]; then
+    log "making a test CA and a server certificate for 127.0.0.1 in $tls_dir"
+    mkdir -p "$tls_dir"
+    openssl req -x509 -newkey rsa:2048 -nodes -days 3650 -subj "/CN=rtls test CA" \
+        -keyout "$tls_dir/ca.key" -out "$tls_dir/ca.crt" 2>/dev/null
+    openssl req -newkey rsa:2048 -nodes -subj "/CN=127.0.0.1" \
+        -keyout "$tls_dir/server.key" -out "$tls_dir/server.csr" 2>/dev/null
+    printf 'subjectAltName=IP:127.0.0.1,DNS:localhost\nbasicConstraints=CA:FALSE\nextendedKeyUsage=serverAuth\n' \
+        > "$tls_dir/server.ext"
+    openssl x509 -req -in "$tls_dir/server.csr" -CA "$tls_dir/ca.crt" -CAkey "$tls_dir/ca.key" \
+        -CAcreateserial -days 3650 -extfile "$tls_dir/server.ext" -out "$tls_dir/server.crt" 2>/dev/null
+    chown postgres:postgres "$tls_dir/server.key" "$tls_dir/server.crt"
+    chmod 600 "$tls_dir/server.key"
+    chmod 644 "$tls_dir/ca.crt"
+fi
+
+# Loopback only, on the port the tests use, TLS offered (not required), in a file of its own
+# under conf.d (which Debian's postgresql.conf includes last, so it wins); restart a running
+# cluster when the file changes.
 conf_dir="/etc/postgresql/$version/$cluster/conf.d"
 conf_file="$conf_dir/rtls-test.conf"
 wanted="listen_addresses = '127.0.0.1'
-port = $port"
+port = $port
+ssl = on
+ssl_cert_file = '$tls_dir/server.crt'
+ssl_key_file = '$tls_dir/server.key'"
 changed=0
 if [ ! -f "$conf_file" ] || [ "$(cat "$conf_file")" != "$wanted" ]; then
     mkdir -p "$conf_dir"
@@ -94,5 +125,5 @@ url="postgres://$role:$password@127.0.0.1:$port/$database"
 # Check that the role can log in over TCP with its password, as the tests will.
 PGPASSWORD="$password" psql --no-psqlrc -v ON_ERROR_STOP=1 -q -t -A -h 127.0.0.1 -p "$port" -U "$role" -d "$database" \
     -c "SELECT 1" >/dev/null
-log "ready: $url"
-echo "export RTLS_TEST_POSTGRES_URL=$url"
+log "ready: $url (TLS: CA $tls_dir/ca.crt)"
+echo "export RTLS_TEST_POSTGRES_URL=$url RTLS_TEST_POSTGRES_CA=$tls_dir/ca.crt"

@@ -4,7 +4,7 @@
 //! [server]
 //! http = "127.0.0.1:8080"        # HTTP and WebSocket
 //! site = "site.toml"             # the site file (readers, zones, tracker settings)
-//! db = "sqlite:rtls.db"          # or "postgres://user:password@host/db"
+//! db = "sqlite:rtls.db"          # or "postgres://user:password@host/db[?sslmode=require&sslrootcert=CA.pem]"
 //! retention_days = 92            # history, events and the ingest log (mine rules: ≥ 3 months)
 //! raw_retention_days = 1         # raw records in the ingest log (once their outputs are stored)
 //! compact_after_s = 300          # older track states and tracked records: packed into compressed blocks

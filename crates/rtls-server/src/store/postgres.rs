@@ -16,6 +16,8 @@ use crate::config::redact_password;
 
 #[path = "postgres_blocks.rs"]
 mod blocks;
+#[path = "postgres_tls.rs"]
+mod tls;
 
 /// The advisory lock that serialises migrations of concurrent processes (an arbitrary key:
 /// "rtls" in ASCII).
@@ -68,8 +70,9 @@ fn quote_identifier(name: &str) -> String {
 
 impl PostgresStore {
     /// Connects to `url` (`postgres://user:password@host:port/database`, or any form the
-    /// `postgres` crate accepts) without TLS and applies the schema migrations this build
-    /// knows, in the connection's default schema (normally `public`).
+    /// `postgres` crate accepts; TLS with `?sslmode=require&sslrootcert=CA.pem`, see
+    /// `store/postgres_tls.rs`) and applies the schema migrations this build knows, in the
+    /// connection's default schema (normally `public`).
     ///
     /// # Errors
     /// [`StoreError::Url`] when the URL does not parse; [`StoreError::Database`] when the
@@ -109,17 +112,40 @@ impl PostgresStore {
         Self::migrated(client)
     }
 
-    /// Parses `url` and connects.
+    /// Parses `url` and connects, over TLS when its `sslmode` asks for it ([`tls::split`]).
     fn client(url: &str) -> Result<Client, StoreError> {
-        let config: Config = url.parse().map_err(|error: ::postgres::Error| StoreError::Url {
+        let url_error = |reason: String| StoreError::Url {
             url: redact_password(url),
-            reason: format!("not a PostgreSQL connection URL: {error}"),
-        })?;
-        config.connect(NoTls).map_err(|error| StoreError::Database {
-            backend: "postgres",
-            operation: "connect",
-            reason: format!("{}: {error}", redact_password(url)),
-        })
+            reason,
+        };
+        let (rest, wanted) = tls::split(url).map_err(url_error)?;
+        let mut config: Config = rest
+            .parse()
+            .map_err(|error: ::postgres::Error| url_error(format!("not a PostgreSQL connection URL: {error}")))?;
+        let connect_error = |error: ::postgres::Error| {
+            // the causes too: "error performing TLS handshake" alone does not say which
+            let mut reason = error.to_string();
+            let mut cause = std::error::Error::source(&error);
+            while let Some(inner) = cause {
+                reason.push_str(&format!(": {inner}"));
+                cause = inner.source();
+            }
+            StoreError::Database {
+                backend: "postgres",
+                operation: "connect",
+                reason: format!("{}: {reason}", redact_password(url)),
+            }
+        };
+        match wanted {
+            tls::PgTls::Off => config.connect(NoTls).map_err(connect_error),
+            tls::PgTls::Verified(ca_file) => {
+                let connector = tls::connector(&ca_file).map_err(url_error)?;
+                config
+                    .ssl_mode(::postgres::config::SslMode::Require)
+                    .connect(connector)
+                    .map_err(connect_error)
+            }
+        }
     }
 
     /// Applies the migrations on `client`.
