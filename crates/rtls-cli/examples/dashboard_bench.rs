@@ -103,10 +103,7 @@ fn main() -> Result<()> {
             config,
             site,
             site_text: text,
-            tokens: Tokens {
-                write: WRITE.into(),
-                read: Some(READ.into()),
-            },
+            tokens: Tokens::new(WRITE, Some(READ.into())),
             trackables: Vec::new(),
             floor_plans: rtls_server::http::plans::FloorPlans::default(),
             feed: None,

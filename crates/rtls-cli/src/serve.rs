@@ -115,10 +115,20 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
         }
         None => bail!("writes need a token: set RTLS_WRITE_TOKEN or auth.write_token in the config file"),
     };
-    let tokens = Tokens {
-        write: write.clone(),
-        read: config.auth.read_token.clone(),
+    let read = match config.auth.read_token.clone() {
+        Some(token) => Some(token),
+        None if config.auth.open_reads => None,
+        None => {
+            let token = rtls_server::auth::random_token();
+            eprintln!(
+                "read token (set RTLS_READ_TOKEN to choose one, or [auth] open_reads = true for none): {token}\n\
+                 dashboard: http://{}/?token={token}",
+                config.server.http
+            );
+            Some(token)
+        }
     };
+    let tokens = Tokens::new(write.clone(), read).with_open_reads(config.auth.open_reads);
     let feed: Option<rtls_server::serve::Feed> = if args.demo {
         let miners = args.demo_miners;
         if miners == 0 {

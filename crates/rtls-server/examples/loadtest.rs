@@ -140,10 +140,7 @@ async fn main() {
         config,
         site,
         site_text: SITE.into(),
-        tokens: Tokens {
-            write: TOKEN.into(),
-            read: None,
-        },
+        tokens: Tokens::new(TOKEN, None),
         trackables: Vec::new(),
         floor_plans: rtls_server::http::plans::FloorPlans::default(),
         feed: None,

@@ -147,6 +147,7 @@ pub async fn serve(
     let pipeline_site = site.clone();
     let pipeline_metrics = Arc::clone(&metrics);
     let want_hub = !webhooks.is_empty();
+    let issued_tokens = tokens.clone();
     let (pipeline, query_store, hub) = tokio::task::spawn_blocking(move || -> Result<_, ServeError> {
         let (ingest_store, output_store, mut query_store) = (open()?, open()?, open()?);
         query_store.put_config("site", "current", &site_text)?;
@@ -170,6 +171,14 @@ pub async fn serve(
         // the webhooks' subscription, as soon as the hub exists (the trackers' replay of the
         // ingest log has just started: alarms it raised in these microseconds are not sent)
         let hub = want_hub.then(|| pipeline.subscribe());
+        // the tokens issued through the API before this start (their hashes)
+        let issued = query_store.list_config(crate::http::tokens::TOKEN_CONFIG)?;
+        for (id, json) in issued {
+            match serde_json::from_str::<crate::auth::IssuedToken>(&json) {
+                Ok(token) => issued_tokens.remember(token),
+                Err(e) => tracing::error!(token_id = %id, error = %e, "a stored token is corrupt; it is not accepted"),
+            }
+        }
         if let Some(zones) = crate::http::fences::stored_zones(query_store.as_mut()).map_err(ServeError::Config)? {
             tracing::info!(
                 zones = zones.len(),

@@ -80,10 +80,7 @@ async fn idle_sockets_that_never_connect_cannot_lock_a_reader_out() {
 async fn a_flood_of_tokenless_subscribers_leaves_room_for_readers() {
     let mut config = test_config();
     // reads open: anyone may subscribe without a token
-    config.tokens = Tokens {
-        write: WRITE_TOKEN.into(),
-        read: None,
-    };
+    config.tokens = Tokens::new(WRITE_TOKEN, None);
     config.max_connections = 20;
     config.max_read_connections = 10;
     let broker = TestBroker::start(config, TestSink::new()).await;
@@ -116,10 +113,7 @@ async fn a_flood_of_tokenless_subscribers_leaves_room_for_readers() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_wrong_password_is_refused_even_when_reads_are_open() {
     let mut config = test_config();
-    config.tokens = Tokens {
-        write: WRITE_TOKEN.into(),
-        read: None,
-    };
+    config.tokens = Tokens::new(WRITE_TOKEN, None);
     let broker = TestBroker::start(config, TestSink::new()).await;
     let mut guess = TestClient::start(client_options(broker.addr, "guesser", Some("guess")), false);
     let (error, _) = guess.expect_error(2 * SECOND, |_| false).await;
@@ -138,10 +132,7 @@ async fn a_wrong_password_is_refused_even_when_reads_are_open() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_client_reusing_a_readers_id_without_its_token_cannot_take_over() {
     let mut config = test_config();
-    config.tokens = Tokens {
-        write: WRITE_TOKEN.into(),
-        read: None,
-    };
+    config.tokens = Tokens::new(WRITE_TOKEN, None);
     let broker = TestBroker::start(config, TestSink::new()).await;
     let mut reader = TestClient::start(client_options(broker.addr, "gateway-7", Some(WRITE_TOKEN)), false);
     reader.connected().await;

@@ -17,7 +17,8 @@
 //!
 //! [auth]
 //! write_token = "…"              # or the environment variable RTLS_WRITE_TOKEN
-//! read_token = "…"               # optional (RTLS_READ_TOKEN); without it reads are open
+//! read_token = "…"               # or RTLS_READ_TOKEN; without one, rtls serve generates one and prints it
+//! open_reads = false             # true (and no read token): reads need no credential
 //!
 //! [mqtt]
 //! mode = "embedded"              # "embedded", "external" or "off"
@@ -236,6 +237,9 @@ pub struct AuthSection {
     pub write_token: Option<String>,
     /// The read token.
     pub read_token: Option<String>,
+    /// Without a read token, whether reads need no credential (false: `rtls serve` generates a
+    /// read token and prints it).
+    pub open_reads: bool,
 }
 
 /// `[mqtt]`.

@@ -98,7 +98,7 @@ pub(super) async fn list(
     Ok(Json(Value::Array(alarms)))
 }
 
-/// `POST /api/v1/alarms/{alarm_id}/acknowledge` with the write token and optionally
+/// `POST /api/v1/alarms/{alarm_id}/acknowledge` with an operator's (or admin's) token and optionally
 /// `{"by": "operator name"}`: 200 with the acknowledgement (the first one, when it was
 /// acknowledged before); 404 for an id that is not a known alarm.
 pub(super) async fn acknowledge(
@@ -107,7 +107,7 @@ pub(super) async fn acknowledge(
     Path(alarm_id): Path<String>,
     body: Bytes,
 ) -> ApiResult<Json<Acknowledgement>> {
-    state.authorize(&headers, Access::Write)?;
+    let who = state.authorize(&headers, Access::Operate)?;
     let body: AcknowledgeBody = if body.iter().all(u8::is_ascii_whitespace) {
         AcknowledgeBody::default()
     } else {
@@ -164,6 +164,9 @@ pub(super) async fn acknowledge(
         "alarm_type": alarm["type"],
         "by": acknowledgement.by,
         "timestamp": acknowledgement.at,
+        // the credential that did it (the audit trail; `by` is what the operator typed)
+        "credential": who.name,
+        "role": who.role.name(),
     });
     let row = EventRow {
         received_ms: now_ms,

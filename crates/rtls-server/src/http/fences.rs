@@ -71,7 +71,7 @@ pub(super) async fn get(
 /// `POST /v2/fences`: 201 with the fence (a UUID is assigned when `id` is absent or empty); 400
 /// naming the field of a bad fence or an id in use.
 pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, body: Bytes) -> ApiResult<Response> {
-    state.authorize(&headers, Access::Write)?;
+    let who = state.authorize(&headers, Access::Operate)?;
     let mut value: Value = parse_json(&body)?;
     if let Value::Object(object) = &mut value {
         if object.get("id").is_none_or(|id| id.as_str().is_some_and(str::is_empty)) {
@@ -100,6 +100,7 @@ pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, bo
             Ok(commit(store, &live, zones).map(|()| fence_from_zone(&zone)))
         })
         .await??;
+    state.audit(&who, "fence-created", &created.id).await?;
     Ok((StatusCode::CREATED, Json(created)).into_response())
 }
 
@@ -111,7 +112,7 @@ pub(super) async fn replace(
     headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<Json<Fence>> {
-    state.authorize(&headers, Access::Write)?;
+    let who = state.authorize(&headers, Access::Operate)?;
     let mut value: Value = parse_json(&body)?;
     if let Value::Object(object) = &mut value {
         // the path names the fence; a body without an id is fine
@@ -137,6 +138,7 @@ pub(super) async fn replace(
             Ok(commit(store, &live, zones).map(|()| fence_from_zone(&zone)))
         })
         .await??;
+    state.audit(&who, "fence-replaced", &replaced.id).await?;
     Ok(Json(replaced))
 }
 
@@ -146,7 +148,8 @@ pub(super) async fn delete(
     Path(fence_id): Path<String>,
     headers: HeaderMap,
 ) -> ApiResult<StatusCode> {
-    state.authorize(&headers, Access::Write)?;
+    let who = state.authorize(&headers, Access::Operate)?;
+    let target = fence_id.clone();
     let live = std::sync::Arc::clone(state.pipeline.live());
     state
         .query(move |store| {
@@ -162,13 +165,14 @@ pub(super) async fn delete(
             Ok(commit(store, &live, zones))
         })
         .await??;
+    state.audit(&who, "fence-deleted", &target).await?;
     Ok(StatusCode::NO_CONTENT)
 }
 
 /// `DELETE /api/v1/zones/edits`: forgets the edited zone set; the site file's zones are
 /// watched again (at once, and after a restart). 204.
 pub(super) async fn reset(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<StatusCode> {
-    state.authorize(&headers, Access::Write)?;
+    let who = state.authorize(&headers, Access::Operate)?;
     let site = std::sync::Arc::clone(&state.site);
     let live = std::sync::Arc::clone(state.pipeline.live());
     state
@@ -178,6 +182,7 @@ pub(super) async fn reset(State(state): State<AppState>, headers: HeaderMap) -> 
             Ok(())
         })
         .await?;
+    state.audit(&who, "zones-reset", "the site file's zones").await?;
     Ok(StatusCode::NO_CONTENT)
 }
 

@@ -11,7 +11,7 @@ use serde::Serialize;
 use serde_json::Value;
 
 use super::{parse_json, ApiError, ApiResult, AppState};
-use crate::auth::Access;
+use crate::auth::{Access, Principal};
 use crate::convert::{record_from_location, uuid_for};
 use crate::omlox::ingest::parse_locations;
 use crate::omlox::{Location, LocationProvider, Trackable, Zone, ZoneType};
@@ -167,12 +167,12 @@ pub(super) async fn create_provider(
     headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<Response> {
-    state.authorize(&headers, Access::Write)?;
+    let who = state.authorize(&headers, Access::Write)?;
     let provider: LocationProvider = parse_json(&body)?;
     if provider.id.trim().is_empty() {
         return Err(ApiError::field("id", "must not be empty"));
     }
-    create(&state, PROVIDER, provider.id.clone(), &provider).await
+    create(&state, &who, PROVIDER, provider.id.clone(), &provider).await
 }
 
 /// `GET /v2/providers/{provider_id}`.
@@ -196,7 +196,7 @@ pub(super) async fn put_provider(
     headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<StatusCode> {
-    state.authorize(&headers, Access::Write)?;
+    let who = state.authorize(&headers, Access::Write)?;
     let provider: LocationProvider = parse_json(&body)?;
     if provider.id != provider_id {
         return Err(ApiError::field(
@@ -204,7 +204,7 @@ pub(super) async fn put_provider(
             format!("`{}` does not match the path's `{provider_id}`", provider.id),
         ));
     }
-    replace(&state, PROVIDER, provider_id, &provider).await
+    replace(&state, &who, PROVIDER, provider_id, &provider).await
 }
 
 /// `DELETE /v2/providers/{provider_id}`: 204, or 404.
@@ -213,8 +213,8 @@ pub(super) async fn delete_provider(
     Path(provider_id): Path<String>,
     headers: HeaderMap,
 ) -> ApiResult<StatusCode> {
-    state.authorize(&headers, Access::Write)?;
-    delete(&state, PROVIDER, provider_id).await
+    let who = state.authorize(&headers, Access::Write)?;
+    delete(&state, &who, PROVIDER, provider_id).await
 }
 
 // ---- trackables (stored) ----
@@ -241,7 +241,7 @@ pub(super) async fn create_trackable(
     headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<Response> {
-    state.authorize(&headers, Access::Write)?;
+    let who = state.authorize(&headers, Access::Write)?;
     let mut value: Value = parse_json(&body)?;
     if let Value::Object(object) = &mut value {
         if object.get("id").is_none_or(|id| id.as_str().is_some_and(str::is_empty)) {
@@ -250,7 +250,7 @@ pub(super) async fn create_trackable(
     }
     let trackable: Trackable = parse_json(value.to_string().as_bytes())?;
     check_uuid(&trackable.id)?;
-    create(&state, TRACKABLE, trackable.id.clone(), &trackable).await
+    create(&state, &who, TRACKABLE, trackable.id.clone(), &trackable).await
 }
 
 fn check_uuid(id: &str) -> ApiResult<()> {
@@ -280,7 +280,7 @@ pub(super) async fn put_trackable(
     headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<Json<Trackable>> {
-    state.authorize(&headers, Access::Write)?;
+    let who = state.authorize(&headers, Access::Write)?;
     let trackable: Trackable = parse_json(&body)?;
     if trackable.id != trackable_id {
         return Err(ApiError::field(
@@ -289,7 +289,7 @@ pub(super) async fn put_trackable(
         ));
     }
     check_uuid(&trackable.id)?;
-    replace(&state, TRACKABLE, trackable_id, &trackable).await?;
+    replace(&state, &who, TRACKABLE, trackable_id, &trackable).await?;
     Ok(Json(trackable))
 }
 
@@ -299,8 +299,8 @@ pub(super) async fn delete_trackable(
     Path(trackable_id): Path<String>,
     headers: HeaderMap,
 ) -> ApiResult<StatusCode> {
-    state.authorize(&headers, Access::Write)?;
-    delete(&state, TRACKABLE, trackable_id).await
+    let who = state.authorize(&headers, Access::Write)?;
+    delete(&state, &who, TRACKABLE, trackable_id).await
 }
 
 /// `GET /v2/trackables/{trackable_id}/location`: the newest location among its providers.
@@ -409,7 +409,13 @@ async fn get_stored<T: DeserializeOwned + Send + 'static>(
     .transpose()
 }
 
-async fn create<T: Serialize>(state: &AppState, kind: &'static str, id: String, object: &T) -> ApiResult<Response> {
+async fn create<T: Serialize>(
+    state: &AppState,
+    who: &Principal,
+    kind: &'static str,
+    id: String,
+    object: &T,
+) -> ApiResult<Response> {
     let json =
         serde_json::to_string(object).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
     let body: Value = serde_json::from_str(&json).unwrap_or(Value::Null);
@@ -427,19 +433,29 @@ async fn create<T: Serialize>(state: &AppState, kind: &'static str, id: String, 
             format!("a {kind} `{id}` exists; use PUT to replace it"),
         ));
     }
+    state.audit(who, &format!("{kind}-created"), &id).await?;
     Ok((StatusCode::CREATED, Json(body)).into_response())
 }
 
-async fn replace<T: Serialize>(state: &AppState, kind: &'static str, id: String, object: &T) -> ApiResult<StatusCode> {
+async fn replace<T: Serialize>(
+    state: &AppState,
+    who: &Principal,
+    kind: &'static str,
+    id: String,
+    object: &T,
+) -> ApiResult<StatusCode> {
     let json =
         serde_json::to_string(object).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
-    state.query(move |store| store.put_config(kind, &id, &json)).await?;
+    let key = id.clone();
+    state.query(move |store| store.put_config(kind, &key, &json)).await?;
+    state.audit(who, &format!("{kind}-replaced"), &id).await?;
     Ok(StatusCode::NO_CONTENT)
 }
 
-async fn delete(state: &AppState, kind: &'static str, id: String) -> ApiResult<StatusCode> {
+async fn delete(state: &AppState, who: &Principal, kind: &'static str, id: String) -> ApiResult<StatusCode> {
     let key = id.clone();
     if state.query(move |store| store.delete_config(kind, &key)).await? {
+        state.audit(who, &format!("{kind}-deleted"), &id).await?;
         Ok(StatusCode::NO_CONTENT)
     } else {
         Err(ApiError::not_found(format!("{kind} `{id}` not found")))

@@ -16,6 +16,7 @@ mod muster;
 mod ops;
 pub mod plans;
 pub mod positions;
+pub mod tokens;
 mod ws;
 
 use std::sync::{Arc, Mutex};
@@ -31,7 +32,7 @@ use rtls_engine::site::Site;
 use serde::de::DeserializeOwned;
 use serde_json::json;
 
-use crate::auth::{Access, Tokens};
+use crate::auth::{Access, Principal, Role, Tokens};
 use crate::metrics::Metrics;
 use crate::pipeline::Pipeline;
 use crate::sink::IngestError;
@@ -211,33 +212,68 @@ impl From<StoreError> for ApiError {
 pub type ApiResult<T> = Result<T, ApiError>;
 
 impl AppState {
-    /// Checks the request's bearer token against `needed`.
+    /// Checks the request's bearer token against `needed`; who presented it.
     ///
     /// # Errors
     /// 401 without a token, 403 with a token that does not allow `needed`.
-    pub fn authorize(&self, headers: &HeaderMap, needed: Access) -> ApiResult<()> {
-        let presented = headers
-            .get(axum::http::header::AUTHORIZATION)
-            .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer ").or_else(|| v.strip_prefix("bearer ")))
-            .map(str::trim);
-        self.authorize_token(presented, needed)
+    pub fn authorize(&self, headers: &HeaderMap, needed: Access) -> ApiResult<Principal> {
+        self.authorize_token(bearer(headers), needed)
     }
 
-    /// Checks a presented token against `needed`.
+    /// Checks a presented token against `needed`; who presented it.
     ///
     /// # Errors
     /// As [`AppState::authorize`].
-    pub fn authorize_token(&self, presented: Option<&str>, needed: Access) -> ApiResult<()> {
-        let granted = self.tokens.access(presented);
-        if granted >= needed {
-            return Ok(());
+    pub fn authorize_token(&self, presented: Option<&str>, needed: Access) -> ApiResult<Principal> {
+        let principal = self.tokens.principal(presented);
+        if let Some(principal) = principal.filter(|p| p.role.allows(needed)) {
+            return Ok(principal);
         }
-        let what = if needed == Access::Write { "writing" } else { "reading" };
+        let what = match needed {
+            Access::None | Access::Read => "reading",
+            Access::Operate => "operating (acknowledging alarms, editing zones)",
+            Access::Write => "writing",
+            Access::Admin => "managing tokens",
+        };
         Err(match presented {
             None => ApiError::new(StatusCode::UNAUTHORIZED, format!("{what} needs a bearer token")),
             Some(_) => ApiError::new(StatusCode::FORBIDDEN, format!("the token does not allow {what}")),
         })
+    }
+
+    /// Records a change in the audit log: an `audit` event — `action`, `target`, who (`by`:
+    /// the credential's name, `role`) — stored with the events (`GET
+    /// /api/v1/events?type=audit`) and published on `rtls:events`.
+    ///
+    /// # Errors
+    /// The store's failure as a 503 (the change itself is done).
+    pub async fn audit(&self, who: &Principal, action: &str, target: &str) -> ApiResult<()> {
+        let now_ms = crate::pipeline::unix_ms();
+        let time_s = now_ms as f64 / 1000.0;
+        let event = serde_json::json!({
+            "type": "audit",
+            "t": time_s,
+            "action": action,
+            "target": target,
+            "by": who.name,
+            "role": who.role.name(),
+        });
+        tracing::info!(action, target, by = %who.name, role = who.role.name(), "audit");
+        let row = crate::store::EventRow {
+            received_ms: now_ms,
+            time_s,
+            kind: "audit".into(),
+            tag: None,
+            zone: None,
+            alarm: false,
+            json: event.to_string(),
+        };
+        self.query(move |store| store.append_events(&[row])).await?;
+        self.pipeline.broadcast(crate::pipeline::HubMessage::Extension {
+            topic: crate::omlox::ws::Topic::RtlsEvents,
+            event,
+        });
+        Ok(())
     }
 
     /// Runs `query` on the query connection on a blocking thread.
@@ -297,6 +333,8 @@ pub fn router(state: AppState) -> Router {
         .route("/metrics", get(ops::metrics_text))
         .route("/openapi.json", get(ops::openapi))
         .route("/api/v1/quarantine", get(ops::quarantine))
+        .route("/api/v1/tokens", get(tokens::list).post(tokens::issue))
+        .route("/api/v1/tokens/{token_id}", delete(tokens::revoke))
         .route("/api/v1/measurements", post(api::ingest_measurements))
         .route("/api/v1/tags", get(api::tags))
         .route("/api/v1/positions", get(positions::positions))
@@ -376,8 +414,8 @@ async fn limit_headers(request: Request, next: Next) -> Response {
     next.run(request).await
 }
 
-/// Every request that changes something (any method but GET, HEAD and OPTIONS) needs the
-/// write token, checked here before its body is read: an unauthenticated client cannot make
+/// Every request that changes something (any method but GET, HEAD and OPTIONS) needs a
+/// credential that may change something (not a viewer's), checked here before its body is read: an unauthenticated client cannot make
 /// the server buffer a body (up to the body limit) just to be refused. The handlers check
 /// again, with their own access.
 async fn authorize_writes_first(State(state): State<AppState>, request: Request, next: Next) -> Response {
@@ -386,7 +424,16 @@ async fn authorize_writes_first(State(state): State<AppState>, request: Request,
         axum::http::Method::GET | axum::http::Method::HEAD | axum::http::Method::OPTIONS
     );
     if !reads {
-        if let Err(refused) = state.authorize(request.headers(), Access::Write) {
+        // a credential that may change something (the handler checks what exactly)
+        let may_change = state
+            .tokens
+            .principal(bearer(request.headers()))
+            .is_some_and(|p| p.role != Role::Viewer);
+        if !may_change {
+            let refused = match bearer(request.headers()) {
+                None => ApiError::new(StatusCode::UNAUTHORIZED, "changing something needs a bearer token"),
+                Some(_) => ApiError::new(StatusCode::FORBIDDEN, "the token does not allow changing anything"),
+            };
             return refused.into_response();
         }
     }
@@ -418,4 +465,13 @@ async fn count_requests(State(state): State<AppState>, request: Request, next: N
 /// Shared state for the handlers' metrics access.
 fn metrics(state: &AppState) -> &Metrics {
     state.pipeline.metrics()
+}
+
+/// The bearer token of a request, if any.
+fn bearer(headers: &HeaderMap) -> Option<&str> {
+    headers
+        .get(axum::http::header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer ").or_else(|| v.strip_prefix("bearer ")))
+        .map(str::trim)
 }

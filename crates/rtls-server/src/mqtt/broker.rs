@@ -31,7 +31,7 @@ use super::CONNECT_TIMEOUT;
 /// use rtls_server::mqtt::{BrokerConfig, EmbeddedBroker};
 ///
 /// let (publications, _) = tokio::sync::broadcast::channel(1024);
-/// let config = BrokerConfig::new(Tokens { write: "secret".into(), read: None });
+/// let config = BrokerConfig::new(Tokens::new("secret", None));
 /// let broker = EmbeddedBroker::bind("127.0.0.1:1883".parse().unwrap(), config, sink, publications).await?;
 /// println!("mqtt on {}", broker.local_addr());
 /// broker.run(async { let _ = tokio::signal::ctrl_c().await; }).await;

@@ -59,7 +59,7 @@ impl BrokerConfig {
     /// use rtls_server::auth::Tokens;
     /// use rtls_server::mqtt::BrokerConfig;
     ///
-    /// let config = BrokerConfig::new(Tokens { write: "w".into(), read: None });
+    /// let config = BrokerConfig::new(Tokens::new("w", None));
     /// assert_eq!(config.measurement_prefix, "rtls/v1/measurements/");
     /// ```
     #[must_use]
@@ -138,10 +138,7 @@ mod tests {
     use super::*;
 
     fn tokens() -> Tokens {
-        Tokens {
-            write: "w".into(),
-            read: None,
-        }
+        Tokens::new("w", None)
     }
 
     #[test]

@@ -231,10 +231,7 @@ mod tests {
 
     #[test]
     fn admission_follows_the_token_and_names_the_refusal() {
-        let tokens = Tokens {
-            write: "w-token".into(),
-            read: Some("r-token".into()),
-        };
+        let tokens = Tokens::new("w-token", Some("r-token".into()));
         assert_eq!(admit(&connect("r1", true, Some("w-token")), &tokens), Ok(Access::Write));
         assert_eq!(admit(&connect("r1", true, Some("r-token")), &tokens), Ok(Access::Read));
         assert_eq!(
@@ -246,10 +243,7 @@ mod tests {
             Err(ConnectReturnCode::NotAuthorized)
         );
         // Without a read token, no password reads.
-        let open_reads = Tokens {
-            write: "w-token".into(),
-            read: None,
-        };
+        let open_reads = Tokens::new("w-token", None);
         assert_eq!(admit(&connect("r1", true, None), &open_reads), Ok(Access::Read));
         // … but a wrong password is refused, not admitted as a reader
         assert_eq!(
@@ -260,10 +254,7 @@ mod tests {
 
     #[test]
     fn client_ids_that_break_the_error_topic_are_refused() {
-        let tokens = Tokens {
-            write: "w".into(),
-            read: None,
-        };
+        let tokens = Tokens::new("w", None);
         for id in ["a+b", "site/#", "nul\0"] {
             assert_eq!(
                 admit(&connect(id, true, Some("w")), &tokens),

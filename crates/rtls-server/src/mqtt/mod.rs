@@ -57,9 +57,11 @@
 //! # Authentication
 //!
 //! The CONNECT password is the access token ([`Tokens`](crate::auth::Tokens)); the user name is
-//! free (readers may put their name there, it is only logged). The write token allows
-//! publishing measurements and subscribing; the read token (or no token, when no read token is
-//! configured) allows subscribing only, and a PUBLISH on such a connection closes it. A wrong
+//! free (readers may put their name there, it is only logged). An integrator's or admin's token
+//! (the write token is an admin) allows publishing measurements and subscribing; a viewer's or
+//! operator's (the read token is a viewer; no token when reads are open) allows subscribing
+//! only, and a PUBLISH on such a connection closes it. A token revoked through the API is
+//! refused at the next CONNECT. A wrong
 //! password is refused with CONNACK "bad user name or password" (also when reads need no
 //! token: a wrong credential is never admitted as a reader), a missing one with "not
 //! authorized". Use TLS in front of the broker (a terminating proxy) where the network is not

@@ -110,10 +110,7 @@ pub fn state_on(name: &str, config: PipelineConfig) -> AppState {
     AppState {
         pipeline,
         queries: Arc::new(Mutex::new(QueryStore::new(open_sqlite(&path)))),
-        tokens: Arc::new(Tokens {
-            write: WRITE.into(),
-            read: Some(READ.into()),
-        }),
+        tokens: Arc::new(Tokens::new(WRITE, Some(READ.into()))),
         site: Arc::new(site),
         default_accuracy_m: 0.5,
         started: Instant::now(),
@@ -168,10 +165,7 @@ pub fn options(config: rtls_server::config::ServerConfig) -> rtls_server::serve:
         config,
         site: site(),
         site_text: SITE.into(),
-        tokens: Tokens {
-            write: WRITE.into(),
-            read: Some(READ.into()),
-        },
+        tokens: Tokens::new(WRITE, Some(READ.into())),
         trackables: Vec::new(),
         floor_plans: rtls_server::http::plans::FloorPlans::default(),
         feed: None,

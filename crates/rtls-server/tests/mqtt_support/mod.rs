@@ -291,10 +291,7 @@ impl TestClient {
 
 /// A broker configuration with the test tokens and small limits.
 pub fn test_config() -> BrokerConfig {
-    let mut config = BrokerConfig::new(Tokens {
-        write: WRITE_TOKEN.into(),
-        read: Some(READ_TOKEN.into()),
-    });
+    let mut config = BrokerConfig::new(Tokens::new(WRITE_TOKEN, Some(READ_TOKEN.into())));
     config.max_packet_bytes = 64 * 1024;
     config.max_inflight_per_connection = 16;
     config.max_connections = 64;

@@ -1,0 +1,219 @@
+//! Roles and the audit log (issue 22 item 3): tokens issued at run time with a role, what each
+//! role may do on every kind of route, revocation without a restart, only hashes at rest, issued
+//! tokens surviving a restart, and an audit entry for each change with the credential that made
+//! it.
+
+mod common;
+
+use axum::http::{Method, StatusCode};
+use common::{call, state, walk, READ, WRITE};
+use rtls_server::config::{MqttMode, ServerConfig};
+use serde_json::{json, Value};
+
+const FENCE: &str = r#"{"region": {"type": "Polygon", "coordinates": [[[1, 1], [3, 1], [3, 3], [1, 3], [1, 1]]]}, "crs": "local", "name": "bay"}"#;
+
+async fn issue(app: &axum::Router, name: &str, role: &str) -> (String, String) {
+    let reply = call(
+        app,
+        Method::POST,
+        "/api/v1/tokens",
+        Some(WRITE),
+        &json!({"name": name, "role": role}).to_string(),
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    let body = reply.json();
+    (
+        body["token"].as_str().unwrap().to_string(),
+        body["id"].as_str().unwrap().to_string(),
+    )
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn each_role_does_its_own_work_and_every_change_is_audited() {
+    let state = state("roles-matrix");
+    let app = rtls_server::http::router(state.clone());
+    let (viewer, _) = issue(&app, "wall-screen", "viewer").await;
+    let (operator, operator_id) = issue(&app, "dispatcher-3", "operator").await;
+    let (integrator, _) = issue(&app, "gateway-north", "integrator").await;
+    let trackable = r#"{"id": "2f0cbd70-6f1e-4bb0-9a3a-9d3c3e1a3a11", "name": "forklift", "type": "omlox"}"#;
+    let records = walk("miner-1", 1000.0, 2.0);
+    // (method, path, body, [viewer, operator, integrator, admin] expected statuses)
+    let cases: Vec<(Method, &str, &str, [StatusCode; 4])> = vec![
+        (Method::GET, "/api/v1/tags", "", [StatusCode::OK; 4]),
+        (
+            Method::POST,
+            "/api/v1/measurements",
+            &records,
+            [
+                StatusCode::FORBIDDEN,
+                StatusCode::FORBIDDEN,
+                StatusCode::OK,
+                StatusCode::OK,
+            ],
+        ),
+        (
+            Method::POST,
+            "/api/v1/alarms/no-such-alarm/acknowledge",
+            "",
+            [
+                StatusCode::FORBIDDEN,
+                StatusCode::NOT_FOUND,
+                StatusCode::FORBIDDEN,
+                StatusCode::NOT_FOUND,
+            ],
+        ),
+        (
+            Method::GET,
+            "/api/v1/tokens",
+            "",
+            [
+                StatusCode::FORBIDDEN,
+                StatusCode::FORBIDDEN,
+                StatusCode::FORBIDDEN,
+                StatusCode::OK,
+            ],
+        ),
+    ];
+    let tokens = [viewer.as_str(), operator.as_str(), integrator.as_str(), WRITE];
+    for (method, path, body, expected) in &cases {
+        for (token, want) in tokens.iter().zip(expected) {
+            let reply = call(&app, method.clone(), path, Some(token), body).await;
+            assert_eq!(reply.status, *want, "{method} {path} with {token}: {}", reply.text());
+        }
+    }
+    // zones: operators (and admins) only
+    for token in [viewer.as_str(), integrator.as_str()] {
+        let reply = call(&app, Method::POST, "/v2/fences", Some(token), FENCE).await;
+        assert_eq!(reply.status, StatusCode::FORBIDDEN, "{}", reply.text());
+    }
+    let reply = call(&app, Method::POST, "/v2/fences", Some(&operator), FENCE).await;
+    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    let fence_id = reply.json()["id"].as_str().unwrap().to_string();
+    // trackables: integrators (and admins) only
+    for token in [viewer.as_str(), operator.as_str()] {
+        let reply = call(&app, Method::POST, "/v2/trackables", Some(token), trackable).await;
+        assert_eq!(reply.status, StatusCode::FORBIDDEN, "{}", reply.text());
+    }
+    let reply = call(&app, Method::POST, "/v2/trackables", Some(&integrator), trackable).await;
+    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+
+    // revoked: refused at once, nothing restarted
+    let reply = call(
+        &app,
+        Method::DELETE,
+        &format!("/api/v1/tokens/{operator_id}"),
+        Some(WRITE),
+        "",
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::NO_CONTENT);
+    let reply = call(&app, Method::GET, "/api/v1/tags", Some(&operator), "").await;
+    assert_eq!(reply.status, StatusCode::FORBIDDEN, "a revoked token reads nothing");
+    let reply = call(
+        &app,
+        Method::DELETE,
+        &format!("/api/v1/tokens/{operator_id}"),
+        Some(WRITE),
+        "",
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::NOT_FOUND);
+
+    // the list shows no secret; the store keeps only hashes
+    let listed = call(&app, Method::GET, "/api/v1/tokens", Some(WRITE), "").await.json();
+    let listed = listed.as_array().unwrap();
+    assert_eq!(listed.len(), 2, "{listed:?}");
+    assert!(listed
+        .iter()
+        .all(|t| t.get("token").is_none() && t.get("sha256").is_none()));
+    let stored = format!("{:?}", state.tokens.issued());
+    assert!(
+        !stored.contains(&viewer) && !stored.contains(&integrator),
+        "secrets are not kept"
+    );
+
+    // the audit log: who changed what
+    let audit = call(&app, Method::GET, "/api/v1/events?type=audit", Some(READ), "")
+        .await
+        .json();
+    let entries: Vec<(String, String, String)> = audit
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e["action"].as_str().unwrap().to_string(),
+                e["by"].as_str().unwrap().to_string(),
+                e["target"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    let has = |action: &str, by: &str, target: &str| {
+        entries
+            .iter()
+            .any(|(a, b, t)| a == action && b == by && t.contains(target))
+    };
+    assert!(has("token-issued", "write-token", "dispatcher-3"), "{entries:?}");
+    assert!(has("fence-created", "dispatcher-3", &fence_id), "{entries:?}");
+    assert!(has("trackable-created", "gateway-north", "2f0cbd70"), "{entries:?}");
+    assert!(has("token-revoked", "write-token", "dispatcher-3"), "{entries:?}");
+    // a bad role or name is refused with the field
+    let reply = call(
+        &app,
+        Method::POST,
+        "/api/v1/tokens",
+        Some(WRITE),
+        r#"{"name": "x", "role": "superuser"}"#,
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::BAD_REQUEST, "{}", reply.text());
+    state.pipeline.shutdown();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn issued_tokens_survive_a_restart_and_reads_can_be_closed() {
+    let dir = common::temp_dir("roles-restart");
+    let mut config = ServerConfig::default();
+    config.server.http = "127.0.0.1:0".parse().unwrap();
+    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
+    config.mqtt.mode = MqttMode::Off;
+    let client = reqwest::Client::new();
+    let running = common::serve_on_loopback(common::options(config.clone())).await;
+    let http = running.bound.http;
+    let issued: Value = client
+        .post(format!("http://{http}/api/v1/tokens"))
+        .bearer_auth(WRITE)
+        .json(&json!({"name": "wall-screen", "role": "viewer"}))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let token = issued["token"].as_str().unwrap().to_string();
+    running.stop().await;
+
+    // the same database, no read token, reads closed: only credentials read
+    let mut options = common::options(config);
+    options.tokens = rtls_server::auth::Tokens::new(WRITE, None).with_open_reads(false);
+    let running = common::serve_on_loopback(options).await;
+    let http = running.bound.http;
+    let status = |token: Option<String>| {
+        let client = client.clone();
+        async move {
+            let mut request = client.get(format!("http://{http}/api/v1/tags"));
+            if let Some(token) = token {
+                request = request.bearer_auth(token);
+            }
+            request.send().await.unwrap().status()
+        }
+    };
+    assert_eq!(
+        status(Some(token)).await,
+        StatusCode::OK,
+        "the issued token survived the restart"
+    );
+    assert_eq!(status(None).await, StatusCode::UNAUTHORIZED, "reads need a credential");
+    running.stop().await;
+}
