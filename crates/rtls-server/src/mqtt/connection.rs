@@ -92,10 +92,25 @@ pub(crate) async fn serve(
     } else {
         connect.client_id
     };
-    let user = connect.login.map(|login| login.username).unwrap_or_default();
-    let Some(taken_over) = shared.clients.register(&client_id, connection_no, access) else {
+    let user = connect
+        .login
+        .as_ref()
+        .map(|login| login.username.clone())
+        .unwrap_or_default();
+    let password = connect
+        .login
+        .as_ref()
+        .map(|login| login.password.as_str())
+        .filter(|password| !password.is_empty());
+    let credential = shared
+        .config
+        .tokens
+        .principal(password)
+        .map(|p| p.name)
+        .unwrap_or_default();
+    let Some(taken_over) = shared.clients.register(&client_id, connection_no, &credential) else {
         add(&shared.counters.connections_refused, 1);
-        tracing::warn!(%peer, %client_id, ?access, "mqtt: refusing CONNECT: the client id is held by a session of another access");
+        tracing::warn!(%peer, %client_id, %credential, "mqtt: refusing CONNECT: the client id is held by a session of another credential");
         send_connack(&mut writer, ConnectReturnCode::BadClientId).await;
         return;
     };

@@ -49,9 +49,9 @@
 //! the connection. This is safe for QoS 1 ingest because the client — not the broker — holds
 //! every PUBLISH it has not seen acknowledged and sends it again on its next connection
 //! (MQTT 3.1.1 §4.4), and the server acknowledges only stored records. A second connection with
-//! the same client id and the same access takes over: the first one is closed (MQTT 3.1.1
-//! §3.1.4); one with another access (a subscriber reusing a reader's id) is refused with
-//! CONNACK "identifier rejected". Last-will
+//! the same client id and the same credential takes over: the first one is closed (MQTT 3.1.1
+//! §3.1.4); one with another credential (another token, or none, reusing a reader's id) is
+//! refused with CONNACK "identifier rejected". Last-will
 //! messages are accepted and ignored: the broker relays no client-to-client messages.
 //!
 //! # Authentication

@@ -6,7 +6,6 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use tokio::sync::{broadcast, Notify, Semaphore};
 
-use crate::auth::Access;
 use crate::limits::IpSlots;
 use crate::sink::{MeasurementSink, Publication};
 
@@ -14,29 +13,30 @@ use super::config::BrokerConfig;
 use super::stats::Counters;
 
 /// The sessions by client id, so that a new CONNECT with an id in use closes the older session
-/// (MQTT 3.1.1 §3.1.4) — when it comes with the same access: a subscriber cannot disconnect a
-/// reader by reusing its client id.
+/// (MQTT 3.1.1 §3.1.4) — when it comes with the same credential: nobody can disconnect a reader
+/// by reusing its client id with another token (or none).
 #[derive(Debug, Default)]
 pub(crate) struct ClientRegistry {
     sessions: Mutex<HashMap<String, Registered>>,
 }
 
-/// A registered session: its connection number, its access, and how to tell it to close.
-type Registered = (u64, Access, Arc<Notify>);
+/// A registered session: its connection number, its credential's name, and how to tell it to
+/// close.
+type Registered = (u64, String, Arc<Notify>);
 
 impl ClientRegistry {
-    /// Registers session `connection_no` with `access` as `client_id`, tells the session it
-    /// replaces (if any) to close, and returns the signal by which this session will be told;
-    /// `None` (nothing registered) when the id is held by a session of another access.
-    pub(crate) fn register(&self, client_id: &str, connection_no: u64, access: Access) -> Option<Arc<Notify>> {
+    /// Registers session `connection_no` of `credential` (the token's name) as `client_id`,
+    /// tells the session it replaces (if any) to close, and returns the signal by which this
+    /// session will be told; `None` (nothing registered) when the id is held by a session of
+    /// another credential.
+    pub(crate) fn register(&self, client_id: &str, connection_no: u64, credential: &str) -> Option<Arc<Notify>> {
         let mut sessions = self.sessions.lock().unwrap_or_else(PoisonError::into_inner);
-        if sessions.get(client_id).is_some_and(|(_, held, _)| *held != access) {
+        if sessions.get(client_id).is_some_and(|(_, held, _)| held != credential) {
             return None;
         }
         let taken_over = Arc::new(Notify::new());
-        if let Some((_, _, previous)) =
-            sessions.insert(client_id.to_owned(), (connection_no, access, Arc::clone(&taken_over)))
-        {
+        let registered = (connection_no, credential.to_owned(), Arc::clone(&taken_over));
+        if let Some((_, _, previous)) = sessions.insert(client_id.to_owned(), registered) {
             previous.notify_one();
         }
         Some(taken_over)
@@ -90,11 +90,14 @@ mod tests {
     #[test]
     fn a_second_session_with_the_same_client_id_takes_over() {
         let registry = ClientRegistry::default();
-        let first = registry.register("reader-1", 1, Access::Write).expect("free id");
-        let other = registry.register("reader-2", 2, Access::Write).expect("free id");
-        // a subscriber cannot take a writer's id
-        assert!(registry.register("reader-1", 5, Access::Read).is_none());
-        let second = registry.register("reader-1", 3, Access::Write).expect("same access");
+        let first = registry.register("reader-1", 1, "gateway-north").expect("free id");
+        let other = registry.register("reader-2", 2, "gateway-north").expect("free id");
+        // another credential cannot take the id
+        assert!(registry.register("reader-1", 5, "anonymous").is_none());
+        assert!(registry.register("reader-1", 6, "gateway-south").is_none());
+        let second = registry
+            .register("reader-1", 3, "gateway-north")
+            .expect("same credential");
         // The first session was told; a notified() future now completes at once.
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_time()
@@ -113,7 +116,7 @@ mod tests {
         });
         // The first session's unregister must not remove the second one's entry.
         registry.unregister("reader-1", 1);
-        let third = registry.register("reader-1", 4, Access::Write);
+        let third = registry.register("reader-1", 4, "gateway-north");
         runtime.block_on(async {
             tokio::time::timeout(Duration::from_millis(100), second.notified())
                 .await
