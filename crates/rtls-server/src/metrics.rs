@@ -60,6 +60,8 @@ pub struct Metrics {
     pub http_requests: Family<Labels, Counter>,
     /// HTTP connections closed at accept by a limit (`reason`: `per_ip`, `total`).
     pub http_connections_refused: Family<Labels, Counter>,
+    /// HTTP requests refused with 429 (over `max_requests_per_s_per_ip`).
+    pub http_requests_limited: Counter,
     /// Webhook deliveries, by `webhook` and `outcome` (`delivered`, `retried` — one per retry,
     /// `failed` — given up or refused, `dropped` — queue full, missed hub messages, or left at
     /// shutdown).
@@ -106,6 +108,7 @@ impl Metrics {
             websocket_dropped: Counter::default(),
             http_requests: Family::default(),
             http_connections_refused: Family::default(),
+            http_requests_limited: Counter::default(),
             webhook_deliveries: Family::default(),
             store_compacted: Family::default(),
             store_compaction_failures: Counter::default(),
@@ -211,6 +214,11 @@ impl Metrics {
             "http_connections_refused",
             "HTTP connections closed at accept by a limit (reason: per_ip, total)",
             m.http_connections_refused.clone(),
+        );
+        registry.register(
+            "http_requests_limited",
+            "HTTP requests refused with 429: over max_requests_per_s_per_ip",
+            m.http_requests_limited.clone(),
         );
         registry.register(
             "webhook_deliveries",

@@ -13,6 +13,7 @@ use tokio::sync::watch;
 use crate::auth::Tokens;
 use crate::config::{MqttMode, ServerConfig};
 use crate::http::listener::{GuardedListener, HttpLimits};
+use crate::http::rate::RateLimit;
 use crate::http::QueryStore;
 use crate::http::{router, AppState};
 use crate::metrics::Metrics;
@@ -296,7 +297,10 @@ pub async fn serve(
     let (feed_stop_tx, feed_stop_rx) = watch::channel(false);
     let feed_task = feed.map(|start| start(pipeline.clone(), bound, feed_stop_rx));
 
-    let app = with_cors(router(state), &config.server.cors_origins);
+    let mut app = with_cors(router(state), &config.server.cors_origins);
+    if let Some(rate) = RateLimit::new(config.server.max_requests_per_s_per_ip, Arc::clone(&metrics)) {
+        app = app.layer(axum::middleware::from_fn_with_state(rate, crate::http::rate::limit));
+    }
     let http_stopped = stopped(stop_rx.clone());
     let https = match &certificates {
         Some((store, _)) => Some(store.acceptor(&[b"http/1.1"])?),
@@ -313,6 +317,7 @@ pub async fn serve(
         Arc::clone(&metrics),
     );
     let http = tokio::spawn(async move {
+        let app = app.into_make_service_with_connect_info::<crate::http::listener::Peer>();
         if let Err(e) = axum::serve(listener, app).with_graceful_shutdown(http_stopped).await {
             tracing::error!(error = %e, "HTTP server failed");
         }

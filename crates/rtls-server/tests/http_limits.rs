@@ -151,3 +151,55 @@ async fn oversized_headers_are_refused_with_431() {
     );
     state.pipeline.shutdown();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_over_its_request_rate_gets_429_and_others_do_not() {
+    let dir = common::temp_dir("http-limits-rate");
+    let mut config = rtls_server::config::ServerConfig::default();
+    config.server.http = "127.0.0.1:0".parse().unwrap();
+    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
+    config.mqtt.mode = rtls_server::config::MqttMode::Off;
+    config.server.max_requests_per_s_per_ip = 5;
+    let running = common::serve_on_loopback(common::options(config)).await;
+    let http = running.bound.http;
+    let from = |source: &str| {
+        reqwest::Client::builder()
+            .local_address(Some(source.parse().unwrap()))
+            .build()
+            .unwrap()
+    };
+    let (greedy, polite) = (from("127.0.0.2"), from("127.0.0.1"));
+    let mut limited = 0;
+    let mut retry_after = None;
+    for _ in 0..40 {
+        let reply = greedy.get(format!("http://{http}/health")).send().await.unwrap();
+        if reply.status() == StatusCode::TOO_MANY_REQUESTS {
+            limited += 1;
+            retry_after = reply
+                .headers()
+                .get("retry-after")
+                .map(|v| v.to_str().unwrap().to_string());
+        }
+    }
+    assert!(
+        limited >= 20,
+        "40 requests at once over 5/s (bursts of 10): {limited} limited"
+    );
+    assert!(retry_after.is_some_and(|s| s.parse::<u64>().is_ok_and(|s| s >= 1)));
+    let reply = polite.get(format!("http://{http}/health")).send().await.unwrap();
+    assert_eq!(reply.status(), StatusCode::OK, "another address is not limited");
+    let metrics = polite
+        .get(format!("http://{http}/metrics"))
+        .bearer_auth(READ)
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert_eq!(
+        common::metric_value(&metrics, "rtls_http_requests_limited_total"),
+        f64::from(limited)
+    );
+    running.stop().await;
+}

@@ -14,6 +14,7 @@
 //! max_connections = 4096         # open HTTP connections at most (WebSockets included)
 //! max_connections_per_ip = 256   # of one IP address at most
 //! idle_timeout_s = 120.0         # a connection moving no byte this long is closed
+//! max_requests_per_s_per_ip = 500   # HTTP requests per second of one address (bursts 2×); 0: none
 //!
 //! [auth]
 //! write_token = "…"              # or the environment variable RTLS_WRITE_TOKEN
@@ -207,6 +208,9 @@ pub struct ServerSection {
     pub max_connections_per_ip: usize,
     /// An HTTP connection that moves no byte for this long is closed (s, > 0).
     pub idle_timeout_s: f64,
+    /// HTTP requests per second from one IP address at most, bursts of twice that (0: no
+    /// limit); more are answered 429 with `Retry-After`.
+    pub max_requests_per_s_per_ip: u32,
 }
 
 impl Default for ServerSection {
@@ -225,6 +229,7 @@ impl Default for ServerSection {
             max_connections: 4096,
             max_connections_per_ip: 256,
             idle_timeout_s: 120.0,
+            max_requests_per_s_per_ip: 500,
         }
     }
 }

@@ -317,3 +317,14 @@ impl AsyncWrite for ServedStream {
         on_stream!(self, cx, |stream| stream.poll_shutdown(cx))
     }
 }
+
+/// The peer address of a connection, as handlers and middleware see it
+/// (`ConnectInfo<Peer>`, with `into_make_service_with_connect_info::<Peer>()`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Peer(pub SocketAddr);
+
+impl axum::extract::connect_info::Connected<axum::serve::IncomingStream<'_, GuardedListener>> for Peer {
+    fn connect_info(stream: axum::serve::IncomingStream<'_, GuardedListener>) -> Self {
+        Self(*stream.remote_addr())
+    }
+}

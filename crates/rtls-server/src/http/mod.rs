@@ -16,6 +16,7 @@ mod muster;
 mod ops;
 pub mod plans;
 pub mod positions;
+pub mod rate;
 pub mod tokens;
 mod ws;
 
