@@ -122,7 +122,8 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
             let token = rtls_server::auth::random_token();
             eprintln!(
                 "read token (set RTLS_READ_TOKEN to choose one, or [auth] open_reads = true for none): {token}\n\
-                 dashboard: http://{}/?token={token}",
+                 dashboard: {}://{}/?token={token}",
+                if config.tls.files().is_some() { "https" } else { "http" },
                 config.server.http
             );
             Some(token)
