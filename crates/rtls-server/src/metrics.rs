@@ -42,6 +42,8 @@ pub struct Metrics {
     pub tracker_errors: Counter,
     /// Records quarantined: their partition's tracker failed on them (an error or a panic).
     pub records_quarantined: Counter,
+    /// Records the trackers did not use, by `event` (`rejected`, `late`) and measurement `kind`.
+    pub records_unused: Family<Labels, Counter>,
     /// Alarms raised, by type.
     pub alarms: Family<Labels, Counter>,
     /// Track states stored.
@@ -99,6 +101,7 @@ impl Metrics {
             track_updates_revised: Counter::default(),
             tracker_errors: Counter::default(),
             records_quarantined: Counter::default(),
+            records_unused: Family::default(),
             alarms: Family::default(),
             stored_locations: Counter::default(),
             stored_events: Counter::default(),
@@ -175,6 +178,11 @@ impl Metrics {
             "records_quarantined",
             "Records quarantined: their partition's tracker failed on them (stored apart, skipped by replay)",
             m.records_quarantined.clone(),
+        );
+        registry.register(
+            "records_unused",
+            "Records the trackers did not use, by event (rejected, late) and measurement kind; each is an event with its reason",
+            m.records_unused.clone(),
         );
         registry.register("alarms", "Alarms raised", m.alarms.clone());
         registry.register("stored_locations", "Track states stored", m.stored_locations.clone());

@@ -222,13 +222,21 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
 
     // a lost tag's frozen position is stored once, not every output interval until deletion
     // (gate was lost near t = 111 s; the data clock ran on to 120 s)
-    let gate: Value = get_json(&client, http, "/api/v1/history?tag=gate").await;
-    let lost_rows = gate
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|state| state["status"] == "lost")
-        .count();
+    // (the output thread stores rows after the live state shows them: wait for the first)
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    let (gate, lost_rows) = loop {
+        let gate: Value = get_json(&client, http, "/api/v1/history?tag=gate").await;
+        let lost_rows = gate
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|state| state["status"] == "lost")
+            .count();
+        if lost_rows > 0 || std::time::Instant::now() > deadline {
+            break (gate, lost_rows);
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
     assert_eq!(lost_rows, 1, "{gate}");
 
     // the columnar snapshot lists what /api/v1/tags lists, with the same positions

@@ -383,6 +383,12 @@ pub fn router(state: AppState) -> Router {
         )
         .route("/api/v1/zones/edits", delete(fences::reset))
         .route("/v2/ws/socket", get(ws::socket))
+        // operations of the omlox hub API this hub does not provide yet, routed here so that
+        // `{provider_id}` / `{trackable_id}` do not take them for ids
+        .route("/v2/providers/proximities", put(not_provided).get(not_provided))
+        .route("/v2/trackables/motions", get(not_provided))
+        .fallback(unknown_route)
+        .method_not_allowed_fallback(method_not_allowed)
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),
@@ -466,6 +472,27 @@ async fn count_requests(State(state): State<AppState>, request: Request, next: N
 /// Shared state for the handlers' metrics access.
 fn metrics(state: &AppState) -> &Metrics {
     state.pipeline.metrics()
+}
+
+/// An unknown path: 404 with an omlox `Error` object.
+async fn unknown_route(uri: axum::http::Uri) -> ApiError {
+    ApiError::not_found(format!("no route {}", uri.path()))
+}
+
+/// A known path with a method it does not take: 405 with an omlox `Error` object.
+async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) -> ApiError {
+    ApiError::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        format!("{} does not take {method}", uri.path()),
+    )
+}
+
+/// An omlox hub operation this hub does not provide yet: 501 with an omlox `Error` object.
+async fn not_provided(method: axum::http::Method, uri: axum::http::Uri) -> ApiError {
+    ApiError::new(
+        StatusCode::NOT_IMPLEMENTED,
+        format!("{method} {} is not provided by this hub yet", uri.path()),
+    )
 }
 
 /// The bearer token of a request, if any.

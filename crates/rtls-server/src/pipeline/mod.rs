@@ -277,6 +277,8 @@ impl Pipeline {
                 zones_version: 0,
                 track_step: config.track_step,
                 pending_events: Vec::new(),
+                last_unused_log: None,
+                unused_since_log: 0,
             };
             threads.push(spawn(
                 format!("rtls-partition-{index}"),

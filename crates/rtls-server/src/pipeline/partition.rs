@@ -54,7 +54,14 @@ pub(super) struct PartitionWorker {
     pub track_step: super::TrackStep,
     /// Events of the partition's own (quarantined records) waiting for the next batch.
     pub pending_events: Vec<EventRow>,
+    /// When an unused record was last logged.
+    pub last_unused_log: Option<Instant>,
+    /// Unused records since that line.
+    pub unused_since_log: u64,
 }
+
+/// At most one log line about unused records per partition this often.
+const UNUSED_LOG_PERIOD: Duration = Duration::from_secs(10);
 
 impl PartitionWorker {
     pub fn run(mut self) {
@@ -101,6 +108,31 @@ impl PartitionWorker {
                 }
             }
             self.emit(&mut out, processed, quarantined);
+        }
+    }
+
+    /// A record the tracker did not use (`rejected`, `late`): counted by event and
+    /// measurement kind in `rtls_records_unused_total{event, kind}`, and logged — at most once
+    /// every [`UNUSED_LOG_PERIOD`] per partition, with how many went unlogged since.
+    fn note_unused(&mut self, event: &str, parsed: &Value) {
+        let kind = parsed["kind"].as_str().unwrap_or("unknown");
+        self.metrics
+            .records_unused
+            .get_or_create(&vec![("event".into(), event.into()), ("kind".into(), kind.into())])
+            .inc();
+        self.unused_since_log += 1;
+        if self.last_unused_log.is_none_or(|at| at.elapsed() >= UNUSED_LOG_PERIOD) {
+            tracing::warn!(
+                partition = self.index,
+                event,
+                kind,
+                tag = parsed["tag"].as_str().unwrap_or(""),
+                reason = parsed["reason"].as_str().unwrap_or(""),
+                records = self.unused_since_log,
+                "record not used (the count is since the last such line; every one is an event)"
+            );
+            self.last_unused_log = Some(Instant::now());
+            self.unused_since_log = 0;
         }
     }
 
@@ -268,6 +300,9 @@ impl PartitionWorker {
         let zone = parsed["zone"].as_str().map(str::to_string);
         // entering a hazard or restricted zone is an alarm too (the fence event says the same
         // to omlox clients; the control room must see it in its console)
+        if kind == "rejected" || kind == "late" {
+            self.note_unused(&kind, &parsed);
+        }
         let entered_kind = self.entered_guarded_zone(event);
         let alarm = is_alarm(event) || entered_kind.is_some();
         if alarm {
