@@ -1,7 +1,8 @@
 //! Roles and the audit log (issue 22 item 3): tokens issued at run time with a role, what each
 //! role may do on every kind of route, revocation without a restart, only hashes at rest, issued
 //! tokens surviving a restart, and an audit entry for each change with the credential that made
-//! it.
+//! it; over MQTT, integrators and admins publish, operators and viewers only read, and a
+//! revoked token is refused at CONNECT.
 
 mod common;
 
@@ -215,5 +216,96 @@ async fn issued_tokens_survive_a_restart_and_reads_can_be_closed() {
         "the issued token survived the restart"
     );
     assert_eq!(status(None).await, StatusCode::UNAUTHORIZED, "reads need a credential");
+    running.stop().await;
+}
+
+/// Connects to the broker at `mqtt` with `password`, publishes one record at QoS 1 and says
+/// what came back: `Ok(true)` PUBACK, `Ok(false)` the connection closed, `Err` refused at
+/// CONNECT.
+async fn mqtt_publish(mqtt: std::net::SocketAddr, client_id: &str, password: &str) -> Result<bool, String> {
+    use rumqttc::{AsyncClient, ConnectionError, Event, MqttOptions, Packet, QoS};
+    let mut options = MqttOptions::new(client_id, mqtt.ip().to_string(), mqtt.port());
+    options.set_credentials("role-test", password);
+    let (client, mut events) = AsyncClient::new(options, 8);
+    let line = format!(
+        r#"{{"t": {:.3}, "tag": "mqtt-role", "kind": "fix", "position_m": [5.0, 5.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#,
+        rtls_server::pipeline::unix_s()
+    );
+    client
+        .publish("rtls/v1/measurements/role-test", QoS::AtLeastOnce, false, line)
+        .await
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+    while std::time::Instant::now() < deadline {
+        match tokio::time::timeout(std::time::Duration::from_secs(5), events.poll()).await {
+            Ok(Ok(Event::Incoming(Packet::PubAck(_)))) => return Ok(true),
+            Ok(Ok(_)) => {}
+            Ok(Err(ConnectionError::ConnectionRefused(code))) => return Err(format!("{code:?}")),
+            Ok(Err(_)) | Err(_) => return Ok(false),
+        }
+    }
+    Ok(false)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn over_mqtt_integrators_publish_others_only_read_and_revoked_tokens_are_refused() {
+    let dir = common::temp_dir("roles-mqtt");
+    let mut config = ServerConfig::default();
+    config.server.http = "127.0.0.1:0".parse().unwrap();
+    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
+    config.mqtt.mode = MqttMode::Embedded;
+    config.mqtt.listen = "127.0.0.1:0".parse().unwrap();
+    let running = common::serve_on_loopback(common::options(config)).await;
+    let (http, mqtt) = (running.bound.http, running.bound.mqtt.unwrap());
+    let client = reqwest::Client::new();
+    let issue = |name: &'static str, role: &'static str| {
+        let client = client.clone();
+        async move {
+            let body: Value = client
+                .post(format!("http://{http}/api/v1/tokens"))
+                .bearer_auth(WRITE)
+                .json(&json!({"name": name, "role": role}))
+                .send()
+                .await
+                .unwrap()
+                .json()
+                .await
+                .unwrap();
+            (
+                body["token"].as_str().unwrap().to_string(),
+                body["id"].as_str().unwrap().to_string(),
+            )
+        }
+    };
+    let (integrator, integrator_id) = issue("gateway-north", "integrator").await;
+    let (operator, _) = issue("dispatcher-3", "operator").await;
+    assert_eq!(
+        mqtt_publish(mqtt, "gw-north", &integrator).await,
+        Ok(true),
+        "an integrator publishes"
+    );
+    assert_eq!(
+        mqtt_publish(mqtt, "gw-admin", WRITE).await,
+        Ok(true),
+        "an admin publishes"
+    );
+    assert_eq!(
+        mqtt_publish(mqtt, "dispatch", &operator).await,
+        Ok(false),
+        "an operator's publish closes its connection"
+    );
+    assert_eq!(mqtt_publish(mqtt, "wall", READ).await, Ok(false), "so does a viewer's");
+    let revoked = client
+        .delete(format!("http://{http}/api/v1/tokens/{integrator_id}"))
+        .bearer_auth(WRITE)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(revoked.status(), StatusCode::NO_CONTENT);
+    assert_eq!(
+        mqtt_publish(mqtt, "gw-north-2", &integrator).await,
+        Err("BadUserNamePassword".to_string()),
+        "a revoked token is refused at CONNECT"
+    );
     running.stop().await;
 }
