@@ -14,9 +14,7 @@
 mod common;
 mod devtools;
 
-use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use headless_chrome::protocol::cdp::Page::CaptureScreenshotFormatOption;
@@ -34,27 +32,10 @@ struct Server {
 
 fn serve(name: &str, args: &[&str]) -> Server {
     let dir = common::temp_dir("dashboard", name);
-    let child = Command::new(env!("CARGO_BIN_EXE_rtls"))
-        .arg("serve")
-        .args(args)
-        .args(["--http", "127.0.0.1:0", "--mqtt-listen", "127.0.0.1:0"])
-        .arg("--db")
-        .arg(format!("sqlite:{}", dir.join("dashboard.db").display()))
-        .env("RTLS_WRITE_TOKEN", WRITE)
-        .env("RTLS_READ_TOKEN", READ)
-        .env("RTLS_LOG", "warn")
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("rtls serve starts");
-    let mut child = common::KillOnDrop(child);
-    let mut line = String::new();
-    BufReader::new(child.0.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let bound: Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("bound line {line:?}: {e}"));
+    let served = common::serve(args, &dir.join("dashboard.db"), WRITE, READ);
     Server {
-        _child: child,
-        http: bound["http"].as_str().unwrap().to_string(),
+        http: served.http(),
+        _child: served.child,
     }
 }
 

@@ -4,38 +4,19 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_demo_mine_is_tracked_counted_and_streamed() {
     let dir = common::temp_dir("serve", "demo");
-    let child = Command::new(env!("CARGO_BIN_EXE_rtls"))
-        .args([
-            "serve",
-            "--demo",
-            "--demo-miners",
-            "120",
-            "--http",
-            "127.0.0.1:0",
-            "--mqtt-listen",
-            "127.0.0.1:0",
-        ])
-        .arg("--db")
-        .arg(format!("sqlite:{}", dir.join("demo.db").display()))
-        .env("RTLS_WRITE_TOKEN", "demo-test-write-token")
-        .env("RTLS_READ_TOKEN", "demo-test-read-token")
-        .env("RTLS_LOG", "warn")
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("rtls serve --demo starts");
-    let mut child = common::KillOnDrop(child);
-    let mut line = String::new();
-    BufReader::new(child.0.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let bound: serde_json::Value = serde_json::from_str(&line).unwrap();
+    let served = common::serve(
+        &["--demo", "--demo-miners", "120"],
+        &dir.join("demo.db"),
+        "demo-test-write-token",
+        "demo-test-read-token",
+    );
+    let bound = &served.bound;
     let http = bound["http"].as_str().unwrap().to_string();
     let client = reqwest::Client::new();
     let get = |path: &str| {
@@ -116,6 +97,7 @@ async fn the_demo_mine_is_tracked_counted_and_streamed() {
         "{miners:?}"
     );
 
+    let mut child = served.child;
     let pid = child.0.id().to_string();
     assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
     let started = Instant::now();

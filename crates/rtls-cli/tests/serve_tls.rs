@@ -107,24 +107,14 @@ fn https_and_mqtts_with_a_self_signed_certificate_and_a_renewal_without_restart(
         ),
     )
     .unwrap();
-    let child = Command::new(env!("CARGO_BIN_EXE_rtls"))
-        .args(["serve", "--config"])
-        .arg(dir.join("server.toml"))
-        .args(["--http", "127.0.0.1:0", "--mqtt-listen", "127.0.0.1:0"])
-        .arg("--db")
-        .arg(format!("sqlite:{}", dir.join("rtls.db").display()))
-        .env("RTLS_WRITE_TOKEN", WRITE)
-        .env("RTLS_READ_TOKEN", READ)
-        .env("RTLS_LOG", "warn")
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("rtls serve starts");
-    let mut child = common::KillOnDrop(child);
-    let mut line = String::new();
-    BufReader::new(child.0.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let bound: Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("bound line {line:?}: {e}"));
+    let config = dir.join("server.toml");
+    let served = common::serve(
+        &["--config", config.to_str().unwrap()],
+        &dir.join("rtls.db"),
+        WRITE,
+        READ,
+    );
+    let bound = &served.bound;
     assert_eq!(bound["tls"], true, "{bound}");
     let http = bound["http"].as_str().unwrap().to_string();
     let mqtt = bound["mqtt"].as_str().unwrap().to_string();

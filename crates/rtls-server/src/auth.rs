@@ -73,6 +73,17 @@ impl Role {
         }
     }
 
+    /// What this role allows at most in one level: [`Access::Write`] when it may write
+    /// records (it publishes over MQTT), else [`Access::Read`].
+    #[must_use]
+    pub fn publish_level(self) -> Access {
+        if self.allows(Access::Write) {
+            Access::Write
+        } else {
+            Access::Read
+        }
+    }
+
     /// The role's name as the API spells it (`viewer`, …).
     #[must_use]
     pub fn name(self) -> &'static str {
@@ -187,17 +198,6 @@ impl Tokens {
             .and_then(|token| who(&token.name, token.role))
     }
 
-    /// What `presented` allows at most, for callers that think in one level (the MQTT broker:
-    /// [`Access::Write`] publishes, [`Access::Read`] subscribes).
-    #[must_use]
-    pub fn access(&self, presented: Option<&str>) -> Access {
-        match self.principal(presented).map(|p| p.role) {
-            None => Access::None,
-            Some(Role::Viewer | Role::Operator) => Access::Read,
-            Some(Role::Integrator | Role::Admin) => Access::Write,
-        }
-    }
-
     /// Issues a token named `name` with `role`: the secret (shown once) and its record (to
     /// store; only its hash is kept).
     #[must_use]
@@ -258,26 +258,33 @@ fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
 mod tests {
     use super::*;
 
+    /// What `presented` allows at most, in one level ([`Access::None`] when refused).
+    fn access(tokens: &Tokens, presented: Option<&str>) -> Access {
+        tokens
+            .principal(presented)
+            .map_or(Access::None, |who| who.role.publish_level())
+    }
+
     #[test]
     fn the_write_token_is_an_admin_the_read_token_a_viewer_and_others_nobody() {
         let tokens = Tokens::new("w-secret", Some("r-secret".into()));
         assert_eq!(tokens.principal(Some("w-secret")).unwrap().role, Role::Admin);
         assert_eq!(tokens.principal(Some("r-secret")).unwrap().role, Role::Viewer);
-        assert_eq!(tokens.access(Some("w-secret")), Access::Write);
-        assert_eq!(tokens.access(Some("r-secret")), Access::Read);
-        assert_eq!(tokens.access(Some("w-secreT")), Access::None);
-        assert_eq!(tokens.access(None), Access::None);
+        assert_eq!(access(&tokens, Some("w-secret")), Access::Write);
+        assert_eq!(access(&tokens, Some("r-secret")), Access::Read);
+        assert_eq!(access(&tokens, Some("w-secreT")), Access::None);
+        assert_eq!(access(&tokens, None), Access::None);
         let open_reads = Tokens::new("w", None);
-        assert_eq!(open_reads.access(None), Access::Read);
+        assert_eq!(access(&open_reads, None), Access::Read);
         assert_eq!(open_reads.principal(None).unwrap().name, "anonymous");
-        assert_eq!(open_reads.access(Some("w")), Access::Write);
+        assert_eq!(access(&open_reads, Some("w")), Access::Write);
         assert_eq!(
-            open_reads.access(Some("guess")),
+            access(&open_reads, Some("guess")),
             Access::None,
             "a wrong token is refused"
         );
         let closed = Tokens::new("w", None).with_open_reads(false);
-        assert_eq!(closed.access(None), Access::None, "reads need a credential");
+        assert_eq!(access(&closed, None), Access::None, "reads need a credential");
     }
 
     #[test]
@@ -290,7 +297,7 @@ mod tests {
         let who = shared.principal(Some(&secret)).expect("known in every clone");
         assert_eq!((who.name.as_str(), who.role), ("dispatcher-3", Role::Operator));
         assert_eq!(
-            shared.access(Some(&secret)),
+            access(&shared, Some(&secret)),
             Access::Read,
             "an operator does not publish"
         );

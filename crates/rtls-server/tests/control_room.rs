@@ -8,13 +8,13 @@ use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
 use rtls_engine::site::Site;
-use rtls_server::config::{MqttMode, ServerConfig};
+use rtls_server::config::MqttMode;
 use rtls_server::http::plans::FloorPlans;
 use rtls_server::serve::ServeOptions;
 use serde_json::Value;
 use tokio_tungstenite::tungstenite::Message;
 
-use common::{temp_dir, walk, READ, SITE, WRITE};
+use common::{get_json, poll_text, temp_dir, walk, READ, SITE, WRITE};
 
 /// The test floor with a portal (x ∈ [0, 4] m) as the muster's entry zone and a floor plan.
 fn site_text() -> String {
@@ -31,43 +31,6 @@ fn site_text() -> String {
 /// The eight bytes every PNG starts with, and a little more: enough for the server, which
 /// does not decode images.
 const PNG: &[u8] = b"\x89PNG\r\n\x1a\n0000IHDR";
-
-/// `GET path` with the read token, as JSON.
-async fn get_json(client: &reqwest::Client, http: std::net::SocketAddr, path: &str) -> Value {
-    let reply = client
-        .get(format!("http://{http}{path}"))
-        .bearer_auth(READ)
-        .send()
-        .await
-        .unwrap();
-    reply.json().await.unwrap()
-}
-
-/// `GET path` with the read token, as text, every 100 ms until `done` holds of it or 20 s
-/// have passed; the last answer.
-async fn poll_text(
-    client: &reqwest::Client,
-    http: std::net::SocketAddr,
-    path: &str,
-    done: impl Fn(&str) -> bool,
-) -> String {
-    let deadline = std::time::Instant::now() + Duration::from_secs(20);
-    loop {
-        let text = client
-            .get(format!("http://{http}{path}"))
-            .bearer_auth(READ)
-            .send()
-            .await
-            .unwrap()
-            .text()
-            .await
-            .unwrap();
-        if done(&text) || std::time::Instant::now() > deadline {
-            return text;
-        }
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
-}
 
 type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
@@ -89,10 +52,7 @@ async fn positions_alarms_muster_and_floor_plan_as_the_screen_reads_them() {
     let text = site_text();
     let site = Site::from_toml_str(&text, "control-room.toml").unwrap();
     let floor_plans = FloorPlans::load(&site, &dir).unwrap();
-    let mut config = ServerConfig::default();
-    config.server.http = "127.0.0.1:0".parse().unwrap();
-    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
-    config.mqtt.mode = MqttMode::Off;
+    let mut config = common::loopback_config(&dir, MqttMode::Off);
     config.pipeline.live_clock = false;
     // one partition: every tag's records advance the same data clock, so silent tags get lost
     config.pipeline.partitions = 1;
@@ -313,10 +273,7 @@ async fn a_late_record_is_refiltered_and_its_revisions_flagged() {
         "reorder_window_s = 0.0\nrewind_horizon_s = 5.0",
     );
     let site = Site::from_toml_str(&text, "late-record.toml").unwrap();
-    let mut config = ServerConfig::default();
-    config.server.http = "127.0.0.1:0".parse().unwrap();
-    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
-    config.mqtt.mode = MqttMode::Off;
+    let mut config = common::loopback_config(&dir, MqttMode::Off);
     config.pipeline.live_clock = false;
     let running = common::serve_on_loopback(ServeOptions {
         site,
@@ -365,11 +322,8 @@ async fn a_late_record_is_refiltered_and_its_revisions_flagged() {
 async fn old_states_and_records_are_compacted_and_still_read() {
     let dir = temp_dir("compaction");
     let site = Site::from_toml_str(SITE, "compaction.toml").unwrap();
-    let mut config = ServerConfig::default();
-    config.server.http = "127.0.0.1:0".parse().unwrap();
-    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
+    let mut config = common::loopback_config(&dir, MqttMode::Off);
     config.server.compact_after_s = 1.0;
-    config.mqtt.mode = MqttMode::Off;
     config.pipeline.live_clock = false;
     let running = common::serve_on_loopback(ServeOptions {
         site,

@@ -155,10 +155,7 @@ async fn oversized_headers_are_refused_with_431() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_client_over_its_request_rate_gets_429_and_others_do_not() {
     let dir = common::temp_dir("http-limits-rate");
-    let mut config = rtls_server::config::ServerConfig::default();
-    config.server.http = "127.0.0.1:0".parse().unwrap();
-    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
-    config.mqtt.mode = rtls_server::config::MqttMode::Off;
+    let mut config = common::loopback_config(&dir, rtls_server::config::MqttMode::Off);
     config.server.max_requests_per_s_per_ip = 5;
     let running = common::serve_on_loopback(common::options(config)).await;
     let http = running.bound.http;
@@ -188,15 +185,7 @@ async fn a_client_over_its_request_rate_gets_429_and_others_do_not() {
     assert!(retry_after.is_some_and(|s| s.parse::<u64>().is_ok_and(|s| s >= 1)));
     let reply = polite.get(format!("http://{http}/health")).send().await.unwrap();
     assert_eq!(reply.status(), StatusCode::OK, "another address is not limited");
-    let metrics = polite
-        .get(format!("http://{http}/metrics"))
-        .bearer_auth(READ)
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let metrics = common::get_text(&polite, http, "/metrics").await;
     assert_eq!(
         common::metric_value(&metrics, "rtls_http_requests_limited_total"),
         f64::from(limited)

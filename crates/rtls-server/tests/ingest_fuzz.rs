@@ -8,10 +8,10 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::{metric_value, READ, WRITE};
+use common::{metric_value, WRITE};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rtls_server::config::{MqttMode, ServerConfig};
+use rtls_server::config::MqttMode;
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 
 /// Payloads per transport.
@@ -125,11 +125,7 @@ fn payload(rng: &mut ChaCha8Rng) -> Vec<u8> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn mutated_payloads_over_http_and_mqtt_never_crash_stall_or_lose_the_server() {
     let dir = common::temp_dir("ingest-fuzz");
-    let mut config = ServerConfig::default();
-    config.server.http = "127.0.0.1:0".parse().unwrap();
-    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
-    config.mqtt.mode = MqttMode::Embedded;
-    config.mqtt.listen = "127.0.0.1:0".parse().unwrap();
+    let config = common::loopback_config(&dir, MqttMode::Embedded);
     let running = common::serve_on_loopback(common::options(config)).await;
     let http = running.bound.http;
     let mqtt = running.bound.mqtt.expect("the embedded broker");
@@ -216,33 +212,10 @@ async fn mutated_payloads_over_http_and_mqtt_never_crash_stall_or_lose_the_serve
         .collect();
     let reply = common::post_measurements(&client, http, walk).await;
     assert!(reply.status().is_success());
-    let mut tracked = false;
-    for _ in 0..100 {
-        let tags = client
-            .get(format!("http://{http}/api/v1/tags"))
-            .bearer_auth(READ)
-            .send()
-            .await
-            .unwrap()
-            .text()
-            .await
-            .unwrap();
-        if tags.contains("after-fuzz") {
-            tracked = true;
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    let tags = common::poll_text(&client, http, "/api/v1/tags", |tags| tags.contains("after-fuzz")).await;
+    let tracked = tags.contains("after-fuzz");
     assert!(tracked, "a valid walk is tracked after the fuzz");
-    let metrics = client
-        .get(format!("http://{http}/metrics"))
-        .bearer_auth(READ)
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let metrics = common::get_text(&client, http, "/metrics").await;
     assert_eq!(
         metric_value(&metrics, "rtls_records_quarantined_total"),
         0.0,

@@ -34,9 +34,17 @@ async fn a_range_the_site_cannot_weigh_is_counted_and_explained() {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     assert_eq!(counted, 1.0, "the refused record raised the metric");
-    let events = call(&app, Method::GET, "/api/v1/events?type=rejected", Some(READ), "")
-        .await
-        .json();
+    // the event is stored by the output thread, after the partition counted it
+    let mut events = serde_json::Value::Null;
+    for _ in 0..100 {
+        events = call(&app, Method::GET, "/api/v1/events?type=rejected", Some(READ), "")
+            .await
+            .json();
+        if events.as_array().is_some_and(|e| !e.is_empty()) {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
     let reason = events[0]["reason"].as_str().unwrap_or_default().to_string();
     assert!(reason.contains("std"), "the event says why: {events}");
     state.pipeline.shutdown();

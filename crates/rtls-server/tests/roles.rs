@@ -8,7 +8,7 @@ mod common;
 
 use axum::http::{Method, StatusCode};
 use common::{call, state, walk, READ, WRITE};
-use rtls_server::config::{MqttMode, ServerConfig};
+use rtls_server::config::MqttMode;
 use serde_json::{json, Value};
 
 const FENCE: &str = r#"{"region": {"type": "Polygon", "coordinates": [[[1, 1], [3, 1], [3, 3], [1, 3], [1, 1]]]}, "crs": "local", "name": "bay"}"#;
@@ -100,26 +100,13 @@ async fn each_role_does_its_own_work_and_every_change_is_audited() {
     assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
 
     // revoked: refused at once, nothing restarted
-    let reply = call(
-        &app,
-        Method::DELETE,
-        &format!("/api/v1/tokens/{operator_id}"),
-        Some(WRITE),
-        "",
-    )
-    .await;
+    let revoke_path = format!("/api/v1/tokens/{operator_id}");
+    let reply = call(&app, Method::DELETE, &revoke_path, Some(WRITE), "").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
     let reply = call(&app, Method::GET, "/api/v1/tags", Some(&operator), "").await;
     assert_eq!(reply.status, StatusCode::FORBIDDEN, "a revoked token reads nothing");
-    let reply = call(
-        &app,
-        Method::DELETE,
-        &format!("/api/v1/tokens/{operator_id}"),
-        Some(WRITE),
-        "",
-    )
-    .await;
-    assert_eq!(reply.status, StatusCode::NOT_FOUND);
+    let reply = call(&app, Method::DELETE, &revoke_path, Some(WRITE), "").await;
+    assert_eq!(reply.status, StatusCode::NOT_FOUND, "revoked once");
 
     // the list shows no secret; the store keeps only hashes
     let listed = call(&app, Method::GET, "/api/v1/tokens", Some(WRITE), "").await.json();
@@ -175,24 +162,11 @@ async fn each_role_does_its_own_work_and_every_change_is_audited() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn issued_tokens_survive_a_restart_and_reads_can_be_closed() {
     let dir = common::temp_dir("roles-restart");
-    let mut config = ServerConfig::default();
-    config.server.http = "127.0.0.1:0".parse().unwrap();
-    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
-    config.mqtt.mode = MqttMode::Off;
+    let config = common::loopback_config(&dir, MqttMode::Off);
     let client = reqwest::Client::new();
     let running = common::serve_on_loopback(common::options(config.clone())).await;
     let http = running.bound.http;
-    let issued: Value = client
-        .post(format!("http://{http}/api/v1/tokens"))
-        .bearer_auth(WRITE)
-        .json(&json!({"name": "wall-screen", "role": "viewer"}))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    let token = issued["token"].as_str().unwrap().to_string();
+    let (token, _) = issue_over_http(&client, http, "wall-screen", "viewer").await;
     running.stop().await;
 
     // the same database, no read token, reads closed: only credentials read
@@ -217,6 +191,29 @@ async fn issued_tokens_survive_a_restart_and_reads_can_be_closed() {
     );
     assert_eq!(status(None).await, StatusCode::UNAUTHORIZED, "reads need a credential");
     running.stop().await;
+}
+
+/// Issues a token named `name` with `role` through a running server: its secret and id.
+async fn issue_over_http(
+    client: &reqwest::Client,
+    http: std::net::SocketAddr,
+    name: &str,
+    role: &str,
+) -> (String, String) {
+    let body: Value = client
+        .post(format!("http://{http}/api/v1/tokens"))
+        .bearer_auth(WRITE)
+        .json(&json!({"name": name, "role": role}))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    (
+        body["token"].as_str().unwrap().to_string(),
+        body["id"].as_str().unwrap().to_string(),
+    )
 }
 
 /// Connects to the broker at `mqtt` with `password`, publishes one record at QoS 1 and says
@@ -250,35 +247,12 @@ async fn mqtt_publish(mqtt: std::net::SocketAddr, client_id: &str, password: &st
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn over_mqtt_integrators_publish_others_only_read_and_revoked_tokens_are_refused() {
     let dir = common::temp_dir("roles-mqtt");
-    let mut config = ServerConfig::default();
-    config.server.http = "127.0.0.1:0".parse().unwrap();
-    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
-    config.mqtt.mode = MqttMode::Embedded;
-    config.mqtt.listen = "127.0.0.1:0".parse().unwrap();
+    let config = common::loopback_config(&dir, MqttMode::Embedded);
     let running = common::serve_on_loopback(common::options(config)).await;
     let (http, mqtt) = (running.bound.http, running.bound.mqtt.unwrap());
     let client = reqwest::Client::new();
-    let issue = |name: &'static str, role: &'static str| {
-        let client = client.clone();
-        async move {
-            let body: Value = client
-                .post(format!("http://{http}/api/v1/tokens"))
-                .bearer_auth(WRITE)
-                .json(&json!({"name": name, "role": role}))
-                .send()
-                .await
-                .unwrap()
-                .json()
-                .await
-                .unwrap();
-            (
-                body["token"].as_str().unwrap().to_string(),
-                body["id"].as_str().unwrap().to_string(),
-            )
-        }
-    };
-    let (integrator, integrator_id) = issue("gateway-north", "integrator").await;
-    let (operator, _) = issue("dispatcher-3", "operator").await;
+    let (integrator, integrator_id) = issue_over_http(&client, http, "gateway-north", "integrator").await;
+    let (operator, _) = issue_over_http(&client, http, "dispatcher-3", "operator").await;
     assert_eq!(
         mqtt_publish(mqtt, "gw-north", &integrator).await,
         Ok(true),

@@ -31,3 +31,42 @@ impl Drop for KillOnDrop {
         let _ = self.0.wait();
     }
 }
+
+/// A running `rtls serve` (killed when dropped) and the line it printed when bound
+/// (`{"http", "mqtt", "tls"}`).
+pub struct Served {
+    pub child: KillOnDrop,
+    pub bound: serde_json::Value,
+}
+
+impl Served {
+    /// Its HTTP address.
+    pub fn http(&self) -> String {
+        self.bound["http"].as_str().unwrap().to_string()
+    }
+}
+
+/// Starts `rtls serve` with `args` on loopback ports of its own (`127.0.0.1:0`), SQLite at
+/// `db`, the write and read tokens in the environment, warnings only; waits for its bound line.
+pub fn serve(args: &[&str], db: &std::path::Path, write: &str, read: &str) -> Served {
+    use std::io::{BufRead, BufReader};
+    let child = Command::new(env!("CARGO_BIN_EXE_rtls"))
+        .arg("serve")
+        .args(args)
+        .args(["--http", "127.0.0.1:0", "--mqtt-listen", "127.0.0.1:0"])
+        .arg("--db")
+        .arg(format!("sqlite:{}", db.display()))
+        .env("RTLS_WRITE_TOKEN", write)
+        .env("RTLS_READ_TOKEN", read)
+        .env("RTLS_LOG", "warn")
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("rtls serve starts");
+    let mut child = KillOnDrop(child);
+    let mut line = String::new();
+    BufReader::new(child.0.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let bound = serde_json::from_str(&line).unwrap_or_else(|e| panic!("bound line {line:?}: {e}"));
+    Served { child, bound }
+}

@@ -132,10 +132,14 @@ impl axum::serve::Listener for GuardedListener {
 
 /// An accepted connection: holds its limit slots while open, and fails with
 /// [`io::ErrorKind::TimedOut`] once it has moved no byte for its idle time.
+///
+/// Bytes moving only note the time (`last_active`); the timer is re-armed when it fires, not
+/// on every read and write.
 pub struct GuardedStream {
     inner: TcpStream,
     idle_for: Duration,
     idle: Pin<Box<Sleep>>,
+    last_active: tokio::time::Instant,
     _slot: IpSlot,
     _permit: OwnedSemaphorePermit,
 }
@@ -146,6 +150,7 @@ impl GuardedStream {
             inner,
             idle_for,
             idle: Box::pin(tokio::time::sleep(idle_for)),
+            last_active: tokio::time::Instant::now(),
             _slot: slot,
             _permit: permit,
         }
@@ -153,18 +158,24 @@ impl GuardedStream {
 
     /// Bytes moved: the idle time starts again.
     fn active(&mut self) {
-        let deadline = tokio::time::Instant::now() + self.idle_for;
-        self.idle.as_mut().reset(deadline);
+        self.last_active = tokio::time::Instant::now();
     }
 
-    /// Waiting for the peer: an error once the idle time is over.
+    /// Waiting for the peer: an error once `idle_for` has passed since bytes last moved.
     fn check_idle(&mut self, cx: &mut Context<'_>) -> Poll<io::Error> {
-        match self.idle.as_mut().poll(cx) {
-            Poll::Ready(()) => Poll::Ready(io::Error::new(
-                io::ErrorKind::TimedOut,
-                format!("no byte moved for {:?}", self.idle_for),
-            )),
-            Poll::Pending => Poll::Pending,
+        loop {
+            if self.idle.as_mut().poll(cx).is_pending() {
+                return Poll::Pending;
+            }
+            // deadline = last activity + idle time; re-arm while it lies ahead
+            let deadline = self.last_active + self.idle_for;
+            if deadline <= tokio::time::Instant::now() {
+                return Poll::Ready(io::Error::new(
+                    io::ErrorKind::TimedOut,
+                    format!("no byte moved for {:?}", self.idle_for),
+                ));
+            }
+            self.idle.as_mut().reset(deadline);
         }
     }
 }

@@ -13,7 +13,7 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::sync::{watch, OwnedSemaphorePermit};
 use tokio::time::timeout;
 
-use crate::auth::{Access, Tokens};
+use crate::auth::{Access, Principal, Tokens};
 
 use super::frame::{self, FrameError, Next};
 use super::session::{packet_name, Session, CLOSE_WRITE_TIMEOUT};
@@ -64,8 +64,8 @@ pub(crate) async fn serve(
             return;
         }
     };
-    let access = match admit(&connect, &shared.config.tokens) {
-        Ok(access) => access,
+    let (access, credential) = match admit(&connect, &shared.config.tokens) {
+        Ok(who) => (who.role.publish_level(), who.name),
         Err(code) => {
             add(&shared.counters.connections_refused, 1);
             tracing::warn!(%peer, client_id = %connect.client_id, ?code, "mqtt: refusing CONNECT");
@@ -96,17 +96,6 @@ pub(crate) async fn serve(
         .login
         .as_ref()
         .map(|login| login.username.clone())
-        .unwrap_or_default();
-    let password = connect
-        .login
-        .as_ref()
-        .map(|login| login.password.as_str())
-        .filter(|password| !password.is_empty());
-    let credential = shared
-        .config
-        .tokens
-        .principal(password)
-        .map(|p| p.name)
         .unwrap_or_default();
     let Some(taken_over) = shared.clients.register(&client_id, connection_no, &credential) else {
         add(&shared.counters.connections_refused, 1);
@@ -154,8 +143,8 @@ pub(crate) async fn refuse_unavailable(
     tracing::debug!(%peer, "mqtt: refused connection closed");
 }
 
-/// Decides a CONNECT: the access its password grants, or the CONNACK code refusing it.
-fn admit(connect: &Connect, tokens: &Tokens) -> Result<Access, ConnectReturnCode> {
+/// Decides a CONNECT: who its password names, or the CONNACK code refusing it.
+fn admit(connect: &Connect, tokens: &Tokens) -> Result<Principal, ConnectReturnCode> {
     let id = &connect.client_id;
     // Wildcards or NUL would make the error topic `rtls/v1/errors/{client_id}` invalid; an
     // empty id needs a clean session (MQTT 3.1.1 §3.1.3-8).
@@ -167,10 +156,10 @@ fn admit(connect: &Connect, tokens: &Tokens) -> Result<Access, ConnectReturnCode
         .as_ref()
         .map(|login| login.password.as_str())
         .filter(|password| !password.is_empty());
-    match tokens.access(password) {
-        Access::None if password.is_some() => Err(ConnectReturnCode::BadUserNamePassword),
-        Access::None => Err(ConnectReturnCode::NotAuthorized),
-        access => Ok(access),
+    match tokens.principal(password) {
+        Some(who) => Ok(who),
+        None if password.is_some() => Err(ConnectReturnCode::BadUserNamePassword),
+        None => Err(ConnectReturnCode::NotAuthorized),
     }
 }
 
@@ -235,6 +224,11 @@ impl Drop for OpenConnection {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// What [`admit`] grants, in one level.
+    fn admit_access(connect: &Connect, tokens: &Tokens) -> Result<Access, ConnectReturnCode> {
+        admit(connect, tokens).map(|who| who.role.publish_level())
+    }
     use rumqttc::mqttbytes::v4::Login;
 
     fn connect(client_id: &str, clean_session: bool, password: Option<&str>) -> Connect {
@@ -247,22 +241,28 @@ mod tests {
     #[test]
     fn admission_follows_the_token_and_names_the_refusal() {
         let tokens = Tokens::new("w-token", Some("r-token".into()));
-        assert_eq!(admit(&connect("r1", true, Some("w-token")), &tokens), Ok(Access::Write));
-        assert_eq!(admit(&connect("r1", true, Some("r-token")), &tokens), Ok(Access::Read));
         assert_eq!(
-            admit(&connect("r1", true, Some("nope")), &tokens),
+            admit_access(&connect("r1", true, Some("w-token")), &tokens),
+            Ok(Access::Write)
+        );
+        assert_eq!(
+            admit_access(&connect("r1", true, Some("r-token")), &tokens),
+            Ok(Access::Read)
+        );
+        assert_eq!(
+            admit_access(&connect("r1", true, Some("nope")), &tokens),
             Err(ConnectReturnCode::BadUserNamePassword)
         );
         assert_eq!(
-            admit(&connect("r1", true, None), &tokens),
+            admit_access(&connect("r1", true, None), &tokens),
             Err(ConnectReturnCode::NotAuthorized)
         );
         // Without a read token, no password reads.
         let open_reads = Tokens::new("w-token", None);
-        assert_eq!(admit(&connect("r1", true, None), &open_reads), Ok(Access::Read));
+        assert_eq!(admit_access(&connect("r1", true, None), &open_reads), Ok(Access::Read));
         // … but a wrong password is refused, not admitted as a reader
         assert_eq!(
-            admit(&connect("r1", true, Some("guess")), &open_reads),
+            admit_access(&connect("r1", true, Some("guess")), &open_reads),
             Err(ConnectReturnCode::BadUserNamePassword)
         );
     }
@@ -272,18 +272,18 @@ mod tests {
         let tokens = Tokens::new("w", None);
         for id in ["a+b", "site/#", "nul\0"] {
             assert_eq!(
-                admit(&connect(id, true, Some("w")), &tokens),
+                admit_access(&connect(id, true, Some("w")), &tokens),
                 Err(ConnectReturnCode::BadClientId),
                 "{id:?}"
             );
         }
         assert_eq!(
-            admit(&connect("", false, Some("w")), &tokens),
+            admit_access(&connect("", false, Some("w")), &tokens),
             Err(ConnectReturnCode::BadClientId)
         );
-        assert_eq!(admit(&connect("", true, Some("w")), &tokens), Ok(Access::Write));
+        assert_eq!(admit_access(&connect("", true, Some("w")), &tokens), Ok(Access::Write));
         assert_eq!(
-            admit(&connect("site/reader-7", true, Some("w")), &tokens),
+            admit_access(&connect("site/reader-7", true, Some("w")), &tokens),
             Ok(Access::Write)
         );
     }

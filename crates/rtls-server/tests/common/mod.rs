@@ -273,3 +273,59 @@ pub async fn call(app: &axum::Router, method: Method, uri: &str, token: Option<&
         body,
     }
 }
+
+/// `GET path` with the read token, as JSON.
+pub async fn get_json(client: &reqwest::Client, http: std::net::SocketAddr, path: &str) -> Value {
+    let reply = client
+        .get(format!("http://{http}{path}"))
+        .bearer_auth(READ)
+        .send()
+        .await
+        .unwrap();
+    reply.json().await.unwrap()
+}
+
+/// `GET path` with the read token, as text, every 100 ms until `done` holds of it or 20 s
+/// have passed; the last answer.
+pub async fn poll_text(
+    client: &reqwest::Client,
+    http: std::net::SocketAddr,
+    path: &str,
+    done: impl Fn(&str) -> bool,
+) -> String {
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    loop {
+        let text = client
+            .get(format!("http://{http}{path}"))
+            .bearer_auth(READ)
+            .send()
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        if done(&text) || std::time::Instant::now() > deadline {
+            return text;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+/// `GET path` with the read token, as text.
+pub async fn get_text(client: &reqwest::Client, http: std::net::SocketAddr, path: &str) -> String {
+    poll_text(client, http, path, |_| true).await
+}
+
+/// A server configuration on loopback ports of its own (`127.0.0.1:0`), SQLite in `dir`, MQTT
+/// as `mqtt`; everything else the default.
+pub fn loopback_config(
+    dir: &std::path::Path,
+    mqtt: rtls_server::config::MqttMode,
+) -> rtls_server::config::ServerConfig {
+    let mut config = rtls_server::config::ServerConfig::default();
+    config.server.http = "127.0.0.1:0".parse().unwrap();
+    config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
+    config.mqtt.mode = mqtt;
+    config.mqtt.listen = "127.0.0.1:0".parse().unwrap();
+    config
+}
