@@ -5,18 +5,23 @@
 # - installs Debian's mosquitto when it is missing (needs root, as on the project's machines),
 #   and mosquitto-clients and curl for the TLS test;
 # - runs it as a background daemon (not through systemd) with its own configuration in a
-#   temporary directory: one listener on 127.0.0.1:18830, anonymous clients allowed, no
-#   persistence;
+#   temporary directory: one listener on 127.0.0.1:18830, and one with TLS on 127.0.0.1:18831
+#   (a test CA and a certificate for 127.0.0.1 made once with openssl in /tmp/rtls-mosquitto-tls),
+#   anonymous clients allowed, no persistence;
 # - waits until the port accepts connections;
 # - does nothing but print the variable when a broker already answers on that port.
 #
 # Usage:  eval "$(bash .ci/services/mosquitto.sh | tail -n 1)"
 # The last line printed is always: export RTLS_TEST_MOSQUITTO_URL=mqtt://127.0.0.1:18830
+#   RTLS_TEST_MOSQUITTOS_URL=mqtts://127.0.0.1:18831 RTLS_TEST_MOSQUITTO_CA=<the test CA's PEM>
 set -euo pipefail
 
 host=127.0.0.1
 port=18830
+tls_port=18831
 url="mqtt://${host}:${port}"
+tls_dir=/tmp/rtls-mosquitto-tls
+exports="export RTLS_TEST_MOSQUITTO_URL=${url} RTLS_TEST_MOSQUITTOS_URL=mqtts://${host}:${tls_port} RTLS_TEST_MOSQUITTO_CA=${tls_dir}/ca.crt"
 
 # the TLS test of `rtls serve` (crates/rtls-cli/tests/serve_tls.rs) drives real clients
 if ! command -v mosquitto_pub >/dev/null || ! command -v curl >/dev/null; then
@@ -35,8 +40,27 @@ port_accepts() {
 
 if port_accepts; then
     echo "mosquitto.sh: a broker already accepts connections on ${host}:${port}" >&2
-    echo "export RTLS_TEST_MOSQUITTO_URL=${url}"
+    echo "${exports}"
     exit 0
+fi
+
+# TLS for the bridge's TLS test: a CA of its own and a certificate for 127.0.0.1 signed by it.
+if [ ! -f "${tls_dir}/server.crt" ]; then
+    if ! command -v openssl >/dev/null; then
+        echo "mosquitto.sh: installing openssl (apt-get)" >&2
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get install -y -qq openssl >&2 || { apt-get update -qq >&2; apt-get install -y -qq openssl >&2; }
+    fi
+    mkdir -p "${tls_dir}"
+    openssl req -x509 -newkey rsa:2048 -nodes -days 3650 -subj "/CN=rtls mosquitto test CA" \
+        -keyout "${tls_dir}/ca.key" -out "${tls_dir}/ca.crt" 2>/dev/null
+    openssl req -newkey rsa:2048 -nodes -subj "/CN=127.0.0.1" \
+        -keyout "${tls_dir}/server.key" -out "${tls_dir}/server.csr" 2>/dev/null
+    printf 'subjectAltName=IP:127.0.0.1,DNS:localhost\nbasicConstraints=CA:FALSE\nextendedKeyUsage=serverAuth\n' \
+        > "${tls_dir}/server.ext"
+    openssl x509 -req -in "${tls_dir}/server.csr" -CA "${tls_dir}/ca.crt" -CAkey "${tls_dir}/ca.key" \
+        -CAcreateserial -days 3650 -extfile "${tls_dir}/server.ext" -out "${tls_dir}/server.crt" 2>/dev/null
+    chmod 644 "${tls_dir}/ca.crt" "${tls_dir}/server.crt" "${tls_dir}/server.key"
 fi
 
 mosquitto_bin=$(command -v mosquitto || true)
@@ -57,8 +81,13 @@ work_dir=$(mktemp -d /tmp/rtls-mosquitto.XXXXXX)
 config="${work_dir}/mosquitto.conf"
 cat >"${config}" <<CONF
 # Written by .ci/services/mosquitto.sh for the rtls-server tests.
-listener ${port} ${host}
+per_listener_settings false
 allow_anonymous true
+listener ${port} ${host}
+listener ${tls_port} ${host}
+cafile ${tls_dir}/ca.crt
+certfile ${tls_dir}/server.crt
+keyfile ${tls_dir}/server.key
 persistence false
 pid_file ${work_dir}/mosquitto.pid
 log_dest file ${work_dir}/mosquitto.log
@@ -77,7 +106,7 @@ fi
 for _ in $(seq 1 100); do
     if port_accepts; then
         echo "mosquitto.sh: mosquitto runs on ${host}:${port} (config and log in ${work_dir})" >&2
-        echo "export RTLS_TEST_MOSQUITTO_URL=${url}"
+        echo "${exports}"
         exit 0
     fi
     sleep 0.1

@@ -37,7 +37,8 @@ pub struct ServeArgs {
     /// Embedded MQTT broker's listen address.
     #[arg(long)]
     mqtt_listen: Option<SocketAddr>,
-    /// Use an external MQTT broker instead of the embedded one (`mqtt://host:port?client_id=…`).
+    /// Use an external MQTT broker instead of the embedded one (`mqtt://host:port?client_id=…`;
+    /// TLS: `mqtts://host:port?ca_file=ca.pem`).
     #[arg(long, conflicts_with = "no_mqtt")]
     mqtt_url: Option<String>,
     /// No MQTT at all.

@@ -328,12 +328,19 @@ async fn an_unavailable_sink_gets_no_puback_and_the_resend_after_reconnecting_is
 
     // No PUBACK: the connection closes.
     reader.expect_error(2 * SECOND, is_puback).await;
-    // rumqttc reconnects and sends the unacknowledged PUBLISH again; the sink has recovered.
+    // The reader reconnects and sends the unacknowledged record again (rumqttc 0.25 resends
+    // its pending publishes only into a resumed session, so the test does it); the sink has
+    // recovered.
     reader
         .expect_incoming(3 * SECOND, "CONNACK after reconnecting", |p| {
             matches!(p, Packet::ConnAck(_))
         })
         .await;
+    reader
+        .client
+        .publish(measurement_topic("reader-retry"), QoS::AtLeastOnce, false, line.clone())
+        .await
+        .expect("queued");
     reader
         .expect_incoming(3 * SECOND, "PUBACK of the resend", is_puback)
         .await;

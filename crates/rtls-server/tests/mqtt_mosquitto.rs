@@ -306,3 +306,59 @@ async fn a_bad_url_or_unreachable_broker_is_an_error_naming_it() {
         "{error}"
     );
 }
+
+/// The TLS listener of the test broker and its CA, or `None` (after saying so).
+fn mosquitto_tls() -> Option<(String, String)> {
+    let url = std::env::var("RTLS_TEST_MOSQUITTOS_URL")
+        .ok()
+        .filter(|url| !url.is_empty());
+    let ca = std::env::var("RTLS_TEST_MOSQUITTO_CA").ok().filter(|ca| !ca.is_empty());
+    if url.is_none() || ca.is_none() {
+        println!("skipped: RTLS_TEST_MOSQUITTOS_URL and RTLS_TEST_MOSQUITTO_CA not set");
+    }
+    url.zip(ca)
+}
+
+#[tokio::test]
+async fn the_bridge_speaks_tls_to_the_broker_and_refuses_one_its_ca_did_not_sign() {
+    let (Some(base), Some((tls_base, ca_file))) = (mosquitto_url(), mosquitto_tls()) else {
+        return;
+    };
+    let site = unique("site");
+    let filter = format!("rtls/v1/measurements/{site}/#");
+    let topic = format!("rtls/v1/measurements/{site}/reader-tls");
+    let sink = TestSink::new();
+    let tls_url = format!("{tls_base}?ca_file={ca_file}&client_id={}", unique("bridge-tls"));
+    let bridge = RunningBridge::start(&tls_url, sink.clone(), &filter).await;
+
+    // A reader on the broker's plain listener; the bridge reads over TLS.
+    let mut publisher = client_of(&base, &unique("publisher"));
+    publisher.connected().await;
+    let line = record_line("tag-tls", 3.0);
+    publisher
+        .client
+        .publish(topic.as_str(), QoS::AtLeastOnce, false, line.clone())
+        .await
+        .expect("queued");
+    let calls = sink.wait_for_calls(1, 5 * SECOND).await;
+    assert_eq!(calls[0].payload, Bytes::from(line));
+    wait_for_stats(&bridge.stats, 2 * SECOND, "1 acknowledgement", |s| s.acks_sent == 1).await;
+    bridge.shutdown().await;
+
+    // A CA that did not sign the broker's certificate: the handshake fails and the bridge
+    // does not start.
+    let foreign = rcgen::generate_simple_self_signed(vec!["127.0.0.1".to_owned()]).expect("a certificate");
+    let foreign_ca = std::env::temp_dir().join(format!("{}.pem", unique("foreign-ca")));
+    std::fs::write(&foreign_ca, foreign.cert.pem()).expect("written");
+    let (publications, _) = broadcast::channel(4);
+    let error = ExternalBroker::connect(
+        &format!("{tls_base}?ca_file={}", foreign_ca.display()),
+        Arc::new(TestSink::new()),
+        publications,
+        &filter,
+    )
+    .await
+    .expect_err("a broker whose certificate the CA did not sign");
+    std::fs::remove_file(&foreign_ca).ok();
+    assert!(error.to_string().contains("cannot connect to mqtts://"), "{error}");
+}

@@ -16,13 +16,14 @@ use std::time::Duration;
 
 use rumqttc::mqttbytes::v4::Packet;
 use rumqttc::mqttbytes::{valid_filter, QoS};
-use rumqttc::{AsyncClient, ConnectionError, Event, EventLoop, MqttOptions, OptionError};
+use rumqttc::{AsyncClient, ConnectionError, Event, EventLoop, MqttOptions, OptionError, TlsConfiguration, Transport};
 use tokio::sync::broadcast;
 use tokio::time::timeout;
 
 use crate::sink::{MeasurementSink, Publication};
 
 mod loops;
+mod tls;
 
 /// The client id used when the URL names none (`?client_id=…`). The broker keeps the bridge's
 /// session under this id: two servers on one broker need different ids.
@@ -42,10 +43,20 @@ const FIRST_CONNECT_TIMEOUT: Duration = Duration::from_secs(10);
 /// Why the bridge could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum BridgeError {
-    /// The URL is not an MQTT URL rumqttc understands (`mqtt://` or `tcp://`, host, port,
-    /// `?client_id=…` and rumqttc's other options).
+    /// The URL is not an MQTT URL the bridge understands (`mqtt://`, `tcp://`, `mqtts://` or
+    /// `ssl://`, host, port, `?client_id=…`, the TLS options `ca_file`, `client_cert_file`,
+    /// `client_key_file` and rumqttc's other options).
     #[error("mqtt url {url}: {reason}")]
     InvalidUrl {
+        /// The URL, with any password replaced by `***`.
+        url: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The TLS configuration the URL asks for cannot be built (a CA or certificate file cannot
+    /// be read or holds nothing usable).
+    #[error("mqtt url {url}: TLS: {reason}")]
+    Tls {
         /// The URL, with any password replaced by `***`.
         url: String,
         /// What is wrong.
@@ -169,13 +180,13 @@ impl std::fmt::Debug for ExternalBroker {
 impl ExternalBroker {
     /// Parses `url` (rumqttc's URL form, e.g.
     /// `mqtt://user:password@broker:1883?client_id=rtls-site-1`; the client id defaults to
-    /// [`DEFAULT_CLIENT_ID`]), connects with a persistent session and manual acknowledgements,
+    /// [`DEFAULT_CLIENT_ID`]; `mqtts://broker?ca_file=ca.pem` for TLS, see the `tls` module), connects with a persistent session and manual acknowledgements,
     /// and subscribes to `measurement_filter` (normally
     /// [`MEASUREMENT_FILTER`](super::MEASUREMENT_FILTER)) at QoS 1. Measurement payloads will
     /// go to `sink`; whatever is sent on `publications` will be published to the broker.
     ///
     /// # Errors
-    /// [`BridgeError::InvalidUrl`], [`BridgeError::InvalidFilter`], or
+    /// [`BridgeError::InvalidUrl`], [`BridgeError::Tls`], [`BridgeError::InvalidFilter`], or
     /// [`BridgeError::Connect`] / [`BridgeError::ConnectTimeout`] when the broker cannot be
     /// reached or refuses the connection: a server started with a wrong URL fails at once.
     pub async fn connect(
@@ -190,10 +201,28 @@ impl ExternalBroker {
                 filter: measurement_filter.to_owned(),
             });
         }
-        let mut options = parse_options(url).map_err(|error| BridgeError::InvalidUrl {
+        let (plain_url, broker_tls) = tls::split(url).map_err(|reason| BridgeError::InvalidUrl {
+            url: display_url.clone(),
+            reason,
+        })?;
+        let mut options = parse_options(&plain_url).map_err(|error| BridgeError::InvalidUrl {
             url: display_url.clone(),
             reason: error.to_string(),
         })?;
+        if let tls::BrokerTls::On {
+            ca_file,
+            client_identity,
+        } = &broker_tls
+        {
+            let identity = client_identity
+                .as_ref()
+                .map(|(cert, key)| (cert.as_path(), key.as_path()));
+            let config = tls::client_config(ca_file.as_deref(), identity).map_err(|reason| BridgeError::Tls {
+                url: display_url.clone(),
+                reason,
+            })?;
+            options.set_transport(Transport::tls_with_config(TlsConfiguration::Rustls(Arc::new(config))));
+        }
         options.set_clean_session(false).set_manual_acks(true);
         if !url.contains("max_incoming_packet_size_bytes=") {
             options.set_max_packet_size(MAX_PACKET_BYTES, MAX_PACKET_BYTES);
@@ -281,7 +310,8 @@ mod tests {
         assert_eq!(options.client_id(), DEFAULT_CLIENT_ID);
         assert_eq!(options.broker_address(), ("broker".to_owned(), 1883));
         assert_eq!(options.keep_alive(), Duration::from_secs(7));
-        assert_eq!(options.credentials(), Some(("u".to_owned(), "p".to_owned())));
+        let login = options.credentials().expect("credentials from the url");
+        assert_eq!((login.username.as_str(), login.password.as_str()), ("u", "p"));
 
         let options = parse_options("tcp://broker:1884?client_id=site-2").expect("valid url");
         assert_eq!(options.client_id(), "site-2");

@@ -23,7 +23,7 @@ pub(crate) enum Next {
 
 /// Why the bytes at the start of an input buffer are not an acceptable packet. Each one closes
 /// the connection.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub(crate) enum FrameError {
     /// The fixed header announces more than the configured limit.
     #[error("packet of {remaining_bytes} bytes exceeds the limit of {limit_bytes} bytes")]
@@ -83,7 +83,7 @@ pub(crate) fn next_packet(buf: &mut BytesMut, max_packet_bytes: usize) -> Result
     if first_byte >> 4 == 1 {
         check_connect_protocol(buf)?;
     }
-    rumqttc::mqttbytes::v4::read(buf, max_packet_bytes)
+    Packet::read(buf, max_packet_bytes)
         .map(Next::Packet)
         .map_err(FrameError::Malformed)
 }
@@ -229,11 +229,12 @@ mod tests {
         // Fixed header of a PUBLISH announcing 2000 bytes, none of which has arrived.
         let mut buf = BytesMut::from(&[0x30, 0xD0, 0x0F][..]);
         assert_eq!(
-            next_packet(&mut buf, 1000).unwrap_err(),
+            next_packet(&mut buf, 1000).unwrap_err().to_string(),
             FrameError::Oversize {
                 remaining_bytes: 2000,
                 limit_bytes: 1000
             }
+            .to_string()
         );
     }
 
@@ -243,12 +244,13 @@ mod tests {
         let mut subscribe = encoded(&Packet::Subscribe(Subscribe::new("a/b", QoS::AtMostOnce)));
         subscribe[0] = 0x80;
         assert_eq!(
-            next_packet(&mut subscribe, 1024).unwrap_err(),
+            next_packet(&mut subscribe, 1024).unwrap_err().to_string(),
             FrameError::ReservedFlags {
                 packet_type: 8,
                 flags: 0,
                 expected: 0b0010
             }
+            .to_string()
         );
         // PINGREQ with a flag bit set.
         let mut ping = BytesMut::from(&[0xC1, 0x00][..]);
@@ -274,18 +276,19 @@ mod tests {
         for (name, level) in [(&b"MQTT"[..], 5), (&b"MQIsdp"[..], 3)] {
             let mut buf = connect_bytes(name, level);
             assert_eq!(
-                next_packet(&mut buf, 1024).unwrap_err(),
+                next_packet(&mut buf, 1024).unwrap_err().to_string(),
                 FrameError::UnsupportedProtocol {
                     name: String::from_utf8_lossy(name).into_owned(),
                     level
                 }
+                .to_string()
             );
         }
         let mut not_mqtt = connect_bytes(b"HTTP", 4);
-        assert_eq!(
+        assert!(matches!(
             next_packet(&mut not_mqtt, 1024).unwrap_err(),
             FrameError::Malformed(mqttbytes::Error::InvalidProtocol)
-        );
+        ));
     }
 
     #[test]

@@ -224,6 +224,11 @@ impl TestClient {
                         }
                     }
                     Err(error) => {
+                        // rumqttc 0.25 reads what arrived with the close (a PUBACK, say) into
+                        // its event queue and returns the error first: those came before it.
+                        for event in eventloop.state.events.drain(..) {
+                            let _ = tx.send(ClientEvent::Event(event, Instant::now()));
+                        }
                         if tx.send(ClientEvent::Error(error, Instant::now())).is_err() || !reconnect {
                             return;
                         }

@@ -155,6 +155,15 @@ impl ConnectionLoop<'_> {
                         return;
                     }
                     add(&self.counters.connection_errors, 1);
+                    // Packets read together with the failure wait in rumqttc's event queue and
+                    // would come out after the next CONNACK, as if of the new connection. The
+                    // broker redelivers unacknowledged messages of the persistent session, so
+                    // they are dropped here instead of stored twice.
+                    let stale = self.eventloop.state.events.len();
+                    if stale > 0 {
+                        self.eventloop.state.events.clear();
+                        tracing::debug!(stale, "mqtt: dropped events read with the failed connection");
+                    }
                     tracing::warn!(url = %self.display_url, %error, retry_in_ms = backoff.as_millis(),
                         "mqtt: connection to the external broker failed");
                     tokio::select! {
