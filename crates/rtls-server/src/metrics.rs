@@ -42,6 +42,8 @@ pub struct Metrics {
     pub tracker_errors: Counter,
     /// Records quarantined: their partition's tracker failed on them (an error or a panic).
     pub records_quarantined: Counter,
+    /// Audit events (of changes already made) the store failed to keep.
+    pub audit_store_failures: Counter,
     /// Records the trackers did not use, by `event` (`rejected`, `late`) and measurement `kind`.
     pub records_unused: Family<Labels, Counter>,
     /// Alarms raised, by type.
@@ -101,6 +103,7 @@ impl Metrics {
             track_updates_revised: Counter::default(),
             tracker_errors: Counter::default(),
             records_quarantined: Counter::default(),
+            audit_store_failures: Counter::default(),
             records_unused: Family::default(),
             alarms: Family::default(),
             stored_locations: Counter::default(),
@@ -178,6 +181,11 @@ impl Metrics {
             "records_quarantined",
             "Records quarantined: their partition's tracker failed on them (stored apart, skipped by replay)",
             m.records_quarantined.clone(),
+        );
+        registry.register(
+            "audit_store_failures",
+            "Audit events of changes already made that the store failed to keep (each logged at error level)",
+            m.audit_store_failures.clone(),
         );
         registry.register(
             "records_unused",

@@ -100,7 +100,7 @@ pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, bo
             Ok(commit(store, &live, zones).map(|()| fence_from_zone(&zone)))
         })
         .await??;
-    state.audit(&who, "fence-created", &created.id).await?;
+    state.audit(&who, "fence-created", &created.id).await;
     Ok((StatusCode::CREATED, Json(created)).into_response())
 }
 
@@ -138,7 +138,7 @@ pub(super) async fn replace(
             Ok(commit(store, &live, zones).map(|()| fence_from_zone(&zone)))
         })
         .await??;
-    state.audit(&who, "fence-replaced", &replaced.id).await?;
+    state.audit(&who, "fence-replaced", &replaced.id).await;
     Ok(Json(replaced))
 }
 
@@ -165,7 +165,7 @@ pub(super) async fn delete(
             Ok(commit(store, &live, zones))
         })
         .await??;
-    state.audit(&who, "fence-deleted", &target).await?;
+    state.audit(&who, "fence-deleted", &target).await;
     Ok(StatusCode::NO_CONTENT)
 }
 
@@ -182,7 +182,7 @@ pub(super) async fn reset(State(state): State<AppState>, headers: HeaderMap) -> 
             Ok(())
         })
         .await?;
-    state.audit(&who, "zones-reset", "the site file's zones").await?;
+    state.audit(&who, "zones-reset", "the site file's zones").await;
     Ok(StatusCode::NO_CONTENT)
 }
 

@@ -433,7 +433,7 @@ async fn create<T: Serialize>(
             format!("a {kind} `{id}` exists; use PUT to replace it"),
         ));
     }
-    state.audit(who, &format!("{kind}-created"), &id).await?;
+    state.audit(who, &format!("{kind}-created"), &id).await;
     Ok((StatusCode::CREATED, Json(body)).into_response())
 }
 
@@ -448,14 +448,14 @@ async fn replace<T: Serialize>(
         serde_json::to_string(object).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
     let key = id.clone();
     state.query(move |store| store.put_config(kind, &key, &json)).await?;
-    state.audit(who, &format!("{kind}-replaced"), &id).await?;
+    state.audit(who, &format!("{kind}-replaced"), &id).await;
     Ok(StatusCode::NO_CONTENT)
 }
 
 async fn delete(state: &AppState, who: &Principal, kind: &'static str, id: String) -> ApiResult<StatusCode> {
     let key = id.clone();
     if state.query(move |store| store.delete_config(kind, &key)).await? {
-        state.audit(who, &format!("{kind}-deleted"), &id).await?;
+        state.audit(who, &format!("{kind}-deleted"), &id).await;
         Ok(StatusCode::NO_CONTENT)
     } else {
         Err(ApiError::not_found(format!("{kind} `{id}` not found")))

@@ -246,9 +246,10 @@ impl AppState {
     /// the credential's name, `role`) — stored with the events (`GET
     /// /api/v1/events?type=audit`) and published on `rtls:events`.
     ///
-    /// # Errors
-    /// The store's failure as a 503 (the change itself is done).
-    pub async fn audit(&self, who: &Principal, action: &str, target: &str) -> ApiResult<()> {
+    /// The change is made when this is called, so a store failure does not fail the request
+    /// (a 503 would make the client retry a change that happened): the event is still
+    /// published, logged at error level and counted in `rtls_audit_store_failures_total`.
+    pub async fn audit(&self, who: &Principal, action: &str, target: &str) {
         let now_ms = crate::pipeline::unix_ms();
         let time_s = now_ms as f64 / 1000.0;
         let event = serde_json::json!({
@@ -269,12 +270,15 @@ impl AppState {
             alarm: false,
             json: event.to_string(),
         };
-        self.query(move |store| store.append_events(&[row])).await?;
+        if let Err(error) = self.query(move |store| store.append_events(&[row])).await {
+            self.pipeline.metrics().audit_store_failures.inc();
+            tracing::error!(action, target, by = %who.name, error = %error.message,
+                "audit event not stored (the change is made)");
+        }
         self.pipeline.broadcast(crate::pipeline::HubMessage::Extension {
             topic: crate::omlox::ws::Topic::RtlsEvents,
             event,
         });
-        Ok(())
     }
 
     /// Runs `query` on the query connection on a blocking thread.
