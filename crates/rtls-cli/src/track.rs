@@ -448,7 +448,21 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     if !counts.rejected.is_empty() {
         eprintln!("rejected by reason: {}", rejections_line(&counts.rejected));
     }
+    let offsets = tracker.range_offsets();
+    if !offsets.is_empty() {
+        eprintln!("{}", range_offsets_line(&offsets));
+    }
     untracked_tags(&counts)
+}
+
+/// The range offsets the tracks learnt (`[tracker.range_bias]`), one `tag/anchor +0.123 ± 0.010 m`
+/// per pair.
+fn range_offsets_line(offsets: &[rtls_engine::tracker::RangeOffset]) -> String {
+    let pairs: Vec<String> = offsets
+        .iter()
+        .map(|o| format!("{}/{} {:+.3} ± {:.3} m", o.tag, o.anchor, o.offset_m, o.std_m))
+        .collect();
+    format!("range offsets learnt (beyond the site's bias_m): {}", pairs.join(", "))
 }
 
 /// Names every tag that had records but no track output, with its rejected and late records

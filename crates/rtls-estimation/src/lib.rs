@@ -22,6 +22,7 @@
 //!   different state size, each run by a KF, EKF or UKF.
 //! - [`adaptive`] — innovation-based adaptive measurement noise (a consistent covariance
 //!   when the stated noise is too small).
+//! - [`bias`] — a reader's measurement bias estimated alongside a track (self-calibration).
 //! - [`aided`] — accelerometer-aided (seed 002) and odometry-aided (seed 004) tracking.
 //! - [`smoother`] — RTS smoothing of a filtered sequence.
 //! - [`stats`] — chi-square quantiles, gates and consistency intervals.
@@ -54,6 +55,7 @@ extern crate alloc;
 
 pub mod adaptive;
 pub mod aided;
+pub mod bias;
 mod error;
 pub mod filter;
 mod gaussian;

@@ -52,6 +52,7 @@ fn accepted_keys() -> BTreeSet<String> {
         ("tracker.imm", fields_of::<ImmSettings>("")),
         ("tracker.adaptive_noise", fields_of::<AdaptiveNoiseSettings>("")),
         ("tracker.heading", fields_of::<HeadingSettings>("")),
+        ("tracker.range_bias", fields_of::<RangeBiasSettings>("")),
         ("tracker.gnss", fields_of::<GnssSettings>("")),
         ("tracker.map", fields_of::<MapSettings>("")),
         ("anonymous", fields_of::<AnonymousTrackerSettings>("")),

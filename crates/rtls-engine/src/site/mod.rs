@@ -23,7 +23,8 @@ mod readers;
 pub use limits::{read_text_file, MAX_RADIO_MAP_BYTES, MAX_RADIO_MAP_ROWS, MAX_SITE_BYTES, MAX_ZONE_VERTICES};
 pub use options::{
     AdaptiveNoiseSettings, AlarmSettings, Corridor, FloorPlan, FrameSettings, GeodeticOrigin, GnssSettings,
-    HeadingSettings, ImmModeKind, ImmModeSet, ImmSettings, MapSettings, SchedulingCell, SchedulingSettings,
+    HeadingSettings, ImmModeKind, ImmModeSet, ImmSettings, MapSettings, RangeBiasSettings, SchedulingCell,
+    SchedulingSettings,
 };
 pub use platform::Platform;
 pub use readers::{PathLoss, Radio, RangeErrors, Reader, Technology};
@@ -332,6 +333,9 @@ pub struct TrackerSettings {
     /// Innovation-based adaptive measurement noise (on by default).
     #[serde(default)]
     pub adaptive_noise: AdaptiveNoiseSettings,
+    /// Self-calibration of ranges: each anchor's offset estimated by each track (on by default).
+    #[serde(default)]
+    pub range_bias: RangeBiasSettings,
     /// The heading channel (yaw rates, odometry without heading, IMU samples).
     #[serde(default)]
     pub heading: HeadingSettings,

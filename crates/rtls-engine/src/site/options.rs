@@ -186,6 +186,40 @@ pub struct AdaptiveNoiseSettings {
     pub correlation_s: f64,
 }
 
+/// `[tracker.range_bias]`: self-calibration of ranges. Each track estimates every anchor's
+/// range offset (`r = d + b + v`: antenna delays of the anchor and of the tag, a cable, a
+/// consistent NLOS excess) from its own innovations, removes it from the ranges and counts its
+/// uncertainty in their noise (see [`rtls_estimation::bias`]). It acts on top of a reader's
+/// `radio.range.bias_m`, which is removed first: a calibrated site starts near zero, an
+/// uncalibrated one learns its offsets within seconds of a tag moving among its anchors. Used by
+/// the tightly coupled pipeline (ranges straight into the filter).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RangeBiasSettings {
+    /// Whether the offsets are estimated; `false` takes ranges as the site states them. Default
+    /// true.
+    pub enabled: bool,
+    /// Prior standard deviation of an anchor's remaining offset, m (> 0). Default 0.2: uncalibrated
+    /// UWB two-way ranging is typically 0.1–0.3 m long.
+    pub prior_std_m: f64,
+    /// Random walk of an offset, m/√s (≥ 0): temperature drift, the slow change of NLOS excess as a
+    /// tag moves. Default 0.005 (0.1 m over about 7 minutes).
+    pub random_walk_m_per_sqrt_s: f64,
+    /// The largest offset learnt, m (> 0). Default 1.
+    pub max_abs_m: f64,
+}
+
+impl Default for RangeBiasSettings {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            prior_std_m: 0.2,
+            random_walk_m_per_sqrt_s: 0.005,
+            max_abs_m: 1.0,
+        }
+    }
+}
+
 /// `[tracker.heading]`: the heading channel of tracks that send yaw rates, odometry without a
 /// heading, odometry increments or body-frame IMU samples (see the tracker's `heading` module and
 /// [`rtls_estimation::aided::HeadingModel`]). State: heading, gyro bias, odometer heading offset.

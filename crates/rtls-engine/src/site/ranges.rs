@@ -119,6 +119,9 @@ const TURN_NOISE_RADPS2: Bounds = Bounds::closed(1e-6, 100.0, "rad/s²");
 const MEMORY_S: Bounds = Bounds::closed(1e-3, 1e6, "s");
 const NOISE_SCALE: Bounds = Bounds::closed(1.0, 1e6, "(multiple of the stated variance)");
 const CORRELATION_S: Bounds = Bounds::closed(0.0, 3600.0, "s");
+const BIAS_PRIOR_STD_M: Bounds = Bounds::closed(1e-4, 100.0, "m");
+const BIAS_RANDOM_WALK: Bounds = Bounds::closed(0.0, 10.0, "m/√s");
+const BIAS_MAX_M: Bounds = Bounds::closed(1e-3, 1000.0, "m");
 const RATE_STD_RADPS: Bounds = Bounds::closed(1e-7, 10.0, "rad/s");
 const RATE_RANDOM_WALK: Bounds = Bounds::closed(1e-9, 1.0, "rad/s/√s");
 const ANGLE_RANDOM_WALK: Bounds = Bounds::closed(1e-7, 10.0, "rad/√s");
@@ -466,6 +469,18 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
         adaptive.correlation_s,
         CORRELATION_S,
     ));
+    let range_bias = &t.range_bias;
+    for (key, value, bounds) in [
+        ("range_bias.prior_std_m", range_bias.prior_std_m, BIAS_PRIOR_STD_M),
+        (
+            "range_bias.random_walk_m_per_sqrt_s",
+            range_bias.random_walk_m_per_sqrt_s,
+            BIAS_RANDOM_WALK,
+        ),
+        ("range_bias.max_abs_m", range_bias.max_abs_m, BIAS_MAX_M),
+    ] {
+        out.push(within(at(key), value, bounds));
+    }
     let heading = &t.heading;
     for (key, value, bounds) in [
         (

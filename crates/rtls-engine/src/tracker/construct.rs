@@ -4,6 +4,7 @@ use std::sync::Arc;
 
 use rtls_estimation::adaptive::AdaptiveNoise;
 use rtls_estimation::aided::HeadingModel;
+use rtls_estimation::bias::BiasModel;
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, SigmaPointParameters, UnscentedKalmanFilter};
 use rtls_estimation::motion::{ConstantVelocity, ProcessNoise};
 use rtls_estimation::stats::chi_square_quantile;
@@ -110,6 +111,15 @@ impl Tracker {
                 settings.heading.odometer_drift_rad_per_sqrt_s,
                 settings.heading.odometer_offset_std_rad,
             )?,
+            range_bias: if settings.range_bias.enabled {
+                Some(BiasModel::new(
+                    settings.range_bias.prior_std_m,
+                    settings.range_bias.random_walk_m_per_sqrt_s,
+                    settings.range_bias.max_abs_m,
+                )?)
+            } else {
+                None
+            },
             frame: site.frame.map(|f| f.local_frame()).transpose()?,
             constraints,
         };

@@ -11,6 +11,7 @@ use super::divergence::{divergence, reset, reset_if_diverged};
 use super::epoch::{anchor_reading, close_due_epoch, opens_epoch, straggles};
 use super::gnss::{close_due_gnss_epoch, pseudorange};
 use super::output::{Event, Output, UpdateSource};
+use super::range_bias::RangeOffset;
 use super::report::{clear_alarms, coast, report, track_update};
 use super::update::predict;
 use crate::error::{EngineError, Result};
@@ -87,6 +88,28 @@ impl<const N: usize> Core<N> {
 
     pub(crate) fn track_count(&self) -> usize {
         self.tracks.len()
+    }
+
+    /// The range offsets each track has learnt (`[tracker.range_bias]`): tag, anchor id,
+    /// offset (m) and its standard deviation (m), by tag then anchor.
+    pub(crate) fn range_offsets(&self) -> Vec<RangeOffset> {
+        let mut offsets: Vec<RangeOffset> = self
+            .tracks
+            .iter()
+            .flat_map(|track| {
+                track
+                    .range_bias
+                    .estimates()
+                    .map(|(anchor, offset_m, std_m)| RangeOffset {
+                        tag: track.tag.to_string(),
+                        anchor: self.shared.anchors.get(anchor).id.clone(),
+                        offset_m,
+                        std_m,
+                    })
+            })
+            .collect();
+        offsets.sort_by(|a, b| (&a.tag, &a.anchor).cmp(&(&b.tag, &b.anchor)));
+        offsets
     }
 
     /// The heading channel of `tag`'s track (tests).

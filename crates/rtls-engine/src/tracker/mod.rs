@@ -154,6 +154,7 @@ pub(crate) mod models;
 mod modes;
 mod noise;
 mod output;
+mod range_bias;
 mod report;
 mod rewind;
 mod schedule;
@@ -171,6 +172,8 @@ mod tests_heading;
 #[cfg(test)]
 mod tests_imm;
 #[cfg(test)]
+mod tests_range_bias;
+#[cfg(test)]
 mod tests_rewind;
 #[cfg(test)]
 mod tests_robust;
@@ -184,6 +187,7 @@ mod update;
 pub use anonymous::ANONYMOUS_TAG;
 pub use noise::{InnovationTotals, Innovations, NoiseClass};
 pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
+pub use range_bias::RangeOffset;
 pub(crate) use schedule::scheduling_layout;
 
 use self::anonymous::AnonymousFront;
@@ -474,6 +478,17 @@ impl Tracker {
         match &mut self.tracks {
             Tracks::Planar(core) => core.flush(out),
             Tracks::Spatial(core) => core.flush(out),
+        }
+    }
+
+    /// The anchors' range offsets the tracks have learnt (`[tracker.range_bias]`), by tag then
+    /// anchor: what a site file's `radio.range.bias_m` would need on top of its value for
+    /// that tag. Empty when the estimation is off or no range was used.
+    #[must_use]
+    pub fn range_offsets(&self) -> Vec<RangeOffset> {
+        match &self.tracks {
+            Tracks::Planar(core) => core.range_offsets(),
+            Tracks::Spatial(core) => core.range_offsets(),
         }
     }
 

@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use rtls_estimation::adaptive::AdaptiveNoise;
 use rtls_estimation::aided::HeadingModel;
+use rtls_estimation::bias::BiasModel;
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter};
 use rtls_estimation::imm::ImmState;
 use rtls_estimation::motion::ConstantVelocity;
@@ -21,6 +22,7 @@ use super::heading_state::HeadingChannel;
 use super::modes::Manoeuvres;
 use super::noise::NoiseScales;
 use super::output::{Event, UpdateSource};
+use super::range_bias::RangeBiases;
 use super::schedule::{Scheduling, TrackSchedule};
 use crate::lifecycle::{Lifecycle, LifecycleSettings, TrackStatus};
 use crate::radio_map::RadioMap;
@@ -64,6 +66,9 @@ pub(crate) struct Shared {
     pub(crate) bounds: SiteBounds,
     /// The heading channel's model (`[tracker.heading]`).
     pub(crate) heading_model: HeadingModel,
+    /// Anchors' range offsets as each track learns them (`[tracker.range_bias]`); `None` when
+    /// disabled.
+    pub(crate) range_bias: Option<BiasModel>,
     /// The site frame as ENU about `[frame] origin`; `None` without an origin (pseudoranges
     /// are then refused).
     pub(crate) frame: Option<rtls_positioning::gnss::LocalFrame>,
@@ -112,6 +117,8 @@ pub(crate) struct Track<const N: usize> {
     pub(super) gated_updates: u32,
     /// Heading, gyro bias and odometer offset, for yaw rates, odometry and IMU samples.
     pub(super) heading: HeadingChannel,
+    /// The anchors' range offsets this track has learnt (tightly coupled).
+    pub(super) range_bias: RangeBiases,
     /// GNSS: the open pseudorange epoch and the receiver clock filter.
     pub(super) gnss: GnssTrack,
     /// The open epoch's readers, for negative information and the map at its close.
@@ -148,6 +155,7 @@ impl<const N: usize> Track<N> {
             rejection_rate: 0.0,
             gated_updates: 0,
             heading: HeadingChannel::default(),
+            range_bias: RangeBiases::default(),
             gnss: GnssTrack::default(),
             hearing: Hearing::default(),
             expected_readers: Vec::new(),

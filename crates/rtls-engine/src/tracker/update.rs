@@ -4,9 +4,10 @@
 use std::sync::Arc;
 
 use nalgebra::{DMatrix, DVector};
+use rtls_estimation::bias::BiasObservation;
 use rtls_estimation::filter::Updated;
 use rtls_estimation::imm::ImmState;
-use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
+use rtls_estimation::measurement::{ComponentSelection, MeasurementModel, NoiseCovariance};
 use rtls_estimation::{Gaussian, Matrix, Vector};
 
 use super::aided::AidedMotion;
@@ -80,8 +81,8 @@ pub(super) fn accept<const N: usize>(
 ) -> Result<()> {
     let time_s = updated.state.time_s();
     let dof = updated.measurement_dim().clamp(1, 3);
-    let gated = matches!(track.status(), Some(TrackStatus::Confirmed | TrackStatus::Coasting));
-    let outside = gated && updated.nis > shared.gates[dof - 1];
+    let gated = is_gated(track);
+    let outside = outside_gate(shared, track, &updated);
     if gated {
         // r ← (1 − α) r + α·[outside the gate]
         track.rejection_rate += REJECTION_RATE_WEIGHT * (f64::from(u8::from(outside)) - track.rejection_rate);
@@ -143,6 +144,19 @@ pub(super) fn accept<const N: usize>(
     Ok(())
 }
 
+/// Whether the track's updates are gated (confirmed or coasting; a tentative track takes every
+/// measurement).
+fn is_gated<const N: usize>(track: &Track<N>) -> bool {
+    matches!(track.status(), Some(TrackStatus::Confirmed | TrackStatus::Coasting))
+}
+
+/// Whether [`accept`] will refuse `updated`: the track is gated and the NIS is outside the
+/// `χ²` gate of its degrees of freedom.
+fn outside_gate<const N: usize>(shared: &Shared, track: &Track<N>, updated: &Updated<N>) -> bool {
+    let dof = updated.measurement_dim().clamp(1, 3);
+    is_gated(track) && updated.nis > shared.gates[dof - 1]
+}
+
 /// Weight `α` of one gated update in a track's running rejection rate (about the last 20).
 const REJECTION_RATE_WEIGHT: f64 = 0.1;
 
@@ -153,12 +167,14 @@ const REACQUIRE_REJECTION_RATE: f64 = 0.6;
 const REACQUIRE_MIN_UPDATES: u32 = 10;
 
 /// Drops the track's state (keeping its lifecycle, so it is reported as the same track) so its
-/// next fix starts it again; the adaptive noise scales, learnt on a wrong state, start over.
+/// next fix starts it again; the adaptive noise scales and the range offsets, learnt on a wrong
+/// state, start over.
 pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.state = None;
     track.modes = None;
     track.epoch.clear();
     track.noise = Default::default();
+    track.range_bias = Default::default();
     track.rejection_rate = 0.0;
     track.gated_updates = 0;
 }
@@ -422,17 +438,30 @@ pub(super) fn coupled_update<const N: usize>(
         shared.settings.adaptive_noise.correlation_s,
     );
     let scale = inflation * track.noise.scale(class);
+    // the anchor's learnt range offset: z' = r − b⁻, R' = λ c R + P_b⁻
+    let bias_prior = match (&shared.range_bias, reading) {
+        (Some(model), AnchorReading::Range { anchor, .. }) => Some(track.range_bias.offset(model, anchor, time_s)),
+        _ => None,
+    };
     let (model, z, stated_variance) = match reading {
         AnchorReading::Range {
             position_m,
             range_m,
             variance_m2,
             ..
-        } => (
-            AnchorMeasurement::new(position_m, shared.tag_height_m, AnchorLaw::Range, scale * variance_m2),
-            range_m,
-            variance_m2,
-        ),
+        } => {
+            let (offset_m, offset_variance_m2) = bias_prior.unwrap_or((0.0, 0.0));
+            (
+                AnchorMeasurement::new(
+                    position_m,
+                    shared.tag_height_m,
+                    AnchorLaw::Range,
+                    scale * variance_m2 + offset_variance_m2,
+                ),
+                range_m - offset_m,
+                variance_m2,
+            )
+        }
         AnchorReading::Rssi {
             anchor,
             rssi_dbm,
@@ -503,6 +532,38 @@ pub(super) fn coupled_update<const N: usize>(
                 &[inflation * stated_variance],
                 shared.gates[0],
             );
+            if let (Some(bias_model), Some((_, offset_variance_m2)), AnchorReading::Range { variance_m2, .. }) =
+                (&shared.range_bias, bias_prior, reading)
+            {
+                // learn only from a confirmed track whose prediction is at least as sure as the
+                // reading and as the offsets' prior along it (H P⁻ Hᵀ ≤ min(λ c σ², σ_b²)): a
+                // start-up track's large errors are not linear in the position, and the
+                // projection would not remove them
+                let reading_variance_m2 = scale * variance_m2;
+                let predicted_variance_m2 =
+                    updated.innovation_covariance[(0, 0)] - reading_variance_m2 - offset_variance_m2;
+                let prior_variance_m2 = bias_model.prior_std() * bias_model.prior_std();
+                if outside_gate(shared, track, &updated) {
+                    track.range_bias.discard_round();
+                } else if is_gated(track) && predicted_variance_m2 <= reading_variance_m2.min(prior_variance_m2) {
+                    // the reading's part in its round: ν, λ c σ² and ∂h/∂p at the prediction
+                    if let Ok(jacobian) = MeasurementModel::jacobian(&model, prior.state.mean()) {
+                        let mut gradient = [0.0; 3];
+                        for (axis, g) in gradient.iter_mut().enumerate().take(dimensions::<N>()) {
+                            *g = jacobian[(0, 2 * axis)];
+                        }
+                        let observation = BiasObservation {
+                            innovation: updated.innovation[0],
+                            variance: reading_variance_m2,
+                            noise_variance: reading_variance_m2 / inflation,
+                            gradient,
+                        };
+                        track
+                            .range_bias
+                            .observe(bias_model, anchor, observation, time_s, dimensions::<N>());
+                    }
+                }
+            }
             accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)
         }
         Err(error) => {

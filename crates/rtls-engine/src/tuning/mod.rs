@@ -139,7 +139,8 @@ pub struct Tuning {
 }
 
 /// Tunes `site` to `records` (time-ordered or not; they pass the tracker's re-ordering window
-/// like any input). See the [module documentation](self).
+/// like any input), with the tracks' range-offset learning off (what it would learn is what
+/// the tuning writes into the site). See the [module documentation](self).
 ///
 /// # Errors
 /// [`EngineError::InvalidParameter`] for an empty or non-positive grid; those of
@@ -163,6 +164,10 @@ pub fn tune(
         });
     }
     let mut site = site.clone();
+    // the candidates run on the stated ranges: the tracks' own range-offset learning
+    // ([tracker.range_bias]) would absorb the biases and the noise excess this fits into the
+    // site; the tuned site keeps the file's setting
+    site.tracker.range_bias.enabled = false;
     let readers = match truth {
         Some(truth) => {
             let calibration = readers::calibrate(&site, records, truth, settings.max_truth_gap_s);

@@ -1,0 +1,113 @@
+//! A track's estimates of its anchors' range offsets (`[tracker.range_bias]`): the bias vector
+//! the tightly coupled range update reads, and the round of readings it learns from
+//! ([`rtls_estimation::bias`]).
+
+use rtls_estimation::bias::{BiasModel, BiasObservation, BiasVector};
+
+/// Readings older than this (behind the newest) leave the round: the position errors the
+/// projection removes must be the same for every reading of a round, s.
+const ROUND_WINDOW_S: f64 = 2.0;
+
+/// One reading of the open round.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Pending {
+    anchor: usize,
+    observation: BiasObservation,
+    time_s: f64,
+}
+
+/// Each anchor's offset as this track has learnt it, and the readings of the open round.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct RangeBiases {
+    biases: BiasVector,
+    /// Slot in `biases` of each anchor index; `None` before the anchor's first learning round.
+    slots: Vec<Option<usize>>,
+    round: Vec<Pending>,
+}
+
+impl RangeBiases {
+    /// `(b̂, P_b⁻)` of `anchor` at `time_s`: `(0, σ_b²)` before it has been learnt.
+    pub(super) fn offset(&self, model: &BiasModel, anchor: usize, time_s: f64) -> (f64, f64) {
+        match self.slots.get(anchor).copied().flatten() {
+            Some(slot) => model.predicted(&self.biases, slot, time_s),
+            None => (0.0, model.prior_std() * model.prior_std()),
+        }
+    }
+
+    /// Adds a reading (its innovation against the prediction, its variance without the
+    /// offset's, its gradient) to the open round. A second reading of an anchor already in the
+    /// round closes the round first: its readings teach the offsets (see
+    /// [`BiasModel::update_observable`]), and a new round starts.
+    pub(super) fn observe(
+        &mut self,
+        model: &BiasModel,
+        anchor: usize,
+        observation: BiasObservation,
+        time_s: f64,
+        dimensions: usize,
+    ) {
+        self.round.retain(|p| time_s - p.time_s <= ROUND_WINDOW_S);
+        if self.round.iter().any(|p| p.anchor == anchor) {
+            self.learn(model, dimensions);
+            self.round.clear();
+        }
+        self.round.push(Pending {
+            anchor,
+            observation,
+            time_s,
+        });
+    }
+
+    /// Drops the open round: a reading of it fell outside the gate, so the prediction its
+    /// innovations are measured against is not to be trusted.
+    pub(super) fn discard_round(&mut self) {
+        self.round.clear();
+    }
+
+    /// Learns from the open round; a numerical failure forgets what was learnt (the offsets
+    /// start again from their prior) rather than keep a broken vector.
+    fn learn(&mut self, model: &BiasModel, dimensions: usize) {
+        if self.round.len() <= dimensions {
+            return;
+        }
+        let slots: Vec<usize> = self
+            .round
+            .iter()
+            .map(|p| {
+                if self.slots.len() <= p.anchor {
+                    self.slots.resize(p.anchor + 1, None);
+                }
+                *self.slots[p.anchor].get_or_insert_with(|| model.add_reader(&mut self.biases))
+            })
+            .collect();
+        let observations: Vec<BiasObservation> = self.round.iter().map(|p| p.observation).collect();
+        let newest_s = self.round.iter().map(|p| p.time_s).fold(f64::NEG_INFINITY, f64::max);
+        let learnt = model
+            .predict(&self.biases, newest_s)
+            .and_then(|predicted| model.update_observable(&predicted, &slots, &observations, dimensions));
+        match learnt {
+            Ok(biases) => self.biases = biases,
+            Err(_) => *self = Self::default(),
+        }
+    }
+
+    /// The learnt offsets: anchor index, value and standard deviation.
+    pub(crate) fn estimates(&self) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
+        self.slots.iter().enumerate().filter_map(|(anchor, slot)| {
+            slot.map(|slot| (anchor, self.biases.value(slot), self.biases.variance(slot).sqrt()))
+        })
+    }
+}
+
+/// One learnt offset, as [`crate::tracker::Tracker::range_offsets`] reports it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RangeOffset {
+    /// The tag whose track learnt it.
+    pub tag: String,
+    /// The anchor's id.
+    pub anchor: String,
+    /// The offset beyond the site's `bias_m`, m (the range is this much too long).
+    pub offset_m: f64,
+    /// Its standard deviation, m.
+    pub std_m: f64,
+}
