@@ -271,15 +271,14 @@ impl BiasModel {
         ));
         let parity_covariance = &m * (sub_covariance + one_look) * m.transpose();
         let parity_covariance = (&parity_covariance + parity_covariance.transpose()) * 0.5;
-        if let Ok(inverse) = parity_covariance
-            .clone()
-            .pseudo_inverse(PSEUDO_INVERSE_TOLERANCE * parity_covariance.amax().max(f64::MIN_POSITIVE))
-        {
-            let statistic = (y.transpose() * inverse * &y)[(0, 0)];
-            let threshold = chi_square_quantile(1.0 - PARITY_FALSE_ALARM, (n - dimensions) as f64)?;
-            if statistic > threshold {
-                return Ok(biases.clone());
-            }
+        // a round whose test cannot be computed teaches nothing
+        let Some(inverse) = bounded_pseudo_inverse(&parity_covariance) else {
+            return Ok(biases.clone());
+        };
+        let statistic = (y.transpose() * inverse * &y)[(0, 0)];
+        let threshold = chi_square_quantile(1.0 - PARITY_FALSE_ALARM, (n - dimensions) as f64)?;
+        if statistic.is_nan() || statistic > threshold {
+            return Ok(biases.clone());
         }
         // H = M embedded in the whole vector (n × N): column slots[j] holds M's column j
         let total = biases.values.len();
@@ -292,10 +291,7 @@ impl BiasModel {
         let p_ht = &biases.covariance * h.transpose();
         let s = &h * &p_ht + &m * sigma * m.transpose();
         let s = (&s + s.transpose()) * 0.5;
-        let Ok(s_pinv) = s
-            .clone()
-            .pseudo_inverse(PSEUDO_INVERSE_TOLERANCE * s.amax().max(f64::MIN_POSITIVE))
-        else {
+        let Some(s_pinv) = bounded_pseudo_inverse(&s) else {
             return Ok(biases.clone());
         };
         // K = P_b Hᵀ S⁺, b̂ ← b̂ + K y, P_b ← P_b − K S Kᵀ
@@ -312,6 +308,23 @@ impl BiasModel {
             time_s: biases.time_s,
         })
     }
+}
+
+/// Most sweeps the SVD behind a pseudo-inverse may take (it converges in a few dozen on these
+/// small symmetric matrices; nalgebra's default has no limit).
+const MAX_SVD_ITERATIONS: usize = 1000;
+
+/// `A⁺` with singular values below `PSEUDO_INVERSE_TOLERANCE · max|aᵢⱼ|` taken as zero; `None`
+/// for a matrix with a non-finite entry or an SVD that does not converge (never a hang).
+fn bounded_pseudo_inverse(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    if !a.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let tolerance = PSEUDO_INVERSE_TOLERANCE * a.amax().max(f64::MIN_POSITIVE);
+    let svd = a.clone().try_svd(true, true, f64::EPSILON, MAX_SVD_ITERATIONS)?;
+    svd.pseudo_inverse(tolerance)
+        .ok()
+        .filter(|p| p.iter().all(|v| v.is_finite()))
 }
 
 /// The checks of [`BiasModel::update_observable`]'s input.
@@ -448,6 +461,31 @@ mod tests {
         // the random walk: P_b + q Δt, capped at σ_b²
         let later = model.predict(&model.predict(&biases, 0.0).unwrap(), 1e6).unwrap();
         assert_eq!(later.variance(0), 0.25);
+    }
+
+    /// Variances at the edge of the representable (a random stream's) overflow the products:
+    /// the step returns (unchanged or an error), it never hangs in the SVD.
+    #[test]
+    fn overflowing_values_return_instead_of_hanging() {
+        let model = BiasModel::new(0.5, 0.0, 2.0).unwrap();
+        let mut biases = BiasVector::default();
+        let slots: Vec<usize> = (0..4).map(|_| model.add_reader(&mut biases)).collect();
+        for (variance, innovation) in [(1e300, 1.0), (1e-300, 1e200), (1.0, 1e300)] {
+            let observations: Vec<BiasObservation> = (0..4)
+                .map(|i| {
+                    let angle = f64::from(i) * 1.3;
+                    BiasObservation {
+                        innovation,
+                        variance,
+                        noise_variance: variance,
+                        gradient: [angle.cos(), angle.sin(), 0.0],
+                    }
+                })
+                .collect();
+            if let Ok(learnt) = model.update_observable(&biases, &slots, &observations, 2) {
+                assert!((0..4).all(|i| learnt.value(i).is_finite() && learnt.variance(i).is_finite()));
+            }
+        }
     }
 
     #[test]

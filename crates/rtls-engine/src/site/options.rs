@@ -191,8 +191,10 @@ pub struct AdaptiveNoiseSettings {
 /// consistent NLOS excess) from its own innovations, removes it from the ranges and counts its
 /// uncertainty in their noise (see [`rtls_estimation::bias`]). It acts on top of a reader's
 /// `radio.range.bias_m`, which is removed first: a calibrated site starts near zero, an
-/// uncalibrated one learns its offsets within seconds of a tag moving among its anchors. Used by
-/// the tightly coupled pipeline (ranges straight into the filter).
+/// uncalibrated one learns its offsets within seconds of a tag moving among its anchors. Both
+/// pipelines: tightly coupled tracks learn from rounds of their readings, fix-then-filter tracks
+/// from each epoch's residuals against its accepted fix (and solve their epochs with the
+/// corrected ranges).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RangeBiasSettings {

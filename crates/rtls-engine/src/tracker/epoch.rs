@@ -2,6 +2,7 @@
 //! initialising a tightly coupled track from its first readings.
 
 use nalgebra::SVector;
+use rtls_estimation::bias::BiasObservation;
 use rtls_estimation::Gaussian;
 
 use super::anchors::AnchorReading;
@@ -194,19 +195,130 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
     }
     // direct measurements held while the epoch was open: those before its fix come first
     apply_deferred(shared, track, time_s, out)?;
-    let readings: Vec<AnchorReading> = epoch.iter().map(|(_, r)| *r).collect();
+    // ranges with the track's learnt offsets removed (r − b̂, σ² + P_b)
+    let readings: Vec<AnchorReading> = epoch
+        .iter()
+        .map(|(_, r)| corrected_range(shared, track, *r, time_s))
+        .collect();
     // a lost track's state is too stale to start the solver from
     let guess = track.state.as_ref().filter(|_| !track.is_lost());
     match solve::<N>(shared, &readings, guess) {
         Ok(fixes) => {
+            let single = fixes.len() == 1;
             for (position, covariance, method) in fixes {
                 out.fixes
                     .push(epoch_raw_fix(&track.tag, time_s, &position, &covariance, method));
+                let confirmed_before = is_confirmed(track);
+                let before = track.state.as_ref().map(|s| s.mean().clone_owned());
                 fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
+                let accepted = track.state.as_ref().map(|s| s.mean().clone_owned()) != before;
+                if single && confirmed_before && accepted {
+                    learn_offsets(shared, track, &readings, &position, time_s);
+                }
             }
         }
         Err(reason) => out.events.push(rejected(&track.tag, time_s, "epoch", reason)),
     }
     // and those at or after it
     apply_deferred(shared, track, f64::INFINITY, out)
+}
+
+/// Whether the track is confirmed (its fixes are gated; a new or re-initialising track's are
+/// not, and its offsets are not learnt from them).
+fn is_confirmed<const N: usize>(track: &Track<N>) -> bool {
+    matches!(track.status(), Some(crate::lifecycle::TrackStatus::Confirmed))
+}
+
+/// A range with the track's learnt offset of its anchor removed (`[tracker.range_bias]`):
+/// `r − b̂`, variance `σ² + P_b`. Other readings as they are.
+fn corrected_range<const N: usize>(
+    shared: &Shared,
+    track: &Track<N>,
+    reading: AnchorReading,
+    time_s: f64,
+) -> AnchorReading {
+    match (&shared.range_bias, reading) {
+        (
+            Some(model),
+            AnchorReading::Range {
+                anchor,
+                position_m,
+                range_m,
+                variance_m2,
+            },
+        ) => {
+            let (offset_m, offset_variance_m2) = track.range_bias.offset(model, anchor, time_s);
+            AnchorReading::Range {
+                anchor,
+                position_m,
+                range_m: range_m - offset_m,
+                variance_m2: variance_m2 + offset_variance_m2,
+            }
+        }
+        (_, other) => other,
+    }
+}
+
+/// Fix-then-filter: the epoch's ranges (offset-corrected) against its accepted fix teach the
+/// track's offsets — one reading per anchor, residual `rᵢ − b̂ᵢ − ‖p − aᵢ‖`, gradient
+/// `(p − aᵢ)/‖p − aᵢ‖` (slant, at the tag's height in 2-D). The residuals of a least-squares
+/// fix are already the part no position error explains; [`BiasObservation`]'s projection and
+/// parity test apply as in the tightly coupled pipeline.
+fn learn_offsets<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    readings: &[AnchorReading],
+    position: &[f64],
+    time_s: f64,
+) {
+    let Some(model) = &shared.range_bias else {
+        return;
+    };
+    let dims = dimensions::<N>();
+    let tag = [
+        position[0],
+        position[1],
+        if dims == 3 { position[2] } else { shared.tag_height_m },
+    ];
+    // epochs closer together than the error correlation time are not independent looks:
+    // c = max(1, 2 τ_c / Δt), as for the filter's own readings
+    let since_s = track.range_bias.since_last_epoch_s(time_s);
+    let inflation = (2.0 * shared.settings.adaptive_noise.correlation_s / since_s).max(1.0);
+    let mut round: Vec<(usize, BiasObservation)> = Vec::new();
+    for reading in readings {
+        let AnchorReading::Range {
+            anchor,
+            position_m,
+            range_m,
+            variance_m2,
+        } = *reading
+        else {
+            continue;
+        };
+        if round.iter().any(|(a, _)| *a == anchor) {
+            continue;
+        }
+        let delta = [tag[0] - position_m[0], tag[1] - position_m[1], tag[2] - position_m[2]];
+        let distance_m = (delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2]).sqrt();
+        if distance_m < 1e-6 {
+            continue;
+        }
+        let mut gradient = [0.0; 3];
+        for axis in 0..dims {
+            gradient[axis] = delta[axis] / distance_m;
+        }
+        // the stated noise (without the offset's variance, which the correction added)
+        let (_, offset_variance_m2) = track.range_bias.offset(model, anchor, time_s);
+        let noise_m2 = (variance_m2 - offset_variance_m2).max(f64::MIN_POSITIVE);
+        round.push((
+            anchor,
+            BiasObservation {
+                innovation: range_m - distance_m,
+                variance: inflation * noise_m2,
+                noise_variance: noise_m2,
+                gradient,
+            },
+        ));
+    }
+    track.range_bias.learn_epoch(model, &round, time_s, dims);
 }

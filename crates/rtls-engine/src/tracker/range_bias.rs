@@ -23,6 +23,8 @@ pub(crate) struct RangeBiases {
     /// Slot in `biases` of each anchor index; `None` before the anchor's first learning round.
     slots: Vec<Option<usize>>,
     round: Vec<Pending>,
+    /// Time of the last fix-then-filter epoch learnt from, s.
+    last_epoch_s: Option<f64>,
 }
 
 impl RangeBiases {
@@ -56,6 +58,33 @@ impl RangeBiases {
             observation,
             time_s,
         });
+    }
+
+    /// Learns from one fix-then-filter epoch at once (its readings' residuals against the
+    /// epoch's fix, one per anchor): the open round is replaced by it.
+    /// Seconds since the last epoch learnt from (∞ before the first).
+    pub(super) fn since_last_epoch_s(&self, time_s: f64) -> f64 {
+        self.last_epoch_s.map_or(f64::INFINITY, |t| time_s - t)
+    }
+
+    pub(super) fn learn_epoch(
+        &mut self,
+        model: &BiasModel,
+        readings: &[(usize, BiasObservation)],
+        time_s: f64,
+        dimensions: usize,
+    ) {
+        self.round = readings
+            .iter()
+            .map(|&(anchor, observation)| Pending {
+                anchor,
+                observation,
+                time_s,
+            })
+            .collect();
+        self.learn(model, dimensions);
+        self.round.clear();
+        self.last_epoch_s = Some(time_s);
     }
 
     /// Drops the open round: a reading of it fell outside the gate, so the prediction its
