@@ -544,6 +544,7 @@ pub(super) fn coupled_update<const N: usize>(
                     updated.innovation_covariance[(0, 0)] - reading_variance_m2 - offset_variance_m2;
                 let prior_variance_m2 = bias_model.prior_std() * bias_model.prior_std();
                 if outside_gate(shared, track, &updated) {
+                    // the prediction this round is measured against is in doubt
                     track.range_bias.discard_round();
                 } else if is_gated(track) && predicted_variance_m2 <= reading_variance_m2.min(prior_variance_m2) {
                     // the reading's part in its round: ν, λ c σ² and ∂h/∂p at the prediction
