@@ -11,8 +11,9 @@
 //! file, the line and the field.
 //!
 //! The summary on standard error counts records, updates, fixes and events, and the rejected
-//! records by kind and reason (numbers in a reason are replaced by `#`, so reasons group).
-//! A tag that had records but no track output is named with its rejections, and the exit
+//! records by kind and reason (numbers in a reason are replaced by `#`, so reasons group),
+//! and the range offsets the tracks learnt (`[tracker.range_bias]`, per tag and anchor, beyond
+//! the site's `bias_m`). A tag that had records but no track output is named with its rejections, and the exit
 //! status is then [`EXIT_UNTRACKED`] (3); 1 is an error that stopped the run (site, input,
 //! outputs), 0 a run in which every tag with records was tracked.
 
