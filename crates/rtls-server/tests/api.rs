@@ -339,6 +339,21 @@ async fn omlox_location_ingest_and_trackables_name_the_bad_field() {
     assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
     let id = reply.json()["id"].as_str().unwrap().to_string();
     assert!(uuid::Uuid::parse_str(&id).is_ok());
+    // the nil UUID means "the hub assigns it", as an absent id does
+    let nil = json!({"id": "00000000-0000-0000-0000-000000000000", "type": "omlox", "name": "Cart 2"}).to_string();
+    let reply = call(&app, Method::POST, "/v2/trackables", Some(WRITE), &nil).await;
+    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    let assigned = uuid::Uuid::parse_str(reply.json()["id"].as_str().unwrap()).unwrap();
+    assert!(!assigned.is_nil() && assigned.to_string() != id);
+    let reply = call(
+        &app,
+        Method::DELETE,
+        &format!("/v2/trackables/{assigned}"),
+        Some(WRITE),
+        "",
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::NO_CONTENT);
     let again = json!({"id": id, "type": "omlox"}).to_string();
     let reply = call(&app, Method::POST, "/v2/trackables", Some(WRITE), &again).await;
     assert_eq!(

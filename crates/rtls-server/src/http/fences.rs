@@ -68,16 +68,13 @@ pub(super) async fn get(
         .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))
 }
 
-/// `POST /v2/fences`: 201 with the fence (a UUID is assigned when `id` is absent or empty); 400
+/// `POST /v2/fences`: 201 with the fence (a UUID is assigned when `id` is absent, empty or the
+/// nil UUID); 400
 /// naming the field of a bad fence or an id in use.
 pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, body: Bytes) -> ApiResult<Response> {
     let who = state.authorize(&headers, Access::Operate)?;
     let mut value: Value = parse_json(&body)?;
-    if let Value::Object(object) = &mut value {
-        if object.get("id").is_none_or(|id| id.as_str().is_some_and(str::is_empty)) {
-            object.insert("id".into(), Value::String(uuid::Uuid::new_v4().to_string()));
-        }
-    }
+    super::assign_id_if_unset(&mut value);
     let fence: Fence = parse_json(value.to_string().as_bytes())?;
     uuid::Uuid::parse_str(&fence.id)
         .map_err(|e| ApiError::field("id", format!("`{}` is not a UUID ({e})", fence.id)))?;

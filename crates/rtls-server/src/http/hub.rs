@@ -235,7 +235,8 @@ pub(super) async fn trackable_summary(
     Ok(Json(list_stored(&state, TRACKABLE).await?))
 }
 
-/// `POST /v2/trackables`: a UUID is generated when `id` is empty; 201 with the trackable.
+/// `POST /v2/trackables`: a UUID is generated when `id` is absent, empty or the nil UUID; 201
+/// with the trackable.
 pub(super) async fn create_trackable(
     State(state): State<AppState>,
     headers: HeaderMap,
@@ -243,11 +244,7 @@ pub(super) async fn create_trackable(
 ) -> ApiResult<Response> {
     let who = state.authorize(&headers, Access::Write)?;
     let mut value: Value = parse_json(&body)?;
-    if let Value::Object(object) = &mut value {
-        if object.get("id").is_none_or(|id| id.as_str().is_some_and(str::is_empty)) {
-            object.insert("id".into(), Value::String(uuid::Uuid::new_v4().to_string()));
-        }
-    }
+    super::assign_id_if_unset(&mut value);
     let trackable: Trackable = parse_json(value.to_string().as_bytes())?;
     check_uuid(&trackable.id)?;
     create(&state, &who, TRACKABLE, trackable.id.clone(), &trackable).await

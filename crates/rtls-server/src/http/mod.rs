@@ -31,7 +31,7 @@ use axum::routing::{delete, get, post, put};
 use axum::{Json, Router};
 use rtls_engine::site::Site;
 use serde::de::DeserializeOwned;
-use serde_json::json;
+use serde_json::{json, Value};
 
 use crate::auth::{Access, Principal, Role, Tokens};
 use crate::metrics::Metrics;
@@ -301,6 +301,22 @@ impl AppState {
     }
 }
 
+/// Gives a JSON object about to be created a fresh UUIDv4 `id` when it has none: absent, null,
+/// empty, or the nil UUID (`00000000-0000-0000-0000-000000000000`, which omlox clients send for
+/// "the hub assigns it"). Any other id is kept (and checked by the caller).
+pub(crate) fn assign_id_if_unset(value: &mut Value) {
+    if let Value::Object(object) = value {
+        let unset = match object.get("id") {
+            None | Some(Value::Null) => true,
+            Some(Value::String(id)) => id.is_empty() || uuid::Uuid::parse_str(id).is_ok_and(|u| u.is_nil()),
+            Some(_) => false,
+        };
+        if unset {
+            object.insert("id".into(), Value::String(uuid::Uuid::new_v4().to_string()));
+        }
+    }
+}
+
 /// Parses a JSON body into `T`, naming the offending field's path on failure.
 ///
 /// # Errors
@@ -506,4 +522,33 @@ fn bearer(headers: &HeaderMap) -> Option<&str> {
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.strip_prefix("Bearer ").or_else(|| v.strip_prefix("bearer ")))
         .map(str::trim)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_absent_empty_null_or_nil_id_is_assigned_and_any_other_kept() {
+        for body in [
+            json!({}),
+            json!({"id": null}),
+            json!({"id": ""}),
+            json!({"id": "00000000-0000-0000-0000-000000000000"}),
+        ] {
+            let mut value = body.clone();
+            assign_id_if_unset(&mut value);
+            let id = uuid::Uuid::parse_str(value["id"].as_str().unwrap()).unwrap();
+            assert!(!id.is_nil(), "{body}");
+        }
+        for id in [
+            json!("forklift-9"),
+            json!("7c9e6679-7425-40de-944b-e07fc1f90ae7"),
+            json!(7),
+        ] {
+            let mut value = json!({ "id": id.clone() });
+            assign_id_if_unset(&mut value);
+            assert_eq!(value["id"], id);
+        }
+    }
 }
