@@ -1,6 +1,7 @@
 //! TLS for the listeners (HTTPS and WSS, MQTTS): the certificate and key from PEM files,
 //! reloaded when the files change (a renewed certificate is served without a restart), or a
-//! self-signed one generated for a demo.
+//! self-signed one generated for a demo; and the client side (PostgreSQL, an external MQTT
+//! broker): [`client_config`].
 //!
 //! rustls with the *ring* provider, TLS 1.2 and 1.3 (rustls's safe defaults).
 
@@ -11,7 +12,7 @@ use std::time::{Duration, SystemTime};
 use rustls::crypto::ring::default_provider;
 use rustls::server::{ClientHello, ResolvesServerCert};
 use rustls::sign::CertifiedKey;
-use rustls::ServerConfig;
+use rustls::{ClientConfig, RootCertStore, ServerConfig};
 use rustls_pki_types::pem::PemObject;
 use rustls_pki_types::{CertificateDer, PrivateKeyDer};
 use tokio::sync::watch;
@@ -44,6 +45,67 @@ pub struct TlsFiles {
     pub key: PathBuf,
     /// How often the files' modification times are checked.
     pub reload_every: Duration,
+}
+
+/// A rustls client configuration (ring, TLS 1.2 and 1.3) verifying the server against the CA
+/// certificates of `ca_file` (PEM), or the system's trust store when `None`, with an optional
+/// client identity (certificate chain and key, PEM) for mutual TLS. `names` are the settings
+/// the three files came from (e.g. `ca_file`, `sslrootcert`), for the errors.
+///
+/// # Errors
+/// In words, naming the setting and the file: a file cannot be read or holds nothing usable, the system's trust store is empty, or rustls
+/// refuses a certificate or the key.
+pub(crate) fn client_config(
+    ca_file: Option<&Path>,
+    client_identity: Option<(&Path, &Path)>,
+    [ca_name, cert_name, key_name]: [&str; 3],
+) -> Result<ClientConfig, String> {
+    let mut roots = RootCertStore::empty();
+    match ca_file {
+        Some(path) => {
+            let shown = path.display();
+            for certificate in CertificateDer::pem_file_iter(path).map_err(|e| format!("{ca_name} {shown}: {e}"))? {
+                let certificate = certificate.map_err(|e| format!("{ca_name} {shown}: {e}"))?;
+                roots.add(certificate).map_err(|e| format!("{ca_name} {shown}: {e}"))?;
+            }
+            if roots.is_empty() {
+                return Err(format!("{ca_name} {shown}: no CERTIFICATE block in the file"));
+            }
+        }
+        None => {
+            let found = rustls_native_certs::load_native_certs();
+            let (added, _ignored) = roots.add_parsable_certificates(found.certs);
+            if added == 0 {
+                return Err(format!(
+                    "no CA certificate in the system's trust store ({} errors): name one with {ca_name}",
+                    found.errors.len()
+                ));
+            }
+        }
+    }
+    let builder = ClientConfig::builder_with_provider(Arc::new(default_provider()))
+        .with_safe_default_protocol_versions()
+        .map_err(|e| e.to_string())?
+        .with_root_certificates(roots);
+    match client_identity {
+        None => Ok(builder.with_no_client_auth()),
+        Some((cert_file, key_file)) => {
+            let chain = CertificateDer::pem_file_iter(cert_file)
+                .and_then(Iterator::collect::<Result<Vec<_>, _>>)
+                .map_err(|e| format!("{cert_name} {}: {e}", cert_file.display()))?;
+            if chain.is_empty() {
+                return Err(format!(
+                    "{cert_name} {}: no CERTIFICATE block in the file",
+                    cert_file.display()
+                ));
+            }
+            let key = PrivateKeyDer::from_pem_file(key_file)
+                .map_err(|e| format!("{key_name} {}: {e}", key_file.display()))?;
+            builder
+                .with_client_auth_cert(chain, key)
+                .map_err(|e| format!("client certificate: {e}"))
+        }
+    }
 }
 
 /// Reads a certificate chain and its key into what rustls serves.

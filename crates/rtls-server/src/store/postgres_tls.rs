@@ -11,12 +11,7 @@
 //! parses the rest.
 
 use std::path::PathBuf;
-use std::sync::Arc;
 
-use rustls::crypto::ring::default_provider;
-use rustls::{ClientConfig, RootCertStore};
-use rustls_pki_types::pem::PemObject;
-use rustls_pki_types::CertificateDer;
 use tokio_postgres_rustls::MakeRustlsConnect;
 
 /// What the URL asks for.
@@ -83,22 +78,7 @@ pub(super) fn split(url: &str) -> Result<(String, PgTls), String> {
 /// # Errors
 /// The file cannot be read, holds no certificate, or one rustls refuses.
 pub(super) fn connector(ca_file: &std::path::Path) -> Result<MakeRustlsConnect, String> {
-    let shown = ca_file.display();
-    let mut roots = RootCertStore::empty();
-    for certificate in CertificateDer::pem_file_iter(ca_file).map_err(|e| format!("sslrootcert {shown}: {e}"))? {
-        let certificate = certificate.map_err(|e| format!("sslrootcert {shown}: {e}"))?;
-        roots
-            .add(certificate)
-            .map_err(|e| format!("sslrootcert {shown}: {e}"))?;
-    }
-    if roots.is_empty() {
-        return Err(format!("sslrootcert {shown}: no CERTIFICATE block in the file"));
-    }
-    let config = ClientConfig::builder_with_provider(Arc::new(default_provider()))
-        .with_safe_default_protocol_versions()
-        .map_err(|e| e.to_string())?
-        .with_root_certificates(roots)
-        .with_no_client_auth();
+    let config = crate::tls::client_config(Some(ca_file), None, ["sslrootcert", "sslcert", "sslkey"])?;
     Ok(MakeRustlsConnect::new(config))
 }
 

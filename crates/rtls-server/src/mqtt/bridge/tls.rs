@@ -15,12 +15,8 @@
 //! [`client_config`].
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
-use rustls::crypto::ring::default_provider;
-use rustls::{ClientConfig, RootCertStore};
-use rustls_pki_types::pem::PemObject;
-use rustls_pki_types::{CertificateDer, PrivateKeyDer};
+use rustls::ClientConfig;
 
 /// The broker's TLS port when an `mqtts://` URL names none.
 pub(super) const DEFAULT_TLS_PORT: u16 = 8883;
@@ -99,61 +95,19 @@ pub(super) fn split(url: &str) -> Result<(String, BrokerTls), String> {
 }
 
 /// A rustls client configuration for `ca_file` (or the system's trust store) and an optional
-/// client identity.
+/// client identity: [`crate::tls::client_config`], its errors naming the URL's options.
 ///
 /// # Errors
-/// A file cannot be read or holds nothing usable, the system's trust store is empty, or rustls
-/// refuses a certificate or the key.
+/// As [`crate::tls::client_config`].
 pub(super) fn client_config(
     ca_file: Option<&Path>,
     client_identity: Option<(&Path, &Path)>,
 ) -> Result<ClientConfig, String> {
-    let mut roots = RootCertStore::empty();
-    match ca_file {
-        Some(path) => {
-            let shown = path.display();
-            for certificate in CertificateDer::pem_file_iter(path).map_err(|e| format!("ca_file {shown}: {e}"))? {
-                let certificate = certificate.map_err(|e| format!("ca_file {shown}: {e}"))?;
-                roots.add(certificate).map_err(|e| format!("ca_file {shown}: {e}"))?;
-            }
-            if roots.is_empty() {
-                return Err(format!("ca_file {shown}: no CERTIFICATE block in the file"));
-            }
-        }
-        None => {
-            let found = rustls_native_certs::load_native_certs();
-            let (added, _ignored) = roots.add_parsable_certificates(found.certs);
-            if added == 0 {
-                return Err(format!(
-                    "no CA certificate in the system's trust store ({} errors): name one with ca_file=PATH",
-                    found.errors.len()
-                ));
-            }
-        }
-    }
-    let builder = ClientConfig::builder_with_provider(Arc::new(default_provider()))
-        .with_safe_default_protocol_versions()
-        .map_err(|e| e.to_string())?
-        .with_root_certificates(roots);
-    match client_identity {
-        None => Ok(builder.with_no_client_auth()),
-        Some((cert_file, key_file)) => {
-            let chain = CertificateDer::pem_file_iter(cert_file)
-                .and_then(Iterator::collect::<Result<Vec<_>, _>>)
-                .map_err(|e| format!("client_cert_file {}: {e}", cert_file.display()))?;
-            if chain.is_empty() {
-                return Err(format!(
-                    "client_cert_file {}: no CERTIFICATE block in the file",
-                    cert_file.display()
-                ));
-            }
-            let key = PrivateKeyDer::from_pem_file(key_file)
-                .map_err(|e| format!("client_key_file {}: {e}", key_file.display()))?;
-            builder
-                .with_client_auth_cert(chain, key)
-                .map_err(|e| format!("client certificate: {e}"))
-        }
-    }
+    crate::tls::client_config(
+        ca_file,
+        client_identity,
+        ["ca_file", "client_cert_file", "client_key_file"],
+    )
 }
 
 #[cfg(test)]
