@@ -184,9 +184,13 @@ impl BiasModel {
     #[must_use]
     pub fn predicted(&self, biases: &BiasVector, slot: usize, time_s: f64) -> (f64, f64) {
         let dt_s = biases.time_s.map_or(0.0, |t| (time_s - t).max(0.0));
+        (biases.values[slot], self.walked(biases.covariance[(slot, slot)], dt_s))
+    }
+
+    /// `min(P + q Δt, σ_b²)`: a variance after `dt_s` of the random walk, never above the prior.
+    fn walked(&self, variance: f64, dt_s: f64) -> f64 {
         let q = self.random_walk_per_sqrt_s * self.random_walk_per_sqrt_s;
-        let variance = (biases.covariance[(slot, slot)] + q * dt_s).min(self.prior_std * self.prior_std);
-        (biases.values[slot], variance)
+        (variance + q * dt_s).min(self.prior_std * self.prior_std)
     }
 
     /// Adds a reader to `biases` with the prior `N(0, σ_b²)`, uncorrelated with the others;
@@ -214,11 +218,8 @@ impl BiasModel {
         let mut predicted = biases.clone();
         let dt_s = biases.time_s.map_or(0.0, |t| (time_s - t).max(0.0));
         // P_b⁻ = P_b + q Δt I, diagonal capped at σ_b²
-        let q = self.random_walk_per_sqrt_s * self.random_walk_per_sqrt_s;
-        let cap = self.prior_std * self.prior_std;
         for i in 0..predicted.values.len() {
-            let v = &mut predicted.covariance[(i, i)];
-            *v = (*v + q * dt_s).min(cap);
+            predicted.covariance[(i, i)] = self.walked(predicted.covariance[(i, i)], dt_s);
         }
         predicted.time_s = Some(biases.time_s.map_or(time_s, |t| t.max(time_s)));
         Ok(predicted)

@@ -196,9 +196,10 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
     // direct measurements held while the epoch was open: those before its fix come first
     apply_deferred(shared, track, time_s, out)?;
     // ranges with the track's learnt offsets removed (r − b̂, σ² + P_b)
-    let readings: Vec<AnchorReading> = epoch
+    let stated: Vec<AnchorReading> = epoch.iter().map(|(_, r)| *r).collect();
+    let readings: Vec<AnchorReading> = stated
         .iter()
-        .map(|(_, r)| corrected_range(shared, track, *r, time_s))
+        .map(|r| corrected_range(shared, track, *r, time_s))
         .collect();
     // a lost track's state is too stale to start the solver from
     let guess = track.state.as_ref().filter(|_| !track.is_lost());
@@ -213,7 +214,7 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
                 fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
                 let accepted = track.state.as_ref().map(|s| s.mean().clone_owned()) != before;
                 if single && confirmed_before && accepted {
-                    learn_offsets(shared, track, &readings, &position, time_s);
+                    learn_offsets(shared, track, &stated, &readings, &position, time_s);
                 }
             }
         }
@@ -259,7 +260,8 @@ fn corrected_range<const N: usize>(
     }
 }
 
-/// Fix-then-filter: the epoch's ranges (offset-corrected) against its accepted fix teach the
+/// Fix-then-filter: the epoch's ranges (`corrected`: offset-corrected; `stated`: as read, for
+/// their noise) against its accepted fix teach the
 /// track's offsets — one reading per anchor, residual `rᵢ − b̂ᵢ − ‖p − aᵢ‖`, gradient
 /// `(p − aᵢ)/‖p − aᵢ‖` (slant, at the tag's height in 2-D). The residuals of a least-squares
 /// fix are already the part no position error explains; [`BiasObservation`]'s projection and
@@ -267,31 +269,35 @@ fn corrected_range<const N: usize>(
 fn learn_offsets<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
-    readings: &[AnchorReading],
+    stated: &[AnchorReading],
+    corrected: &[AnchorReading],
     position: &[f64],
     time_s: f64,
 ) {
     let Some(model) = &shared.range_bias else {
         return;
     };
+    let correlation_s = shared.settings.adaptive_noise.correlation_s;
+    if !track.range_bias.wants(time_s, correlation_s) {
+        return;
+    }
     let dims = dimensions::<N>();
     let tag = [
         position[0],
         position[1],
         if dims == 3 { position[2] } else { shared.tag_height_m },
     ];
-    // epochs closer together than the error correlation time are not independent looks:
-    // c = max(1, 2 τ_c / Δt), as for the filter's own readings
-    let since_s = track.range_bias.since_last_epoch_s(time_s);
-    let inflation = (2.0 * shared.settings.adaptive_noise.correlation_s / since_s).max(1.0);
     let mut round: Vec<(usize, BiasObservation)> = Vec::new();
-    for reading in readings {
-        let AnchorReading::Range {
-            anchor,
-            position_m,
-            range_m,
-            variance_m2,
-        } = *reading
+    for (stated, corrected) in stated.iter().zip(corrected) {
+        let (
+            AnchorReading::Range {
+                anchor,
+                position_m,
+                variance_m2,
+                ..
+            },
+            AnchorReading::Range { range_m, .. },
+        ) = (*stated, *corrected)
         else {
             continue;
         };
@@ -307,18 +313,17 @@ fn learn_offsets<const N: usize>(
         for axis in 0..dims {
             gradient[axis] = delta[axis] / distance_m;
         }
-        // the stated noise (without the offset's variance, which the correction added)
-        let (_, offset_variance_m2) = track.range_bias.offset(model, anchor, time_s);
-        let noise_m2 = (variance_m2 - offset_variance_m2).max(f64::MIN_POSITIVE);
+        // the stated noise (the corrected reading's also holds the offset's variance)
+        let noise_m2 = variance_m2;
         round.push((
             anchor,
             BiasObservation {
                 innovation: range_m - distance_m,
-                variance: inflation * noise_m2,
+                variance: noise_m2,
                 noise_variance: noise_m2,
                 gradient,
             },
         ));
     }
-    track.range_bias.learn_epoch(model, &round, time_s, dims);
+    track.range_bias.learn_epoch(model, &round, time_s, dims, correlation_s);
 }

@@ -23,8 +23,8 @@ pub(crate) struct RangeBiases {
     /// Slot in `biases` of each anchor index; `None` before the anchor's first learning round.
     slots: Vec<Option<usize>>,
     round: Vec<Pending>,
-    /// Time of the last fix-then-filter epoch learnt from, s.
-    last_epoch_s: Option<f64>,
+    /// Time of the newest reading of the last round learnt from, s.
+    last_learnt_s: Option<f64>,
 }
 
 impl RangeBiases {
@@ -36,10 +36,19 @@ impl RangeBiases {
         }
     }
 
-    /// Adds a reading (its innovation against the prediction, its variance without the
+    /// Whether a reading at `time_s` is wanted: a round is open, or the last round learnt from
+    /// is at least the error correlation time `τ_c` old. Rounds closer together than `τ_c`
+    /// would repeat the same errors, so they are not collected at all (the learning's cost on
+    /// the hot path is one round per `τ_c`); [`Self::learn`] counts a round's information for the
+    /// time since the last one.
+    pub(super) fn wants(&self, time_s: f64, correlation_s: f64) -> bool {
+        !self.round.is_empty() || self.last_learnt_s.is_none_or(|t| time_s - t >= correlation_s)
+    }
+
+    /// Adds a reading (its innovation against the prediction, its one-look variance without the
     /// offset's, its gradient) to the open round. A second reading of an anchor already in the
     /// round closes the round first: its readings teach the offsets (see
-    /// [`BiasModel::update_observable`]), and a new round starts.
+    /// [`BiasModel::update_observable`]), and a new round starts if one is wanted.
     pub(super) fn observe(
         &mut self,
         model: &BiasModel,
@@ -47,33 +56,36 @@ impl RangeBiases {
         observation: BiasObservation,
         time_s: f64,
         dimensions: usize,
+        correlation_s: f64,
     ) {
         self.round.retain(|p| time_s - p.time_s <= ROUND_WINDOW_S);
         if self.round.iter().any(|p| p.anchor == anchor) {
-            self.learn(model, dimensions);
+            self.learn(model, dimensions, correlation_s);
             self.round.clear();
         }
-        self.round.push(Pending {
-            anchor,
-            observation,
-            time_s,
-        });
+        if self.wants(time_s, correlation_s) {
+            self.round.push(Pending {
+                anchor,
+                observation,
+                time_s,
+            });
+        }
     }
 
     /// Learns from one fix-then-filter epoch at once (its readings' residuals against the
-    /// epoch's fix, one per anchor): the open round is replaced by it.
-    /// Seconds since the last epoch learnt from (∞ before the first).
-    pub(super) fn since_last_epoch_s(&self, time_s: f64) -> f64 {
-        self.last_epoch_s.map_or(f64::INFINITY, |t| time_s - t)
-    }
-
+    /// epoch's fix, one per anchor), if one is wanted: the open round is replaced by it.
     pub(super) fn learn_epoch(
         &mut self,
         model: &BiasModel,
         readings: &[(usize, BiasObservation)],
         time_s: f64,
         dimensions: usize,
+        correlation_s: f64,
     ) {
+        self.round.clear();
+        if !self.wants(time_s, correlation_s) {
+            return;
+        }
         self.round = readings
             .iter()
             .map(|&(anchor, observation)| Pending {
@@ -82,9 +94,8 @@ impl RangeBiases {
                 time_s,
             })
             .collect();
-        self.learn(model, dimensions);
+        self.learn(model, dimensions, correlation_s);
         self.round.clear();
-        self.last_epoch_s = Some(time_s);
     }
 
     /// Drops the open round: a reading of it fell outside the gate, so the prediction its
@@ -95,7 +106,10 @@ impl RangeBiases {
 
     /// Learns from the open round; a numerical failure forgets what was learnt (the offsets
     /// start again from their prior) rather than keep a broken vector.
-    fn learn(&mut self, model: &BiasModel, dimensions: usize) {
+    ///
+    /// A round `Δt` after the last one counts as `1 / max(1, 2 τ_c / Δt)` of independent looks
+    /// (each reading's variance `c σ²`, the filter's rule for correlated errors).
+    fn learn(&mut self, model: &BiasModel, dimensions: usize, correlation_s: f64) {
         if self.round.len() <= dimensions {
             return;
         }
@@ -109,8 +123,19 @@ impl RangeBiases {
                 *self.slots[p.anchor].get_or_insert_with(|| model.add_reader(&mut self.biases))
             })
             .collect();
-        let observations: Vec<BiasObservation> = self.round.iter().map(|p| p.observation).collect();
         let newest_s = self.round.iter().map(|p| p.time_s).fold(f64::NEG_INFINITY, f64::max);
+        // c = max(1, 2 τ_c / Δt), Δt since the last round learnt from
+        let since_s = self.last_learnt_s.map_or(f64::INFINITY, |t| newest_s - t);
+        let inflation = (2.0 * correlation_s / since_s).max(1.0);
+        let observations: Vec<BiasObservation> = self
+            .round
+            .iter()
+            .map(|p| BiasObservation {
+                variance: inflation * p.observation.noise_variance,
+                ..p.observation
+            })
+            .collect();
+        self.last_learnt_s = Some(newest_s);
         let learnt = model
             .predict(&self.biases, newest_s)
             .and_then(|predicted| model.update_observable(&predicted, &slots, &observations, dimensions));

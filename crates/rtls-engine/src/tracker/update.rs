@@ -543,11 +543,16 @@ pub(super) fn coupled_update<const N: usize>(
                 let predicted_variance_m2 =
                     updated.innovation_covariance[(0, 0)] - reading_variance_m2 - offset_variance_m2;
                 let prior_variance_m2 = bias_model.prior_std() * bias_model.prior_std();
+                let correlation_s = shared.settings.adaptive_noise.correlation_s;
                 if outside_gate(shared, track, &updated) {
                     // the prediction this round is measured against is in doubt
                     track.range_bias.discard_round();
-                } else if is_gated(track) && predicted_variance_m2 <= reading_variance_m2.min(prior_variance_m2) {
-                    // the reading's part in its round: ν, λ c σ² and ∂h/∂p at the prediction
+                } else if is_gated(track)
+                    && predicted_variance_m2 <= reading_variance_m2.min(prior_variance_m2)
+                    && track.range_bias.wants(time_s, correlation_s)
+                {
+                    // the reading's part in its round: ν, λ σ² (one look) and ∂h/∂p at the
+                    // prediction
                     if let Ok(jacobian) = MeasurementModel::jacobian(&model, prior.state.mean()) {
                         let mut gradient = [0.0; 3];
                         for (axis, g) in gradient.iter_mut().enumerate().take(dimensions::<N>()) {
@@ -555,13 +560,18 @@ pub(super) fn coupled_update<const N: usize>(
                         }
                         let observation = BiasObservation {
                             innovation: updated.innovation[0],
-                            variance: reading_variance_m2,
+                            variance: reading_variance_m2 / inflation,
                             noise_variance: reading_variance_m2 / inflation,
                             gradient,
                         };
-                        track
-                            .range_bias
-                            .observe(bias_model, anchor, observation, time_s, dimensions::<N>());
+                        track.range_bias.observe(
+                            bias_model,
+                            anchor,
+                            observation,
+                            time_s,
+                            dimensions::<N>(),
+                            correlation_s,
+                        );
                     }
                 }
             }
