@@ -45,23 +45,9 @@ if port_accepts; then
 fi
 
 # TLS for the bridge's TLS test: a CA of its own and a certificate for 127.0.0.1 signed by it.
-if [ ! -f "${tls_dir}/server.crt" ]; then
-    if ! command -v openssl >/dev/null; then
-        echo "mosquitto.sh: installing openssl (apt-get)" >&2
-        export DEBIAN_FRONTEND=noninteractive
-        apt-get install -y -qq openssl >&2 || { apt-get update -qq >&2; apt-get install -y -qq openssl >&2; }
-    fi
-    mkdir -p "${tls_dir}"
-    openssl req -x509 -newkey rsa:2048 -nodes -days 3650 -subj "/CN=rtls mosquitto test CA" \
-        -keyout "${tls_dir}/ca.key" -out "${tls_dir}/ca.crt" 2>/dev/null
-    openssl req -newkey rsa:2048 -nodes -subj "/CN=127.0.0.1" \
-        -keyout "${tls_dir}/server.key" -out "${tls_dir}/server.csr" 2>/dev/null
-    printf 'subjectAltName=IP:127.0.0.1,DNS:localhost\nbasicConstraints=CA:FALSE\nextendedKeyUsage=serverAuth\n' \
-        > "${tls_dir}/server.ext"
-    openssl x509 -req -in "${tls_dir}/server.csr" -CA "${tls_dir}/ca.crt" -CAkey "${tls_dir}/ca.key" \
-        -CAcreateserial -days 3650 -extfile "${tls_dir}/server.ext" -out "${tls_dir}/server.crt" 2>/dev/null
-    chmod 644 "${tls_dir}/ca.crt" "${tls_dir}/server.crt" "${tls_dir}/server.key"
-fi
+bash "$(dirname "$0")/test-certs.sh" "${tls_dir}" "rtls mosquitto test CA"
+# the broker runs as the user "mosquitto" when started as root: it must read its key
+chmod 644 "${tls_dir}/server.key"
 
 mosquitto_bin=$(command -v mosquitto || true)
 if [ -z "${mosquitto_bin}" ] && [ -x /usr/sbin/mosquitto ]; then

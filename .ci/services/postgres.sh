@@ -32,12 +32,6 @@ if ! command -v pg_lsclusters >/dev/null 2>&1 || ! ls /usr/lib/postgresql/*/bin/
     apt-get install -y -qq postgresql >&2
 fi
 
-if ! command -v openssl >/dev/null 2>&1; then
-    log "installing openssl (for the test certificates)"
-    export DEBIAN_FRONTEND=noninteractive
-    apt-get install -y -qq openssl >&2 || { apt-get update -qq >&2; apt-get install -y -qq openssl >&2; }
-fi
-
 version="$(ls /usr/lib/postgresql | sort -V | tail -1)"
 if ! pg_lsclusters -h | awk -v v="$version" -v c="$cluster" '$1 == v && $2 == c { found = 1 } END { exit !found }'; then
     log "creating cluster $version/$cluster"
@@ -48,21 +42,8 @@ fi
 # by it (made once), so that a client verifying the chain and the address succeeds; the CA's
 # path goes out with the URL.
 tls_dir="/etc/postgresql/$version/$cluster/rtls-tls"
-if [ ! -f "$tls_dir/server.crt" ]; then
-    log "making a test CA and a server certificate for 127.0.0.1 in $tls_dir"
-    mkdir -p "$tls_dir"
-    openssl req -x509 -newkey rsa:2048 -nodes -days 3650 -subj "/CN=rtls test CA" \
-        -keyout "$tls_dir/ca.key" -out "$tls_dir/ca.crt" 2>/dev/null
-    openssl req -newkey rsa:2048 -nodes -subj "/CN=127.0.0.1" \
-        -keyout "$tls_dir/server.key" -out "$tls_dir/server.csr" 2>/dev/null
-    printf 'subjectAltName=IP:127.0.0.1,DNS:localhost\nbasicConstraints=CA:FALSE\nextendedKeyUsage=serverAuth\n' \
-        > "$tls_dir/server.ext"
-    openssl x509 -req -in "$tls_dir/server.csr" -CA "$tls_dir/ca.crt" -CAkey "$tls_dir/ca.key" \
-        -CAcreateserial -days 3650 -extfile "$tls_dir/server.ext" -out "$tls_dir/server.crt" 2>/dev/null
-    chown postgres:postgres "$tls_dir/server.key" "$tls_dir/server.crt"
-    chmod 600 "$tls_dir/server.key"
-    chmod 644 "$tls_dir/ca.crt"
-fi
+bash "$(dirname "$0")/test-certs.sh" "$tls_dir" "rtls test CA"
+chown postgres:postgres "$tls_dir/server.key" "$tls_dir/server.crt"
 
 # Loopback only, on the port the tests use, TLS offered (not required), in a file of its own
 # under conf.d (which Debian's postgresql.conf includes last, so it wins); restart a running
