@@ -1,7 +1,7 @@
 //! TLS for the listeners (HTTPS and WSS, MQTTS): the certificate and key from PEM files,
 //! reloaded when the files change (a renewed certificate is served without a restart), or a
 //! self-signed one generated for a demo; and the client side (PostgreSQL, an external MQTT
-//! broker): [`client_config`].
+//! broker): `client_config`.
 //!
 //! rustls with the *ring* provider, TLS 1.2 and 1.3 (rustls's safe defaults).
 
