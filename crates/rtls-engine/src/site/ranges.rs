@@ -519,6 +519,11 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
             heading.course_heading_std_rad,
             ANGLE_STD_RAD,
         ),
+        (
+            "heading.heading_error_correlation_s",
+            heading.heading_error_correlation_s,
+            CORRELATION_S,
+        ),
     ] {
         out.push(within(at(key), value, bounds));
     }

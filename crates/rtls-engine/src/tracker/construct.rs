@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use rtls_estimation::adaptive::correlation::ErrorCorrelation;
 use rtls_estimation::adaptive::AdaptiveNoise;
 use rtls_estimation::aided::HeadingModel;
 use rtls_estimation::bias::BiasModel;
@@ -100,6 +101,11 @@ impl Tracker {
                     settings.adaptive_noise.memory_s,
                     settings.adaptive_noise.max_scale,
                 )?)
+            } else {
+                None
+            },
+            error_correlation: if settings.adaptive_noise.correlation_from_innovations {
+                Some(ErrorCorrelation::new(settings.adaptive_noise.memory_s)?)
             } else {
                 None
             },

@@ -113,6 +113,7 @@ fn observe_course<const N: usize>(shared: &Shared, model: &HeadingModel, track: 
     let course = dy.atan2(dx) + turned;
     if let Some(updated) = model.observe_heading(&heading, course, variance, GATE_SIGMAS)? {
         track.heading.state = Some(updated);
+        track.heading.course_times_s = (track.heading.course_times_s.1, Some(end.time_s));
     }
     // the next chord starts where this one ended: chords do not share information
     track.heading.chord_start = Some(end);
@@ -208,8 +209,20 @@ pub(super) fn odometry<const N: usize>(
     }
     // prepare() leaves the channel with a state (started unaligned if it had none)
     if let (Some((heading, heading_std)), Some(state)) = (odometer, track.heading.state) {
-        // z = ψ + δ + v; a zero std is floored (a heading is never exact)
-        let variance = heading_std.max(1e-4).powi(2);
+        // an odometer's heading error is accumulated: the growth of its stated variance since
+        // the previous record is its offset drifting, P_δδ ← P_δδ + max(0, σₖ² − σₖ₋₁²), and
+        // only the smallest std it has stated is a fresh error of each record, v (floored: a
+        // heading is never exact); z = ψ + δ + v
+        let (previous_std, white_std) = track
+            .heading
+            .odometer_std_rad
+            .map_or((heading_std, heading_std), |(previous, white)| {
+                (previous, white.min(heading_std))
+            });
+        track.heading.odometer_std_rad = Some((heading_std, white_std));
+        let growth = (heading_std * heading_std - previous_std * previous_std).max(0.0);
+        let state = shared.heading_model.drift_odometer_offset(&state, growth)?;
+        let variance = white_std.max(1e-4).powi(2);
         match shared
             .heading_model
             .observe_odometer_heading(&state, heading, variance, GATE_SIGMAS)?
@@ -228,6 +241,10 @@ pub(super) fn odometry<const N: usize>(
     }
     speed_update(shared, track, time_s, speed_mps, speed_std, 0.0, kind, out)
 }
+
+/// The largest heading std a speed is turned into a velocity with after the inflation for
+/// the heading error's correlation, rad.
+const INFLATED_HEADING_STD_MAX_RAD: f64 = 1.0;
 
 /// A speed `s ± σ_s` along the channel's heading, turned back by `lag_rad` (an increment's
 /// mean direction is half its change of heading behind its end).
@@ -257,6 +274,23 @@ fn speed_update<const N: usize>(
         out.events.push(rejected(&track.tag, time_s, kind, reason));
         return Ok(());
     };
+    // the heading's error persists over τ_ψ (until the next course reference renews it, at most
+    // heading_error_correlation_s): its part of the velocity's variance is inflated by
+    // c_ψ = max(1, 2 τ_ψ / Δt) in all, of which the velocity update applies max(1, 2 τ_c / Δt)
+    // to the whole covariance; σ_ψ ← σ_ψ √(c_ψ / c)
+    let elapsed_s = track
+        .heading
+        .last_speed_s
+        .replace(time_s)
+        .map_or(f64::INFINITY, |previous_s| (time_s - previous_s).max(1e-3));
+    let correlated = |tau_s: f64| (2.0 * tau_s / elapsed_s).max(1.0);
+    let persists_s = track
+        .heading
+        .error_correlation_s(time_s, shared.settings.heading.heading_error_correlation_s);
+    let extra = correlated(persists_s) / correlated(shared.settings.adaptive_noise.correlation_s);
+    // (at most 1 rad: beyond it the across-track σ exceeds the speed and says only that the
+    // direction is unknown)
+    let heading_std = (heading_std * extra.max(1.0).sqrt()).min(INFLATED_HEADING_STD_MAX_RAD);
     match odometry_velocity(speed_mps, heading - lag_rad, speed_std_mps, heading_std) {
         Ok((v, r)) => {
             // the horizontal velocity (in 3-D the vertical one is left to the other sensors)

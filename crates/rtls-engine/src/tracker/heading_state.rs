@@ -52,8 +52,14 @@ pub(crate) struct HeadingChannel {
     pub(super) integrated_rate_radps: f64,
     /// The previous odometer heading `(t, z)`, s and rad.
     pub(super) odometer_heading: Option<(f64, f64)>,
+    /// The previous odometer heading's stated std and the smallest one stated so far, rad.
+    pub(super) odometer_std_rad: Option<(f64, f64)>,
     /// Low-passed specific force in the sensor's axes `(t, f)`, m/s².
     pub(super) gravity: Option<(f64, [f64; 3])>,
+    /// The time of the last speed turned into a velocity, s.
+    pub(super) last_speed_s: Option<f64>,
+    /// The times of the last two course references the channel took, s (the newest second).
+    pub(super) course_times_s: (Option<f64>, Option<f64>),
 }
 
 /// A track position after a position update, for the course chord.
@@ -94,6 +100,17 @@ impl HeadingChannel {
         let state = self.state.as_ref()?;
         let std = state.heading_variance_rad2().sqrt();
         (std <= MAX_HEADING_STD_RAD).then(|| (state.heading_rad(), std))
+    }
+
+    /// `τ_ψ`, how long the heading's error persists at `time_s`, s: the interval between the
+    /// channel's course references (each renews the error), or the time since the last one if
+    /// that is longer, at most `longest_s` (and `longest_s` before any reference).
+    pub(super) fn error_correlation_s(&self, time_s: f64, longest_s: f64) -> f64 {
+        match self.course_times_s {
+            (Some(previous_s), Some(last_s)) => (last_s - previous_s).max(time_s - last_s).min(longest_s),
+            (None, Some(last_s)) => (time_s - last_s).min(longest_s),
+            _ => longest_s,
+        }
     }
 
     /// The channel's state (tests).

@@ -3,6 +3,7 @@
 //! update's innovation afterwards ([`rtls_estimation::adaptive`]).
 
 use nalgebra::DMatrix;
+use rtls_estimation::adaptive::correlation::{CorrelationEstimate, ErrorCorrelation};
 use rtls_estimation::adaptive::{AdaptiveNoise, NoiseScale};
 use rtls_estimation::filter::Updated;
 
@@ -78,8 +79,16 @@ pub(super) struct Source {
 pub(crate) struct NoiseScales {
     scales: [NoiseScale; NoiseClass::COUNT],
     last_update_s: [f64; NoiseClass::COUNT],
-    /// `(source, time of its last measurement)`, a handful per track.
-    last_measurement_s: Vec<(Source, f64)>,
+    /// Each source's last measurement and error correlation, a handful per track.
+    sources: Vec<SourceHistory>,
+}
+
+/// One source's time of its last measurement, s, and its innovations' correlation.
+#[derive(Debug, Clone, PartialEq)]
+struct SourceHistory {
+    source: Source,
+    last_s: f64,
+    correlation: CorrelationEstimate,
 }
 
 impl Default for NoiseScales {
@@ -87,15 +96,17 @@ impl Default for NoiseScales {
         Self {
             scales: [NoiseScale::default(); NoiseClass::COUNT],
             last_update_s: [f64::NAN; NoiseClass::COUNT],
-            last_measurement_s: Vec::new(),
+            sources: Vec::new(),
         }
     }
 }
 
 impl NoiseScales {
-    /// The inflation `c = max(1, 2 τ_c / Δt)` of a measurement's stated variance for errors
-    /// correlated over `τ_c` (`correlation_s`), `Δt` after the same source's previous one; and
-    /// records this one's time. `1` for a source's first measurement or `τ_c = 0`.
+    /// The inflation `c = max(1, 2 τ_c / Δt, (1 + ρ̂)/(1 − ρ̂))` of a measurement's stated
+    /// variance for errors correlated over `τ_c` (`correlation_s`), `Δt` after the same source's
+    /// previous one, or with the lag-one correlation `ρ̂` the source's innovations showed
+    /// (when `measured` is given: [`ErrorCorrelation`]); and records this one's time. The
+    /// first term is `1` for a source's first measurement or `τ_c = 0`.
     ///
     /// A filter treats successive measurements as independent, so `n` of them within `τ_c`
     /// shrink its covariance `n` times although their errors, moving together, average out far
@@ -104,21 +115,61 @@ impl NoiseScales {
     /// inflating each variance by `2τ_c / Δt` gives the filter the information the window
     /// really holds (the equivalent white noise of a Gauss–Markov error; Gelb, *Applied Optimal
     /// Estimation*, 1974, §3.8 and §4.6).
-    pub(super) fn correlation_inflation(&mut self, source: Source, time_s: f64, correlation_s: f64) -> f64 {
-        let previous = match self.last_measurement_s.iter_mut().find(|(s, _)| *s == source) {
-            Some(entry) => Some(std::mem::replace(&mut entry.1, time_s)),
+    pub(super) fn correlation_inflation(
+        &mut self,
+        source: Source,
+        time_s: f64,
+        correlation_s: f64,
+        measured: Option<&ErrorCorrelation>,
+    ) -> f64 {
+        let (previous, from_innovations) = match self.sources.iter_mut().find(|h| h.source == source) {
+            Some(history) => (
+                Some(std::mem::replace(&mut history.last_s, time_s)),
+                // (1 + ρ̂)/(1 − ρ̂)
+                measured.map_or(1.0, |strategy| strategy.inflation(&history.correlation)),
+            ),
             None => {
-                self.last_measurement_s.push((source, time_s));
-                None
+                self.sources.push(SourceHistory {
+                    source,
+                    last_s: time_s,
+                    correlation: CorrelationEstimate::default(),
+                });
+                (None, 1.0)
             }
         };
-        match previous {
+        let from_time = match previous {
             // c = max(1, 2 τ_c / Δt); simultaneous readings of one source count as one interval
             Some(previous_s) if correlation_s > 0.0 => {
                 let elapsed_s = (time_s - previous_s).max(1e-3);
                 (2.0 * correlation_s / elapsed_s).max(1.0)
             }
             _ => 1.0,
+        };
+        from_time.max(from_innovations)
+    }
+
+    /// Adds an update's innovation to its source's correlation estimate: the normalised
+    /// components `uᵢ = νᵢ / √Sᵢᵢ`. Innovations the estimator refuses (non-finite) are left out.
+    pub(super) fn observe_correlation<const N: usize>(
+        &mut self,
+        measured: Option<&ErrorCorrelation>,
+        source: Source,
+        updated: &Updated<N>,
+    ) {
+        let Some(strategy) = measured else {
+            return;
+        };
+        let Some(history) = self.sources.iter_mut().find(|h| h.source == source) else {
+            return;
+        };
+        let mut normalised = [0.0; 2];
+        let m = updated.measurement_dim().min(2);
+        for (i, u) in normalised.iter_mut().enumerate().take(m) {
+            // uᵢ = νᵢ / √Sᵢᵢ
+            *u = updated.innovation[i] / updated.innovation_covariance[(i, i)].sqrt();
+        }
+        if let Ok(next) = strategy.observe(&history.correlation, updated.state.time_s(), &normalised[..m]) {
+            history.correlation = next;
         }
     }
 

@@ -35,6 +35,11 @@ fn vehicle(t: f64) -> ([f64; 2], f64) {
 }
 
 fn site() -> Site {
+    site_with("")
+}
+
+/// The test site with `extra` TOML appended (tables after `[tracker]`).
+fn site_with(extra: &str) -> Site {
     let readers: String = ANCHORS
         .iter()
         .map(|(id, [x, y, z])| {
@@ -57,7 +62,7 @@ coast_timeout_s = 5.0
 delete_timeout_s = 60.0
 reorder_window_s = 0.0
 tag_height_m = 1.0
-"#
+{extra}"#
     );
     Site::from_toml_str(&text, "heading-site.toml").unwrap()
 }
@@ -120,7 +125,11 @@ fn score(out: &Output) -> (f64, f64) {
 }
 
 fn track(records: Vec<Record>) -> (Output, Tracker) {
-    let mut tracker = Tracker::new(&site()).unwrap();
+    track_on(&site(), records)
+}
+
+fn track_on(site: &Site, records: Vec<Record>) -> (Output, Tracker) {
+    let mut tracker = Tracker::new(site).unwrap();
     let mut out = Output::default();
     for r in records {
         tracker.push(r, &mut out).unwrap();
@@ -299,6 +308,70 @@ fn an_odometer_heading_offset_is_estimated_from_the_course() {
     );
     let (_, in95) = score(&out);
     assert!(in95 > 0.85, "in 95 %: {in95:.3}");
+}
+
+/// Odometry whose heading error accumulates (a random walk of 0.01 rad/√s, the std each
+/// record states growing with it, as a wheel odometer's integrated heading does), without
+/// course references (`course_is_heading = false`): ~0.1 rad off after 100 s.
+fn drifting_odometry(rng: &mut ChaCha8Rng, seconds: f64) -> Vec<Record> {
+    const DRIFT_RAD_PER_SQRT_S: f64 = 0.01;
+    let step = Normal::new(0.0, DRIFT_RAD_PER_SQRT_S * 0.1f64.sqrt()).unwrap();
+    let mut error_rad = 0.0;
+    (0..(seconds * 10.0) as usize)
+        .map(|k| {
+            let t = k as f64 * 0.1 + 0.01;
+            error_rad += step.sample(rng);
+            record(
+                t,
+                Measurement::Odometry {
+                    speed_mps: SPEED_MPS,
+                    heading_rad: Some(vehicle(t).1 + error_rad),
+                    speed_std_mps: Some(0.05),
+                    heading_std_rad: Some(DRIFT_RAD_PER_SQRT_S * t.sqrt()),
+                },
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn an_odometer_whose_heading_error_accumulates_keeps_the_ellipses_honest() {
+    let seconds = 120.0;
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    // ranges every 2 s: between them the odometry carries the track
+    let sparse: Vec<Record> = ranges(&mut rng, seconds)
+        .into_iter()
+        .filter(|r| r.time_s % 2.0 == 0.0)
+        .collect();
+    let records = merged(vec![sparse, drifting_odometry(&mut rng, seconds)]);
+    let no_course = "[tracker.heading]\ncourse_is_heading = false\n";
+    let (out, tracker) = track_on(&site_with(no_course), records.clone());
+
+    let (rmse, in95) = score(&out);
+    // the offset's std follows what the records state (√(0.05² + 0.01² · 120) ≈ 0.12 rad)
+    let (_, variance) = tracker.heading_state("truck").unwrap().odometer_offset();
+    assert!(variance.sqrt() > 0.1, "σ_δ {:.3} rad", variance.sqrt());
+    assert!(in95 > 0.85, "RMSE {rmse:.3} m, in 95 %: {in95:.3}");
+    // the heading error taken as persisting 10 s: the velocities' across-track variance grows,
+    // and so does the position covariance the track reports
+    let persisting = format!("{no_course}heading_error_correlation_s = 10.0\n");
+    let (out_persisting, _) = track_on(&site_with(&persisting), records);
+    let (_, in95_persisting) = score(&out_persisting);
+    let mean_variance = |out: &Output| {
+        let late: Vec<f64> = out
+            .updates
+            .iter()
+            .filter(|u| u.time_s >= 20.0)
+            .map(|u| u.position_covariance_m2[0] + u.position_covariance_m2[4])
+            .collect();
+        late.iter().sum::<f64>() / late.len() as f64
+    };
+    assert!(
+        mean_variance(&out_persisting) > 1.2 * mean_variance(&out) && in95_persisting >= in95,
+        "tr P {:.3} → {:.3} m², in 95 % {in95:.3} → {in95_persisting:.3}",
+        mean_variance(&out),
+        mean_variance(&out_persisting)
+    );
 }
 
 #[test]

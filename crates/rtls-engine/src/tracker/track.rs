@@ -5,6 +5,7 @@
 
 use std::sync::Arc;
 
+use rtls_estimation::adaptive::correlation::ErrorCorrelation;
 use rtls_estimation::adaptive::AdaptiveNoise;
 use rtls_estimation::aided::HeadingModel;
 use rtls_estimation::bias::BiasModel;
@@ -62,6 +63,9 @@ pub(crate) struct Shared {
     pub(crate) scheduling: Option<Arc<Scheduling>>,
     /// Adaptive measurement noise (`[tracker.adaptive_noise]`); `None` when disabled.
     pub(crate) adaptive: Option<AdaptiveNoise>,
+    /// Error correlation measured from innovations (`adaptive_noise.correlation_from_innovations`);
+    /// `None` when off.
+    pub(crate) error_correlation: Option<ErrorCorrelation>,
     /// The box around the readers that a diverged track's position leaves.
     pub(crate) bounds: SiteBounds,
     /// The heading channel's model (`[tracker.heading]`).

@@ -330,13 +330,15 @@ pub(super) fn component_update<const N: usize>(
     let k = indices.len();
     let class = NoiseClass::of_component_kind(kind, source == UpdateSource::Velocity);
     // R ← c R for errors correlated in time (c = max(1, 2τ_c/Δt)), then λ on top
+    let noise_source = Source {
+        class,
+        anchor: usize::MAX,
+    };
     let inflation = track.noise.correlation_inflation(
-        Source {
-            class,
-            anchor: usize::MAX,
-        },
+        noise_source,
         prior.state.time_s(),
         shared.settings.adaptive_noise.correlation_s,
+        shared.error_correlation.as_ref(),
     );
     let stated: Vec<f64> = covariance.iter().map(|c| inflation * c).collect();
     let scale = track.noise.scale(class);
@@ -366,6 +368,9 @@ pub(super) fn component_update<const N: usize>(
             track
                 .noise
                 .observe(shared.adaptive.as_ref(), class, &updated, &stated, gate);
+            track
+                .noise
+                .observe_correlation(shared.error_correlation.as_ref(), noise_source, &updated);
             accept(shared, track, updated, modes, kind, source, out)
         }
         Err(error) => {
@@ -432,10 +437,12 @@ pub(super) fn coupled_update<const N: usize>(
         | AnchorReading::Tdoa { anchor, .. } => anchor,
     };
     // R ← c R for errors correlated in time (c = max(1, 2τ_c/Δt) per reader), then λ R
+    let source = Source { class, anchor };
     let inflation = track.noise.correlation_inflation(
-        Source { class, anchor },
+        source,
         time_s,
         shared.settings.adaptive_noise.correlation_s,
+        shared.error_correlation.as_ref(),
     );
     let scale = inflation * track.noise.scale(class);
     // the anchor's learnt range offset: z' = r − b⁻, R' = λ c R + P_b⁻
@@ -532,6 +539,9 @@ pub(super) fn coupled_update<const N: usize>(
                 &[inflation * stated_variance],
                 shared.gates[0],
             );
+            track
+                .noise
+                .observe_correlation(shared.error_correlation.as_ref(), source, &updated);
             if let (Some(bias_model), Some((_, offset_variance_m2)), AnchorReading::Range { variance_m2, .. }) =
                 (&shared.range_bias, bias_prior, reading)
             {

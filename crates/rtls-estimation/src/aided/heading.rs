@@ -204,6 +204,28 @@ impl HeadingModel {
         )
     }
 
+    /// Adds `variance_rad2` (≥ 0) to the odometer offset's variance, `P_δδ ← P_δδ + q`: the
+    /// drift an odometer states itself, as the growth of its heading's standard deviation from
+    /// one record to the next (its heading error is accumulated, so that growth is the offset
+    /// moving, not a fresh error of each record).
+    ///
+    /// # Errors
+    /// [`EstimationError::InvalidParameter`] for a negative or non-finite variance.
+    pub fn drift_odometer_offset(&self, state: &HeadingState, variance_rad2: f64) -> Result<HeadingState> {
+        if !(variance_rad2.is_finite() && variance_rad2 >= 0.0) {
+            return Err(EstimationError::InvalidParameter {
+                name: "variance_rad2",
+                reason: "must be a finite variance ≥ 0",
+            });
+        }
+        let mut covariance = *state.state.covariance();
+        // P_δδ ← P_δδ + q
+        covariance[(2, 2)] += variance_rad2;
+        Ok(HeadingState {
+            state: Gaussian::from_step(*state.state.mean(), covariance, state.state.time_s(), "heading state")?,
+        })
+    }
+
     /// Updates with an odometer heading `z = ψ + δ + v`, variance `variance_rad2` (> 0); `None`
     /// when outside the gate (as [`HeadingModel::observe_heading`]).
     ///
