@@ -182,7 +182,11 @@ fn tuned_site_text(
         }
     });
     let how = if calibrated {
-        "readers calibrated on the ground truth, σ_a by RMSE"
+        if tuning.covariance.is_some() {
+            "readers calibrated on the ground truth, σ_a by RMSE, noises scaled for 95 % ellipses"
+        } else {
+            "readers calibrated on the ground truth, σ_a by RMSE"
+        }
     } else {
         "σ_a by innovation likelihood, reader noise by the adaptive noise scale"
     };
@@ -286,6 +290,19 @@ fn text_report(tuning: &Tuning, records: usize, out: &Path) -> String {
             );
         }
     }
+    if let Some(c) = tuning.covariance {
+        let _ = writeln!(
+            text,
+            "covariance calibration: σ_a and the readers' σ × {:.3} (σ_a {:.4} m/s²): in 95 % {:.1} → {:.1} %, \
+             RMSE {:.3} → {:.3} m",
+            c.std_factor,
+            tuning.acceleration_noise_std_mps2,
+            100.0 * c.inside_95_before,
+            100.0 * c.inside_95_after,
+            c.rmse_before_m,
+            c.rmse_after_m
+        );
+    }
     for fit in &tuning.readers {
         let _ = write!(text, "reader {}:", fit.reader);
         if let Some(r) = fit.range {
@@ -346,5 +363,12 @@ fn json_report(tuning: &Tuning, records: usize) -> serde_json::Value {
         "candidates": candidates,
         "readers": readers,
         "noise_std_factors": factors,
+        "covariance": tuning.covariance.map(|c| serde_json::json!({
+            "std_factor": c.std_factor,
+            "inside_95_before": c.inside_95_before,
+            "inside_95_after": c.inside_95_after,
+            "rmse_before_m": c.rmse_before_m,
+            "rmse_after_m": c.rmse_after_m,
+        })),
     })
 }

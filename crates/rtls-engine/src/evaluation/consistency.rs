@@ -53,6 +53,8 @@ impl Consistency {
             inside_95: share_inside(gate_95),
             inside_68: share_inside(gate_68),
             not_positive_definite,
+            // k² = ε₉₅ / χ²_d(0.95)
+            covariance_scale_95: percentile(&sorted, 0.95) / gate_95,
         }))
     }
 }
@@ -87,6 +89,11 @@ mod tests {
         assert!((summary.inside_95 - 0.95).abs() < 0.001, "{summary:?}");
         assert!((summary.inside_68 - ONE_SIGMA_PROBABILITY).abs() < 0.001, "{summary:?}");
         assert!((summary.median_nees - 2.0 * 2f64.ln()).abs() < 0.01, "{summary:?}");
+        assert!((summary.covariance_scale_95 - 1.0).abs() < 0.01, "{summary:?}");
+        // covariances 4 × too small: ε 4 × too large, and k² says so
+        let overconfident: Vec<f64> = values.iter().map(|v| 4.0 * v).collect();
+        let summary = Consistency::from_nees(&overconfident, 2, 0).unwrap().unwrap();
+        assert!((summary.covariance_scale_95 - 4.0).abs() < 0.04, "{summary:?}");
         assert_eq!(Consistency::from_nees(&[], 2, 3).unwrap(), None);
     }
 }

@@ -165,6 +165,10 @@ pub struct Consistency {
     pub inside_68: f64,
     /// Samples whose covariance block was not positive definite (counted apart, not scored).
     pub not_positive_definite: usize,
+    /// `k² = ε₉₅ / χ²_d(0.95)`: the factor every reported covariance needs for 95 % of the
+    /// truths to fall inside their 95 % ellipse (the 95th percentile of the NEES over its
+    /// gate); 1 when consistent, above 1 when overconfident.
+    pub covariance_scale_95: f64,
 }
 
 /// Track samples that were not scored, by reason. Each sample is counted once, under the first

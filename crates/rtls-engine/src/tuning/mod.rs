@@ -22,6 +22,16 @@
 //!   `(log₁₀ d, ρ)`, with the residual standard deviation as the shadowing.
 //! - `σ_a`: the grid value whose tracks (with the calibrated readers) have the smallest RMSE
 //!   against the truth.
+//! - The covariance: if fewer or more than 95 % of the truths lie inside the chosen tracks'
+//!   95 % ellipses, `σ_a` and every calibrated reader's standard deviation are multiplied by
+//!   `k = √(ε₉₅ / χ²_d(0.95))` (the NEES's 95th percentile over its gate). Scaling every
+//!   noise of a Kalman filter by `k²` leaves its gains, and so its track, unchanged and scales
+//!   its covariance by `k²` (exactly for a linear filter, to first order for the EKF; the
+//!   adaptive noise scales and the noises the readers do not set, fixes' and fingerprints',
+//!   break the invariance), so the track keeps its accuracy and its ellipses hold the truth as
+//!   often as they claim. The scaled site is run again and `k` refined (at most four runs); the best is kept
+//!   only if its coverage is nearer 95 % than the unscaled one's
+//!   ([`CovarianceCalibration`]).
 //!
 //! # Errors
 //! Settings the tracker refuses; no update at all on any candidate (nothing to tune on).
@@ -117,6 +127,8 @@ pub struct Candidate {
     pub rmse_m: Option<f64>,
     /// With truth: the share of truths inside the reported 95 % ellipse.
     pub inside_95: Option<f64>,
+    /// With truth: `k² = ε₉₅ / χ²_d(0.95)`, the factor the reported covariances needed.
+    pub covariance_scale_95: Option<f64>,
     /// The innovation totals per measurement class.
     pub innovations: Innovations,
 }
@@ -136,7 +148,36 @@ pub struct Tuning {
     /// deviation should grow (≥ 1; 1 when the class was not seen or was consistent), from the
     /// chosen candidate's mean adaptive noise scale.
     pub noise_std_factors: Vec<(NoiseClass, f64)>,
+    /// With truth: the covariance calibration applied to `acceleration_noise_std_mps2` and
+    /// `readers` (`None` when the chosen candidate was already consistent, or scaling did not
+    /// bring its coverage nearer 95 %).
+    pub covariance: Option<CovarianceCalibration>,
 }
+
+/// How [`tune`] rescaled the noises so that the tracks' 95 % ellipses hold the truth 95 % of the
+/// time on the tuning recording.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CovarianceCalibration {
+    /// `k`, the factor on `σ_a` and on the readers' standard deviations.
+    pub std_factor: f64,
+    /// Share of truths inside the 95 % ellipse before and after, 0–1.
+    pub inside_95_before: f64,
+    /// As `inside_95_before`, with the scaled noises.
+    pub inside_95_after: f64,
+    /// RMSE before and after, m (unchanged for a linear filter).
+    pub rmse_before_m: f64,
+    /// As `rmse_before_m`, with the scaled noises.
+    pub rmse_after_m: f64,
+}
+
+/// Bounds on `k²` (a covariance a hundred times off is a model error, not a scale).
+const COVARIANCE_SCALE_BOUNDS: (f64, f64) = (0.01, 100.0);
+
+/// Runs of the scaled site at most (each refines `k²` by the last run's `ε₉₅ / χ²_d(0.95)`).
+const CALIBRATION_RUNS: usize = 4;
+
+/// Coverage this close to 95 % needs no scaling.
+const COVERAGE_TOLERANCE: f64 = 0.02;
 
 /// Tunes `site` to `records` (time-ordered or not; they pass the tracker's re-ordering window
 /// like any input), with the tracks' range-offset learning off (what it would learn is what
@@ -168,7 +209,7 @@ pub fn tune(
     // ([tracker.range_bias]) would absorb the biases and the noise excess this fits into the
     // site; the tuned site keeps the file's setting
     site.tracker.range_bias.enabled = false;
-    let readers = match truth {
+    let mut readers = match truth {
         Some(truth) => {
             let calibration = readers::calibrate(&site, records, truth, settings.max_truth_gap_s);
             readers::apply(&mut site, &calibration);
@@ -197,13 +238,105 @@ pub fn tune(
             (class, scale.max(1.0).sqrt())
         })
         .collect();
+    let mut acceleration_noise_std_mps2 = candidates[chosen].acceleration_noise_std_mps2;
+    let covariance = match truth {
+        Some(_) => {
+            site.tracker.acceleration_noise_std_mps2 = acceleration_noise_std_mps2;
+            let calibration = calibrate_covariance(
+                &site,
+                radio_map,
+                records,
+                truth,
+                settings,
+                &readers,
+                &candidates[chosen],
+            )?;
+            if let Some(c) = calibration {
+                acceleration_noise_std_mps2 *= c.std_factor;
+                readers = scaled_readers(&readers, c.std_factor);
+            }
+            calibration
+        }
+        None => None,
+    };
     Ok(Tuning {
-        acceleration_noise_std_mps2: candidates[chosen].acceleration_noise_std_mps2,
+        acceleration_noise_std_mps2,
         candidates,
         chosen,
         readers,
         noise_std_factors,
+        covariance,
     })
+}
+
+/// The readers' fits with every standard deviation multiplied by `k`.
+fn scaled_readers(readers: &[ReaderCalibration], std_factor: f64) -> Vec<ReaderCalibration> {
+    readers
+        .iter()
+        .map(|fit| {
+            let mut fit = fit.clone();
+            if let Some(range) = fit.range.as_mut() {
+                range.range_std_m *= std_factor;
+            }
+            if let Some(law) = fit.path_loss.as_mut() {
+                law.shadowing_std_db *= std_factor;
+            }
+            fit
+        })
+        .collect()
+}
+
+/// `k` such that the chosen candidate's 95 % ellipses hold 95 % of the truths (see the
+/// [module documentation](self)); `None` when it already does or scaling does not help.
+fn calibrate_covariance(
+    site: &Site,
+    radio_map: Option<&RadioMap>,
+    records: &[Record],
+    truth: Option<&[TruthSample]>,
+    settings: &TuningSettings,
+    readers: &[ReaderCalibration],
+    chosen: &Candidate,
+) -> Result<Option<CovarianceCalibration>> {
+    let (Some(inside_before), Some(scale), Some(rmse_before)) =
+        (chosen.inside_95, chosen.covariance_scale_95, chosen.rmse_m)
+    else {
+        return Ok(None);
+    };
+    let miss = |inside: f64| (inside - 0.95).abs();
+    if miss(inside_before) <= COVERAGE_TOLERANCE || !scale.is_finite() {
+        return Ok(None);
+    }
+    let (low, high) = COVARIANCE_SCALE_BOUNDS;
+    // k² ← k² · ε₉₅/χ²_d(0.95), refined by up to CALIBRATION_RUNS runs: the adaptive scales
+    // and the unscaled noises make one step inexact
+    let mut variance_factor = scale.clamp(low, high);
+    let mut best: Option<CovarianceCalibration> = None;
+    for _ in 0..CALIBRATION_RUNS {
+        let std_factor = variance_factor.sqrt();
+        let mut scaled = site.clone();
+        scaled.tracker.acceleration_noise_std_mps2 *= std_factor;
+        readers::apply(&mut scaled, &scaled_readers(readers, std_factor));
+        let run = run_candidate(&scaled, radio_map, records, truth, settings)?;
+        let (Some(inside_after), Some(rmse_after), Some(next)) = (run.inside_95, run.rmse_m, run.covariance_scale_95)
+        else {
+            break;
+        };
+        let nearer = best.map_or(miss(inside_before), |b| miss(b.inside_95_after));
+        if miss(inside_after) < nearer {
+            best = Some(CovarianceCalibration {
+                std_factor,
+                inside_95_before: inside_before,
+                inside_95_after: inside_after,
+                rmse_before_m: rmse_before,
+                rmse_after_m: rmse_after,
+            });
+        }
+        if miss(inside_after) <= COVERAGE_TOLERANCE || !next.is_finite() {
+            break;
+        }
+        variance_factor = (variance_factor * next).clamp(low, high);
+    }
+    Ok(best)
 }
 
 /// The best candidate: smallest RMSE when truth scored them all, else the largest innovation
@@ -262,7 +395,7 @@ fn run_candidate(
     tracker.finish(&mut out)?;
     drain(&mut out, &mut innovations);
     let updates = innovations.0.iter().map(|t| t.updates).sum();
-    let (rmse_m, inside_95) = match truth {
+    let (rmse_m, inside_95, covariance_scale_95) = match truth {
         Some(truth) if !samples.is_empty() => {
             let evaluation = EvaluationSettings {
                 max_gap_s: settings.max_truth_gap_s,
@@ -270,12 +403,16 @@ fn run_candidate(
                 ..EvaluationSettings::default()
             };
             match evaluate(truth, &samples, &evaluation) {
-                Ok(scored) => (Some(scored.overall.rmse_m), scored.consistency.map(|c| c.inside_95)),
-                Err(_) => (Some(f64::INFINITY), None),
+                Ok(scored) => (
+                    Some(scored.overall.rmse_m),
+                    scored.consistency.as_ref().map(|c| c.inside_95),
+                    scored.consistency.map(|c| c.covariance_scale_95),
+                ),
+                Err(_) => (Some(f64::INFINITY), None, None),
             }
         }
-        Some(_) => (Some(f64::INFINITY), None),
-        None => (None, None),
+        Some(_) => (Some(f64::INFINITY), None, None),
+        None => (None, None, None),
     };
     Ok(Candidate {
         acceleration_noise_std_mps2: site.tracker.acceleration_noise_std_mps2,
@@ -283,6 +420,7 @@ fn run_candidate(
         updates,
         rmse_m,
         inside_95,
+        covariance_scale_95,
         innovations,
     })
 }

@@ -31,9 +31,16 @@ tag_height_m = 1.0
 /// A walker circling at 1 m/s (radius 5 m around (10, 10)); ranges at 10 Hz round robin with
 /// per-anchor biases and σ = 0.15 m (the site says 0.02 m and no bias); truth at 20 Hz.
 fn recording(seconds: f64) -> (Site, Vec<Record>, Vec<TruthSample>) {
+    correlated_recording(seconds, 0.0)
+}
+
+/// As [`recording`], each anchor's range error an AR(1) sequence with lag-one correlation
+/// `rho` from one of its readings to the next (still σ = 0.15 m).
+fn correlated_recording(seconds: f64, rho: f64) -> (Site, Vec<Record>, Vec<TruthSample>) {
     let site = Site::from_toml_str(SITE, "site.toml").unwrap();
     let biases = [0.30, -0.10, 0.05, 0.20];
     let noise = Normal::new(0.0, 0.15).unwrap();
+    let mut errors = [0.0f64; 4];
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let position = |t: f64| [10.0 + 5.0 * (t / 5.0).cos(), 10.0 + 5.0 * (t / 5.0).sin(), 1.0];
     let mut records = Vec::new();
@@ -50,7 +57,11 @@ fn recording(seconds: f64) -> (Site, Vec<Record>, Vec<TruthSample>) {
             tag: "w".into(),
             measurement: Measurement::Range {
                 anchor: anchor.into(),
-                range_m: d + biases[index] + noise.sample(&mut rng),
+                range_m: d + biases[index] + {
+                    // eₖ = ρ eₖ₋₁ + √(1 − ρ²) wₖ
+                    errors[index] = rho * errors[index] + (1.0 - rho * rho).sqrt() * noise.sample(&mut rng);
+                    errors[index]
+                },
                 std_m: None,
                 anchor_position_m: None,
             },
@@ -86,12 +97,49 @@ fn truth_calibrates_every_reader_and_picks_the_process_noise() {
         assert!((range.range_std_m - 0.15).abs() < 0.03, "{fit:?}");
     }
     // the walker's centripetal acceleration is 0.2 m/s²: the middle candidate tracks best
-    assert_eq!(tuned.acceleration_noise_std_mps2, 0.2, "{:#?}", tuned.candidates);
     let chosen = &tuned.candidates[tuned.chosen];
+    assert_eq!(chosen.acceleration_noise_std_mps2, 0.2, "{:#?}", tuned.candidates);
+    let factor = tuned.covariance.map_or(1.0, |c| c.std_factor);
+    assert!((tuned.acceleration_noise_std_mps2 - 0.2 * factor).abs() < 1e-12);
     assert!(chosen.rmse_m.unwrap() < 0.15, "{chosen:?}");
     // with the calibrated readers the covariance holds the truth about as often as it claims
     let inside = chosen.inside_95.unwrap();
     assert!((0.85..=0.995).contains(&inside), "{chosen:?}");
+}
+
+#[test]
+fn truth_scales_the_noises_until_the_ellipses_hold_95_percent() {
+    // range errors that persist over ~50 readings of an anchor (ρ = 0.98): the truth's robust
+    // per-reader fit takes much of the slow error for bias, and the tracks come out too
+    // cautious (≈ 99 % inside the 95 % ellipse)
+    let (site, records, truth) = correlated_recording(120.0, 0.98);
+    let settings = TuningSettings {
+        acceleration_grid_mps2: vec![0.02, 0.2, 5.0],
+        ..TuningSettings::default()
+    };
+    let tuned = tune(&site, None, &records, Some(&truth), &settings).unwrap();
+    let chosen = &tuned.candidates[tuned.chosen];
+    let calibration = tuned.covariance.expect("a track 4 % off its coverage is rescaled");
+    assert!(chosen.inside_95.unwrap() > 0.97, "{chosen:?}");
+    assert_eq!(calibration.inside_95_before, chosen.inside_95.unwrap());
+    assert!(calibration.std_factor < 1.0, "{calibration:?}");
+    assert!((0.93..=0.97).contains(&calibration.inside_95_after), "{calibration:?}");
+    // the track barely moves: every noise scaled alike keeps the gains
+    assert!(
+        calibration.rmse_after_m < 1.1 * calibration.rmse_before_m,
+        "{calibration:?}"
+    );
+    // what the tuned site will say is the scaled noise
+    let sigma_a = chosen.acceleration_noise_std_mps2 * calibration.std_factor;
+    assert!((tuned.acceleration_noise_std_mps2 - sigma_a).abs() < 1e-12);
+    let unscaled = readers::calibrate(&site, &records, &truth, settings.max_truth_gap_s);
+    for (fit, before) in tuned.readers.iter().zip(&unscaled) {
+        let (after, before) = (fit.range.unwrap().range_std_m, before.range.unwrap().range_std_m);
+        assert!(
+            (after - before * calibration.std_factor).abs() < 1e-12,
+            "{after} {before}"
+        );
+    }
 }
 
 #[test]
