@@ -150,6 +150,18 @@ fn tuned_site_text(
         "acceleration_noise_std_mps2",
         value(round(tuning.acceleration_noise_std_mps2)),
     );
+    // the error-correlation settings, where the tuning changed them
+    let own = tuning.model.tried[0].0;
+    let model = tuning.model.settings();
+    if model.correlation_from_innovations != own.correlation_from_innovations {
+        sub_table(tracker, "adaptive_noise").insert(
+            "correlation_from_innovations",
+            value(model.correlation_from_innovations),
+        );
+    }
+    if model.heading_error_correlation_s != own.heading_error_correlation_s {
+        sub_table(tracker, "heading").insert("heading_error_correlation_s", value(model.heading_error_correlation_s));
+    }
     let factor_of = |class: NoiseClass| {
         tuning
             .noise_std_factors
@@ -290,6 +302,25 @@ fn text_report(tuning: &Tuning, records: usize, out: &Path) -> String {
             );
         }
     }
+    if tuning.model.tried.len() > 1 {
+        let _ = writeln!(
+            text,
+            "error correlation (at the chosen σ_a): correlation_from_innovations, heading_error_correlation_s"
+        );
+        for (i, (settings, run)) in tuning.model.tried.iter().enumerate() {
+            let _ = writeln!(
+                text,
+                "{} {:>5} {:>6} s  log-likelihood {:>10.1}  RMSE {:>8}  in 95 % {:>7}{}",
+                if i == tuning.model.chosen { "*" } else { " " },
+                settings.correlation_from_innovations,
+                settings.heading_error_correlation_s,
+                run.log_likelihood,
+                run.rmse_m.map_or("-".into(), |r| format!("{r:.3} m")),
+                run.inside_95.map_or("-".into(), |r| format!("{:.1}%", 100.0 * r)),
+                if i == tuning.model.chosen { "  ← chosen" } else { "" }
+            );
+        }
+    }
     if let Some(c) = tuning.covariance {
         let _ = writeln!(
             text,
@@ -363,6 +394,17 @@ fn json_report(tuning: &Tuning, records: usize) -> serde_json::Value {
         "candidates": candidates,
         "readers": readers,
         "noise_std_factors": factors,
+        "error_correlation": {
+            "correlation_from_innovations": tuning.model.settings().correlation_from_innovations,
+            "heading_error_correlation_s": tuning.model.settings().heading_error_correlation_s,
+            "tried": tuning.model.tried.iter().map(|(s, c)| serde_json::json!({
+                "correlation_from_innovations": s.correlation_from_innovations,
+                "heading_error_correlation_s": s.heading_error_correlation_s,
+                "log_likelihood": c.log_likelihood,
+                "rmse_m": c.rmse_m,
+                "inside_95": c.inside_95,
+            })).collect::<Vec<_>>(),
+        },
         "covariance": tuning.covariance.map(|c| serde_json::json!({
             "std_factor": c.std_factor,
             "inside_95_before": c.inside_95_before,

@@ -22,6 +22,13 @@
 //!   `(log₁₀ d, ρ)`, with the residual standard deviation as the shadowing.
 //! - `σ_a`: the grid value whose tracks (with the calibrated readers) have the smallest RMSE
 //!   against the truth.
+//! - The error-correlation settings (with or without truth, at the chosen `σ_a`):
+//!   `adaptive_noise.correlation_from_innovations` on and off and, when the recording has
+//!   speeds (odometry), `heading.heading_error_correlation_s` at 0 and
+//!   [`HEADING_CORRELATION_CANDIDATE_S`]; the combination with the smallest RMSE (with truth)
+//!   or the largest innovation likelihood (without) is kept ([`ModelChoice`]). Whether a site's
+//!   errors persist is a property of its radios and its odometer, so it is fitted like the
+//!   noise, not assumed.
 //! - The covariance: if fewer or more than 95 % of the truths lie inside the chosen tracks'
 //!   95 % ellipses, `σ_a` and every calibrated reader's standard deviation are multiplied by
 //!   `k = √(ε₉₅ / χ²_d(0.95))` (the NEES's 95th percentile over its gate). Scaling every
@@ -85,7 +92,7 @@ use std::collections::BTreeMap;
 use crate::error::{EngineError, Result};
 use crate::evaluation::{evaluate, EvaluationSettings, TrackSample, TruthSample};
 use crate::radio_map::RadioMap;
-use crate::record::Record;
+use crate::record::{Measurement, Record};
 use crate::site::Site;
 use crate::tracker::{Innovations, NoiseClass, Output, Tracker};
 
@@ -148,11 +155,57 @@ pub struct Tuning {
     /// deviation should grow (≥ 1; 1 when the class was not seen or was consistent), from the
     /// chosen candidate's mean adaptive noise scale.
     pub noise_std_factors: Vec<(NoiseClass, f64)>,
+    /// The error-correlation settings chosen, and the runs that chose them.
+    pub model: ModelChoice,
     /// With truth: the covariance calibration applied to `acceleration_noise_std_mps2` and
     /// `readers` (`None` when the chosen candidate was already consistent, or scaling did not
     /// bring its coverage nearer 95 %).
     pub covariance: Option<CovarianceCalibration>,
 }
+
+/// The error-correlation settings [`tune`] tries at the chosen `σ_a`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelSettings {
+    /// `[tracker.adaptive_noise] correlation_from_innovations`.
+    pub correlation_from_innovations: bool,
+    /// `[tracker.heading] heading_error_correlation_s`, s.
+    pub heading_error_correlation_s: f64,
+}
+
+impl ModelSettings {
+    fn of(site: &Site) -> Self {
+        Self {
+            correlation_from_innovations: site.tracker.adaptive_noise.correlation_from_innovations,
+            heading_error_correlation_s: site.tracker.heading.heading_error_correlation_s,
+        }
+    }
+
+    fn apply(self, site: &mut Site) {
+        site.tracker.adaptive_noise.correlation_from_innovations = self.correlation_from_innovations;
+        site.tracker.heading.heading_error_correlation_s = self.heading_error_correlation_s;
+    }
+}
+
+/// The error-correlation settings tried (the site's own first) with their runs, and the one
+/// chosen.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelChoice {
+    /// Each setting tried and how its run did.
+    pub tried: Vec<(ModelSettings, Candidate)>,
+    /// Index of the chosen one in `tried`.
+    pub chosen: usize,
+}
+
+impl ModelChoice {
+    /// The chosen settings.
+    #[must_use]
+    pub fn settings(&self) -> ModelSettings {
+        self.tried[self.chosen].0
+    }
+}
+
+/// The heading-error correlation time tried when the recording has speeds, s.
+pub const HEADING_CORRELATION_CANDIDATE_S: f64 = 10.0;
 
 /// How [`tune`] rescaled the noises so that the tracks' 95 % ellipses hold the truth 95 % of the
 /// time on the tuning recording.
@@ -239,9 +292,10 @@ pub fn tune(
         })
         .collect();
     let mut acceleration_noise_std_mps2 = candidates[chosen].acceleration_noise_std_mps2;
+    site.tracker.acceleration_noise_std_mps2 = acceleration_noise_std_mps2;
+    let model = choose_model(&mut site, radio_map, records, truth, settings, &candidates[chosen])?;
     let covariance = match truth {
         Some(_) => {
-            site.tracker.acceleration_noise_std_mps2 = acceleration_noise_std_mps2;
             let calibration = calibrate_covariance(
                 &site,
                 radio_map,
@@ -249,7 +303,7 @@ pub fn tune(
                 truth,
                 settings,
                 &readers,
-                &candidates[chosen],
+                &model.tried[model.chosen].1,
             )?;
             if let Some(c) = calibration {
                 acceleration_noise_std_mps2 *= c.std_factor;
@@ -265,8 +319,57 @@ pub fn tune(
         chosen,
         readers,
         noise_std_factors,
+        model,
         covariance,
     })
+}
+
+/// Tries the error-correlation settings at the chosen `σ_a` (see the
+/// [module documentation](self)) and leaves the best in `site`.
+fn choose_model(
+    site: &mut Site,
+    radio_map: Option<&RadioMap>,
+    records: &[Record],
+    truth: Option<&[TruthSample]>,
+    settings: &TuningSettings,
+    chosen: &Candidate,
+) -> Result<ModelChoice> {
+    let own = ModelSettings::of(site);
+    let has_speeds = records.iter().any(|r| {
+        matches!(
+            r.measurement,
+            Measurement::Odometry { .. } | Measurement::OdometryIncrement { .. }
+        )
+    });
+    let headings = if has_speeds {
+        let other = if own.heading_error_correlation_s > 0.0 {
+            0.0
+        } else {
+            HEADING_CORRELATION_CANDIDATE_S
+        };
+        vec![own.heading_error_correlation_s, other]
+    } else {
+        vec![own.heading_error_correlation_s]
+    };
+    let mut tried = vec![(own, chosen.clone())];
+    for heading_error_correlation_s in headings {
+        for correlation_from_innovations in [own.correlation_from_innovations, !own.correlation_from_innovations] {
+            let candidate = ModelSettings {
+                correlation_from_innovations,
+                heading_error_correlation_s,
+            };
+            if candidate == own {
+                continue;
+            }
+            let mut trial = site.clone();
+            candidate.apply(&mut trial);
+            tried.push((candidate, run_candidate(&trial, radio_map, records, truth, settings)?));
+        }
+    }
+    let runs: Vec<Candidate> = tried.iter().map(|(_, c)| c.clone()).collect();
+    let best = choose(&runs).unwrap_or(0);
+    tried[best].0.apply(site);
+    Ok(ModelChoice { tried, chosen: best })
 }
 
 /// The readers' fits with every standard deviation multiplied by `k`.

@@ -105,6 +105,57 @@ fn truth_calibrates_every_reader_and_picks_the_process_noise() {
     // with the calibrated readers the covariance holds the truth about as often as it claims
     let inside = chosen.inside_95.unwrap();
     assert!((0.85..=0.995).contains(&inside), "{chosen:?}");
+    // no speeds: only the innovation correlation is tried, on and off, and the smaller RMSE kept
+    assert_eq!(tuned.model.tried.len(), 2, "{:#?}", tuned.model);
+    let rmse = |i: usize| tuned.model.tried[i].1.rmse_m.unwrap();
+    assert!(rmse(tuned.model.chosen) <= rmse(1 - tuned.model.chosen));
+}
+
+#[test]
+fn with_speeds_the_heading_error_correlation_is_tried_too() {
+    let (site, mut records, truth) = recording(60.0);
+    // wheel speed along the circle's tangent, heading exact to 0.02 rad
+    for k in 0..600 {
+        let t = k as f64 * 0.1 + 0.05;
+        records.push(Record {
+            time_s: t,
+            tag: "w".into(),
+            measurement: Measurement::Odometry {
+                speed_mps: 1.0,
+                heading_rad: Some(t / 5.0 + core::f64::consts::FRAC_PI_2),
+                speed_std_mps: Some(0.05),
+                heading_std_rad: Some(0.02),
+            },
+        });
+    }
+    records.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    let settings = TuningSettings {
+        acceleration_grid_mps2: vec![0.2],
+        ..TuningSettings::default()
+    };
+    let tuned = tune(&site, None, &records, Some(&truth), &settings).unwrap();
+    let tried: Vec<(bool, f64)> = tuned
+        .model
+        .tried
+        .iter()
+        .map(|(s, _)| (s.correlation_from_innovations, s.heading_error_correlation_s))
+        .collect();
+    assert_eq!(
+        tried,
+        [
+            (false, 0.0),
+            (true, 0.0),
+            (false, HEADING_CORRELATION_CANDIDATE_S),
+            (true, HEADING_CORRELATION_CANDIDATE_S)
+        ]
+    );
+    let best = tuned
+        .model
+        .tried
+        .iter()
+        .map(|(_, c)| c.rmse_m.unwrap())
+        .fold(f64::INFINITY, f64::min);
+    assert_eq!(tuned.model.tried[tuned.model.chosen].1.rmse_m.unwrap(), best);
 }
 
 #[test]
