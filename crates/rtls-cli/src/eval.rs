@@ -244,23 +244,25 @@ fn table_report(args: &EvalArgs, settings: &EvaluationSettings, counts: &Counts,
             .collect();
         let _ = writeln!(
             out,
-            "covariance consistency (NEES = eᵀP⁻¹e, consistent: mean {}, 95 % of truths inside the 95 % ellipse)",
+            "covariance consistency (NEES = eᵀP⁻¹e, consistent: mean {}, 95 % of truths inside the 95 % ellipse; \
+             k²: what the covariances need multiplying by for 95 % inside)",
             overall.dimensions
         );
         let _ = writeln!(
             out,
-            "{:<width$}  {:>7}  {:>9}  {:>11}  {:>9}  {:>9}",
-            "tag", "count", "mean NEES", "median NEES", "in 68 %", "in 95 %"
+            "{:<width$}  {:>7}  {:>9}  {:>11}  {:>9}  {:>9}  {:>7}",
+            "tag", "count", "mean NEES", "median NEES", "in 68 %", "in 95 %", "k²"
         );
         for (tag, c) in rows {
             let _ = writeln!(
                 out,
-                "{tag:<width$}  {:>7}  {:>9.2}  {:>11.2}  {:>8.1}%  {:>8.1}%",
+                "{tag:<width$}  {:>7}  {:>9.2}  {:>11.2}  {:>8.1}%  {:>8.1}%  {:>7.2}",
                 c.count,
                 c.mean_nees,
                 c.median_nees,
                 100.0 * c.inside_68,
-                100.0 * c.inside_95
+                100.0 * c.inside_95,
+                c.covariance_scale_95
             );
         }
         if overall.not_positive_definite > 0 {

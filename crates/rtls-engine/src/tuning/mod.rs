@@ -36,8 +36,9 @@
 //!   its covariance by `k²` (exactly for a linear filter, to first order for the EKF; the
 //!   adaptive noise scales and the noises the readers do not set, fixes' and fingerprints',
 //!   break the invariance), so the track keeps its accuracy and its ellipses hold the truth as
-//!   often as they claim. The scaled site is run again and `k` refined (at most four runs); the best is kept
-//!   only if its coverage is nearer 95 % than the unscaled one's
+//!   often as they claim. Only coverage outside 90–98 % is scaled; the scaled site is run again
+//!   and `k` refined (at most four runs); the run nearest 95 % is kept if it is nearer than the
+//!   unscaled one and costs at most 10 % of RMSE
 //!   ([`CovarianceCalibration`]).
 //!
 //! # Errors
@@ -229,8 +230,13 @@ const COVARIANCE_SCALE_BOUNDS: (f64, f64) = (0.01, 100.0);
 /// Runs of the scaled site at most (each refines `k²` by the last run's `ε₉₅ / χ²_d(0.95)`).
 const CALIBRATION_RUNS: usize = 4;
 
-/// Coverage this close to 95 % needs no scaling.
-const COVERAGE_TOLERANCE: f64 = 0.02;
+/// Coverage within this band needs no scaling (the band a consistent track's coverage falls in
+/// on a recording of a few hundred correlated samples).
+const COVERAGE_BAND: (f64, f64) = (0.90, 0.98);
+
+/// A scaling that costs more than this factor of RMSE is refused: the invariance it relies on
+/// does not hold for the site, and a consistent covariance is no excuse for a worse track.
+const MAX_RMSE_COST: f64 = 1.1;
 
 /// Tunes `site` to `records` (time-ordered or not; they pass the tracker's re-ordering window
 /// like any input), with the tracks' range-offset learning off (what it would learn is what
@@ -406,7 +412,8 @@ fn calibrate_covariance(
         return Ok(None);
     };
     let miss = |inside: f64| (inside - 0.95).abs();
-    if miss(inside_before) <= COVERAGE_TOLERANCE || !scale.is_finite() {
+    let within = |inside: f64| (COVERAGE_BAND.0..=COVERAGE_BAND.1).contains(&inside);
+    if within(inside_before) || !scale.is_finite() {
         return Ok(None);
     }
     let (low, high) = COVARIANCE_SCALE_BOUNDS;
@@ -425,7 +432,7 @@ fn calibrate_covariance(
             break;
         };
         let nearer = best.map_or(miss(inside_before), |b| miss(b.inside_95_after));
-        if miss(inside_after) < nearer {
+        if miss(inside_after) < nearer && rmse_after <= MAX_RMSE_COST * rmse_before {
             best = Some(CovarianceCalibration {
                 std_factor,
                 inside_95_before: inside_before,
@@ -434,7 +441,7 @@ fn calibrate_covariance(
                 rmse_after_m: rmse_after,
             });
         }
-        if miss(inside_after) <= COVERAGE_TOLERANCE || !next.is_finite() {
+        if within(inside_after) || !next.is_finite() {
             break;
         }
         variance_factor = (variance_factor * next).clamp(low, high);

@@ -174,7 +174,7 @@ fn truth_scales_the_noises_until_the_ellipses_hold_95_percent() {
     assert!(chosen.inside_95.unwrap() > 0.97, "{chosen:?}");
     assert_eq!(calibration.inside_95_before, chosen.inside_95.unwrap());
     assert!(calibration.std_factor < 1.0, "{calibration:?}");
-    assert!((0.93..=0.97).contains(&calibration.inside_95_after), "{calibration:?}");
+    assert!((0.90..=0.98).contains(&calibration.inside_95_after), "{calibration:?}");
     // the track barely moves: every noise scaled alike keeps the gains
     assert!(
         calibration.rmse_after_m < 1.1 * calibration.rmse_before_m,
