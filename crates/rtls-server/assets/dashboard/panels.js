@@ -160,6 +160,9 @@ function renderReaders(table, summary, readers) {
     cell(tr, r.working_in_site ? r.status : `${r.status} (marked broken in the site)`);
     cell(tr, r.last_heard_ms ? `${((now - r.last_heard_ms) / 1000).toFixed(0)} s ago` : "never");
     cell(tr, `${r.rate_hz.toFixed(1)} /s`);
+    // the range offset the tracks learnt (mean over tags, and their spread), m
+    const o = r.range_offset;
+    cell(tr, o ? `${o.mean_m >= 0 ? "+" : ""}${o.mean_m.toFixed(2)} m (${o.tags} tag${o.tags === 1 ? "" : "s"}, ${o.min_m.toFixed(2)}…${o.max_m.toFixed(2)})` : "–");
     return tr;
   });
   table.tBodies[0].replaceChildren(...rows);

@@ -200,7 +200,7 @@ struct Inner {
     validator: Mutex<Tracker>,
     config: PipelineConfig,
     live: Arc<LiveState>,
-    readers: ReaderMonitor,
+    readers: Arc<ReaderMonitor>,
     hub: broadcast::Sender<Arc<HubMessage>>,
     publications: broadcast::Sender<Publication>,
     metrics: Arc<Metrics>,
@@ -232,6 +232,7 @@ impl Pipeline {
         let checkpoint = ingest_store.checkpoint(CHECKPOINT)?.unwrap_or(0);
         let progress = Arc::new(Progress::new(partitions, checkpoint));
         let live = Arc::new(LiveState::new(site, partitions));
+        let readers = Arc::new(ReaderMonitor::new(site, unix_ms()));
         let (hub, _) = broadcast::channel(config.broadcast_capacity.max(16));
         let (publications, _) = broadcast::channel(config.broadcast_capacity.max(16));
         let mut threads = Vec::new();
@@ -261,6 +262,9 @@ impl Pipeline {
             partition_txs.push(tx);
             let worker = partition::PartitionWorker {
                 index,
+                readers: Arc::clone(&readers),
+                offsets_posted: None,
+                offsets_dirty: false,
                 tracker: tracker()?,
                 rx,
                 outputs: output_tx.clone(),
@@ -304,7 +308,7 @@ impl Pipeline {
                 validator: Mutex::new(validator),
                 config,
                 live,
-                readers: ReaderMonitor::new(site, unix_ms()),
+                readers,
                 hub,
                 publications,
                 metrics,

@@ -30,6 +30,11 @@ const CLOCK_TICK: Duration = Duration::from_millis(250);
 
 pub(super) struct PartitionWorker {
     pub index: usize,
+    /// Reader health, where the tracker's learnt range offsets are posted.
+    pub readers: Arc<super::ReaderMonitor>,
+    /// When the offsets were last posted, and whether a batch has come since.
+    pub offsets_posted: Option<Instant>,
+    pub offsets_dirty: bool,
     pub tracker: Tracker,
     pub rx: Receiver<PartitionBatch>,
     pub outputs: SyncSender<OutputBatch>,
@@ -91,6 +96,7 @@ impl PartitionWorker {
                         tracing::warn!(partition = self.index, error = %e, "reporting the batch's updates failed");
                     }
                     self.metrics.tracking_seconds.observe(started.elapsed().as_secs_f64());
+                    self.offsets_dirty = true;
                 }
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => {
@@ -107,7 +113,21 @@ impl PartitionWorker {
                     tracing::warn!(partition = self.index, error = %e, "advancing the clock failed");
                 }
             }
+            self.post_offsets();
             self.emit(&mut out, processed, quarantined);
+        }
+    }
+
+    /// Posts the tracker's learnt range offsets to the reader health, at most once per
+    /// [`super::readers::OFFSET_PUBLISH_PERIOD`] and only after new records.
+    fn post_offsets(&mut self) {
+        let due = self
+            .offsets_posted
+            .is_none_or(|at| at.elapsed() >= super::readers::OFFSET_PUBLISH_PERIOD);
+        if self.offsets_dirty && due {
+            self.readers.learnt_offsets(self.index, self.tracker.range_offsets());
+            self.offsets_posted = Some(Instant::now());
+            self.offsets_dirty = false;
         }
     }
 

@@ -4,12 +4,18 @@
 //! A reader is heard when a valid record names it: the anchor of a range, RSSI or TDOA
 //! (and the TDOA's reference), or a reading of a fingerprint scan. The rate is the count over
 //! the last completed window of [`RATE_WINDOW_MS`].
+//!
+//! Each reader's row also carries what the tracks have learnt of its range offset
+//! (`[tracker.range_bias]`): the partitions post their trackers' offsets at most once per
+//! [`OFFSET_PUBLISH_PERIOD`], and the row summarises them over the tags that learnt one.
 
 use std::collections::HashMap;
 use std::sync::RwLock;
+use std::time::Duration;
 
 use rtls_engine::record::{Measurement, Record};
 use rtls_engine::site::Site;
+use rtls_engine::tracker::RangeOffset;
 use serde::Serialize;
 
 /// The window over which a reader's record rate is counted, ms.
@@ -22,6 +28,43 @@ pub const SILENT_AFTER_INTERVALS: f64 = 10.0;
 
 /// The shortest silence that flags a reader, ms.
 pub const MIN_SILENCE_MS: i64 = 60_000;
+
+/// A partition posts its trackers' learnt range offsets at most this often.
+pub const OFFSET_PUBLISH_PERIOD: Duration = Duration::from_secs(1);
+
+/// What the tracks have learnt of one reader's range offset beyond the site's `bias_m`
+/// (`[tracker.range_bias]`), over the tags whose track learnt one. The offset a track learns
+/// is the anchor's and the tag's together (antenna delays), so the spread across tags is the
+/// tags' part and the mean is the anchor's best estimate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RangeOffsetSummary {
+    /// Tags whose track learnt an offset for the reader.
+    pub tags: usize,
+    /// Their mean, m: about what `radio.range.bias_m` needs on top of the site's value.
+    pub mean_m: f64,
+    /// The smallest, m.
+    pub min_m: f64,
+    /// The largest, m.
+    pub max_m: f64,
+    /// The mean of the tracks' standard deviations of their offsets, m.
+    pub mean_std_m: f64,
+}
+
+impl RangeOffsetSummary {
+    fn of(offsets: &[&RangeOffset]) -> Option<Self> {
+        if offsets.is_empty() {
+            return None;
+        }
+        let n = offsets.len() as f64;
+        Some(Self {
+            tags: offsets.len(),
+            mean_m: offsets.iter().map(|o| o.offset_m).sum::<f64>() / n,
+            min_m: offsets.iter().map(|o| o.offset_m).fold(f64::INFINITY, f64::min),
+            max_m: offsets.iter().map(|o| o.offset_m).fold(f64::NEG_INFINITY, f64::max),
+            mean_std_m: offsets.iter().map(|o| o.std_m).sum::<f64>() / n,
+        })
+    }
+}
 
 /// What the health of one reader looks like in `GET /api/v1/readers`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -41,6 +84,9 @@ pub struct ReaderHealth {
     /// `ok`, `silent` (heard before, not for [`SILENT_AFTER_INTERVALS`] of its intervals),
     /// `never-heard`, or `not-in-site` (records name a reader the site does not list).
     pub status: &'static str,
+    /// The range offset the tracks have learnt for it; `None` before any has (or with
+    /// `[tracker.range_bias] enabled = false`, or for a reader that gives no ranges).
+    pub range_offset: Option<RangeOffsetSummary>,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -85,6 +131,8 @@ pub struct ReaderMonitor {
     site_readers: Vec<(String, Vec<f64>, bool)>,
     counters: RwLock<HashMap<String, Counter>>,
     started_ms: i64,
+    /// Each partition's trackers' learnt range offsets, as last posted.
+    offsets: RwLock<Vec<Vec<RangeOffset>>>,
 }
 
 impl ReaderMonitor {
@@ -99,7 +147,26 @@ impl ReaderMonitor {
                 .collect(),
             counters: RwLock::new(HashMap::new()),
             started_ms: now_ms,
+            offsets: RwLock::new(Vec::new()),
         }
+    }
+
+    /// Replaces what partition `partition` has learnt of the readers' range offsets.
+    pub fn learnt_offsets(&self, partition: usize, offsets: Vec<RangeOffset>) {
+        let Ok(mut all) = self.offsets.write() else {
+            return;
+        };
+        if all.len() <= partition {
+            all.resize_with(partition + 1, Vec::new);
+        }
+        all[partition] = offsets;
+    }
+
+    /// The summary of the offsets learnt for `reader`.
+    fn offset_of(&self, reader: &str) -> Option<RangeOffsetSummary> {
+        let all = self.offsets.read().ok()?;
+        let learnt: Vec<&RangeOffset> = all.iter().flatten().filter(|o| o.anchor == reader).collect();
+        RangeOffsetSummary::of(&learnt)
     }
 
     /// Notes the readers that accepted records name, received at `now_ms`.
@@ -129,7 +196,9 @@ impl ReaderMonitor {
             .iter()
             .map(|(id, position_m, working)| {
                 let counter = counters.remove(id);
-                row(id, position_m.clone(), *working, counter, now_ms, self.started_ms, true)
+                let mut health = row(id, position_m.clone(), *working, counter, now_ms, self.started_ms, true);
+                health.range_offset = self.offset_of(id);
+                health
             })
             .collect();
         let mut strangers: Vec<_> = counters.into_iter().collect();
@@ -177,6 +246,7 @@ fn row(
         rate_hz,
         records,
         status,
+        range_offset: None,
     }
 }
 
