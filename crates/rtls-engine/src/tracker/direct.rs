@@ -84,7 +84,7 @@ pub(super) fn apply_direct<const N: usize>(
             }
             // the tracked axes: the leading D × D block
             let covariance: Vec<f64> = (0..d * d).map(|i| covariance_m2[(i / d) * k + i % d]).collect();
-            fix_update(shared, track, time_s, &position_m[..d], &covariance, "fix", out)
+            fix_update(shared, track, time_s, &position_m[..d], &covariance, "fix", out).map(|_updated| ())
         }
         Measurement::RssiVector { readings } => match &shared.radio_map {
             None => {
@@ -99,6 +99,7 @@ pub(super) fn apply_direct<const N: usize>(
                     out.fixes
                         .push(raw_fix(&track.tag, time_s, &fix.position_m, &covariance));
                     fix_update(shared, track, time_s, &fix.position_m, &covariance, "rssi_vector", out)
+                        .map(|_updated| ())
                 }
                 Err(error) => {
                     let reason = format!("fingerprint fix failed: {error}");

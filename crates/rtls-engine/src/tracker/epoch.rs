@@ -210,9 +210,7 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
                 out.fixes
                     .push(epoch_raw_fix(&track.tag, time_s, &position, &covariance, method));
                 let confirmed_before = is_confirmed(track);
-                let before = track.state.as_ref().map(|s| s.mean().clone_owned());
-                fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
-                let accepted = track.state.as_ref().map(|s| s.mean().clone_owned()) != before;
+                let accepted = fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
                 if single && confirmed_before && accepted {
                     learn_offsets(shared, track, &stated, &readings, &position, time_s);
                 }

@@ -177,6 +177,7 @@ fn close<const N: usize>(shared: &Shared, track: &mut Track<N>, out: &mut Output
         KIND,
         out,
     )
+    .map(|_updated| ())
 }
 
 /// A reading as the solver's input: its variance from `std_m` or the elevation at the origin.

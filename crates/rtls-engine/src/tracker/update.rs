@@ -69,7 +69,8 @@ pub(super) fn predict<const N: usize>(
 }
 
 /// Accepts an update unless the track is confirmed and the NIS is outside the χ² gate; then
-/// advances the lifecycle.
+/// advances the lifecycle. Returns whether the update was taken (`false`: gated out, with a
+/// `rejected` event).
 pub(super) fn accept<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
@@ -78,7 +79,7 @@ pub(super) fn accept<const N: usize>(
     kind: &'static str,
     source: UpdateSource,
     out: &mut Output,
-) -> Result<()> {
+) -> Result<bool> {
     let time_s = updated.state.time_s();
     let dof = updated.measurement_dim().clamp(1, 3);
     let gated = is_gated(track);
@@ -106,7 +107,7 @@ pub(super) fn accept<const N: usize>(
             reacquire(track);
         }
         out.events.push(rejected(&track.tag, time_s, kind, reason));
-        return Ok(());
+        return Ok(false);
     }
     let position_m = position_of(&updated.state, shared.tag_height_m).0;
     if matches!(source, UpdateSource::Fix | UpdateSource::Anchors) {
@@ -141,7 +142,7 @@ pub(super) fn accept<const N: usize>(
         });
     }
     track.unreported = Some(source);
-    Ok(())
+    Ok(true)
 }
 
 /// Whether the track's updates are gated (confirmed or coasting; a tentative track takes every
@@ -212,6 +213,8 @@ fn push_switch<const N: usize>(
 }
 
 /// A position fix: starts the track, or updates it (`H` selects the position components).
+/// Returns whether it updated the track's state (`false`: it started or restarted the track,
+/// or was gated out or failed, with an event).
 pub(super) fn fix_update<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
@@ -220,11 +223,11 @@ pub(super) fn fix_update<const N: usize>(
     covariance: &[f64],
     kind: &'static str,
     out: &mut Output,
-) -> Result<()> {
+) -> Result<bool> {
     let k = position.len();
     let Some(state) = track.state.as_ref().filter(|_| !track.is_lost()) else {
         // a new track, or a lost one whose prior is too stale to update
-        return start_from_fix(shared, track, time_s, position, covariance, kind, out);
+        return start_from_fix(shared, track, time_s, position, covariance, kind, out).map(|()| false);
     };
     let indices: Vec<usize> = (0..k).map(|i| 2 * i).collect();
     let prior = predict(shared, track, state, time_s)?;
@@ -314,7 +317,7 @@ pub(super) fn start_from_fix<const N: usize>(
 }
 
 /// A linear update of state components `indices` with `value` and its row-major covariance;
-/// a failed update is reported, not applied.
+/// a failed update is reported, not applied. Returns whether the update was taken.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn component_update<const N: usize>(
     shared: &Shared,
@@ -326,7 +329,7 @@ pub(super) fn component_update<const N: usize>(
     kind: &'static str,
     source: UpdateSource,
     out: &mut Output,
-) -> Result<()> {
+) -> Result<bool> {
     let k = indices.len();
     let class = NoiseClass::of_component_kind(kind, source == UpdateSource::Velocity);
     // R ← c R for errors correlated in time (c = max(1, 2τ_c/Δt)), then λ on top
@@ -377,7 +380,7 @@ pub(super) fn component_update<const N: usize>(
             let reason = format!("{} update failed: {error}", source.name());
             out.events
                 .push(rejected(&track.tag, prior.state.time_s(), kind, reason));
-            Ok(())
+            Ok(false)
         }
     }
 }
@@ -411,6 +414,7 @@ pub(super) fn velocity_update<const N: usize>(
         UpdateSource::Velocity,
         out,
     )
+    .map(|_taken| ())
 }
 
 /// Tightly coupled: one range / RSSI / TDOA straight into the EKF or UKF (seed 003's
@@ -585,7 +589,7 @@ pub(super) fn coupled_update<const N: usize>(
                     }
                 }
             }
-            accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)
+            accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out).map(|_taken| ())
         }
         Err(error) => {
             out.events.push(rejected(
