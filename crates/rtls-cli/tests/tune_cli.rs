@@ -129,6 +129,15 @@ fn tune_with_truth_writes_a_site_that_tracks_the_rest_better_and_honestly() {
     // comments kept, values replaced, the reader without a radio section calibrated
     assert!(text.contains("# a site with optimistic readers") && text.contains("# this reader has no radio"));
     assert!(!text.contains("acceleration_noise_std_mps2 = 3.0"), "{text}");
+    // the error-correlation settings tried are reported, and the tuned site says the chosen one
+    // where it differs from the file (the file keeps the default, off)
+    assert!(stdout.contains("error correlation (at the chosen σ_a)"), "{stdout}");
+    let chose_innovations = stdout.lines().any(|l| l.starts_with("*  true"));
+    assert_eq!(
+        text.contains("correlation_from_innovations = true"),
+        chose_innovations,
+        "{stdout}\n{text}"
+    );
     let site_value: toml_edit::DocumentMut = text.parse().unwrap();
     for reader in site_value["readers"].as_array_of_tables().unwrap() {
         let bias = reader["radio"]["range"]["bias_m"].as_float().unwrap();
