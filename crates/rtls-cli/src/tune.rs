@@ -180,6 +180,9 @@ fn tuned_site_text(
                 let errors = sub_table(radio, "range");
                 errors.insert("range_std_m", value(round(range.range_std_m)));
                 errors.insert("bias_m", value(round(range.bias_m)));
+                if range.scale != 1.0 {
+                    errors.insert("scale", value((range.scale * 1e6).round() / 1e6));
+                }
             }
             if let Some(law) = fit.path_loss {
                 let path_loss = sub_table(radio, "path_loss");
@@ -339,8 +342,8 @@ fn text_report(tuning: &Tuning, records: usize, out: &Path) -> String {
         if let Some(r) = fit.range {
             let _ = write!(
                 text,
-                " range bias {:.3} m, σ {:.3} m ({} ranges)",
-                r.bias_m, r.range_std_m, r.samples
+                " range bias {:.3} m, σ {:.3} m, scale {:.4} ({} ranges)",
+                r.bias_m, r.range_std_m, r.scale, r.samples
             );
         }
         if let Some(p) = fit.path_loss {
@@ -376,7 +379,7 @@ fn json_report(tuning: &Tuning, records: usize) -> serde_json::Value {
         .map(|r| {
             serde_json::json!({
                 "reader": r.reader,
-                "range": r.range.map(|f| serde_json::json!({"bias_m": f.bias_m, "range_std_m": f.range_std_m, "samples": f.samples})),
+                "range": r.range.map(|f| serde_json::json!({"bias_m": f.bias_m, "range_std_m": f.range_std_m, "scale": f.scale, "samples": f.samples})),
                 "path_loss": r.path_loss.map(|f| serde_json::json!({
                     "reference_power_dbm": f.reference_power_dbm, "exponent": f.exponent,
                     "shadowing_std_db": f.shadowing_std_db, "samples": f.samples})),

@@ -99,6 +99,7 @@ const SHADOWING_STD_DB: Bounds = Bounds::closed(0.0, 50.0, "dB");
 const REFERENCE_DISTANCE_M: Bounds = Bounds::closed(0.01, 1000.0, "m");
 const RANGE_STD_M: Bounds = Bounds::closed(1e-4, 1000.0, "m");
 const RANGE_BIAS_M: Bounds = Bounds::closed(-1000.0, 1000.0, "m");
+const RANGE_SCALE: Bounds = Bounds::closed(0.5, 2.0, "");
 const ACCELERATION_NOISE_MPS2: Bounds = Bounds::closed(1e-6, 1000.0, "m/s²");
 /// 0 allowed: an accelerometer-driven prediction may rest on the samples' own noise alone.
 const AIDED_ACCELERATION_NOISE_MPS2: Bounds = Bounds::closed(0.0, 1000.0, "m/s²");
@@ -239,6 +240,7 @@ pub(super) fn checks(site: &Site) -> Vec<Check> {
             let at = |key: &str| format!("readers[{i}].radio.range.{key}");
             out.push(within(at("range_std_m"), range.range_std_m, RANGE_STD_M));
             out.push(within(at("bias_m"), range.bias_m, RANGE_BIAS_M));
+            out.push(within(at("scale"), range.scale, RANGE_SCALE));
         }
     }
     for (i, corridor) in site.corridors.iter().enumerate() {

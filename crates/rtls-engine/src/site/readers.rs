@@ -100,7 +100,7 @@ pub struct PathLoss {
     pub reference_distance_m: f64,
 }
 
-/// Range measurement errors: `r = d + bias_m + N(0, range_std_m²)`.
+/// Range measurement errors: `r = scale · d + bias_m + N(0, range_std_m²)`.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RangeErrors {
@@ -108,4 +108,14 @@ pub struct RangeErrors {
     pub range_std_m: f64,
     /// Constant range bias, m (subtracted before use).
     pub bias_m: f64,
+    /// Range scale (0.5 to 2; default 1): a pair whose antenna, cable or clock calibration
+    /// is off by a fraction reads every distance that fraction long or short. A range is used
+    /// as `(r − bias_m) / scale`, with its noise divided by `scale`. Ranges only: a TDOA
+    /// difference is taken as it comes. `rtls tune --truth` fits it.
+    #[serde(default = "unit_scale")]
+    pub scale: f64,
+}
+
+fn unit_scale() -> f64 {
+    1.0
 }

@@ -63,6 +63,8 @@ struct Model {
     /// `‖p − a‖`, the slant distance the residual is filed under.
     distance: AnchorMeasurement,
     bias: f64,
+    /// The range scale the bias-corrected range is divided by (1 for RSSI).
+    scale: f64,
 }
 
 impl Model {
@@ -78,10 +80,12 @@ impl Model {
         let radio = reader.radio.as_ref();
         // the variance is not used: only h(p) is evaluated (3-D positions, so no tag height)
         let model = |law| AnchorMeasurement::new(a, 0.0, law, 1.0);
-        let (law, bias) = match kind {
+        let range = radio.and_then(|r| r.range.as_ref());
+        let (law, bias, scale) = match kind {
             ResidualKind::Range => (
                 AnchorLaw::Range,
-                radio.and_then(|r| r.range.as_ref()).map_or(0.0, |r| r.bias_m),
+                range.map_or(0.0, |r| r.bias_m),
+                range.map_or(1.0, |r| r.scale),
             ),
             ResidualKind::Rssi => {
                 let Some(law) = radio.and_then(|r| r.path_loss.as_ref()) else {
@@ -92,20 +96,24 @@ impl Model {
                     reference_distance_m: law.reference_distance_m,
                     exponent: law.exponent,
                 };
-                (law, 0.0)
+                (law, 0.0, 1.0)
             }
         };
         Ok(Self {
             expected: model(law),
             distance: model(AnchorLaw::Range),
             bias,
+            scale,
         })
     }
 
-    /// Measured minus expected at tag position `p` — `e = (r − b) − d` for a range,
+    /// Measured minus expected at tag position `p` — `e = (r − b) / s − d` for a range,
     /// `e = ρ − (P₀ − 10 n log₁₀(d / d₀))` for RSSI — and the slant distance `d = ‖p − a‖`, m.
     fn residual(&self, measured: f64, p: [f64; 3]) -> (f64, f64) {
-        (measured - self.bias - self.expected.value(&p), self.distance.value(&p))
+        (
+            (measured - self.bias) / self.scale - self.expected.value(&p),
+            self.distance.value(&p),
+        )
     }
 }
 

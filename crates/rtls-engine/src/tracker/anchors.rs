@@ -16,6 +16,8 @@ pub(crate) struct Anchor {
     pub(crate) range_std_m: Option<f64>,
     /// Constant range bias removed from every range, m.
     pub(crate) range_bias_m: f64,
+    /// Range scale the bias-corrected range is divided by (1: none).
+    pub(crate) range_scale: f64,
     /// `(ρ₀ dBm, d₀ m, n, σ_X dB)` of the log-distance law.
     pub(crate) path_loss: Option<[f64; 4]>,
     /// The weakest RSSI the reader reports, dBm (negative information).
@@ -32,6 +34,7 @@ impl Anchor {
             working: reader.working,
             range_std_m: range.map(|r| r.range_std_m),
             range_bias_m: range.map_or(0.0, |r| r.bias_m),
+            range_scale: range.map_or(1.0, |r| r.scale),
             path_loss: radio.and_then(|r| r.path_loss.as_ref()).map(|p| {
                 [
                     p.reference_power_dbm,
@@ -48,7 +51,7 @@ impl Anchor {
 /// A resolved anchor measurement: anchor indices, bias-corrected value and its variance.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum AnchorReading {
-    /// Bias-corrected range `r − b` (m), variance m², to the anchor at `position_m` (the
+    /// Bias- and scale-corrected range `(r − b) / s` (m), variance m², to the anchor at `position_m` (the
     /// reader's site position, or the record's for a moving anchor).
     Range {
         anchor: usize,
@@ -172,9 +175,9 @@ impl Anchors {
                 Ok(Some(AnchorReading::Range {
                     anchor: index,
                     position_m,
-                    // r − b
-                    range_m: range_m - a.range_bias_m,
-                    variance_m2: floor_variance(std_m * std_m),
+                    // (r − b) / s, σ² / s²
+                    range_m: (range_m - a.range_bias_m) / a.range_scale,
+                    variance_m2: floor_variance(std_m * std_m / (a.range_scale * a.range_scale)),
                 }))
             }
             Measurement::Rssi { anchor, rssi_dbm } => {

@@ -10,6 +10,17 @@ use crate::site::{PathLoss, Radio, RangeErrors, Site};
 /// Fewer residuals than this leave a reader as it was.
 const MIN_SAMPLES: usize = 30;
 
+/// A range scale is fitted only when the truth distances of a reader's ranges have at least
+/// this standard deviation, m (over a narrow spread of distances a scale is a bias).
+pub const MIN_SCALE_SPREAD_M: f64 = 1.0;
+
+/// Ranges further than this many robust σ from the median of `r − d` are left out of the
+/// scale's line fit.
+const SCALE_FIT_OUTLIER_SIGMAS: f64 = 5.0;
+
+/// The scale bounds the site accepts.
+const SCALE_RANGE: (f64, f64) = (0.5, 2.0);
+
 /// Distances below this are clamped in the path-loss fit (the law is a far-field one), m.
 const MIN_FIT_DISTANCE_M: f64 = 0.5;
 
@@ -19,10 +30,13 @@ const EXPONENT_RANGE: (f64, f64) = (1.0, 6.0);
 /// A reader's range errors fitted against truth: `r = d + bias + N(0, std²)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RangeFit {
-    /// `median(r − d)`, m.
+    /// `b` of `r = s d + b`, m (`median(r − d)` when no scale is fitted).
     pub bias_m: f64,
-    /// `1.4826 · MAD(r − d)`, m (at least 1 mm).
+    /// `1.4826 · MAD(r − s d − b)`, m (at least 1 mm).
     pub range_std_m: f64,
+    /// `s` of `r = s d + b` (1 unless the distances spread enough to tell it, see
+    /// [`MIN_SCALE_SPREAD_M`], and it differs from 1 by more than 3 standard errors).
+    pub scale: f64,
     /// Residuals used.
     pub samples: usize,
 }
@@ -85,17 +99,60 @@ fn median(values: &mut [f64]) -> f64 {
     }
 }
 
-/// Range bias and robust noise from residuals `r − d`.
-fn fit_range(residuals: &mut [f64]) -> RangeFit {
-    let bias_m = median(residuals);
-    let mut deviations: Vec<f64> = residuals.iter().map(|r| (r - bias_m).abs()).collect();
-    // σ = 1.4826 · MAD (consistent for Gaussian errors)
-    let range_std_m = (1.4826 * median(&mut deviations)).max(1e-3);
+/// `1.4826 · MAD` of `values` about `centre` (consistent for Gaussian errors), at least 1 mm.
+fn robust_std(values: impl Iterator<Item = f64>, centre: f64) -> f64 {
+    let mut deviations: Vec<f64> = values.map(|v| (v - centre).abs()).collect();
+    (1.4826 * median(&mut deviations)).max(1e-3)
+}
+
+/// Range bias, scale and robust noise from `(d, r)` pairs: true slant distance and measured
+/// range. `b₀ = median(r − d)`, `σ₀ = 1.4826 · MAD`; then, if the distances spread at least
+/// [`MIN_SCALE_SPREAD_M`], least squares `r = s d + b` over the ranges within
+/// [`SCALE_FIT_OUTLIER_SIGMAS`] `σ₀` of `b₀`, kept when `|s − 1| > 3 se(s)` (else `s = 1`,
+/// `b = b₀`); `σ = 1.4826 · MAD(r − s d − b)`.
+fn fit_range(samples: &[(f64, f64)]) -> RangeFit {
+    let mut residuals: Vec<f64> = samples.iter().map(|(d, r)| r - d).collect();
+    let bias_0 = median(&mut residuals);
+    let std_0 = robust_std(samples.iter().map(|(d, r)| r - d), bias_0);
+    let inliers: Vec<(f64, f64)> = samples
+        .iter()
+        .copied()
+        .filter(|(d, r)| (r - d - bias_0).abs() <= SCALE_FIT_OUTLIER_SIGMAS * std_0)
+        .collect();
+    let (bias_m, scale) = line_fit(&inliers).unwrap_or((bias_0, 1.0));
+    let range_std_m = robust_std(samples.iter().map(|(d, r)| r - scale * d), bias_m);
     RangeFit {
         bias_m,
         range_std_m,
-        samples: residuals.len(),
+        scale,
+        samples: samples.len(),
     }
+}
+
+/// `(b, s)` of least squares `r = s d + b`, when the distances spread enough and `s` differs
+/// from 1 by more than three standard errors and lies in the site's bounds.
+fn line_fit(samples: &[(f64, f64)]) -> Option<(f64, f64)> {
+    let n = samples.len() as f64;
+    if samples.len() < MIN_SAMPLES {
+        return None;
+    }
+    let mean_d = samples.iter().map(|s| s.0).sum::<f64>() / n;
+    let mean_r = samples.iter().map(|s| s.1).sum::<f64>() / n;
+    // S_dd = Σ (d − d̄)², S_dr = Σ (d − d̄)(r − r̄)
+    let s_dd: f64 = samples.iter().map(|s| (s.0 - mean_d).powi(2)).sum();
+    let s_dr: f64 = samples.iter().map(|s| (s.0 - mean_d) * (s.1 - mean_r)).sum();
+    if s_dd / n < MIN_SCALE_SPREAD_M * MIN_SCALE_SPREAD_M {
+        return None;
+    }
+    // s = S_dr / S_dd, b = r̄ − s d̄
+    let scale = s_dr / s_dd;
+    let bias = mean_r - scale * mean_d;
+    // se(s) = √(Σ e² / (n − 2) / S_dd)
+    let residual_variance = samples.iter().map(|s| (s.1 - scale * s.0 - bias).powi(2)).sum::<f64>() / (n - 2.0);
+    let standard_error = (residual_variance / s_dd).sqrt();
+    let significant = (scale - 1.0).abs() > 3.0 * standard_error;
+    let bounded = (SCALE_RANGE.0..=SCALE_RANGE.1).contains(&scale);
+    (significant && bounded && bias.is_finite()).then_some((bias, scale))
 }
 
 /// Least squares `ρ = ρ₀ − 10 n x`, `x = log₁₀ d`, over `(x, ρ)` pairs.
@@ -132,7 +189,7 @@ pub(super) fn calibrate(
 ) -> Vec<ReaderCalibration> {
     let by_tag = truth_by_tag(truth);
     let tag_height_m = site.tracker.tag_height_m.unwrap_or(0.0);
-    let mut ranges: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
+    let mut ranges: BTreeMap<&str, Vec<(f64, f64)>> = BTreeMap::new();
     let mut rssi: BTreeMap<&str, Vec<(f64, f64)>> = BTreeMap::new();
     for record in records {
         let Some(tag_truth) = by_tag.get(record.tag.as_str()) else {
@@ -156,7 +213,7 @@ pub(super) fn calibrate(
             continue;
         }
         if is_range {
-            ranges.entry(&reader.id).or_default().push(value - d);
+            ranges.entry(&reader.id).or_default().push((d, value));
         } else {
             rssi.entry(&reader.id)
                 .or_default()
@@ -167,7 +224,7 @@ pub(super) fn calibrate(
         .iter()
         .filter_map(|reader| {
             let range = ranges
-                .get_mut(reader.id.as_str())
+                .get(reader.id.as_str())
                 .filter(|r| r.len() >= MIN_SAMPLES)
                 .map(|r| fit_range(r));
             let path_loss = rssi
@@ -198,6 +255,7 @@ pub(super) fn apply(site: &mut Site, calibration: &[ReaderCalibration]) {
             radio.range = Some(RangeErrors {
                 range_std_m: range.range_std_m,
                 bias_m: range.bias_m,
+                scale: range.scale,
             });
         }
         if let Some(law) = fit.path_loss {
@@ -233,13 +291,31 @@ mod tests {
             }
             0.5 * (lo + hi)
         };
-        let mut residuals: Vec<f64> = (0..900)
-            .map(|i| 0.2 + 0.1 * normal_quantile((i as f64 + 0.5) / 900.0))
+        // all at 5 m (no spread: no scale is fitted)
+        let mut samples: Vec<(f64, f64)> = (0..900)
+            .map(|i| (5.0, 5.2 + 0.1 * normal_quantile((i as f64 + 0.5) / 900.0)))
             .collect();
-        residuals.extend((0..100).map(|k| if k % 2 == 0 { 25.0 } else { -25.0 }));
-        let fit = fit_range(&mut residuals);
+        samples.extend((0..100).map(|k| (5.0, if k % 2 == 0 { 30.0 } else { -20.0 })));
+        let fit = fit_range(&samples);
         assert!((fit.bias_m - 0.2).abs() < 0.01, "{fit:?}");
         assert!((0.10..0.125).contains(&fit.range_std_m), "{fit:?}");
+        assert_eq!(fit.scale, 1.0);
+
+        // the same errors over 2–20 m with a 2 % scale: r = 1.02 d + 0.2
+        let mut scaled: Vec<(f64, f64)> = (0..900)
+            .map(|i| {
+                let d = 2.0 + 18.0 * ((i * 691) % 900) as f64 / 900.0;
+                (d, 1.02 * d + 0.2 + 0.1 * normal_quantile((i as f64 + 0.5) / 900.0))
+            })
+            .collect();
+        scaled.extend((0..100).map(|k| (10.0, if k % 2 == 0 { 35.0 } else { -15.0 })));
+        let fit = fit_range(&scaled);
+        assert!((fit.scale - 1.02).abs() < 0.003, "{fit:?}");
+        assert!((fit.bias_m - 0.2).abs() < 0.03, "{fit:?}");
+        assert!((0.09..0.125).contains(&fit.range_std_m), "{fit:?}");
+        // a scale within its standard error of 1 is not kept: exact ranges plus noise
+        let unscaled: Vec<(f64, f64)> = scaled.iter().map(|&(d, _)| (d, d + 0.2)).collect();
+        assert_eq!(fit_range(&unscaled).scale, 1.0);
     }
 
     /// erf by Abramowitz & Stegun 7.1.26 (|error| < 1.5e-7), enough for a test's quantiles.

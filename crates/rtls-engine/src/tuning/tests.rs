@@ -37,6 +37,11 @@ fn recording(seconds: f64) -> (Site, Vec<Record>, Vec<TruthSample>) {
 /// As [`recording`], each anchor's range error an AR(1) sequence with lag-one correlation
 /// `rho` from one of its readings to the next (still σ = 0.15 m).
 fn correlated_recording(seconds: f64, rho: f64) -> (Site, Vec<Record>, Vec<TruthSample>) {
+    recording_with(seconds, rho, [1.0; 4])
+}
+
+/// As [`correlated_recording`], each anchor's ranges also scaled: `r = s d + b + e`.
+fn recording_with(seconds: f64, rho: f64, scales: [f64; 4]) -> (Site, Vec<Record>, Vec<TruthSample>) {
     let site = Site::from_toml_str(SITE, "site.toml").unwrap();
     let biases = [0.30, -0.10, 0.05, 0.20];
     let noise = Normal::new(0.0, 0.15).unwrap();
@@ -57,7 +62,7 @@ fn correlated_recording(seconds: f64, rho: f64) -> (Site, Vec<Record>, Vec<Truth
             tag: "w".into(),
             measurement: Measurement::Range {
                 anchor: anchor.into(),
-                range_m: d + biases[index] + {
+                range_m: scales[index] * d + biases[index] + {
                     // eₖ = ρ eₖ₋₁ + √(1 − ρ²) wₖ
                     errors[index] = rho * errors[index] + (1.0 - rho * rho).sqrt() * noise.sample(&mut rng);
                     errors[index]
@@ -109,6 +114,33 @@ fn truth_calibrates_every_reader_and_picks_the_process_noise() {
     assert_eq!(tuned.model.tried.len(), 2, "{:#?}", tuned.model);
     let rmse = |i: usize| tuned.model.tried[i].1.rmse_m.unwrap();
     assert!(rmse(tuned.model.chosen) <= rmse(1 - tuned.model.chosen));
+}
+
+#[test]
+fn truth_fits_a_range_scale_where_the_distances_tell_it() {
+    // A's ranges read 3 % long; the walker's distances to each anchor span ~6–15 m
+    let (site, records, truth) = recording_with(120.0, 0.0, [1.03, 1.0, 1.0, 1.0]);
+    let settings = TuningSettings {
+        acceleration_grid_mps2: vec![0.2],
+        ..TuningSettings::default()
+    };
+    let tuned = tune(&site, None, &records, Some(&truth), &settings).unwrap();
+    let fits: Vec<RangeFit> = tuned.readers.iter().map(|r| r.range.unwrap()).collect();
+    assert!((fits[0].scale - 1.03).abs() < 0.01, "{fits:?}");
+    assert!((fits[0].bias_m - 0.30).abs() < 0.1, "{fits:?}");
+    for fit in &fits[1..] {
+        assert!((fit.scale - 1.0).abs() < 0.01, "{fits:?}");
+    }
+    // with the scale the track is as good as on unscaled ranges
+    let (_, plain, _) = recording_with(120.0, 0.0, [1.0; 4]);
+    let unscaled = tune(&site, None, &plain, Some(&truth), &settings).unwrap();
+    let rmse = |t: &Tuning| t.candidates[t.chosen].rmse_m.unwrap();
+    assert!(
+        rmse(&tuned) < 1.2 * rmse(&unscaled),
+        "{} vs {}",
+        rmse(&tuned),
+        rmse(&unscaled)
+    );
 }
 
 #[test]
