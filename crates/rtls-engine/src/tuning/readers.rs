@@ -34,8 +34,9 @@ pub struct RangeFit {
     pub bias_m: f64,
     /// `1.4826 · MAD(r − s d − b)`, m (at least 1 mm).
     pub range_std_m: f64,
-    /// `s` of `r = s d + b` (1 unless the distances spread enough to tell it, see
-    /// [`MIN_SCALE_SPREAD_M`], and it differs from 1 by more than 3 standard errors).
+    /// `s` of `r = s d + b` (1 unless the distances have a standard deviation of at least
+    /// 1 m, enough to tell a scale from a bias, and it differs from 1 by more than 3 standard
+    /// errors).
     pub scale: f64,
     /// Residuals used.
     pub samples: usize,
