@@ -12,8 +12,8 @@
 //!
 //! The summary on standard error counts records, updates, fixes and events, and the rejected
 //! records by kind and reason (numbers in a reason are replaced by `#`, so reasons group),
-//! and the range offsets the tracks learnt (`[tracker.range_bias]`, per tag and anchor, beyond
-//! the site's `bias_m`). A tag that had records but no track output is named with its rejections, and the exit
+//! and the range offsets the tracks learnt (`[tracker.range_bias]`, beyond the site's
+//! `bias_m`: per anchor, the mean over the tags that learnt one and their spread). A tag that had records but no track output is named with its rejections, and the exit
 //! status is then [`EXIT_UNTRACKED`] (3); 1 is an error that stopped the run (site, input,
 //! outputs), 0 a run in which every tag with records was tracked.
 
@@ -456,14 +456,24 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     untracked_tags(&counts)
 }
 
-/// The range offsets the tracks learnt (`[tracker.range_bias]`), one `tag/anchor +0.123 ± 0.010 m`
-/// per pair.
+/// The range offsets the tracks learnt (`[tracker.range_bias]`), per anchor: `A1 +0.123 ± 0.010 m`
+/// when one tag learnt it, `A1 +0.123 m over 12 tags (+0.05…+0.20), ± 0.010 m` when several
+/// did (one line, whatever the number of tags).
 fn range_offsets_line(offsets: &[rtls_engine::tracker::RangeOffset]) -> String {
-    let pairs: Vec<String> = offsets
+    let anchors: Vec<String> = rtls_engine::tracker::AnchorOffsetSummary::by_anchor(offsets)
         .iter()
-        .map(|o| format!("{}/{} {:+.3} ± {:.3} m", o.tag, o.anchor, o.offset_m, o.std_m))
+        .map(|s| match s.tags {
+            1 => format!("{} {:+.3} ± {:.3} m", s.anchor, s.mean_m, s.mean_std_m),
+            n => format!(
+                "{} {:+.3} m over {n} tags ({:+.3}…{:+.3}), ± {:.3} m",
+                s.anchor, s.mean_m, s.min_m, s.max_m, s.mean_std_m
+            ),
+        })
         .collect();
-    format!("range offsets learnt (beyond the site's bias_m): {}", pairs.join(", "))
+    format!(
+        "range offsets learnt (beyond the site's bias_m): {}",
+        anchors.join(", ")
+    )
 }
 
 /// Names every tag that had records but no track output, with its rejected and late records

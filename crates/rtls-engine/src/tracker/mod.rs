@@ -187,7 +187,7 @@ mod update;
 pub use anonymous::ANONYMOUS_TAG;
 pub use noise::{InnovationTotals, Innovations, NoiseClass};
 pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
-pub use range_bias::RangeOffset;
+pub use range_bias::{AnchorOffsetSummary, RangeOffset};
 pub(crate) use schedule::scheduling_layout;
 
 use self::anonymous::AnonymousFront;

@@ -165,3 +165,100 @@ pub struct RangeOffset {
     /// Its standard deviation, m.
     pub std_m: f64,
 }
+
+/// What the tracks have learnt of one anchor's range offset, over the tags whose track learnt
+/// one. The offset a track learns is the anchor's and its tag's delays together, so the spread
+/// over tags is the tags' part and the mean the anchor's best estimate. Summaries of disjoint
+/// sets of tags (the server's partitions) combine with [`Self::merge`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct AnchorOffsetSummary {
+    /// The anchor's id (the key the summary is filed under; not in its JSON).
+    #[serde(skip)]
+    pub anchor: String,
+    /// Tags whose track learnt an offset for it.
+    pub tags: usize,
+    /// Their mean, m: about what `radio.range.bias_m` needs on top of the site's value.
+    pub mean_m: f64,
+    /// The smallest, m.
+    pub min_m: f64,
+    /// The largest, m.
+    pub max_m: f64,
+    /// The mean of the tracks' standard deviations of their offsets, m.
+    pub mean_std_m: f64,
+}
+
+impl AnchorOffsetSummary {
+    /// One summary per anchor of `offsets` (as [`crate::tracker::Tracker::range_offsets`]
+    /// gives them), in anchor id order.
+    #[must_use]
+    pub fn by_anchor(offsets: &[RangeOffset]) -> Vec<Self> {
+        let mut summaries: std::collections::BTreeMap<&str, Self> = std::collections::BTreeMap::new();
+        for offset in offsets {
+            let one = Self {
+                anchor: offset.anchor.clone(),
+                tags: 1,
+                mean_m: offset.offset_m,
+                min_m: offset.offset_m,
+                max_m: offset.offset_m,
+                mean_std_m: offset.std_m,
+            };
+            match summaries.get_mut(offset.anchor.as_str()) {
+                Some(summary) => summary.merge(&one),
+                None => {
+                    summaries.insert(&offset.anchor, one);
+                }
+            }
+        }
+        summaries.into_values().collect()
+    }
+
+    /// Adds the tags `other` summarises (of the same anchor, none of them already counted).
+    pub fn merge(&mut self, other: &Self) {
+        let total = (self.tags + other.tags) as f64;
+        // x̄ = (n₁ x̄₁ + n₂ x̄₂) / (n₁ + n₂)
+        let weigh = |a: f64, b: f64| (self.tags as f64 * a + other.tags as f64 * b) / total;
+        self.mean_m = weigh(self.mean_m, other.mean_m);
+        self.mean_std_m = weigh(self.mean_std_m, other.mean_std_m);
+        self.min_m = self.min_m.min(other.min_m);
+        self.max_m = self.max_m.max(other.max_m);
+        self.tags += other.tags;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn offset(tag: &str, anchor: &str, offset_m: f64, std_m: f64) -> RangeOffset {
+        RangeOffset {
+            tag: tag.into(),
+            anchor: anchor.into(),
+            offset_m,
+            std_m,
+        }
+    }
+
+    #[test]
+    fn offsets_summarise_per_anchor_and_partitions_merge_to_the_whole() {
+        let all = [
+            offset("t1", "A", 0.1, 0.02),
+            offset("t2", "A", 0.3, 0.04),
+            offset("t3", "A", 0.2, 0.03),
+            offset("t1", "B", -0.1, 0.05),
+        ];
+        let whole = AnchorOffsetSummary::by_anchor(&all);
+        assert_eq!(whole.len(), 2);
+        let a = &whole[0];
+        assert_eq!((a.anchor.as_str(), a.tags, a.min_m, a.max_m), ("A", 3, 0.1, 0.3));
+        assert!(
+            (a.mean_m - 0.2).abs() < 1e-12 && (a.mean_std_m - 0.03).abs() < 1e-12,
+            "{a:?}"
+        );
+        // two partitions' summaries merged give the whole's
+        let mut merged = AnchorOffsetSummary::by_anchor(&all[..1]).remove(0);
+        merged.merge(&AnchorOffsetSummary::by_anchor(&all[1..3])[0]);
+        assert_eq!(merged.tags, 3);
+        assert!((merged.mean_m - a.mean_m).abs() < 1e-12 && (merged.mean_std_m - a.mean_std_m).abs() < 1e-12);
+        assert_eq!((merged.min_m, merged.max_m), (a.min_m, a.max_m));
+    }
+}

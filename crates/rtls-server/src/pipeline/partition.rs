@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rtls_engine::lifecycle::TrackStatus;
-use rtls_engine::tracker::{status_name, Event, Output, TrackUpdate, Tracker};
+use rtls_engine::tracker::{status_name, AnchorOffsetSummary, Event, Output, TrackUpdate, Tracker};
 use rtls_engine::zones::{ZoneEvent, ZoneKind};
 use serde_json::Value;
 use tokio::sync::broadcast;
@@ -125,7 +125,8 @@ impl PartitionWorker {
             .offsets_posted
             .is_none_or(|at| at.elapsed() >= super::readers::OFFSET_PUBLISH_PERIOD);
         if self.offsets_dirty && due {
-            self.readers.learnt_offsets(self.index, self.tracker.range_offsets());
+            let summaries = AnchorOffsetSummary::by_anchor(&self.tracker.range_offsets());
+            self.readers.learnt_offsets(self.index, summaries);
             self.offsets_posted = Some(Instant::now());
             self.offsets_dirty = false;
         }

@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use rtls_engine::record::{Measurement, Record};
 use rtls_engine::site::Site;
-use rtls_engine::tracker::RangeOffset;
+use rtls_engine::tracker::AnchorOffsetSummary;
 use serde::Serialize;
 
 /// The window over which a reader's record rate is counted, ms.
@@ -31,40 +31,6 @@ pub const MIN_SILENCE_MS: i64 = 60_000;
 
 /// A partition posts its trackers' learnt range offsets at most this often.
 pub const OFFSET_PUBLISH_PERIOD: Duration = Duration::from_secs(1);
-
-/// What the tracks have learnt of one reader's range offset beyond the site's `bias_m`
-/// (`[tracker.range_bias]`), over the tags whose track learnt one. The offset a track learns
-/// is the anchor's and the tag's together (antenna delays), so the spread across tags is the
-/// tags' part and the mean is the anchor's best estimate.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct RangeOffsetSummary {
-    /// Tags whose track learnt an offset for the reader.
-    pub tags: usize,
-    /// Their mean, m: about what `radio.range.bias_m` needs on top of the site's value.
-    pub mean_m: f64,
-    /// The smallest, m.
-    pub min_m: f64,
-    /// The largest, m.
-    pub max_m: f64,
-    /// The mean of the tracks' standard deviations of their offsets, m.
-    pub mean_std_m: f64,
-}
-
-impl RangeOffsetSummary {
-    fn of(offsets: &[&RangeOffset]) -> Option<Self> {
-        if offsets.is_empty() {
-            return None;
-        }
-        let n = offsets.len() as f64;
-        Some(Self {
-            tags: offsets.len(),
-            mean_m: offsets.iter().map(|o| o.offset_m).sum::<f64>() / n,
-            min_m: offsets.iter().map(|o| o.offset_m).fold(f64::INFINITY, f64::min),
-            max_m: offsets.iter().map(|o| o.offset_m).fold(f64::NEG_INFINITY, f64::max),
-            mean_std_m: offsets.iter().map(|o| o.std_m).sum::<f64>() / n,
-        })
-    }
-}
 
 /// What the health of one reader looks like in `GET /api/v1/readers`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -86,7 +52,7 @@ pub struct ReaderHealth {
     pub status: &'static str,
     /// The range offset the tracks have learnt for it; `None` before any has (or with
     /// `[tracker.range_bias] enabled = false`, or for a reader that gives no ranges).
-    pub range_offset: Option<RangeOffsetSummary>,
+    pub range_offset: Option<AnchorOffsetSummary>,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -131,8 +97,8 @@ pub struct ReaderMonitor {
     site_readers: Vec<(String, Vec<f64>, bool)>,
     counters: RwLock<HashMap<String, Counter>>,
     started_ms: i64,
-    /// Each partition's trackers' learnt range offsets, as last posted.
-    offsets: RwLock<Vec<Vec<RangeOffset>>>,
+    /// Each partition's trackers' learnt range offsets, summarised per reader, as last posted.
+    offsets: RwLock<Vec<HashMap<String, AnchorOffsetSummary>>>,
 }
 
 impl ReaderMonitor {
@@ -151,22 +117,27 @@ impl ReaderMonitor {
         }
     }
 
-    /// Replaces what partition `partition` has learnt of the readers' range offsets.
-    pub fn learnt_offsets(&self, partition: usize, offsets: Vec<RangeOffset>) {
+    /// Replaces what partition `partition` has learnt of the readers' range offsets (its
+    /// tracker's offsets summarised per reader, [`AnchorOffsetSummary::by_anchor`]).
+    pub fn learnt_offsets(&self, partition: usize, summaries: Vec<AnchorOffsetSummary>) {
         let Ok(mut all) = self.offsets.write() else {
             return;
         };
         if all.len() <= partition {
-            all.resize_with(partition + 1, Vec::new);
+            all.resize_with(partition + 1, HashMap::new);
         }
-        all[partition] = offsets;
+        all[partition] = summaries.into_iter().map(|s| (s.anchor.clone(), s)).collect();
     }
 
-    /// The summary of the offsets learnt for `reader`.
-    fn offset_of(&self, reader: &str) -> Option<RangeOffsetSummary> {
+    /// The partitions' summaries of `reader` merged (each partition tracks its own tags).
+    fn offset_of(&self, reader: &str) -> Option<AnchorOffsetSummary> {
         let all = self.offsets.read().ok()?;
-        let learnt: Vec<&RangeOffset> = all.iter().flatten().filter(|o| o.anchor == reader).collect();
-        RangeOffsetSummary::of(&learnt)
+        let mut parts = all.iter().filter_map(|partition| partition.get(reader));
+        let mut merged = parts.next()?.clone();
+        for part in parts {
+            merged.merge(part);
+        }
+        Some(merged)
     }
 
     /// Notes the readers that accepted records name, received at `now_ms`.
