@@ -2,13 +2,13 @@
 //! initialising a tightly coupled track from its first readings.
 
 use nalgebra::SVector;
-use rtls_estimation::bias::BiasObservation;
 use rtls_estimation::Gaussian;
 
 use super::anchors::AnchorReading;
 use super::direct::apply_deferred;
 use super::gnss::close_due_gnss_epoch;
 use super::output::{epoch_raw_fix, Output};
+use super::range_bias::RoundReading;
 use super::solve::{solve_epoch, EpochFix};
 use super::track::{dimensions, rejected, Shared, Track};
 use super::update::{coupled_update, fix_update};
@@ -262,7 +262,7 @@ fn corrected_range<const N: usize>(
 /// their noise) against its accepted fix teach the
 /// track's offsets — one reading per anchor, residual `rᵢ − b̂ᵢ − ‖p − aᵢ‖`, gradient
 /// `(p − aᵢ)/‖p − aᵢ‖` (slant, at the tag's height in 2-D). The residuals of a least-squares
-/// fix are already the part no position error explains; [`BiasObservation`]'s projection and
+/// fix are already the part no position error explains; [`rtls_estimation::bias::BiasObservation`]'s projection and
 /// parity test apply as in the tightly coupled pipeline.
 fn learn_offsets<const N: usize>(
     shared: &Shared,
@@ -285,7 +285,7 @@ fn learn_offsets<const N: usize>(
         position[1],
         if dims == 3 { position[2] } else { shared.tag_height_m },
     ];
-    let mut round: Vec<(usize, BiasObservation)> = Vec::new();
+    let mut round: Vec<(usize, RoundReading)> = Vec::new();
     for (stated, corrected) in stated.iter().zip(corrected) {
         let (
             AnchorReading::Range {
@@ -312,13 +312,11 @@ fn learn_offsets<const N: usize>(
             gradient[axis] = delta[axis] / distance_m;
         }
         // the stated noise (the corrected reading's also holds the offset's variance)
-        let noise_m2 = variance_m2;
         round.push((
             anchor,
-            BiasObservation {
-                innovation: range_m - distance_m,
-                variance: noise_m2,
-                noise_variance: noise_m2,
+            RoundReading {
+                innovation_m: range_m - distance_m,
+                noise_variance_m2: variance_m2,
                 gradient,
             },
         ));

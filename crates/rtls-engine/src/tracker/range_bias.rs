@@ -8,11 +8,23 @@ use rtls_estimation::bias::{BiasModel, BiasObservation, BiasVector};
 /// projection removes must be the same for every reading of a round, s.
 const ROUND_WINDOW_S: f64 = 2.0;
 
+/// A reading's part in a learning round: what [`BiasObservation`] needs but its variance, which
+/// [`RangeBiases`] sets from the time since its last round.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct RoundReading {
+    /// `ν = r − b̂ − h(x)`: the offset-corrected range against the track's position, m.
+    pub(super) innovation_m: f64,
+    /// The reading's own noise variance (one look), m².
+    pub(super) noise_variance_m2: f64,
+    /// `∂h/∂p` at that position (unused components 0).
+    pub(super) gradient: [f64; 3],
+}
+
 /// One reading of the open round.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Pending {
     anchor: usize,
-    observation: BiasObservation,
+    reading: RoundReading,
     time_s: f64,
 }
 
@@ -53,7 +65,7 @@ impl RangeBiases {
         &mut self,
         model: &BiasModel,
         anchor: usize,
-        observation: BiasObservation,
+        reading: RoundReading,
         time_s: f64,
         dimensions: usize,
         correlation_s: f64,
@@ -66,7 +78,7 @@ impl RangeBiases {
         if self.wants(time_s, correlation_s) {
             self.round.push(Pending {
                 anchor,
-                observation,
+                reading,
                 time_s,
             });
         }
@@ -77,7 +89,7 @@ impl RangeBiases {
     pub(super) fn learn_epoch(
         &mut self,
         model: &BiasModel,
-        readings: &[(usize, BiasObservation)],
+        readings: &[(usize, RoundReading)],
         time_s: f64,
         dimensions: usize,
         correlation_s: f64,
@@ -88,9 +100,9 @@ impl RangeBiases {
         }
         self.round = readings
             .iter()
-            .map(|&(anchor, observation)| Pending {
+            .map(|&(anchor, reading)| Pending {
                 anchor,
-                observation,
+                reading,
                 time_s,
             })
             .collect();
@@ -131,8 +143,10 @@ impl RangeBiases {
             .round
             .iter()
             .map(|p| BiasObservation {
-                variance: inflation * p.observation.noise_variance,
-                ..p.observation
+                innovation: p.reading.innovation_m,
+                variance: inflation * p.reading.noise_variance_m2,
+                noise_variance: p.reading.noise_variance_m2,
+                gradient: p.reading.gradient,
             })
             .collect();
         self.last_learnt_s = Some(newest_s);

@@ -4,7 +4,6 @@
 use std::sync::Arc;
 
 use nalgebra::{DMatrix, DVector};
-use rtls_estimation::bias::BiasObservation;
 use rtls_estimation::filter::Updated;
 use rtls_estimation::imm::ImmState;
 use rtls_estimation::measurement::{ComponentSelection, MeasurementModel, NoiseCovariance};
@@ -16,6 +15,7 @@ use super::anchors::AnchorReading;
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::noise::{NoiseClass, Source};
 use super::output::{Event, Output, UpdateSource};
+use super::range_bias::RoundReading;
 use super::track::{dimensions, rejected, Shared, Track, ACCELERATION_HOLD_S};
 use crate::error::Result;
 use crate::lifecycle::{Lifecycle, TrackStatus};
@@ -572,20 +572,14 @@ pub(super) fn coupled_update<const N: usize>(
                         for (axis, g) in gradient.iter_mut().enumerate().take(dimensions::<N>()) {
                             *g = jacobian[(0, 2 * axis)];
                         }
-                        let observation = BiasObservation {
-                            innovation: updated.innovation[0],
-                            variance: reading_variance_m2 / inflation,
-                            noise_variance: reading_variance_m2 / inflation,
+                        let reading = RoundReading {
+                            innovation_m: updated.innovation[0],
+                            noise_variance_m2: reading_variance_m2 / inflation,
                             gradient,
                         };
-                        track.range_bias.observe(
-                            bias_model,
-                            anchor,
-                            observation,
-                            time_s,
-                            dimensions::<N>(),
-                            correlation_s,
-                        );
+                        track
+                            .range_bias
+                            .observe(bias_model, anchor, reading, time_s, dimensions::<N>(), correlation_s);
                     }
                 }
             }
