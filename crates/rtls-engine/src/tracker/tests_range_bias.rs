@@ -62,19 +62,22 @@ fn score(out: &Output, after_s: f64) -> (f64, f64) {
     ((squared / n).sqrt(), inside as f64 / n)
 }
 
+/// `records` tracked with the offsets learnt and with `range_bias` off: each run's RMSE and
+/// share inside the 95 % ellipse after 30 s.
+fn learnt_and_fixed(pipeline: &str, filter: &str, records: Vec<Record>) -> [(f64, f64); 2] {
+    ["", "range_bias = { enabled = false }"].map(|extra| {
+        let out = run(
+            &mut Tracker::new(&site(pipeline, filter, extra)).unwrap(),
+            records.clone(),
+        );
+        score(&out, 30.0)
+    })
+}
+
 #[test]
 fn unstated_range_offsets_are_learnt_and_the_ellipses_hold_the_truth() {
-    let records = biased_ranges(120.0, 7);
-    let learnt = run(
-        &mut Tracker::new(&site("tightly-coupled", "ekf", "")).unwrap(),
-        records.clone(),
-    );
-    let fixed = run(
-        &mut Tracker::new(&site("tightly-coupled", "ekf", "range_bias = { enabled = false }")).unwrap(),
-        records,
-    );
-    let (learnt_rmse, learnt_inside) = score(&learnt, 30.0);
-    let (fixed_rmse, fixed_inside) = score(&fixed, 30.0);
+    let [(learnt_rmse, learnt_inside), (fixed_rmse, fixed_inside)] =
+        learnt_and_fixed("tightly-coupled", "ekf", biased_ranges(120.0, 7));
     println!(
         "learnt: {learnt_rmse:.3} m, {:.1} %; fixed: {fixed_rmse:.3} m, {:.1} %",
         100.0 * learnt_inside,
@@ -99,16 +102,7 @@ fn fix_then_filter_learns_the_offsets_from_its_epochs() {
             record
         })
         .collect();
-    let learnt = run(
-        &mut Tracker::new(&site("fix-then-filter", "kf", "")).unwrap(),
-        records.clone(),
-    );
-    let fixed = run(
-        &mut Tracker::new(&site("fix-then-filter", "kf", "range_bias = { enabled = false }")).unwrap(),
-        records,
-    );
-    let (learnt_rmse, learnt_inside) = score(&learnt, 30.0);
-    let (fixed_rmse, _) = score(&fixed, 30.0);
+    let [(learnt_rmse, learnt_inside), (fixed_rmse, _)] = learnt_and_fixed("fix-then-filter", "kf", records);
     println!(
         "fix-then-filter learnt: {learnt_rmse:.3} m, {:.1} %; fixed: {fixed_rmse:.3} m",
         100.0 * learnt_inside
