@@ -154,7 +154,7 @@ pub struct Tuning {
     pub readers: Vec<ReaderCalibration>,
     /// Without truth: the factor `√λ̄` by which each measurement class's stated standard
     /// deviation should grow (≥ 1; 1 when the class was not seen or was consistent), from the
-    /// chosen candidate's mean adaptive noise scale.
+    /// run of the chosen `σ_a` and error-correlation settings (its mean adaptive noise scale).
     pub noise_std_factors: Vec<(NoiseClass, f64)>,
     /// The error-correlation settings chosen, and the runs that chose them.
     pub model: ModelChoice,
@@ -286,10 +286,15 @@ pub fn tune(
         reason: "gave no filter update on any candidate: nothing to tune on (check that the \
                  records' readers are in the site and that tracks start)",
     })?;
+    let mut acceleration_noise_std_mps2 = candidates[chosen].acceleration_noise_std_mps2;
+    site.tracker.acceleration_noise_std_mps2 = acceleration_noise_std_mps2;
+    let model = choose_model(&mut site, radio_map, records, truth, settings, &candidates[chosen])?;
+    // the noise excess as the chosen settings saw it
     let noise_std_factors = NoiseClass::ALL
         .iter()
         .map(|&class| {
-            let scale = candidates[chosen]
+            let scale = model.tried[model.chosen]
+                .1
                 .innovations
                 .of(class)
                 .mean_noise_scale()
@@ -297,9 +302,6 @@ pub fn tune(
             (class, scale.max(1.0).sqrt())
         })
         .collect();
-    let mut acceleration_noise_std_mps2 = candidates[chosen].acceleration_noise_std_mps2;
-    site.tracker.acceleration_noise_std_mps2 = acceleration_noise_std_mps2;
-    let model = choose_model(&mut site, radio_map, records, truth, settings, &candidates[chosen])?;
     let covariance = match truth {
         Some(_) => {
             let calibration = calibrate_covariance(
