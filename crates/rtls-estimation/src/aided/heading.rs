@@ -151,8 +151,7 @@ impl HeadingModel {
                 }
                 // ψ ← ψ + (ω − b_g) Δt
                 let mean = Vector3::new(wrap_angle(x[0] + (rate - x[1]) * dt), x[1], x[2]);
-                // F = [[1, −Δt, 0], [0, 1, 0], [0, 0, 1]]
-                let f = Matrix3::new(1.0, -dt, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+                let f = Self::transition(dt, true);
                 // Q_ψψ = σ_ω² Δt² + q_b Δt³/3, Q_ψb = −q_b Δt²/2, Q_bb = q_b Δt
                 let q = Matrix3::new(
                     variance * dt * dt + q_b * dt * dt * dt / 3.0,
@@ -171,7 +170,7 @@ impl HeadingModel {
                 // ψ a random walk: Q_ψψ = q_ψ Δt; the bias, unobserved, still wanders
                 let q_psi = self.heading_random_walk * self.heading_random_walk * dt;
                 let q = Matrix3::from_diagonal(&Vector3::new(q_psi, q_b * dt, q_delta));
-                (*x, Matrix3::identity(), q)
+                (*x, Self::transition(dt, false), q)
             }
         };
         // P ← F P Fᵀ + Q
@@ -179,6 +178,27 @@ impl HeadingModel {
         Ok(HeadingState {
             state: Gaussian::from_step(mean, covariance, time_s, "heading state")?,
         })
+    }
+
+    /// The state transition `F` of a prediction over `dt_s` (s): with a yaw rate held
+    /// (`rate_held`), `F = [[1, −Δt, 0], [0, 1, 0], [0, 0, 1]]` (the bias's error enters the
+    /// heading's); without one, `I`. Other filters whose errors are correlated with this
+    /// channel's carry their cross-covariance with it, `X ← X Fᵀ`.
+    ///
+    /// # Example
+    /// ```
+    /// use rtls_estimation::aided::HeadingModel;
+    /// let f = HeadingModel::transition(0.5, true);
+    /// assert_eq!(f[(0, 1)], -0.5);
+    /// ```
+    #[must_use]
+    pub fn transition(dt_s: f64, rate_held: bool) -> Matrix3<f64> {
+        if rate_held {
+            // F = [[1, −Δt, 0], [0, 1, 0], [0, 0, 1]]
+            Matrix3::new(1.0, -dt_s, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+        } else {
+            Matrix3::identity()
+        }
     }
 
     /// Updates with a heading reference `z = ψ + v` (compass, course over ground), variance

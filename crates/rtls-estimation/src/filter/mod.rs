@@ -10,6 +10,7 @@
 //! Predict-only steps (coasting through a coverage gap) are simply `predict` calls with no
 //! `update`; the covariance grows with the process noise.
 
+mod consider;
 mod cv_axes;
 mod ekf;
 mod gaussian_filter;
@@ -18,6 +19,7 @@ mod predict;
 mod ukf;
 mod update;
 
+pub use consider::{carry_cross_covariance, consider_update, ConsiderUpdated};
 pub use cv_axes::{CvAxis, DecoupledCvFilter, DecoupledCvState};
 pub use ekf::ExtendedKalmanFilter;
 pub use gaussian_filter::GaussianFilter;
