@@ -278,7 +278,16 @@ pub struct HeadingSettings {
     /// rad) 10 takes the track from 25 % to 74 % of truths inside its 95 % ellipse and from
     /// 0.176 to 0.149 m; on a simulated fast vehicle with fixes 2 s apart it costs accuracy
     /// (0.47 → 0.59 m at 1 s) for no gain in consistency, so it is a setting, not a default.
+    /// Used only where the heading's error is not considered (`consider_heading_error =
+    /// false`, or under the IMM).
     pub heading_error_correlation_s: f64,
+    /// Whether a speed's velocity takes the heading channel's error as one that persists
+    /// (Schmidt–Kalman: the track keeps its error's cross-covariance with the channel's, so
+    /// the shared error is not averaged away; [`crate::tracker`]'s consider module). Default
+    /// true. False: the heading's variance is fresh noise of each velocity (with
+    /// `heading_error_correlation_s` as the only allowance for its persistence). Under the IMM
+    /// the speeds are always taken the second way.
+    pub consider_heading_error: bool,
     /// Whether an IMU's horizontal specific force, rotated into the site frame by the heading,
     /// drives the prediction as a control input. Default false: an uncalibrated
     /// accelerometer's bias and tilt leak into velocity faster than the CV model's noise allows.
@@ -298,6 +307,7 @@ impl Default for HeadingSettings {
             course_min_speed_mps: 0.5,
             course_heading_std_rad: 0.05,
             heading_error_correlation_s: 0.0,
+            consider_heading_error: true,
             imu_acceleration: false,
         }
     }

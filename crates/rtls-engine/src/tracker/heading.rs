@@ -33,27 +33,32 @@
 //! # References
 //! Groves (2013) §14.1, §16.2; seed 004 (odometry with heading drift).
 
-use rtls_estimation::aided::{odometry_velocity, HeadingModel};
+use rtls_estimation::aided::{odometry_velocity, HeadingModel, HeadingState};
 
 use super::aided::HeldAcceleration;
+use super::consider;
 use super::heading_state::{
     COURSE_MIN_INTERVAL_S, COURSE_VARIANCE_INFLATION, GATE_SIGMAS, GRAVITY_MPS2, GRAVITY_TIME_CONSTANT_S,
     MAX_HEADING_STD_RAD, RATE_HOLD_S,
 };
 use super::output::Output;
 use super::track::{rejected, Shared, Track};
-use super::update::velocity_update;
+use super::update::{velocity_prior, velocity_update};
 use crate::error::Result;
 
 /// Predicts the channel to `time_s` with the held rate (a random walk without a recent one),
 /// starting it unaligned if it has no state.
 fn advance<const N: usize>(model: &HeadingModel, track: &mut Track<N>, time_s: f64) -> Result<()> {
-    let channel = &mut track.heading;
-    let state = match channel.state {
+    let state = match track.heading.state {
         Some(state) => state,
-        // ψ = 0 ± π: unaligned; the first reference sets it
-        None => model.start(time_s, 0.0, core::f64::consts::PI * core::f64::consts::PI)?,
+        None => {
+            // a new channel's error is not the one the track's state was correlated with
+            consider::forget(track);
+            // ψ = 0 ± π: unaligned; the first reference sets it
+            model.start(time_s, 0.0, core::f64::consts::PI * core::f64::consts::PI)?
+        }
     };
+    let channel = &mut track.heading;
     if time_s <= state.time_s() {
         channel.state = Some(state);
         return Ok(());
@@ -72,7 +77,16 @@ fn advance<const N: usize>(model: &HeadingModel, track: &mut Track<N>, time_s: f
         channel.integrated_rate_radps = corrected;
     }
     channel.state = Some(model.propagate(&state, time_s, rate)?);
+    // X ← X Φᵀ
+    consider::carry_heading_prediction(track, time_s - state.time_s(), rate.is_some());
     Ok(())
+}
+
+/// Takes the channel's update from `prior` to `posterior` into the track's cross-covariance
+/// with it ([`consider::carry_heading_update`]).
+fn set_updated<const N: usize>(track: &mut Track<N>, prior: &HeadingState, posterior: HeadingState) {
+    consider::carry_heading_update(track, prior.gaussian().covariance(), posterior.gaussian().covariance());
+    track.heading.state = Some(posterior);
 }
 
 /// Takes the course over ground, the direction of the chord between two positions after
@@ -112,7 +126,7 @@ fn observe_course<const N: usize>(shared: &Shared, model: &HeadingModel, track: 
     let turned = channel.integrated_rad - 0.5 * (start.integrated_rad + end.integrated_rad);
     let course = dy.atan2(dx) + turned;
     if let Some(updated) = model.observe_heading(&heading, course, variance, GATE_SIGMAS)? {
-        track.heading.state = Some(updated);
+        set_updated(track, &heading, updated);
         track.heading.course_times_s = (track.heading.course_times_s.1, Some(end.time_s));
     }
     // the next chord starts where this one ended: chords do not share information
@@ -227,7 +241,7 @@ pub(super) fn odometry<const N: usize>(
             .heading_model
             .observe_odometer_heading(&state, heading, variance, GATE_SIGMAS)?
         {
-            Some(updated) => track.heading.state = Some(updated),
+            Some(updated) => set_updated(track, &state, updated),
             None => {
                 let (psi, std) = (state.heading_rad(), state.heading_variance_rad2().sqrt());
                 let reason = format!(
@@ -283,6 +297,28 @@ fn speed_update<const N: usize>(
         .last_speed_s
         .replace(time_s)
         .map_or(f64::INFINITY, |previous_s| (time_s - previous_s).max(1e-3));
+    if shared.settings.heading.consider_heading_error && shared.manoeuvres.is_none() {
+        // the heading's error considered: the track keeps its cross-covariance with it
+        let Some(prior) = velocity_prior(shared, track, time_s, kind, out)? else {
+            return Ok(());
+        };
+        let Some(channel) = track.heading.state else {
+            return Ok(());
+        };
+        let covariance = *channel.gaussian().covariance();
+        return consider::speed_update(
+            shared,
+            track,
+            prior,
+            speed_mps,
+            speed_std_mps,
+            heading - lag_rad,
+            &covariance,
+            kind,
+            out,
+        )
+        .map(|_taken| ());
+    }
     let correlated = |tau_s: f64| (2.0 * tau_s / elapsed_s).max(1.0);
     let persists_s = track
         .heading

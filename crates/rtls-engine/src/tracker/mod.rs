@@ -139,6 +139,7 @@ mod alarms;
 mod anchors;
 mod anonymous;
 mod bounds;
+mod consider;
 mod constraint_model;
 mod constraints;
 mod construct;

@@ -17,6 +17,7 @@ use rtls_estimation::Gaussian;
 use super::aided::HeldAcceleration;
 use super::anchors::{AnchorReading, Anchors};
 use super::bounds::SiteBounds;
+use super::consider::HeadingCross;
 use super::constraint_model::{Constraints, Hearing};
 use super::gnss_state::GnssTrack;
 use super::heading_state::HeadingChannel;
@@ -121,6 +122,9 @@ pub(crate) struct Track<const N: usize> {
     pub(super) gated_updates: u32,
     /// Heading, gyro bias and odometer offset, for yaw rates, odometry and IMU samples.
     pub(super) heading: HeadingChannel,
+    /// The state's error's cross-covariance with the heading channel's, once a speed's
+    /// velocity has been taken with the heading's error considered ([`super::consider`]).
+    pub(super) heading_cross: Option<HeadingCross<N>>,
     /// The anchors' range offsets this track has learnt (tightly coupled).
     pub(super) range_bias: RangeBiases,
     /// GNSS: the open pseudorange epoch and the receiver clock filter.
@@ -159,6 +163,7 @@ impl<const N: usize> Track<N> {
             rejection_rate: 0.0,
             gated_updates: 0,
             heading: HeadingChannel::default(),
+            heading_cross: None,
             range_bias: RangeBiases::default(),
             gnss: GnssTrack::default(),
             hearing: Hearing::default(),

@@ -12,6 +12,7 @@ use rtls_estimation::{Gaussian, Matrix, Vector};
 use super::aided::AidedMotion;
 use super::alarms::position_of;
 use super::anchors::AnchorReading;
+use super::consider;
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::noise::{NoiseClass, Source};
 use super::output::{Event, Output, UpdateSource};
@@ -172,6 +173,7 @@ const REACQUIRE_MIN_UPDATES: u32 = 10;
 /// state, start over.
 pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.state = None;
+    consider::forget(track);
     track.modes = None;
     track.epoch.clear();
     track.noise = Default::default();
@@ -298,6 +300,7 @@ pub(super) fn start_from_fix<const N: usize>(
     }
     let position_m = position_of(&state, shared.tag_height_m).0;
     track.state = Some(state);
+    consider::forget(track);
     track.lost_state = None;
     track.unreported = Some(UpdateSource::Fix);
     match track.lifecycle.as_mut() {
@@ -374,7 +377,11 @@ pub(super) fn component_update<const N: usize>(
             track
                 .noise
                 .observe_correlation(shared.error_correlation.as_ref(), noise_source, &updated);
-            accept(shared, track, updated, modes, kind, source, out)
+            let taken = accept(shared, track, updated, modes, kind, source, out)?;
+            if taken {
+                carry_heading_cross(track, &prior.state)?;
+            }
+            Ok(taken)
         }
         Err(error) => {
             let reason = format!("{} update failed: {error}", source.name());
@@ -383,6 +390,37 @@ pub(super) fn component_update<const N: usize>(
             Ok(false)
         }
     }
+}
+
+/// After an update of the state that did not involve the heading, carries the state's
+/// cross-covariance with the heading channel's error (when it has one) from `prior` to the
+/// track's new state ([`consider::carry_position_update`]).
+fn carry_heading_cross<const N: usize>(track: &mut Track<N>, prior: &Gaussian<N>) -> Result<()> {
+    match track.state {
+        Some(posterior) => consider::carry_position_update(track, prior, &posterior),
+        None => Ok(()),
+    }
+}
+
+/// The track's prediction to `time_s` for a velocity; `None` (with a rejection) without a
+/// track or with a lost one.
+///
+/// # Errors
+/// Numerical failures of the prediction.
+pub(super) fn velocity_prior<const N: usize>(
+    shared: &Shared,
+    track: &Track<N>,
+    time_s: f64,
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<Option<Prior<N>>> {
+    let Some(state) = track.state.as_ref().filter(|_| !track.is_lost()) else {
+        let reason =
+            "no track (or a lost one): a velocity cannot start or recover it (it needs a position)".to_string();
+        out.events.push(rejected(&track.tag, time_s, kind, reason));
+        return Ok(None);
+    };
+    predict(shared, track, state, time_s).map(Some)
 }
 
 /// A velocity measurement of the first `k` axes.
@@ -395,14 +433,10 @@ pub(super) fn velocity_update<const N: usize>(
     kind: &'static str,
     out: &mut Output,
 ) -> Result<()> {
-    let Some(state) = track.state.as_ref().filter(|_| !track.is_lost()) else {
-        let reason =
-            "no track (or a lost one): a velocity cannot start or recover it (it needs a position)".to_string();
-        out.events.push(rejected(&track.tag, time_s, kind, reason));
+    let Some(prior) = velocity_prior(shared, track, time_s, kind, out)? else {
         return Ok(());
     };
     let indices: Vec<usize> = (0..velocity.len()).map(|i| 2 * i + 1).collect();
-    let prior = predict(shared, track, state, time_s)?;
     component_update(
         shared,
         track,
@@ -583,7 +617,11 @@ pub(super) fn coupled_update<const N: usize>(
                     }
                 }
             }
-            accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out).map(|_taken| ())
+            let prior_state = prior.state;
+            if accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)? {
+                carry_heading_cross(track, &prior_state)?;
+            }
+            Ok(())
         }
         Err(error) => {
             out.events.push(rejected(

@@ -24,7 +24,8 @@
 //!   against the truth.
 //! - The error-correlation settings (with or without truth, at the chosen `σ_a`):
 //!   `adaptive_noise.correlation_from_innovations` on and off and, when the recording has
-//!   speeds (odometry), `heading.heading_error_correlation_s` at 0 and
+//!   speeds (odometry) taken with the heading's variance as fresh noise (the IMM, or
+//!   `heading.consider_heading_error = false`), `heading.heading_error_correlation_s` at 0 and
 //!   [`HEADING_CORRELATION_CANDIDATE_S`]; the combination with the smallest RMSE (with truth)
 //!   or the largest innovation likelihood (without) is kept ([`ModelChoice`]). Whether a site's
 //!   errors persist is a property of its radios and its odometer, so it is fitted like the
@@ -349,7 +350,10 @@ fn choose_model(
             Measurement::Odometry { .. } | Measurement::OdometryIncrement { .. }
         )
     });
-    let headings = if has_speeds {
+    // with the heading's error considered (not under the IMM) the setting has no effect
+    let inflates_headings =
+        !site.tracker.heading.consider_heading_error || site.tracker.motion_model == crate::site::MotionModelKind::Imm;
+    let headings = if has_speeds && inflates_headings {
         let other = if own.heading_error_correlation_s > 0.0 {
             0.0
         } else {

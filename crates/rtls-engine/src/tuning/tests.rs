@@ -165,15 +165,22 @@ fn with_speeds_the_heading_error_correlation_is_tried_too() {
         acceleration_grid_mps2: vec![0.2],
         ..TuningSettings::default()
     };
+    let tried_in = |tuned: &Tuning| -> Vec<(bool, f64)> {
+        tuned
+            .model
+            .tried
+            .iter()
+            .map(|(s, _)| (s.correlation_from_innovations, s.heading_error_correlation_s))
+            .collect()
+    };
+    // with the heading's error considered (the default) the inflation has no effect: not tried
+    let considered = tune(&site, None, &records, Some(&truth), &settings).unwrap();
+    assert_eq!(tried_in(&considered), [(false, 0.0), (true, 0.0)]);
+    let mut site = site;
+    site.tracker.heading.consider_heading_error = false;
     let tuned = tune(&site, None, &records, Some(&truth), &settings).unwrap();
-    let tried: Vec<(bool, f64)> = tuned
-        .model
-        .tried
-        .iter()
-        .map(|(s, _)| (s.correlation_from_innovations, s.heading_error_correlation_s))
-        .collect();
     assert_eq!(
-        tried,
+        tried_in(&tuned),
         [
             (false, 0.0),
             (true, 0.0),

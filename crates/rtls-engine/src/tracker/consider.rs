@@ -1,0 +1,190 @@
+//! The heading channel's error considered in the position filter (Schmidt–Kalman, see
+//! [`rtls_estimation::filter::consider_update`]).
+//!
+//! A speed becomes a velocity along the channel's heading `ψ̂`, so every such velocity carries
+//! the channel's error `e_h = [e_ψ, e_b, e_δ]`, and that error persists from one speed to the
+//! next (an odometer's heading drifts, a gyro's integrated heading wanders). Taken as fresh
+//! noise of each velocity, it would be averaged away and the track would report ellipses far
+//! smaller than its error. Instead the track keeps `X = cov(eₓ, e_h)` (`N × 3`):
+//!
+//! ```text
+//! speed s ± σ_s along ψ̂:  z = s u(ψ̂) = H x + J e_h + w,  H = the velocity components,
+//!                          J = [s u⊥, 0, 0],  w ~ N(0, σ_s² u uᵀ),  u = (cos ψ̂, sin ψ̂),  u⊥ = (−sin ψ̂, cos ψ̂)
+//!                          the Schmidt–Kalman update with P_h, the channel's covariance
+//! position filter:         prediction X ← F X;  any other update X ← P⁺ (P⁻)⁻¹ X
+//! heading channel:         prediction X ← X Φᵀ;  update X ← X (P_h⁺ (P_h⁻)⁻¹)ᵀ
+//! ```
+//! The channel's own course references, made from the track's positions, are taken as
+//! independent of `X` (their variance is inflated for that instead, see [`super::heading`]).
+//! Under the IMM (`motion_model = "imm"`) the speeds are velocity updates with the heading's
+//! variance in `R`, as with `consider_heading_error = false`.
+//!
+//! # References
+//! Schmidt (1966); Simon (2006) §7.5; Groves (2013) §16.2 (odometry's heading error).
+
+use nalgebra::{DMatrix, DVector, Matrix3, SMatrix};
+use rtls_estimation::aided::HeadingModel;
+use rtls_estimation::filter::{carry_cross_covariance, consider_update};
+use rtls_estimation::measurement::MeasurementJacobian;
+use rtls_estimation::{Gaussian, Matrix};
+
+use super::noise::{NoiseClass, Source};
+use super::output::{Output, UpdateSource};
+use super::track::{dimensions, rejected, Shared, Track};
+use super::update::{accept, Prior};
+use crate::error::Result;
+
+/// `X = cov(eₓ, e_h)` at `time_s` (the position filter's side; the channel's side is always
+/// its current state).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct HeadingCross<const N: usize> {
+    time_s: f64,
+    cross: SMatrix<f64, N, 3>,
+}
+
+/// `F(Δt)` of the constant-velocity layout `[x, v_x, y, v_y, …]`: per axis `[[1, Δt], [0, 1]]`.
+fn cv_transition<const N: usize>(dt_s: f64) -> Matrix<N> {
+    let mut f = Matrix::<N>::identity();
+    for axis in 0..dimensions::<N>() {
+        f[(2 * axis, 2 * axis + 1)] = dt_s;
+    }
+    f
+}
+
+/// The cross-covariance predicted to `time_s`, `X ← F(Δt) X` (zero without one).
+fn cross_at<const N: usize>(track: &Track<N>, time_s: f64) -> SMatrix<f64, N, 3> {
+    track.heading_cross.map_or_else(SMatrix::zeros, |held| {
+        cv_transition::<N>((time_s - held.time_s).max(0.0)) * held.cross
+    })
+}
+
+/// After an update of the position filter from `prior` to `posterior` that did not involve
+/// the heading (a fix, a range): `X ← P⁺ (P⁻)⁻¹ F X`.
+///
+/// # Errors
+/// A prior covariance that is not positive definite; a non-finite result.
+pub(super) fn carry_position_update<const N: usize>(
+    track: &mut Track<N>,
+    prior: &Gaussian<N>,
+    posterior: &Gaussian<N>,
+) -> Result<()> {
+    if track.heading_cross.is_none() {
+        return Ok(());
+    }
+    let time_s = posterior.time_s();
+    let cross = carry_cross_covariance(prior.covariance(), posterior.covariance(), &cross_at(track, time_s))?;
+    track.heading_cross = Some(HeadingCross { time_s, cross });
+    Ok(())
+}
+
+/// After the heading channel predicted over `dt_s` (with a held yaw rate or not):
+/// `X ← X Φᵀ`.
+pub(super) fn carry_heading_prediction<const N: usize>(track: &mut Track<N>, dt_s: f64, rate_held: bool) {
+    if let Some(held) = track.heading_cross.as_mut() {
+        held.cross *= HeadingModel::transition(dt_s, rate_held).transpose();
+    }
+}
+
+/// After the heading channel's update from `prior` to `posterior` covariance:
+/// `X ← X (P_h⁺ (P_h⁻)⁻¹)ᵀ = X (P_h⁻)⁻¹ P_h⁺`. A prior that cannot be factorised forgets
+/// the correlation (the channel was reset).
+pub(super) fn carry_heading_update<const N: usize>(
+    track: &mut Track<N>,
+    prior: &Matrix3<f64>,
+    posterior: &Matrix3<f64>,
+) {
+    if let Some(held) = track.heading_cross.as_mut() {
+        match prior.cholesky() {
+            // X (P_h⁻)⁻¹ = ((P_h⁻)⁻¹ Xᵀ)ᵀ
+            Some(chol) => held.cross = chol.solve(&held.cross.transpose()).transpose() * posterior,
+            None => track.heading_cross = None,
+        }
+    }
+}
+
+/// Forgets the correlation (the track or the channel started again).
+pub(super) fn forget<const N: usize>(track: &mut Track<N>) {
+    track.heading_cross = None;
+}
+
+/// A speed `s ± σ_s` along `heading_rad` (the channel's `ψ̂`, turned back by an increment's
+/// lag) as a Schmidt–Kalman velocity update with the channel's covariance `P_h`
+/// (equations in the [module documentation](self)). Returns whether it was taken.
+///
+/// # Errors
+/// Numerical failures of the prediction or of the update's acceptance; a failed update itself
+/// is reported as a rejected record, not an error.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn speed_update<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    prior: Prior<N>,
+    speed_mps: f64,
+    speed_std_mps: f64,
+    heading_rad: f64,
+    heading_covariance: &Matrix3<f64>,
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<bool> {
+    let time_s = prior.state.time_s();
+    let (sin, cos) = heading_rad.sin_cos();
+    // z = s u,  u = (cos ψ̂, sin ψ̂)
+    let z = [speed_mps * cos, speed_mps * sin];
+    // H: the horizontal velocity components
+    let mut h = MeasurementJacobian::<N>::zeros(2);
+    h[(0, 1)] = 1.0;
+    h[(1, 3)] = 1.0;
+    // J = [s u⊥, 0, 0],  u⊥ = (−sin ψ̂, cos ψ̂)
+    let j = DMatrix::from_row_slice(2, 3, &[-speed_mps * sin, 0.0, 0.0, speed_mps * cos, 0.0, 0.0]);
+    // w ~ N(0, c λ σ_s² u uᵀ): the speed's own noise, inflated for its correlation in time (c)
+    // and scaled by the adaptive noise (λ) as every velocity is
+    let noise_source = Source {
+        class: NoiseClass::Velocity,
+        anchor: usize::MAX,
+    };
+    let inflation = track.noise.correlation_inflation(
+        noise_source,
+        time_s,
+        shared.settings.adaptive_noise.correlation_s,
+        shared.error_correlation.as_ref(),
+    );
+    let scale = track.noise.scale(NoiseClass::Velocity);
+    let speed_variance = inflation * speed_std_mps * speed_std_mps;
+    let uut = [cos * cos, cos * sin, cos * sin, sin * sin];
+    let r = DMatrix::from_iterator(2, 2, uut.iter().map(|c| scale * speed_variance * c));
+    // ν = z − H x⁻  (ê_h = 0: the channel's estimate is unbiased)
+    let innovation = DVector::from_column_slice(&z) - &h * prior.state.mean();
+    let cross = cross_at(track, time_s);
+    match consider_update(&prior.state, &cross, heading_covariance, &h, &j, &r, innovation) {
+        Ok(result) => {
+            let gate = shared.gates[1];
+            let updated = result.updated;
+            out.innovations.record(NoiseClass::Velocity, &updated, gate, scale);
+            // what the velocity's noise would be with the heading's error as fresh noise:
+            // the adaptive scale is learnt against it
+            let across = heading_covariance[(0, 0)] * speed_mps * speed_mps;
+            let stated: Vec<f64> = (0..4)
+                .map(|i| speed_variance * uut[i] + across * [sin * sin, -sin * cos, -sin * cos, cos * cos][i])
+                .collect();
+            track
+                .noise
+                .observe(shared.adaptive.as_ref(), NoiseClass::Velocity, &updated, &stated, gate);
+            track
+                .noise
+                .observe_correlation(shared.error_correlation.as_ref(), noise_source, &updated);
+            let taken = accept(shared, track, updated, None, kind, UpdateSource::Velocity, out)?;
+            if taken {
+                track.heading_cross = Some(HeadingCross {
+                    time_s,
+                    cross: result.cross_covariance,
+                });
+            }
+            Ok(taken)
+        }
+        Err(error) => {
+            let reason = format!("velocity update failed: {error}");
+            out.events.push(rejected(&track.tag, time_s, kind, reason));
+            Ok(false)
+        }
+    }
+}
