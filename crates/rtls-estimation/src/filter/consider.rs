@@ -43,8 +43,14 @@ pub struct ConsiderUpdated<const N: usize, const M: usize> {
     pub cross_covariance: SMatrix<f64, N, M>,
 }
 
-/// One Schmidt–Kalman update with innovation `ν = z − H x⁻` (equations in the
-/// [module documentation](self)).
+/// One Schmidt–Kalman update with innovation `ν = z − H x⁻`: for `z = H x + J p + w`, with
+/// `X = cov(eₓ, eₚ)` and `Pₚ = cov(eₚ)`,
+/// ```text
+/// S = H P Hᵀ + H X Jᵀ + J Xᵀ Hᵀ + J Pₚ Jᵀ + R,   K = (P Hᵀ + X Jᵀ) S⁻¹,   x̂ = x⁻ + K ν
+/// A = I − K H,   P = A P Aᵀ − A X Jᵀ Kᵀ − K J Xᵀ Aᵀ + K (J Pₚ Jᵀ + R) Kᵀ,   X ← A X − K J Pₚ
+/// ```
+/// (`p` itself is not updated; after other updates carry `X` with
+/// [`carry_cross_covariance`]).
 ///
 /// `h` is `m × N`, `j` is `m × M` (how the parameter enters the measurement), `r` is `m × m`.
 ///
