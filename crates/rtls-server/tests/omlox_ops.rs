@@ -186,6 +186,18 @@ async fn fences_trackables_and_providers_link_through_the_live_tracks() {
     assert_eq!(field.as_deref(), Some("spatial_query"));
     let reply = call(&app, Method::GET, "/v2/trackables/motions", None, "").await;
     assert_error(&reply, StatusCode::UNAUTHORIZED, "no token");
+
+    // a deleted location takes its provider out of the fence until its next update
+    let reply = call(&app, Method::DELETE, "/v2/providers/miner-7/location", Some(WRITE), "").await;
+    assert_eq!(reply.status, StatusCode::NO_CONTENT);
+    for query in ["", "?spatial_query=true"] {
+        let providers = get_json(&app, &format!("/v2/fences/forklift-lane/providers{query}")).await;
+        assert_eq!(providers, json!([]), "{query}");
+        assert_eq!(
+            get_json(&app, &format!("/v2/trackables/{loader}/fences{query}")).await,
+            json!([])
+        );
+    }
     state.pipeline.shutdown();
 }
 

@@ -45,7 +45,13 @@ fn fences_with_tags(state: &AppState, spatial: bool) -> Vec<(Fence, BTreeSet<Str
         });
         inside
     } else {
-        live.occupants()
+        // a tag whose latest location was deleted is not listed until its next update
+        let located: BTreeSet<String> = live.tags().into_keys().collect();
+        let mut occupants = live.occupants();
+        for tags in occupants.values_mut() {
+            tags.retain(|tag| located.contains(tag));
+        }
+        occupants
     };
     zones
         .iter()
