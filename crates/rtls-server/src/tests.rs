@@ -348,6 +348,7 @@ fn trackables_providers_and_zones_match_schema() {
         building: None,
         floor: Some(0.0),
         name: Some("mine".into()),
+        description: None,
         address: None,
         properties: None,
         wgs84_height: None,

@@ -436,6 +436,33 @@ impl FrameSettings {
             .ok()?;
         Some([at.longitude_deg, at.latitude_deg, at.height_m])
     }
+
+    /// The site position `[x, y, z]` (m) of a WGS-84 longitude, latitude (degrees) and
+    /// ellipsoidal height (m): the inverse of [`FrameSettings::wgs84_of`]. `None` for an
+    /// invalid geodetic position or origin.
+    ///
+    /// # Examples
+    /// ```
+    /// use rtls_engine::site::{FrameSettings, GeodeticOrigin};
+    /// let origin = GeodeticOrigin { latitude_deg: 47.3769, longitude_deg: 8.5417, height_m: 455.0 };
+    /// let frame = FrameSettings { origin, x_axis_bearing_deg: 90.0 };
+    /// let wgs84 = frame.wgs84_of([12.0, -7.0, 1.5]).unwrap();
+    /// let [x, y, z] = frame.site_of_wgs84(wgs84).unwrap();
+    /// assert!((x - 12.0).abs() < 1e-6 && (y + 7.0).abs() < 1e-6 && (z - 1.5).abs() < 1e-6);
+    /// ```
+    #[must_use]
+    pub fn site_of_wgs84(&self, wgs84: [f64; 3]) -> Option<[f64; 3]> {
+        let frame = self.local_frame().ok()?;
+        let ecef = rtls_positioning::gnss::Geodetic {
+            latitude_deg: wgs84[1],
+            longitude_deg: wgs84[0],
+            height_m: wgs84[2],
+        }
+        .to_ecef()
+        .ok()?;
+        let site = frame.enu_from_ecef(&ecef);
+        Some([site.x, site.y, site.z])
+    }
 }
 
 impl GeodeticOrigin {

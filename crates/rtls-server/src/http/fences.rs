@@ -166,6 +166,58 @@ pub(super) async fn delete(
     Ok(StatusCode::NO_CONTENT)
 }
 
+/// `DELETE /v2/fences`: deletes every fence (the site file's seed included: the empty set is
+/// stored and watched, also after a restart, until `DELETE /api/v1/zones/edits`); their
+/// occupants leave them without an exit event; 204.
+pub(super) async fn delete_all(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<StatusCode> {
+    let who = state.authorize(&headers, Access::Operate)?;
+    let live = std::sync::Arc::clone(state.pipeline.live());
+    let deleted = state
+        .query(move |store| {
+            let deleted = live.zones().len();
+            Ok(commit(store, &live, Vec::new()).map(|()| deleted))
+        })
+        .await??;
+    state
+        .audit(&who, "fences-deleted-all", &format!("{deleted} fences"))
+        .await;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// Creates `fence`, or replaces the fence with its id (its zone id stays), and hands the set
+/// to the running trackers; the fence as watched.
+///
+/// # Errors
+/// 400 naming the field of a bad fence; 503 when the store fails.
+pub(super) async fn upsert(state: &AppState, who: &crate::auth::Principal, fence: Fence) -> ApiResult<Fence> {
+    let site = std::sync::Arc::clone(&state.site);
+    let live = std::sync::Arc::clone(state.pipeline.live());
+    let stored = state
+        .query(move |store| {
+            let mut zones = live.zones().to_vec();
+            let index = zones.iter().position(|z| fence_from_zone(z).id == fence.id);
+            let zone_id = match index {
+                Some(index) => zones[index].id.clone(),
+                None => fence.foreign_id.clone().unwrap_or_else(|| fence.id.clone()),
+            };
+            let zone = match zone_from_fence(&fence, zone_id, &site) {
+                Ok(zone) => zone,
+                Err(e) => return Ok(Err(e)),
+            };
+            match index {
+                Some(index) => zones[index] = zone.clone(),
+                None if zones.iter().any(|z| z.id == zone.id) => {
+                    return Ok(Err(ApiError::field("id", "a fence with this zone id exists")))
+                }
+                None => zones.push(zone.clone()),
+            }
+            Ok(commit(store, &live, zones).map(|()| fence_from_zone(&zone)))
+        })
+        .await??;
+    state.audit(who, "fence-upserted", &stored.id).await;
+    Ok(stored)
+}
+
 /// `DELETE /api/v1/zones/edits`: forgets the edited zone set; the site file's zones are
 /// watched again (at once, and after a restart). 204.
 pub(super) async fn reset(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<StatusCode> {

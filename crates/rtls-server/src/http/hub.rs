@@ -1,5 +1,7 @@
-//! The omlox hub API under `/v2`: trackables and providers (stored configuration), the site as
-//! an omlox zone, location ingest and latest locations (fences are in `fences.rs`).
+//! The omlox hub API under `/v2`: trackables and providers (stored configuration), location
+//! ingest and latest locations, and the stored-configuration helpers the other omlox modules
+//! share (zones are in `zones.rs`, fences in `fences.rs`, the links between them in
+//! `relations.rs`, proximities in `proximity.rs`, sensor data in `sensors.rs`).
 
 use axum::body::Bytes;
 use axum::extract::{Path, State};
@@ -12,15 +14,15 @@ use serde_json::Value;
 
 use super::{parse_json, ApiError, ApiResult, AppState};
 use crate::auth::{Access, Principal};
-use crate::convert::{record_from_location, uuid_for};
+use crate::convert::record_from_location;
 use crate::omlox::ingest::parse_locations;
-use crate::omlox::{Location, LocationProvider, Trackable, Zone, ZoneType};
+use crate::omlox::{Location, LocationProvider, Trackable};
 use crate::pipeline::unix_s;
 use crate::ServerError;
 
 /// Stored configuration kinds.
 use super::TRACKABLE_CONFIG as TRACKABLE;
-const PROVIDER: &str = "provider";
+pub(super) const PROVIDER: &str = "provider";
 
 // ---- location ingest (PUT /v2/providers/locations, PUT /v2/providers/{id}/location) ----
 
@@ -60,7 +62,7 @@ pub(super) async fn put_provider_location(
     ingest_locations(&state, &locations).await
 }
 
-async fn ingest_locations(state: &AppState, locations: &[Location]) -> ApiResult<StatusCode> {
+pub(super) async fn ingest_locations(state: &AppState, locations: &[Location]) -> ApiResult<StatusCode> {
     let received_s = unix_s();
     let records = locations
         .iter()
@@ -73,7 +75,7 @@ async fn ingest_locations(state: &AppState, locations: &[Location]) -> ApiResult
 }
 
 /// The body as text, or a 400 naming the first bad byte.
-fn utf8(body: &[u8]) -> ApiResult<&str> {
+pub(super) fn utf8(body: &[u8]) -> ApiResult<&str> {
     std::str::from_utf8(body).map_err(|e| {
         ApiError::new(
             StatusCode::BAD_REQUEST,
@@ -83,7 +85,7 @@ fn utf8(body: &[u8]) -> ApiResult<&str> {
 }
 
 /// A conversion error as a 400, with its field path when it has one.
-fn server_error(error: ServerError) -> ApiError {
+pub(super) fn server_error(error: ServerError) -> ApiError {
     match error {
         ServerError::InvalidField { index, field, reason } => ApiError::field(format!("[{index}].{field}"), reason),
         other => ApiError::new(StatusCode::BAD_REQUEST, other.to_string()),
@@ -137,7 +139,7 @@ pub(super) async fn provider_summary(
 }
 
 /// Stored providers, then tracked tags that have none, by id.
-async fn providers(state: &AppState) -> ApiResult<Vec<LocationProvider>> {
+pub(super) async fn providers(state: &AppState) -> ApiResult<Vec<LocationProvider>> {
     let mut stored: Vec<LocationProvider> = list_stored(state, PROVIDER).await?;
     let known: std::collections::HashSet<String> = stored.iter().map(|p| p.id.clone()).collect();
     for tag in state.pipeline.live().tags().into_keys().filter(|t| !known.contains(t)) {
@@ -147,7 +149,7 @@ async fn providers(state: &AppState) -> ApiResult<Vec<LocationProvider>> {
     Ok(stored)
 }
 
-fn implicit_provider(tag: &str) -> LocationProvider {
+pub(super) fn implicit_provider(tag: &str) -> LocationProvider {
     LocationProvider {
         id: tag.to_string(),
         kind: crate::omlox::ProviderType::Unknown,
@@ -310,71 +312,105 @@ pub(super) async fn get_trackable_location(
     let trackable: Trackable = get_stored(&state, TRACKABLE, &trackable_id)
         .await?
         .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` not found")))?;
-    let live = state.pipeline.live();
-    trackable
-        .location_providers
-        .unwrap_or_default()
-        .iter()
-        .filter_map(|provider| live.tag(provider))
-        .max_by(|a, b| a.time_s.total_cmp(&b.time_s))
-        .map(|t| Json(Location::clone(&t.location)))
+    newest_location(&state, &trackable)
+        .map(Json)
         .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
 }
 
-// ---- zones (the site as one omlox zone; fences are in `fences.rs`) ----
-
-/// The site as one omlox zone (its local frame).
-fn site_zone(state: &AppState) -> Zone {
-    let name = state.site.name.clone().unwrap_or_else(|| "rtls".into());
-    Zone {
-        id: uuid_for("zone", &name),
-        kind: ZoneType::Uwb,
-        foreign_id: Some(name.clone()),
-        position: None,
-        radius: None,
-        ground_control_points: None,
-        incomplete_configuration: Some(true),
-        measurement_timestamp: None,
-        site: None,
-        building: None,
-        floor: None,
-        name: Some(name),
-        address: None,
-        properties: None,
-        wgs84_height: None,
-    }
+/// A trackable's location: the newest latest location among its providers, if any has one.
+pub(super) fn newest_location(state: &AppState, trackable: &Trackable) -> Option<Location> {
+    let live = state.pipeline.live();
+    trackable
+        .location_providers
+        .iter()
+        .flatten()
+        .filter_map(|provider| live.tag(provider))
+        .max_by(|a, b| a.time_s.total_cmp(&b.time_s))
+        .map(|t| Location::clone(&t.location))
 }
 
-/// `GET /v2/zones`.
-pub(super) async fn list_zones(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<String>>> {
-    state.authorize(&headers, Access::Read)?;
-    Ok(Json(vec![site_zone(&state).id]))
+/// A stored trackable, or a 404 naming it.
+pub(super) async fn stored_trackable(state: &AppState, trackable_id: &str) -> ApiResult<Trackable> {
+    get_stored(state, TRACKABLE, trackable_id)
+        .await?
+        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` not found")))
 }
 
-/// `GET /v2/zones/summary`.
-pub(super) async fn zone_summary(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Zone>>> {
-    state.authorize(&headers, Access::Read)?;
-    Ok(Json(vec![site_zone(&state)]))
+/// A provider: the stored one, else the implicit one of a tracked tag; `None` when neither.
+pub(super) async fn known_provider(state: &AppState, provider_id: &str) -> ApiResult<Option<LocationProvider>> {
+    Ok(
+        match get_stored::<LocationProvider>(state, PROVIDER, provider_id).await? {
+            Some(provider) => Some(provider),
+            None => state
+                .pipeline
+                .live()
+                .tag(provider_id)
+                .map(|_| implicit_provider(provider_id)),
+        },
+    )
 }
 
-/// `GET /v2/zones/{zone_id}`.
-pub(super) async fn get_zone(
+// ---- deleting everything of a kind, and latest locations ----
+
+/// `DELETE /v2/trackables`: deletes every stored trackable; 204.
+pub(super) async fn delete_all_trackables(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<StatusCode> {
+    let who = state.authorize(&headers, Access::Write)?;
+    delete_all(&state, &who, TRACKABLE).await
+}
+
+/// `DELETE /v2/providers`: deletes every stored provider and forgets every tag's latest
+/// location, so that `GET /v2/providers` is empty until a tag is tracked again (its tracks
+/// themselves go on: the next update lists the tag again); 204.
+pub(super) async fn delete_all_providers(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<StatusCode> {
+    let who = state.authorize(&headers, Access::Write)?;
+    forget_locations(&state);
+    delete_all(&state, &who, PROVIDER).await
+}
+
+/// `DELETE /v2/providers/locations`: forgets every tag's latest location (listed again at its
+/// track's next update); stored providers stay; 204.
+pub(super) async fn delete_locations(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<StatusCode> {
+    let who = state.authorize(&headers, Access::Write)?;
+    let forgotten = forget_locations(&state);
+    state
+        .audit(&who, "locations-deleted", &format!("{forgotten} latest locations"))
+        .await;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// `DELETE /v2/providers/{provider_id}/location`: forgets a tag's latest location (it comes
+/// back at its track's next update); 204, or 404 when it has none.
+pub(super) async fn delete_provider_location(
     State(state): State<AppState>,
-    Path(zone_id): Path<String>,
+    Path(provider_id): Path<String>,
     headers: HeaderMap,
-) -> ApiResult<Json<Zone>> {
-    state.authorize(&headers, Access::Read)?;
-    let zone = site_zone(&state);
-    if zone.id == zone_id {
-        Ok(Json(zone))
-    } else {
-        Err(ApiError::not_found(format!("zone `{zone_id}` not found")))
+) -> ApiResult<StatusCode> {
+    let who = state.authorize(&headers, Access::Write)?;
+    let live = state.pipeline.live();
+    if live.tag(&provider_id).is_none() {
+        return Err(ApiError::not_found(format!("provider `{provider_id}` has no location")));
     }
+    live.remove_tag(&provider_id);
+    state.audit(&who, "location-deleted", &provider_id).await;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// Forgets every tag's latest location; how many.
+fn forget_locations(state: &AppState) -> usize {
+    let live = state.pipeline.live();
+    let tags: Vec<String> = live.tags().into_keys().collect();
+    for tag in &tags {
+        live.remove_tag(tag);
+    }
+    tags.len()
 }
 
 // ---- stored configuration helpers ----
 
-async fn list_stored<T: DeserializeOwned + Send + 'static>(state: &AppState, kind: &'static str) -> ApiResult<Vec<T>> {
+pub(super) async fn list_stored<T: DeserializeOwned + Send + 'static>(
+    state: &AppState,
+    kind: &'static str,
+) -> ApiResult<Vec<T>> {
     let rows = state.query(move |store| store.list_config(kind)).await?;
     rows.into_iter()
         .map(|(id, json)| {
@@ -388,7 +424,7 @@ async fn list_stored<T: DeserializeOwned + Send + 'static>(state: &AppState, kin
         .collect()
 }
 
-async fn get_stored<T: DeserializeOwned + Send + 'static>(
+pub(super) async fn get_stored<T: DeserializeOwned + Send + 'static>(
     state: &AppState,
     kind: &'static str,
     id: &str,
@@ -406,7 +442,7 @@ async fn get_stored<T: DeserializeOwned + Send + 'static>(
     .transpose()
 }
 
-async fn create<T: Serialize>(
+pub(super) async fn create<T: Serialize>(
     state: &AppState,
     who: &Principal,
     kind: &'static str,
@@ -434,7 +470,7 @@ async fn create<T: Serialize>(
     Ok((StatusCode::CREATED, Json(body)).into_response())
 }
 
-async fn replace<T: Serialize>(
+pub(super) async fn replace<T: Serialize>(
     state: &AppState,
     who: &Principal,
     kind: &'static str,
@@ -449,7 +485,24 @@ async fn replace<T: Serialize>(
     Ok(StatusCode::NO_CONTENT)
 }
 
-async fn delete(state: &AppState, who: &Principal, kind: &'static str, id: String) -> ApiResult<StatusCode> {
+/// Deletes every stored object of `kind` in one call under the query connection's lock; 204.
+pub(super) async fn delete_all(state: &AppState, who: &Principal, kind: &'static str) -> ApiResult<StatusCode> {
+    let deleted = state
+        .query(move |store| {
+            let ids: Vec<String> = store.list_config(kind)?.into_iter().map(|(id, _)| id).collect();
+            for id in &ids {
+                store.delete_config(kind, id)?;
+            }
+            Ok(ids.len())
+        })
+        .await?;
+    state
+        .audit(who, &format!("{kind}-deleted-all"), &format!("{deleted} {kind}s"))
+        .await;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+pub(super) async fn delete(state: &AppState, who: &Principal, kind: &'static str, id: String) -> ApiResult<StatusCode> {
     let key = id.clone();
     if state.query(move |store| store.delete_config(kind, &key)).await? {
         state.audit(who, &format!("{kind}-deleted"), &id).await;

@@ -16,9 +16,15 @@ mod muster;
 mod ops;
 pub mod plans;
 pub mod positions;
+mod proximity;
 pub mod rate;
+mod relations;
+mod sensors;
 pub mod tokens;
+mod v2;
 mod ws;
+mod zone_frame;
+mod zones;
 
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -27,7 +33,7 @@ use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
-use axum::routing::{delete, get, post, put};
+use axum::routing::{delete, get, post};
 use axum::{Json, Router};
 use rtls_engine::site::Site;
 use serde::de::DeserializeOwned;
@@ -364,49 +370,9 @@ pub fn router(state: AppState) -> Router {
         .route("/api/v1/events", get(api::events))
         .route("/api/v1/zones/head-counts", get(api::head_counts))
         .route("/api/v1/zones.geojson", get(api::zones_geojson))
-        .route(
-            "/v2/providers/locations",
-            put(hub::put_locations).get(hub::get_locations),
-        )
-        .route(
-            "/v2/providers/{provider_id}/location",
-            put(hub::put_provider_location).get(hub::get_provider_location),
-        )
-        .route("/v2/providers", get(hub::list_providers).post(hub::create_provider))
-        .route("/v2/providers/summary", get(hub::provider_summary))
-        .route(
-            "/v2/providers/{provider_id}",
-            get(hub::get_provider)
-                .put(hub::put_provider)
-                .delete(hub::delete_provider),
-        )
-        .route("/v2/trackables", get(hub::list_trackables).post(hub::create_trackable))
-        .route("/v2/trackables/summary", get(hub::trackable_summary))
-        .route(
-            "/v2/trackables/{trackable_id}",
-            get(hub::get_trackable)
-                .put(hub::put_trackable)
-                .delete(hub::delete_trackable),
-        )
-        .route(
-            "/v2/trackables/{trackable_id}/location",
-            get(hub::get_trackable_location),
-        )
-        .route("/v2/zones", get(hub::list_zones))
-        .route("/v2/zones/summary", get(hub::zone_summary))
-        .route("/v2/zones/{zone_id}", get(hub::get_zone))
-        .route("/v2/fences", get(fences::list).post(fences::create))
-        .route("/v2/fences/summary", get(fences::summary))
-        .route(
-            "/v2/fences/{fence_id}",
-            get(fences::get).put(fences::replace).delete(fences::delete),
-        )
         .route("/api/v1/zones/edits", delete(fences::reset))
         .route("/v2/ws/socket", get(ws::socket))
-        // operations of the omlox hub API this hub does not provide yet, routed here so that
-        // `{provider_id}` / `{trackable_id}` do not take them for ids
-        .route("/v2/providers/proximities", put(not_provided).get(not_provided))
-        .route("/v2/trackables/motions", get(not_provided))
+        .merge(v2::routes())
         .fallback(unknown_route)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
@@ -449,7 +415,7 @@ async fn authorize_writes_first(State(state): State<AppState>, request: Request,
     let reads = matches!(
         *request.method(),
         axum::http::Method::GET | axum::http::Method::HEAD | axum::http::Method::OPTIONS
-    );
+    ) || is_zone_transform(request.uri().path());
     if !reads {
         // a credential that may change something (the handler checks what exactly)
         let may_change = state
@@ -465,6 +431,21 @@ async fn authorize_writes_first(State(state): State<AppState>, request: Request,
         }
     }
     next.run(request).await
+}
+
+/// Whether a path is `PUT /v2/zones/{zone_id}/transform`'s: a computation that changes
+/// nothing, so a viewer's token may send it (its body is small).
+fn is_zone_transform(path: &str) -> bool {
+    path.strip_prefix("/v2/zones/")
+        .and_then(|rest| rest.strip_suffix("/transform"))
+        .is_some_and(|zone_id| !zone_id.is_empty() && !zone_id.contains('/'))
+}
+
+/// The first value of the query parameter `name` in a raw query string (percent-decoded).
+pub(crate) fn query_value(query: Option<&str>, name: &str) -> Option<String> {
+    url::form_urlencoded::parse(query?.as_bytes())
+        .find(|(key, _)| key == name)
+        .map(|(_, value)| value.into_owned())
 }
 
 /// Counts requests by route and status class, and logs failures.
@@ -504,14 +485,6 @@ async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) ->
     ApiError::new(
         StatusCode::METHOD_NOT_ALLOWED,
         format!("{} does not take {method}", uri.path()),
-    )
-}
-
-/// An omlox hub operation this hub does not provide yet: 501 with an omlox `Error` object.
-async fn not_provided(method: axum::http::Method, uri: axum::http::Uri) -> ApiError {
-    ApiError::new(
-        StatusCode::NOT_IMPLEMENTED,
-        format!("{method} {} is not provided by this hub yet", uri.path()),
     )
 }
 

@@ -3,7 +3,8 @@
 //! `Option` and left out when `None`.
 //!
 //! - [`Location`], [`Point`], [`Polygon`], [`Region`] — positions and geometries (GeoJSON).
-//! - [`Trackable`], [`LocationProvider`], [`Zone`], [`Fence`], [`FenceEvent`].
+//! - [`Trackable`], [`LocationProvider`], [`Zone`], [`Fence`], [`FenceEvent`],
+//!   [`TrackableMotion`], [`Proximity`], [`SimpleTransform`].
 //! - [`ws`] — WebSocket messages, topics and error codes.
 //! - [`time`] — ISO 8601 UTC timestamps ↔ seconds since the Unix epoch.
 //! - [`ingest`] — field-level validation of the `PUT /v2/providers/locations` body.
@@ -299,6 +300,9 @@ pub struct Zone {
     /// Name.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
+    /// What the zone is for.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
     /// Address.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub address: Option<String>,
@@ -401,4 +405,70 @@ pub struct FenceEvent {
     /// Properties copied from the fence.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub properties: Option<Properties>,
+}
+
+/// A trackable's position and shape (`#/components/schemas/TrackableMotion`): its newest
+/// location (with our track's `speed`, m/s, and `course`, degrees clockwise from north) and
+/// its geometry, name and properties copied from the [`Trackable`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackableMotion {
+    /// The trackable's UUID.
+    pub id: String,
+    /// The trackable's newest location.
+    pub location: Location,
+    /// The trackable's name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Extrusion of the geometry, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub extrusion: Option<f64>,
+    /// The trackable's outline.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geometry: Option<Polygon>,
+    /// The trackable's properties.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub properties: Option<Properties>,
+}
+
+/// A provider seen by a proximity system (`#/components/schemas/Proximity`): an RFID reader
+/// or iBeacon, named by `source` (an omlox zone's id or foreign id), heard the provider.
+///
+/// # Units
+/// `accuracy` m (the estimated distance to the emitter), timestamps ISO 8601 UTC.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Proximity {
+    /// The proximity system's zone id or foreign id.
+    pub source: String,
+    /// `rfid`, `ibeacon`, `virtual` or `unknown`.
+    pub provider_type: ProviderType,
+    /// The provider's id (e.g. an RFID tag's UID).
+    pub provider_id: String,
+    /// When the proximity was detected (ISO 8601 UTC).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timestamp_generated: Option<String>,
+    /// When it was sent (ISO 8601 UTC).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timestamp_sent: Option<String>,
+    /// Estimated distance to the emitter, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accuracy: Option<f64>,
+    /// Application properties.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub properties: Option<Properties>,
+}
+
+/// A position to transform with a zone (`#/components/schemas/SimpleTransform`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimpleTransform {
+    /// The position: `[x, y(, z)]` m (`local`) or `[longitude, latitude(, height)]` (`EPSG:4326`).
+    pub position: Point,
+    /// The zone used for the transformation (set in the answer).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<String>,
+    /// `local` (the default) or `EPSG:4326`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crs: Option<String>,
 }

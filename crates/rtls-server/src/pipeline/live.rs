@@ -233,7 +233,10 @@ impl LiveState {
         }
     }
 
-    pub(super) fn remove_tag(&self, tag: &str) {
+    /// Forgets a tag's latest state (its track was deleted, or a client deleted its omlox
+    /// location): it is listed again at its track's next update. Its last known position
+    /// stays for the muster board, marked lost.
+    pub fn remove_tag(&self, tag: &str) {
         if let Ok(mut seen) = self.last_seen.write() {
             if let Some(last) = seen.get_mut(tag) {
                 last.lost = true;

@@ -1,0 +1,285 @@
+//! The omlox links between providers, trackables and fences, and trackable motions — computed
+//! at each request from the live state (every tag's latest location) and the fences the
+//! trackers watch now.
+//!
+//! "Inside a fence" is, by default, what the trackers consider inside: the confirmed entries
+//! of the zone monitors (an entry event was sent and no exit since; this follows the zones'
+//! anti-flap settings). With `?spatial_query=true` it is the geometry alone: the tag's latest
+//! location lies in the fence's region (and height range). A provider is a tag (its id is the
+//! tag's); a trackable is inside a fence when one of its `location_providers` is.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+
+use axum::extract::{Path, RawQuery, State};
+use axum::http::HeaderMap;
+use axum::Json;
+
+use super::hub::{implicit_provider, known_provider, list_stored, newest_location, stored_trackable, PROVIDER};
+use super::{query_value, ApiError, ApiResult, AppState, TRACKABLE_CONFIG};
+use crate::auth::Access;
+use crate::convert::fence_from_zone;
+use crate::omlox::{Fence, Location, LocationProvider, Trackable, TrackableMotion};
+
+/// `spatial_query` of a query string: `true` / `false` (default `false`).
+fn spatial_query(query: Option<&str>) -> ApiResult<bool> {
+    match query_value(query, "spatial_query").as_deref() {
+        None | Some("false") => Ok(false),
+        Some("true") => Ok(true),
+        Some(other) => Err(ApiError::field(
+            "spatial_query",
+            format!("`{other}` is not true or false"),
+        )),
+    }
+}
+
+/// Every fence the trackers watch, with the tags inside it (see the module documentation).
+fn fences_with_tags(state: &AppState, spatial: bool) -> Vec<(Fence, BTreeSet<String>)> {
+    let live = state.pipeline.live();
+    let zones = live.zones();
+    let mut occupants = if spatial {
+        let mut inside: BTreeMap<String, Vec<String>> = BTreeMap::new();
+        live.for_each_tag(|tag, tag_state| {
+            for zone in zones.iter().filter(|z| z.contains(tag_state.position_m)) {
+                inside.entry(zone.id.clone()).or_default().push(tag.to_string());
+            }
+        });
+        inside
+    } else {
+        // a tag whose latest location was deleted is not listed until its next update
+        let located: BTreeSet<String> = live.tags().into_keys().collect();
+        let mut occupants = live.occupants();
+        for tags in occupants.values_mut() {
+            tags.retain(|tag| located.contains(tag));
+        }
+        occupants
+    };
+    zones
+        .iter()
+        .map(|zone| {
+            let tags = occupants.remove(&zone.id).unwrap_or_default().into_iter().collect();
+            (fence_from_zone(zone), tags)
+        })
+        .collect()
+}
+
+/// The fence with this id (or zone id, `foreign_id`) and the tags inside it, or a 404.
+fn fence_with_tags(state: &AppState, fence_id: &str, spatial: bool) -> ApiResult<(Fence, BTreeSet<String>)> {
+    fences_with_tags(state, spatial)
+        .into_iter()
+        .find(|(f, _)| f.id == fence_id || f.foreign_id.as_deref() == Some(fence_id))
+        .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))
+}
+
+/// The fences one of `tags` is inside, in the fence list's order.
+fn fences_of(state: &AppState, tags: &[String], spatial: bool) -> Vec<Fence> {
+    fences_with_tags(state, spatial)
+        .into_iter()
+        .filter(|(_, inside)| tags.iter().any(|t| inside.contains(t)))
+        .map(|(fence, _)| fence)
+        .collect()
+}
+
+/// A trackable's motion: its newest location and its shape; `None` without a location.
+fn motion(state: &AppState, trackable: &Trackable) -> Option<TrackableMotion> {
+    Some(TrackableMotion {
+        id: trackable.id.clone(),
+        location: newest_location(state, trackable)?,
+        name: trackable.name.clone(),
+        extrusion: trackable.extrusion,
+        geometry: trackable.geometry.clone(),
+        properties: trackable.properties.clone(),
+    })
+}
+
+/// The stored trackables with one of `tags` among their providers.
+async fn trackables_with(state: &AppState, tags: &BTreeSet<String>) -> ApiResult<Vec<Trackable>> {
+    let trackables: Vec<Trackable> = list_stored(state, TRACKABLE_CONFIG).await?;
+    Ok(trackables
+        .into_iter()
+        .filter(|t| t.location_providers.iter().flatten().any(|p| tags.contains(p)))
+        .collect())
+}
+
+/// Providers by id: the stored one, else the implicit one of the tag.
+async fn providers_by_id(state: &AppState, ids: impl IntoIterator<Item = String>) -> ApiResult<Vec<LocationProvider>> {
+    let mut stored: HashMap<String, LocationProvider> = list_stored::<LocationProvider>(state, PROVIDER)
+        .await?
+        .into_iter()
+        .map(|p| (p.id.clone(), p))
+        .collect();
+    Ok(ids
+        .into_iter()
+        .map(|id| stored.remove(&id).unwrap_or_else(|| implicit_provider(&id)))
+        .collect())
+}
+
+// ---- providers ----
+
+/// `GET /v2/providers/{provider_id}/fences`: the fences the provider is inside; 404 for an
+/// unknown provider (neither stored nor tracked).
+pub(super) async fn provider_fences(
+    State(state): State<AppState>,
+    Path(provider_id): Path<String>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<Fence>>> {
+    state.authorize(&headers, Access::Read)?;
+    let spatial = spatial_query(query.as_deref())?;
+    if known_provider(&state, &provider_id).await?.is_none() {
+        return Err(ApiError::not_found(format!("provider `{provider_id}` not found")));
+    }
+    Ok(Json(fences_of(&state, &[provider_id], spatial)))
+}
+
+/// `GET /v2/providers/{provider_id}/trackables`: the stored trackables the provider is
+/// assigned to; 404 when the provider is neither stored, tracked nor assigned.
+pub(super) async fn provider_trackables(
+    State(state): State<AppState>,
+    Path(provider_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<Trackable>>> {
+    state.authorize(&headers, Access::Read)?;
+    let trackables = trackables_with(&state, &BTreeSet::from([provider_id.clone()])).await?;
+    if trackables.is_empty() && known_provider(&state, &provider_id).await?.is_none() {
+        return Err(ApiError::not_found(format!("provider `{provider_id}` not found")));
+    }
+    Ok(Json(trackables))
+}
+
+// ---- trackables ----
+
+/// `GET /v2/trackables/{trackable_id}/fences`: the fences one of its providers is inside;
+/// 404 for an unknown trackable.
+pub(super) async fn trackable_fences(
+    State(state): State<AppState>,
+    Path(trackable_id): Path<String>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<Fence>>> {
+    state.authorize(&headers, Access::Read)?;
+    let spatial = spatial_query(query.as_deref())?;
+    let trackable = stored_trackable(&state, &trackable_id).await?;
+    let providers = trackable.location_providers.unwrap_or_default();
+    Ok(Json(fences_of(&state, &providers, spatial)))
+}
+
+/// `GET /v2/trackables/{trackable_id}/locations`: the latest location of each of its
+/// providers that has one, in the order of `location_providers`; 404 for an unknown trackable.
+pub(super) async fn trackable_locations(
+    State(state): State<AppState>,
+    Path(trackable_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<Location>>> {
+    state.authorize(&headers, Access::Read)?;
+    let trackable = stored_trackable(&state, &trackable_id).await?;
+    let live = state.pipeline.live();
+    Ok(Json(
+        trackable
+            .location_providers
+            .iter()
+            .flatten()
+            .filter_map(|p| live.tag(p))
+            .map(|t| Location::clone(&t.location))
+            .collect(),
+    ))
+}
+
+/// `GET /v2/trackables/{trackable_id}/providers`: its `location_providers` as objects (the
+/// stored provider, else an implicit one of type `unknown`); 404 for an unknown trackable.
+pub(super) async fn trackable_providers(
+    State(state): State<AppState>,
+    Path(trackable_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<LocationProvider>>> {
+    state.authorize(&headers, Access::Read)?;
+    let trackable = stored_trackable(&state, &trackable_id).await?;
+    Ok(Json(
+        providers_by_id(&state, trackable.location_providers.unwrap_or_default()).await?,
+    ))
+}
+
+/// `GET /v2/trackables/{trackable_id}/motion`: its motion — the newest location among its
+/// providers (with our track's `speed`, m/s, and `course`, degrees from north) and its name,
+/// geometry, extrusion and properties; 404 for an unknown trackable or one without a location.
+pub(super) async fn trackable_motion(
+    State(state): State<AppState>,
+    Path(trackable_id): Path<String>,
+    headers: HeaderMap,
+) -> ApiResult<Json<TrackableMotion>> {
+    state.authorize(&headers, Access::Read)?;
+    let trackable = stored_trackable(&state, &trackable_id).await?;
+    motion(&state, &trackable)
+        .map(Json)
+        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
+}
+
+/// `GET /v2/trackables/motions`: the motion of every stored trackable that has a location.
+pub(super) async fn trackable_motions(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<TrackableMotion>>> {
+    state.authorize(&headers, Access::Read)?;
+    let trackables: Vec<Trackable> = list_stored(&state, TRACKABLE_CONFIG).await?;
+    Ok(Json(trackables.iter().filter_map(|t| motion(&state, t)).collect()))
+}
+
+// ---- fences ----
+
+/// `GET /v2/fences/{fence_id}/locations`: the latest locations of the providers inside the
+/// fence; 404 for an unknown fence.
+pub(super) async fn fence_locations(
+    State(state): State<AppState>,
+    Path(fence_id): Path<String>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<Location>>> {
+    state.authorize(&headers, Access::Read)?;
+    let (_, tags) = fence_with_tags(&state, &fence_id, spatial_query(query.as_deref())?)?;
+    let live = state.pipeline.live();
+    Ok(Json(
+        tags.iter()
+            .filter_map(|t| live.tag(t))
+            .map(|t| Location::clone(&t.location))
+            .collect(),
+    ))
+}
+
+/// `GET /v2/fences/{fence_id}/providers`: the providers inside the fence; 404 for an unknown
+/// fence.
+pub(super) async fn fence_providers(
+    State(state): State<AppState>,
+    Path(fence_id): Path<String>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<LocationProvider>>> {
+    state.authorize(&headers, Access::Read)?;
+    let (_, tags) = fence_with_tags(&state, &fence_id, spatial_query(query.as_deref())?)?;
+    Ok(Json(providers_by_id(&state, tags).await?))
+}
+
+/// `GET /v2/fences/{fence_id}/trackables`: the stored trackables with a provider inside the
+/// fence; 404 for an unknown fence.
+pub(super) async fn fence_trackables(
+    State(state): State<AppState>,
+    Path(fence_id): Path<String>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<Trackable>>> {
+    state.authorize(&headers, Access::Read)?;
+    let (_, tags) = fence_with_tags(&state, &fence_id, spatial_query(query.as_deref())?)?;
+    Ok(Json(trackables_with(&state, &tags).await?))
+}
+
+/// `GET /v2/fences/{fence_id}/motions`: the motions of the trackables inside the fence; 404
+/// for an unknown fence.
+pub(super) async fn fence_motions(
+    State(state): State<AppState>,
+    Path(fence_id): Path<String>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<TrackableMotion>>> {
+    state.authorize(&headers, Access::Read)?;
+    let (_, tags) = fence_with_tags(&state, &fence_id, spatial_query(query.as_deref())?)?;
+    let trackables = trackables_with(&state, &tags).await?;
+    Ok(Json(trackables.iter().filter_map(|t| motion(&state, t)).collect()))
+}
