@@ -12,7 +12,7 @@
 //!                          J = [s u⊥, 0, 0],  w ~ N(0, σ_s² u uᵀ),  u = (cos ψ̂, sin ψ̂),  u⊥ = (−sin ψ̂, cos ψ̂)
 //!                          the Schmidt–Kalman update with P_h, the channel's covariance
 //! position filter:         prediction X ← F X;  any other update X ← P⁺ (P⁻)⁻¹ X
-//! heading channel:         prediction X ← X Φᵀ;  update X ← X (P_h⁺ (P_h⁻)⁻¹)ᵀ
+//! heading channel:         prediction X ← X Φᵀ;  update X ← X (P_h⁺ (P_h⁻)⁻¹)ᵀ  (super::heading_cross)
 //! ```
 //! The channel's own course references, made from the track's positions, are taken as
 //! independent of `X` (their variance is inflated for that instead, see [`super::heading`]).
@@ -22,90 +22,16 @@
 //! # References
 //! Schmidt (1966); Simon (2006) §7.5; Groves (2013) §16.2 (odometry's heading error).
 
-use nalgebra::{DMatrix, DVector, Matrix3, SMatrix};
-use rtls_estimation::aided::HeadingModel;
-use rtls_estimation::filter::{carry_cross_covariance, consider_update};
+use nalgebra::{DMatrix, DVector, Matrix3};
+use rtls_estimation::filter::consider_update;
 use rtls_estimation::measurement::MeasurementJacobian;
-use rtls_estimation::{Gaussian, Matrix};
 
+use super::heading_cross::HeadingCross;
 use super::noise::{NoiseClass, Source};
 use super::output::{Output, UpdateSource};
-use super::track::{dimensions, rejected, Shared, Track};
+use super::track::{rejected, Shared, Track};
 use super::update::{accept, Prior};
 use crate::error::Result;
-
-/// `X = cov(eₓ, e_h)` at `time_s` (the position filter's side; the channel's side is always
-/// its current state).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct HeadingCross<const N: usize> {
-    time_s: f64,
-    cross: SMatrix<f64, N, 3>,
-}
-
-/// `F(Δt)` of the constant-velocity layout `[x, v_x, y, v_y, …]`: per axis `[[1, Δt], [0, 1]]`.
-fn cv_transition<const N: usize>(dt_s: f64) -> Matrix<N> {
-    let mut f = Matrix::<N>::identity();
-    for axis in 0..dimensions::<N>() {
-        f[(2 * axis, 2 * axis + 1)] = dt_s;
-    }
-    f
-}
-
-/// The cross-covariance predicted to `time_s`, `X ← F(Δt) X` (zero without one).
-fn cross_at<const N: usize>(track: &Track<N>, time_s: f64) -> SMatrix<f64, N, 3> {
-    track.heading_cross.map_or_else(SMatrix::zeros, |held| {
-        cv_transition::<N>((time_s - held.time_s).max(0.0)) * held.cross
-    })
-}
-
-/// After an update of the position filter from `prior` to `posterior` that did not involve
-/// the heading (a fix, a range): `X ← P⁺ (P⁻)⁻¹ F X`.
-///
-/// # Errors
-/// A prior covariance that is not positive definite; a non-finite result.
-pub(super) fn carry_position_update<const N: usize>(
-    track: &mut Track<N>,
-    prior: &Gaussian<N>,
-    posterior: &Gaussian<N>,
-) -> Result<()> {
-    if track.heading_cross.is_none() {
-        return Ok(());
-    }
-    let time_s = posterior.time_s();
-    let cross = carry_cross_covariance(prior.covariance(), posterior.covariance(), &cross_at(track, time_s))?;
-    track.heading_cross = Some(HeadingCross { time_s, cross });
-    Ok(())
-}
-
-/// After the heading channel predicted over `dt_s` (with a held yaw rate or not):
-/// `X ← X Φᵀ`.
-pub(super) fn carry_heading_prediction<const N: usize>(track: &mut Track<N>, dt_s: f64, rate_held: bool) {
-    if let Some(held) = track.heading_cross.as_mut() {
-        held.cross *= HeadingModel::transition(dt_s, rate_held).transpose();
-    }
-}
-
-/// After the heading channel's update from `prior` to `posterior` covariance:
-/// `X ← X (P_h⁺ (P_h⁻)⁻¹)ᵀ = X (P_h⁻)⁻¹ P_h⁺`. A prior that cannot be factorised forgets
-/// the correlation (the channel was reset).
-pub(super) fn carry_heading_update<const N: usize>(
-    track: &mut Track<N>,
-    prior: &Matrix3<f64>,
-    posterior: &Matrix3<f64>,
-) {
-    if let Some(held) = track.heading_cross.as_mut() {
-        match prior.cholesky() {
-            // X (P_h⁻)⁻¹ = ((P_h⁻)⁻¹ Xᵀ)ᵀ
-            Some(chol) => held.cross = chol.solve(&held.cross.transpose()).transpose() * posterior,
-            None => track.heading_cross = None,
-        }
-    }
-}
-
-/// Forgets the correlation (the track or the channel started again).
-pub(super) fn forget<const N: usize>(track: &mut Track<N>) {
-    track.heading_cross = None;
-}
 
 /// A speed `s ± σ_s` along `heading_rad` (the channel's `ψ̂`, turned back by an increment's
 /// lag) as a Schmidt–Kalman velocity update with the channel's covariance `P_h`
@@ -154,7 +80,9 @@ pub(super) fn speed_update<const N: usize>(
     let r = DMatrix::from_iterator(2, 2, uut.iter().map(|c| scale * speed_variance * c));
     // ν = z − H x⁻  (ê_h = 0: the channel's estimate is unbiased)
     let innovation = DVector::from_column_slice(&z) - &h * prior.state.mean();
-    let cross = cross_at(track, time_s);
+    let cross = track
+        .heading_cross
+        .map_or_else(nalgebra::SMatrix::zeros, |held| held.predicted(time_s));
     match consider_update(&prior.state, &cross, heading_covariance, &h, &j, &r, innovation) {
         Ok(result) => {
             let gate = shared.gates[1];
@@ -174,10 +102,7 @@ pub(super) fn speed_update<const N: usize>(
                 .observe_correlation(shared.error_correlation.as_ref(), noise_source, &updated);
             let taken = accept(shared, track, updated, None, kind, UpdateSource::Velocity, out)?;
             if taken {
-                track.heading_cross = Some(HeadingCross {
-                    time_s,
-                    cross: result.cross_covariance,
-                });
+                track.heading_cross = Some(HeadingCross::new(time_s, result.cross_covariance));
             }
             Ok(taken)
         }

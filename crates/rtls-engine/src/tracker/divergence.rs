@@ -93,7 +93,7 @@ pub(super) fn reset<const N: usize>(
     let reason = format!("track diverged: {reason}; it restarts from its next fix");
     out.events.push(rejected(&track.tag, time_s, kind, reason));
     track.state = None;
-    super::consider::forget(track);
+    track.heading_cross = None;
     track.modes = None;
     track.lost_state = None;
     track.unreported = None;

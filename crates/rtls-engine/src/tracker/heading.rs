@@ -53,7 +53,7 @@ fn advance<const N: usize>(model: &HeadingModel, track: &mut Track<N>, time_s: f
         Some(state) => state,
         None => {
             // a new channel's error is not the one the track's state was correlated with
-            consider::forget(track);
+            track.heading_cross = None;
             // ψ = 0 ± π: unaligned; the first reference sets it
             model.start(time_s, 0.0, core::f64::consts::PI * core::f64::consts::PI)?
         }
@@ -78,14 +78,18 @@ fn advance<const N: usize>(model: &HeadingModel, track: &mut Track<N>, time_s: f
     }
     channel.state = Some(model.propagate(&state, time_s, rate)?);
     // X ← X Φᵀ
-    consider::carry_heading_prediction(track, time_s - state.time_s(), rate.is_some());
+    if let Some(cross) = track.heading_cross.as_mut() {
+        cross.after_heading_prediction(time_s - state.time_s(), rate.is_some());
+    }
     Ok(())
 }
 
 /// Takes the channel's update from `prior` to `posterior` into the track's cross-covariance
-/// with it ([`consider::carry_heading_update`]).
+/// with it (`X ← X (P_h⁺ (P_h⁻)⁻¹)ᵀ`).
 fn set_updated<const N: usize>(track: &mut Track<N>, prior: &HeadingState, posterior: HeadingState) {
-    consider::carry_heading_update(track, prior.gaussian().covariance(), posterior.gaussian().covariance());
+    track.heading_cross = track
+        .heading_cross
+        .and_then(|cross| cross.after_heading_update(prior.gaussian().covariance(), posterior.gaussian().covariance()));
     track.heading.state = Some(posterior);
 }
 

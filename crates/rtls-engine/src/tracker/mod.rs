@@ -150,6 +150,7 @@ mod epoch;
 mod gnss;
 mod gnss_state;
 mod heading;
+mod heading_cross;
 mod heading_state;
 pub(crate) mod models;
 mod modes;

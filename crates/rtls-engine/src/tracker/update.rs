@@ -12,7 +12,6 @@ use rtls_estimation::{Gaussian, Matrix, Vector};
 use super::aided::AidedMotion;
 use super::alarms::position_of;
 use super::anchors::AnchorReading;
-use super::consider;
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::noise::{NoiseClass, Source};
 use super::output::{Event, Output, UpdateSource};
@@ -173,7 +172,7 @@ const REACQUIRE_MIN_UPDATES: u32 = 10;
 /// state, start over.
 pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.state = None;
-    consider::forget(track);
+    track.heading_cross = None;
     track.modes = None;
     track.epoch.clear();
     track.noise = Default::default();
@@ -300,7 +299,7 @@ pub(super) fn start_from_fix<const N: usize>(
     }
     let position_m = position_of(&state, shared.tag_height_m).0;
     track.state = Some(state);
-    consider::forget(track);
+    track.heading_cross = None;
     track.lost_state = None;
     track.unreported = Some(UpdateSource::Fix);
     match track.lifecycle.as_mut() {
@@ -394,12 +393,12 @@ pub(super) fn component_update<const N: usize>(
 
 /// After an update of the state that did not involve the heading, carries the state's
 /// cross-covariance with the heading channel's error (when it has one) from `prior` to the
-/// track's new state ([`consider::carry_position_update`]).
+/// track's new state ([`HeadingCross::after_position_update`](super::heading_cross::HeadingCross)).
 fn carry_heading_cross<const N: usize>(track: &mut Track<N>, prior: &Gaussian<N>) -> Result<()> {
-    match track.state {
-        Some(posterior) => consider::carry_position_update(track, prior, &posterior),
-        None => Ok(()),
+    if let (Some(cross), Some(posterior)) = (track.heading_cross, track.state) {
+        track.heading_cross = Some(cross.after_position_update(prior, &posterior)?);
     }
+    Ok(())
 }
 
 /// The track's prediction to `time_s` for a velocity; `None` (with a rejection) without a
