@@ -184,11 +184,7 @@ pub(super) async fn get_provider(
     headers: HeaderMap,
 ) -> ApiResult<Json<LocationProvider>> {
     state.authorize(&headers, Access::Read)?;
-    match get_stored::<LocationProvider>(&state, PROVIDER, &provider_id).await? {
-        Some(provider) => Ok(Json(provider)),
-        None if state.pipeline.live().tag(&provider_id).is_some() => Ok(Json(implicit_provider(&provider_id))),
-        None => Err(ApiError::not_found(format!("provider `{provider_id}` not found"))),
-    }
+    known_provider_or_404(&state, &provider_id).await.map(Json)
 }
 
 /// `PUT /v2/providers/{provider_id}`: replaces (or creates) it; 204.
@@ -265,10 +261,7 @@ pub(super) async fn get_trackable(
     headers: HeaderMap,
 ) -> ApiResult<Json<Trackable>> {
     state.authorize(&headers, Access::Read)?;
-    get_stored(&state, TRACKABLE, &trackable_id)
-        .await?
-        .map(Json)
-        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` not found")))
+    stored_trackable(&state, &trackable_id).await.map(Json)
 }
 
 /// `PUT /v2/trackables/{trackable_id}`: replaces it; 200 with the trackable (as omlox
@@ -309,9 +302,7 @@ pub(super) async fn get_trackable_location(
     headers: HeaderMap,
 ) -> ApiResult<Json<Location>> {
     state.authorize(&headers, Access::Read)?;
-    let trackable: Trackable = get_stored(&state, TRACKABLE, &trackable_id)
-        .await?
-        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` not found")))?;
+    let trackable = stored_trackable(&state, &trackable_id).await?;
     newest_location(&state, &trackable)
         .map(Json)
         .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
@@ -348,6 +339,13 @@ pub(super) async fn known_provider(state: &AppState, provider_id: &str) -> ApiRe
                 .map(|_| implicit_provider(provider_id)),
         },
     )
+}
+
+/// A provider as [`known_provider`], or a 404.
+pub(super) async fn known_provider_or_404(state: &AppState, provider_id: &str) -> ApiResult<LocationProvider> {
+    known_provider(state, provider_id)
+        .await?
+        .ok_or_else(|| ApiError::not_found(format!("provider `{provider_id}` not found")))
 }
 
 // ---- deleting everything of a kind, and latest locations ----

@@ -14,10 +14,10 @@ use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode};
 
 use super::hub::ingest_locations;
-use super::zones::{position_m, zone_by_source};
+use super::zones::{all_zones, position_m, zone_by_source};
 use super::{parse_json, ApiError, ApiResult, AppState};
 use crate::auth::Access;
-use crate::omlox::{Location, Point, ProviderType, Proximity};
+use crate::omlox::{Location, Point, ProviderType, Proximity, Zone};
 
 /// `PUT /v2/providers/proximities`: an array of `Proximity`; 204 when durable.
 ///
@@ -32,10 +32,13 @@ pub(super) async fn put_proximities(
 ) -> ApiResult<StatusCode> {
     state.authorize(&headers, Access::Write)?;
     let proximities: Vec<Proximity> = parse_json(&body)?;
-    let mut locations = Vec::with_capacity(proximities.len());
-    for (index, proximity) in proximities.iter().enumerate() {
-        locations.push(location_of(&state, proximity, &format!("[{index}].")).await?);
-    }
+    // the zones are read once for the whole batch
+    let zones = all_zones(&state).await?;
+    let locations = proximities
+        .iter()
+        .enumerate()
+        .map(|(index, proximity)| location_of(&state, &zones, proximity, &format!("[{index}].")))
+        .collect::<ApiResult<Vec<_>>>()?;
     ingest_locations(&state, &locations).await
 }
 
@@ -61,7 +64,8 @@ pub(super) async fn put_proximity(
             ),
         ));
     }
-    let location = location_of(&state, &proximity, "").await?;
+    let zones = all_zones(&state).await?;
+    let location = location_of(&state, &zones, &proximity, "")?;
     ingest_locations(&state, &[location]).await.map_err(|mut e| {
         // a single location's fields are not indexed
         e.field = e.field.map(|f| f.trim_start_matches("[0].").to_string());
@@ -69,9 +73,9 @@ pub(super) async fn put_proximity(
     })
 }
 
-/// The location a proximity means (see the module documentation); `prefix` goes before the
-/// field names of errors.
-async fn location_of(state: &AppState, proximity: &Proximity, prefix: &str) -> ApiResult<Location> {
+/// The location a proximity means (see the module documentation), its zone one of `zones`;
+/// `prefix` goes before the field names of errors.
+fn location_of(state: &AppState, zones: &[Zone], proximity: &Proximity, prefix: &str) -> ApiResult<Location> {
     let field = |name: &str, message: String| ApiError::field(format!("{prefix}{name}"), message);
     if !matches!(
         proximity.provider_type,
@@ -93,13 +97,13 @@ async fn location_of(state: &AppState, proximity: &Proximity, prefix: &str) -> A
             return Err(field("accuracy", format!("a distance ≥ 0 m, got {accuracy}")));
         }
     }
-    let zone = zone_by_source(state, &proximity.source).await?.ok_or_else(|| {
+    let zone = zone_by_source(zones, &proximity.source).ok_or_else(|| {
         field(
             "source",
             format!("no zone has the id or foreign_id `{}`", proximity.source),
         )
     })?;
-    let [x, y] = position_m(state, &zone).map_err(|e| field("source", e.message))?;
+    let [x, y] = position_m(state, zone).map_err(|e| field("source", e.message))?;
     let accuracy = proximity
         .accuracy
         .filter(|a| *a > 0.0)

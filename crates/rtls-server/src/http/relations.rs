@@ -8,13 +8,15 @@
 //! location lies in the fence's region (and height range). A provider is a tag (its id is the
 //! tag's); a trackable is inside a fence when one of its `location_providers` is.
 
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeSet, HashMap};
 
 use axum::extract::{Path, RawQuery, State};
 use axum::http::HeaderMap;
 use axum::Json;
 
-use super::hub::{implicit_provider, known_provider, list_stored, newest_location, stored_trackable, PROVIDER};
+use super::hub::{
+    implicit_provider, known_provider, known_provider_or_404, list_stored, newest_location, stored_trackable, PROVIDER,
+};
 use super::{query_value, ApiError, ApiResult, AppState, TRACKABLE_CONFIG};
 use crate::auth::Access;
 use crate::convert::fence_from_zone;
@@ -32,50 +34,53 @@ fn spatial_query(query: Option<&str>) -> ApiResult<bool> {
     }
 }
 
-/// Every fence the trackers watch, with the tags inside it (see the module documentation).
-fn fences_with_tags(state: &AppState, spatial: bool) -> Vec<(Fence, BTreeSet<String>)> {
+/// The fence with this id (or `foreign_id`) and the tags inside it (see the module
+/// documentation), or a 404. Only that fence's occupants are gathered.
+fn fence_with_tags(state: &AppState, fence_id: &str, spatial: bool) -> ApiResult<(Fence, BTreeSet<String>)> {
     let live = state.pipeline.live();
     let zones = live.zones();
-    let mut occupants = if spatial {
-        let mut inside: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    let (zone, fence) = zones
+        .iter()
+        .map(|zone| (zone, fence_from_zone(zone)))
+        .find(|(_, f)| f.id == fence_id || f.foreign_id.as_deref() == Some(fence_id))
+        .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))?;
+    let mut tags = BTreeSet::new();
+    if spatial {
         live.for_each_tag(|tag, tag_state| {
-            for zone in zones.iter().filter(|z| z.contains(tag_state.position_m)) {
-                inside.entry(zone.id.clone()).or_default().push(tag.to_string());
+            if zone.contains(tag_state.position_m) {
+                tags.insert(tag.to_string());
             }
         });
-        inside
     } else {
         // a tag whose latest location was deleted is not listed until its next update
-        let located: BTreeSet<String> = live.tags().into_keys().collect();
-        let mut occupants = live.occupants();
-        for tags in occupants.values_mut() {
-            tags.retain(|tag| located.contains(tag));
-        }
-        occupants
-    };
-    zones
-        .iter()
-        .map(|zone| {
-            let tags = occupants.remove(&zone.id).unwrap_or_default().into_iter().collect();
-            (fence_from_zone(zone), tags)
-        })
-        .collect()
+        let inside = live.occupants().remove(&zone.id).unwrap_or_default();
+        tags.extend(inside.into_iter().filter(|tag| live.has_tag(tag)));
+    }
+    Ok((fence, tags))
 }
 
-/// The fence with this id (or zone id, `foreign_id`) and the tags inside it, or a 404.
-fn fence_with_tags(state: &AppState, fence_id: &str, spatial: bool) -> ApiResult<(Fence, BTreeSet<String>)> {
-    fences_with_tags(state, spatial)
-        .into_iter()
-        .find(|(f, _)| f.id == fence_id || f.foreign_id.as_deref() == Some(fence_id))
-        .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))
-}
-
-/// The fences one of `tags` is inside, in the fence list's order.
+/// The fences one of `tags` is inside, in the fence list's order; only those tags' states are
+/// read.
 fn fences_of(state: &AppState, tags: &[String], spatial: bool) -> Vec<Fence> {
-    fences_with_tags(state, spatial)
-        .into_iter()
-        .filter(|(_, inside)| tags.iter().any(|t| inside.contains(t)))
-        .map(|(fence, _)| fence)
+    let live = state.pipeline.live();
+    // a tag whose latest location was deleted is inside nothing until its next update
+    let located: Vec<(&String, [f64; 3])> = tags
+        .iter()
+        .filter_map(|tag| live.tag(tag).map(|s| (tag, s.position_m)))
+        .collect();
+    if located.is_empty() {
+        return Vec::new();
+    }
+    let occupants = (!spatial).then(|| live.occupants());
+    live.zones()
+        .iter()
+        .filter(|zone| match &occupants {
+            None => located.iter().any(|(_, position_m)| zone.contains(*position_m)),
+            Some(occupants) => occupants
+                .get(&zone.id)
+                .is_some_and(|inside| located.iter().any(|(tag, _)| inside.contains(*tag))),
+        })
+        .map(fence_from_zone)
         .collect()
 }
 
@@ -125,9 +130,7 @@ pub(super) async fn provider_fences(
 ) -> ApiResult<Json<Vec<Fence>>> {
     state.authorize(&headers, Access::Read)?;
     let spatial = spatial_query(query.as_deref())?;
-    if known_provider(&state, &provider_id).await?.is_none() {
-        return Err(ApiError::not_found(format!("provider `{provider_id}` not found")));
-    }
+    known_provider_or_404(&state, &provider_id).await?;
     Ok(Json(fences_of(&state, &[provider_id], spatial)))
 }
 

@@ -9,7 +9,7 @@ use axum::http::{HeaderMap, StatusCode};
 use axum::Json;
 use serde_json::Value;
 
-use super::hub::{get_stored, known_provider, replace, stored_trackable, PROVIDER};
+use super::hub::{get_stored, known_provider_or_404, replace, stored_trackable, PROVIDER};
 use super::{parse_json, ApiError, ApiResult, AppState};
 use crate::auth::Access;
 use crate::omlox::LocationProvider;
@@ -32,9 +32,7 @@ pub(super) async fn put_sensors(
             "request body: sensor data is a JSON value other than null",
         ));
     }
-    let mut provider = known_provider(&state, &provider_id)
-        .await?
-        .ok_or_else(|| ApiError::not_found(format!("provider `{provider_id}` not found")))?;
+    let mut provider = known_provider_or_404(&state, &provider_id).await?;
     provider.sensors = Some(sensors);
     replace(&state, &who, PROVIDER, provider_id, &provider).await
 }
@@ -49,9 +47,7 @@ pub(super) async fn get_sensors(
     headers: HeaderMap,
 ) -> ApiResult<Json<Value>> {
     state.authorize(&headers, Access::Read)?;
-    let provider = known_provider(&state, &provider_id)
-        .await?
-        .ok_or_else(|| ApiError::not_found(format!("provider `{provider_id}` not found")))?;
+    let provider = known_provider_or_404(&state, &provider_id).await?;
     provider
         .sensors
         .map(Json)

@@ -55,7 +55,7 @@ pub(super) fn site_zone(state: &AppState) -> Zone {
 }
 
 /// Every zone: the site's first, then the stored ones by id.
-async fn all_zones(state: &AppState) -> ApiResult<Vec<Zone>> {
+pub(super) async fn all_zones(state: &AppState) -> ApiResult<Vec<Zone>> {
     let mut zones = vec![site_zone(state)];
     let mut stored: Vec<Zone> = list_stored(state, ZONE).await?;
     stored.sort_by(|a, b| a.id.cmp(&b.id));
@@ -63,12 +63,12 @@ async fn all_zones(state: &AppState) -> ApiResult<Vec<Zone>> {
     Ok(zones)
 }
 
-/// The zone whose id (any letter case) or `foreign_id` is `source` (a proximity's source).
-pub(super) async fn zone_by_source(state: &AppState, source: &str) -> ApiResult<Option<Zone>> {
-    Ok(all_zones(state)
-        .await?
-        .into_iter()
-        .find(|z| z.id.eq_ignore_ascii_case(source) || z.foreign_id.as_deref() == Some(source)))
+/// The zone of `zones` whose id (any letter case) or `foreign_id` is `source` (a proximity's
+/// source).
+pub(super) fn zone_by_source<'a>(zones: &'a [Zone], source: &str) -> Option<&'a Zone> {
+    zones
+        .iter()
+        .find(|z| z.id.eq_ignore_ascii_case(source) || z.foreign_id.as_deref() == Some(source))
 }
 
 /// A zone by id, or a 404.

@@ -123,6 +123,12 @@ impl LiveState {
         self.latest.read().ok()?.get(tag).cloned()
     }
 
+    /// Whether `tag` has a latest state (without copying it).
+    #[must_use]
+    pub fn has_tag(&self, tag: &str) -> bool {
+        self.latest.read().is_ok_and(|latest| latest.contains_key(tag))
+    }
+
     /// Every tag's latest state, ordered by tag.
     #[must_use]
     pub fn tags(&self) -> BTreeMap<String, TagState> {
