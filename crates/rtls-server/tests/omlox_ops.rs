@@ -8,26 +8,8 @@ mod common;
 use std::time::Duration;
 
 use axum::http::{Method, StatusCode};
-use common::{call, eventually, state, walk, Reply, READ, WRITE};
+use common::{assert_omlox_error, call, call_json, eventually, state, walk, READ, WRITE};
 use serde_json::{json, Value};
-
-/// Asserts an omlox `Error` object with `status`; its `field`, if any.
-fn assert_error(reply: &Reply, status: StatusCode, what: &str) -> Option<String> {
-    assert_eq!(reply.status, status, "{what}: {}", reply.text());
-    let error = reply.json();
-    assert_eq!(error["code"], status.as_u16(), "{what}: {error}");
-    assert!(
-        error["type"].is_string() && error["message"].is_string(),
-        "{what}: {error}"
-    );
-    error["field"].as_str().map(str::to_string)
-}
-
-async fn get_json(app: &axum::Router, uri: &str) -> Value {
-    let reply = call(app, Method::GET, uri, Some(READ), "").await;
-    assert_eq!(reply.status, StatusCode::OK, "GET {uri}: {}", reply.text());
-    reply.json()
-}
 
 fn ids(array: &Value, key: &str) -> Vec<String> {
     array
@@ -74,49 +56,49 @@ async fn fences_trackables_and_providers_link_through_the_live_tracks() {
 
     // a provider's and a trackable's fences: by the trackers' entries and by geometry alone
     for query in ["", "?spatial_query=true", "?spatial_query=false"] {
-        let fences = get_json(&app, &format!("/v2/providers/miner-7/fences{query}")).await;
+        let fences = call_json(&app, &format!("/v2/providers/miner-7/fences{query}")).await;
         assert_eq!(ids(&fences, "foreign_id"), ["forklift-lane"], "{query}");
-        let fences = get_json(&app, &format!("/v2/trackables/{loader}/fences{query}")).await;
+        let fences = call_json(&app, &format!("/v2/trackables/{loader}/fences{query}")).await;
         assert_eq!(ids(&fences, "foreign_id"), ["forklift-lane"], "{query}");
         assert_eq!(
-            get_json(&app, &format!("/v2/providers/miner-8/fences{query}")).await,
+            call_json(&app, &format!("/v2/providers/miner-8/fences{query}")).await,
             json!([])
         );
         assert_eq!(
-            get_json(&app, &format!("/v2/trackables/{idle}/fences{query}")).await,
+            call_json(&app, &format!("/v2/trackables/{idle}/fences{query}")).await,
             json!([])
         );
     }
 
     // a fence's locations, providers, trackables and motions, by zone id or fence UUID
-    let fence_id = get_json(&app, "/v2/fences/forklift-lane").await["id"]
+    let fence_id = call_json(&app, "/v2/fences/forklift-lane").await["id"]
         .as_str()
         .unwrap()
         .to_string();
     for fence in ["forklift-lane", fence_id.as_str()] {
-        let locations = get_json(&app, &format!("/v2/fences/{fence}/locations")).await;
+        let locations = call_json(&app, &format!("/v2/fences/{fence}/locations")).await;
         assert_eq!(ids(&locations, "provider_id"), ["miner-7"]);
-        let providers = get_json(&app, &format!("/v2/fences/{fence}/providers?spatial_query=true")).await;
+        let providers = call_json(&app, &format!("/v2/fences/{fence}/providers?spatial_query=true")).await;
         assert_eq!(ids(&providers, "id"), ["miner-7"]);
-        let trackables = get_json(&app, &format!("/v2/fences/{fence}/trackables")).await;
+        let trackables = call_json(&app, &format!("/v2/fences/{fence}/trackables")).await;
         assert_eq!(ids(&trackables, "id"), vec![loader.clone()]);
-        let motions = get_json(&app, &format!("/v2/fences/{fence}/motions")).await;
+        let motions = call_json(&app, &format!("/v2/fences/{fence}/motions")).await;
         assert_eq!(ids(&motions, "id"), vec![loader.clone()]);
     }
 
     // a trackable's locations and providers; a provider's trackables
-    let locations = get_json(&app, &format!("/v2/trackables/{loader}/locations")).await;
+    let locations = call_json(&app, &format!("/v2/trackables/{loader}/locations")).await;
     assert_eq!(ids(&locations, "provider_id"), ["miner-7"], "ghost-1 has no location");
-    let providers = get_json(&app, &format!("/v2/trackables/{loader}/providers")).await;
+    let providers = call_json(&app, &format!("/v2/trackables/{loader}/providers")).await;
     assert_eq!(ids(&providers, "id"), ["miner-7", "ghost-1"]);
     assert_eq!(providers[1]["type"], "unknown");
     for provider in ["miner-7", "ghost-1"] {
-        let trackables = get_json(&app, &format!("/v2/providers/{provider}/trackables")).await;
+        let trackables = call_json(&app, &format!("/v2/providers/{provider}/trackables")).await;
         assert_eq!(ids(&trackables, "id"), vec![loader.clone()], "{provider}");
     }
 
     // motions: the newest location with the track's speed (1 m/s) and course (east: 90°)
-    let motion = get_json(&app, &format!("/v2/trackables/{loader}/motion")).await;
+    let motion = call_json(&app, &format!("/v2/trackables/{loader}/motion")).await;
     assert_eq!(motion["id"], loader.as_str());
     assert_eq!(
         (&motion["name"], &motion["properties"], &motion["extrusion"]),
@@ -126,7 +108,7 @@ async fn fences_trackables_and_providers_link_through_the_live_tracks() {
     let speed = motion["location"]["speed"].as_f64().unwrap();
     let course = motion["location"]["course"].as_f64().unwrap();
     assert!((speed - 1.0).abs() < 0.2 && (course - 90.0).abs() < 10.0, "{motion}");
-    let motions = get_json(&app, "/v2/trackables/motions").await;
+    let motions = call_json(&app, "/v2/trackables/motions").await;
     let mut moving = ids(&motions, "id");
     moving.sort();
     let mut expected = vec![loader.clone(), idle.clone()];
@@ -147,13 +129,17 @@ async fn fences_trackables_and_providers_link_through_the_live_tracks() {
         "",
     )
     .await;
-    assert_error(
+    assert_omlox_error(
         &reply,
         StatusCode::NOT_FOUND,
         "a trackable without a location has no motion",
     );
     assert_eq!(
-        get_json(&app, "/v2/trackables/motions").await.as_array().unwrap().len(),
+        call_json(&app, "/v2/trackables/motions")
+            .await
+            .as_array()
+            .unwrap()
+            .len(),
         2
     );
 
@@ -172,7 +158,7 @@ async fn fences_trackables_and_providers_link_through_the_live_tracks() {
         "/v2/providers/nobody/trackables".into(),
     ] {
         let reply = call(&app, Method::GET, &uri, Some(READ), "").await;
-        assert_error(&reply, StatusCode::NOT_FOUND, &uri);
+        assert_omlox_error(&reply, StatusCode::NOT_FOUND, &uri);
     }
     let reply = call(
         &app,
@@ -182,19 +168,19 @@ async fn fences_trackables_and_providers_link_through_the_live_tracks() {
         "",
     )
     .await;
-    let field = assert_error(&reply, StatusCode::BAD_REQUEST, "spatial_query=yes");
+    let field = assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "spatial_query=yes");
     assert_eq!(field.as_deref(), Some("spatial_query"));
     let reply = call(&app, Method::GET, "/v2/trackables/motions", None, "").await;
-    assert_error(&reply, StatusCode::UNAUTHORIZED, "no token");
+    assert_omlox_error(&reply, StatusCode::UNAUTHORIZED, "no token");
 
     // a deleted location takes its provider out of the fence until its next update
     let reply = call(&app, Method::DELETE, "/v2/providers/miner-7/location", Some(WRITE), "").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
     for query in ["", "?spatial_query=true"] {
-        let providers = get_json(&app, &format!("/v2/fences/forklift-lane/providers{query}")).await;
+        let providers = call_json(&app, &format!("/v2/fences/forklift-lane/providers{query}")).await;
         assert_eq!(providers, json!([]), "{query}");
         assert_eq!(
-            get_json(&app, &format!("/v2/trackables/{loader}/fences{query}")).await,
+            call_json(&app, &format!("/v2/trackables/{loader}/fences{query}")).await,
             json!([])
         );
     }
@@ -220,30 +206,30 @@ async fn sensor_data_is_stored_per_provider_and_gathered_per_trackable() {
     )
     .await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT, "{}", reply.text());
-    assert_eq!(get_json(&app, "/v2/providers/tag-a/sensors").await, sensors);
-    assert_eq!(get_json(&app, "/v2/providers/tag-a").await["sensors"], sensors);
+    assert_eq!(call_json(&app, "/v2/providers/tag-a/sensors").await, sensors);
+    assert_eq!(call_json(&app, "/v2/providers/tag-a").await["sensors"], sensors);
     let reply = call(&app, Method::GET, "/v2/providers/tag-b/sensors", Some(READ), "").await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "no sensor data yet");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "no sensor data yet");
 
     let trackable = json!({"type": "omlox", "location_providers": ["tag-b", "tag-a"]}).to_string();
     let reply = call(&app, Method::POST, "/v2/trackables", Some(WRITE), &trackable).await;
     let trackable = reply.json()["id"].as_str().unwrap().to_string();
     assert_eq!(
-        get_json(&app, &format!("/v2/trackables/{trackable}/sensors")).await,
+        call_json(&app, &format!("/v2/trackables/{trackable}/sensors")).await,
         json!([sensors])
     );
     let reply = call(&app, Method::PUT, "/v2/providers/tag-b/sensors", Some(WRITE), "42").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
     assert_eq!(
-        get_json(&app, &format!("/v2/trackables/{trackable}/sensors")).await,
+        call_json(&app, &format!("/v2/trackables/{trackable}/sensors")).await,
         json!([42, sensors])
     );
 
     // errors: unknown provider or trackable 404, a body that is not JSON or null 400, tokens
     let reply = call(&app, Method::PUT, "/v2/providers/nobody/sensors", Some(WRITE), "{}").await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "unknown provider");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "unknown provider");
     let reply = call(&app, Method::GET, "/v2/providers/nobody/sensors", Some(READ), "").await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "unknown provider");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "unknown provider");
     let reply = call(
         &app,
         Method::GET,
@@ -252,20 +238,20 @@ async fn sensor_data_is_stored_per_provider_and_gathered_per_trackable() {
         "",
     )
     .await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "unknown trackable");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "unknown trackable");
     for body in ["null", "{\"t\": ", ""] {
         let reply = call(&app, Method::PUT, "/v2/providers/tag-a/sensors", Some(WRITE), body).await;
-        assert_error(&reply, StatusCode::BAD_REQUEST, body);
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, body);
     }
     assert_eq!(
-        get_json(&app, "/v2/providers/tag-a/sensors").await,
+        call_json(&app, "/v2/providers/tag-a/sensors").await,
         sensors,
         "unchanged"
     );
     let reply = call(&app, Method::PUT, "/v2/providers/tag-a/sensors", Some(READ), "{}").await;
-    assert_error(&reply, StatusCode::FORBIDDEN, "a read token");
+    assert_omlox_error(&reply, StatusCode::FORBIDDEN, "a read token");
     let reply = call(&app, Method::PUT, "/v2/providers/tag-a/sensors", None, "{}").await;
-    assert_error(&reply, StatusCode::UNAUTHORIZED, "no token");
+    assert_omlox_error(&reply, StatusCode::UNAUTHORIZED, "no token");
     state.pipeline.shutdown();
 }
 
@@ -307,56 +293,56 @@ async fn delete_all_operations_empty_their_collections_and_the_watched_fences() 
         "/v2/fences",
         "/v2/providers/miner-1/location",
     ] {
-        assert_error(
+        assert_omlox_error(
             &call(&app, Method::DELETE, uri, None, "").await,
             StatusCode::UNAUTHORIZED,
             uri,
         );
-        assert_error(
+        assert_omlox_error(
             &call(&app, Method::DELETE, uri, Some(READ), "").await,
             StatusCode::FORBIDDEN,
             uri,
         );
     }
-    assert_eq!(get_json(&app, "/v2/trackables").await.as_array().unwrap().len(), 2);
+    assert_eq!(call_json(&app, "/v2/trackables").await.as_array().unwrap().len(), 2);
 
     let reply = call(&app, Method::DELETE, "/v2/trackables", Some(WRITE), "").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
-    assert_eq!(get_json(&app, "/v2/trackables").await, json!([]));
+    assert_eq!(call_json(&app, "/v2/trackables").await, json!([]));
 
     // one provider's location, then all
     let reply = call(&app, Method::DELETE, "/v2/providers/miner-1/location", Some(WRITE), "").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
     let reply = call(&app, Method::GET, "/v2/providers/miner-1/location", Some(READ), "").await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "deleted location");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "deleted location");
     let reply = call(&app, Method::DELETE, "/v2/providers/miner-1/location", Some(WRITE), "").await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "deleted twice");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "deleted twice");
     assert_eq!(
-        ids(&get_json(&app, "/v2/providers/locations").await, "provider_id"),
+        ids(&call_json(&app, "/v2/providers/locations").await, "provider_id"),
         ["miner-2"]
     );
     let reply = call(&app, Method::DELETE, "/v2/providers/locations", Some(WRITE), "").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
-    assert_eq!(get_json(&app, "/v2/providers/locations").await, json!([]));
-    assert_eq!(get_json(&app, "/v2/providers").await, json!(["stored-tag"]));
+    assert_eq!(call_json(&app, "/v2/providers/locations").await, json!([]));
+    assert_eq!(call_json(&app, "/v2/providers").await, json!(["stored-tag"]));
 
     let reply = call(&app, Method::DELETE, "/v2/providers", Some(WRITE), "").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
-    assert_eq!(get_json(&app, "/v2/providers").await, json!([]));
+    assert_eq!(call_json(&app, "/v2/providers").await, json!([]));
     let reply = call(&app, Method::GET, "/v2/providers/stored-tag", Some(READ), "").await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "deleted provider");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "deleted provider");
 
     // fences: none listed, none watched by the trackers, the empty set stored
-    assert_eq!(get_json(&app, "/v2/fences").await.as_array().unwrap().len(), 1);
+    assert_eq!(call_json(&app, "/v2/fences").await.as_array().unwrap().len(), 1);
     let reply = call(&app, Method::DELETE, "/v2/fences", Some(WRITE), "").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT, "{}", reply.text());
-    assert_eq!(get_json(&app, "/v2/fences").await, json!([]));
+    assert_eq!(call_json(&app, "/v2/fences").await, json!([]));
     assert!(live.zones().is_empty());
     assert!(live.head_counts().is_empty());
     let mut store = common::open_sqlite(&common::db_path("ops-delete-all"));
     let stored = rtls_server::http::fences::stored_zones(store.as_mut()).unwrap();
     assert_eq!(stored.map(|zones| zones.len()), Some(0), "a restart watches no fence");
     let reply = call(&app, Method::GET, "/v2/fences/forklift-lane", Some(READ), "").await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "deleted fence");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "deleted fence");
     state.pipeline.shutdown();
 }

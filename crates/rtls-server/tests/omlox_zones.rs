@@ -8,27 +8,10 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::http::{Method, StatusCode};
-use common::{call, eventually, state, Reply, READ, WRITE};
+use common::{assert_omlox_error, call, call_json, eventually, state, READ, WRITE};
 use rtls_engine::site::{FrameSettings, GeodeticOrigin};
 use rtls_server::http::AppState;
 use serde_json::{json, Value};
-
-fn assert_error(reply: &Reply, status: StatusCode, what: &str) -> Option<String> {
-    assert_eq!(reply.status, status, "{what}: {}", reply.text());
-    let error = reply.json();
-    assert_eq!(error["code"], status.as_u16(), "{what}: {error}");
-    assert!(
-        error["type"].is_string() && error["message"].is_string(),
-        "{what}: {error}"
-    );
-    error["field"].as_str().map(str::to_string)
-}
-
-async fn get_json(app: &axum::Router, uri: &str) -> Value {
-    let reply = call(app, Method::GET, uri, Some(READ), "").await;
-    assert_eq!(reply.status, StatusCode::OK, "GET {uri}: {}", reply.text());
-    reply.json()
-}
 
 const FRAME: FrameSettings = FrameSettings {
     origin: GeodeticOrigin {
@@ -64,7 +47,7 @@ fn rectangle_zone() -> Value {
 async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     let state = georeferenced(state("zones-crud"));
     let app = rtls_server::http::router(state.clone());
-    let site_zone = get_json(&app, "/v2/zones").await[0].as_str().unwrap().to_string();
+    let site_zone = call_json(&app, "/v2/zones").await[0].as_str().unwrap().to_string();
 
     // invalid zones name their field
     for (zone, field) in [
@@ -94,7 +77,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
         ),
     ] {
         let reply = call(&app, Method::POST, "/v2/zones", Some(WRITE), &zone.to_string()).await;
-        let named = assert_error(&reply, StatusCode::BAD_REQUEST, &zone.to_string());
+        let named = assert_omlox_error(&reply, StatusCode::BAD_REQUEST, &zone.to_string());
         assert_eq!(named.as_deref(), Some(field), "{zone}");
     }
     let reply = call(
@@ -105,7 +88,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
         &rectangle_zone().to_string(),
     )
     .await;
-    assert_error(&reply, StatusCode::FORBIDDEN, "a read token");
+    assert_omlox_error(&reply, StatusCode::FORBIDDEN, "a read token");
 
     // create (the nil id means "assign one"), read, list, filter by foreign id
     let reply = call(
@@ -120,17 +103,17 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     let zone = reply.json();
     let id = zone["id"].as_str().unwrap().to_string();
     assert!(!uuid::Uuid::parse_str(&id).unwrap().is_nil());
-    assert_eq!(get_json(&app, &format!("/v2/zones/{id}")).await, zone);
-    assert_eq!(get_json(&app, "/v2/zones").await, json!([site_zone, id]));
-    assert_eq!(get_json(&app, "/v2/zones?foreign_id=bay-3").await, json!([id]));
+    assert_eq!(call_json(&app, &format!("/v2/zones/{id}")).await, zone);
+    assert_eq!(call_json(&app, "/v2/zones").await, json!([site_zone, id]));
+    assert_eq!(call_json(&app, "/v2/zones?foreign_id=bay-3").await, json!([id]));
     assert_eq!(
-        get_json(&app, "/v2/zones/summary?foreign_id=bay-3").await,
+        call_json(&app, "/v2/zones/summary?foreign_id=bay-3").await,
         json!([zone])
     );
     let again = json!({"id": id, "type": "uwb", "incomplete_configuration": true}).to_string();
     let reply = call(&app, Method::POST, "/v2/zones", Some(WRITE), &again).await;
     assert_eq!(
-        assert_error(&reply, StatusCode::BAD_REQUEST, "id in use").as_deref(),
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "id in use").as_deref(),
         Some("id")
     );
 
@@ -147,15 +130,15 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     .await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT, "{}", reply.text());
     assert_eq!(
-        get_json(&app, &format!("/v2/zones/{id}")).await["name"],
+        call_json(&app, &format!("/v2/zones/{id}")).await["name"],
         "Bay 3 (north)"
     );
     let unknown = "7c9e6679-7425-40de-944b-e07fc1f90ae7";
     let body = json!({"type": "uwb", "incomplete_configuration": true}).to_string();
     let reply = call(&app, Method::PUT, &format!("/v2/zones/{unknown}"), Some(WRITE), &body).await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "unknown zone");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "unknown zone");
     let reply = call(&app, Method::PUT, &format!("/v2/zones/{site_zone}"), Some(WRITE), &body).await;
-    assert_error(&reply, StatusCode::BAD_REQUEST, "the site's zone");
+    assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "the site's zone");
     let reply = call(
         &app,
         Method::PUT,
@@ -165,7 +148,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     )
     .await;
     assert_eq!(
-        assert_error(&reply, StatusCode::BAD_REQUEST, "mismatch").as_deref(),
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "mismatch").as_deref(),
         Some("id")
     );
     let reply = call(
@@ -176,7 +159,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
         "{\"type\": ",
     )
     .await;
-    assert_error(&reply, StatusCode::BAD_REQUEST, "bad JSON");
+    assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "bad JSON");
 
     // transform with the ground control points, and back; the site's zone with its frame
     let reply = call(
@@ -223,7 +206,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     )
     .await;
     assert_eq!(
-        assert_error(&reply, StatusCode::BAD_REQUEST, "crs").as_deref(),
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "crs").as_deref(),
         Some("crs")
     );
     let reply = call(
@@ -235,7 +218,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     )
     .await;
     assert_eq!(
-        assert_error(&reply, StatusCode::BAD_REQUEST, "no position").as_deref(),
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "no position").as_deref(),
         None
     );
     let point = json!({"position": {"type": "Point", "coordinates": [1.0, 2.0]}}).to_string();
@@ -247,9 +230,9 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
         &point,
     )
     .await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "unknown zone");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "unknown zone");
     let reply = call(&app, Method::PUT, &format!("/v2/zones/{id}/transform"), None, &point).await;
-    assert_error(&reply, StatusCode::UNAUTHORIZED, "no token");
+    assert_omlox_error(&reply, StatusCode::UNAUTHORIZED, "no token");
 
     // createfence: a fence the trackers watch, made again in place
     let reply = call(
@@ -260,7 +243,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
         "",
     )
     .await;
-    assert_error(&reply, StatusCode::FORBIDDEN, "creating a fence needs operate");
+    assert_omlox_error(&reply, StatusCode::FORBIDDEN, "creating a fence needs operate");
     let reply = call(
         &app,
         Method::GET,
@@ -280,7 +263,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     assert_eq!(ring.len(), 5, "{fence}");
     let [x, y] = [0, 1].map(|k| ring[2][k].as_f64().unwrap());
     assert!((x - 26.0).abs() < 1e-3 && (y - 16.0).abs() < 1e-3, "{fence}");
-    assert_eq!(get_json(&app, &format!("/v2/fences/{fence_id}")).await, fence);
+    assert_eq!(call_json(&app, &format!("/v2/fences/{fence_id}")).await, fence);
     let live = state.pipeline.live();
     assert!(live.zones().iter().any(|z| z.id == fence_id), "the trackers watch it");
     assert!(live
@@ -297,7 +280,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     .await;
     assert_eq!(reply.json()["id"], fence_id.as_str());
     assert_eq!(
-        get_json(&app, "/v2/fences").await.as_array().unwrap().len(),
+        call_json(&app, "/v2/fences").await.as_array().unwrap().len(),
         2,
         "replaced, not added"
     );
@@ -309,7 +292,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
         "",
     )
     .await;
-    assert_error(&reply, StatusCode::NOT_FOUND, "unknown zone");
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "unknown zone");
     let reply = call(
         &app,
         Method::GET,
@@ -318,7 +301,7 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
         "",
     )
     .await;
-    assert_error(
+    assert_omlox_error(
         &reply,
         StatusCode::BAD_REQUEST,
         "the site's zone has no ground control points",
@@ -327,23 +310,23 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     // delete one (its fence stays), the site's own is refused, then all
     let reply = call(&app, Method::DELETE, &format!("/v2/zones/{id}"), Some(WRITE), "").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
-    assert_error(
+    assert_omlox_error(
         &call(&app, Method::GET, &format!("/v2/zones/{id}"), Some(READ), "").await,
         StatusCode::NOT_FOUND,
         "deleted zone",
     );
-    assert_error(
+    assert_omlox_error(
         &call(&app, Method::DELETE, &format!("/v2/zones/{id}"), Some(WRITE), "").await,
         StatusCode::NOT_FOUND,
         "deleted twice",
     );
-    assert_error(
+    assert_omlox_error(
         &call(&app, Method::DELETE, &format!("/v2/zones/{site_zone}"), Some(WRITE), "").await,
         StatusCode::BAD_REQUEST,
         "the site's zone",
     );
     assert_eq!(
-        get_json(&app, &format!("/v2/fences/{fence_id}")).await["id"],
+        call_json(&app, &format!("/v2/fences/{fence_id}")).await["id"],
         fence_id.as_str()
     );
     for name in ["a", "b"] {
@@ -353,15 +336,15 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
             StatusCode::CREATED
         );
     }
-    assert_eq!(get_json(&app, "/v2/zones").await.as_array().unwrap().len(), 3);
-    assert_error(
+    assert_eq!(call_json(&app, "/v2/zones").await.as_array().unwrap().len(), 3);
+    assert_omlox_error(
         &call(&app, Method::DELETE, "/v2/zones", None, "").await,
         StatusCode::UNAUTHORIZED,
         "no token",
     );
     let reply = call(&app, Method::DELETE, "/v2/zones", Some(WRITE), "").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
-    assert_eq!(get_json(&app, "/v2/zones").await, json!([site_zone]));
+    assert_eq!(call_json(&app, "/v2/zones").await, json!([site_zone]));
     state.pipeline.shutdown();
 }
 
@@ -402,7 +385,7 @@ async fn proximities_place_a_provider_at_its_reader_and_are_tracked() {
     })
     .await;
     assert!(placed, "{:?}", live.tag("rfid-77"));
-    let location = get_json(&app, "/v2/providers/rfid-77/location").await;
+    let location = call_json(&app, "/v2/providers/rfid-77/location").await;
     let [x, y] = [0, 1].map(|k| location["position"]["coordinates"][k].as_f64().unwrap());
     assert!(
         (x - 20.0).abs() < 0.05 && (y - 10.0).abs() < 0.05,
@@ -429,16 +412,16 @@ async fn proximities_place_a_provider_at_its_reader_and_are_tracked() {
             &body.to_string(),
         )
         .await;
-        let named = assert_error(&reply, StatusCode::BAD_REQUEST, &body.to_string());
+        let named = assert_omlox_error(&reply, StatusCode::BAD_REQUEST, &body.to_string());
         assert_eq!(named.as_deref(), Some(field), "{body}");
     }
     let reply = call(&app, Method::PUT, "/v2/providers/rfid-78/proximity", Some(WRITE), &one).await;
     assert_eq!(
-        assert_error(&reply, StatusCode::BAD_REQUEST, "mismatch").as_deref(),
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "mismatch").as_deref(),
         Some("provider_id")
     );
     let reply = call(&app, Method::PUT, "/v2/providers/rfid-77/proximity", Some(WRITE), "[").await;
-    assert_error(&reply, StatusCode::BAD_REQUEST, "bad JSON");
+    assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "bad JSON");
     let plain_app = rtls_server::http::router(plain);
     let reply = call(
         &plain_app,
@@ -449,12 +432,12 @@ async fn proximities_place_a_provider_at_its_reader_and_are_tracked() {
     )
     .await;
     assert_eq!(
-        assert_error(&reply, StatusCode::BAD_REQUEST, "no [frame]").as_deref(),
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "no [frame]").as_deref(),
         Some("source")
     );
     let reply = call(&app, Method::PUT, "/v2/providers/rfid-77/proximity", None, &one).await;
-    assert_error(&reply, StatusCode::UNAUTHORIZED, "no token");
+    assert_omlox_error(&reply, StatusCode::UNAUTHORIZED, "no token");
     let reply = call(&app, Method::PUT, "/v2/providers/proximities", Some(READ), "[]").await;
-    assert_error(&reply, StatusCode::FORBIDDEN, "a read token");
+    assert_omlox_error(&reply, StatusCode::FORBIDDEN, "a read token");
     state.pipeline.shutdown();
 }

@@ -274,6 +274,26 @@ pub async fn call(app: &axum::Router, method: Method, uri: &str, token: Option<&
     }
 }
 
+/// `GET uri` through the router with the read token: asserts 200 and gives the JSON.
+pub async fn call_json(app: &axum::Router, uri: &str) -> Value {
+    let reply = call(app, Method::GET, uri, Some(READ), "").await;
+    assert_eq!(reply.status, StatusCode::OK, "GET {uri}: {}", reply.text());
+    reply.json()
+}
+
+/// Asserts an omlox `Error` object (`type`, `code`, `message`) with `status`; gives its
+/// `field`, if any.
+pub fn assert_omlox_error(reply: &Reply, status: StatusCode, what: &str) -> Option<String> {
+    assert_eq!(reply.status, status, "{what}: {}", reply.text());
+    let error = reply.json();
+    assert_eq!(error["code"], status.as_u16(), "{what}: {error}");
+    assert!(
+        error["type"].is_string() && error["message"].is_string(),
+        "{what}: {error}"
+    );
+    error["field"].as_str().map(str::to_string)
+}
+
 /// `GET path` with the read token, as JSON.
 pub async fn get_json(client: &reqwest::Client, http: std::net::SocketAddr, path: &str) -> Value {
     let reply = client
