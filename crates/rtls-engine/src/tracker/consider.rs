@@ -90,9 +90,13 @@ pub(super) fn speed_update<const N: usize>(
             out.innovations.record(NoiseClass::Velocity, &updated, gate, scale);
             // what the velocity's noise would be with the heading's error as fresh noise:
             // the adaptive scale is learnt against it
+            // R = σ_s² u uᵀ + s² P_ψψ u⊥ u⊥ᵀ
             let across = heading_covariance[(0, 0)] * speed_mps * speed_mps;
-            let stated: Vec<f64> = (0..4)
-                .map(|i| speed_variance * uut[i] + across * [sin * sin, -sin * cos, -sin * cos, cos * cos][i])
+            let u_perp_u_perp_t = [sin * sin, -sin * cos, -sin * cos, cos * cos];
+            let stated: Vec<f64> = uut
+                .iter()
+                .zip(u_perp_u_perp_t)
+                .map(|(along, perp)| speed_variance * along + across * perp)
                 .collect();
             track
                 .noise

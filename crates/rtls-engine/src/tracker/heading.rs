@@ -301,12 +301,14 @@ fn speed_update<const N: usize>(
         .last_speed_s
         .replace(time_s)
         .map_or(f64::INFINITY, |previous_s| (time_s - previous_s).max(1e-3));
-    if shared.settings.heading.consider_heading_error && shared.manoeuvres.is_none() {
+    // (an aligned heading above means the channel has a state)
+    let channel = track
+        .heading
+        .state
+        .filter(|_| shared.settings.heading.consider_heading_error && shared.manoeuvres.is_none());
+    if let Some(channel) = channel {
         // the heading's error considered: the track keeps its cross-covariance with it
         let Some(prior) = velocity_prior(shared, track, time_s, kind, out)? else {
-            return Ok(());
-        };
-        let Some(channel) = track.heading.state else {
             return Ok(());
         };
         let covariance = *channel.gaussian().covariance();

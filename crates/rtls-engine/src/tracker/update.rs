@@ -395,8 +395,9 @@ pub(super) fn component_update<const N: usize>(
 /// cross-covariance with the heading channel's error (when it has one) from `prior` to the
 /// track's new state ([`HeadingCross::after_position_update`](super::heading_cross::HeadingCross)).
 fn carry_heading_cross<const N: usize>(track: &mut Track<N>, prior: &Gaussian<N>) -> Result<()> {
-    if let (Some(cross), Some(posterior)) = (track.heading_cross, track.state) {
-        track.heading_cross = Some(cross.after_position_update(prior, &posterior)?);
+    // (nothing to carry, and nothing copied, on a track without speeds)
+    if let (Some(cross), Some(posterior)) = (&track.heading_cross, &track.state) {
+        track.heading_cross = Some(cross.after_position_update(prior, posterior)?);
     }
     Ok(())
 }
@@ -616,9 +617,8 @@ pub(super) fn coupled_update<const N: usize>(
                     }
                 }
             }
-            let prior_state = prior.state;
             if accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)? {
-                carry_heading_cross(track, &prior_state)?;
+                carry_heading_cross(track, &prior.state)?;
             }
             Ok(())
         }
