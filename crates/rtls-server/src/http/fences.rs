@@ -78,22 +78,15 @@ pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, bo
     let fence: Fence = parse_json(value.to_string().as_bytes())?;
     uuid::Uuid::parse_str(&fence.id)
         .map_err(|e| ApiError::field("id", format!("`{}` is not a UUID ({e})", fence.id)))?;
-    let zone_id = fence.foreign_id.clone().unwrap_or_else(|| fence.id.clone());
-    let zone = zone_from_fence(&fence, zone_id, &state.site)?;
+    let site = std::sync::Arc::clone(&state.site);
     let live = std::sync::Arc::clone(state.pipeline.live());
     let created = state
         .query(move |store| {
             let mut zones = live.zones().to_vec();
-            let clash = zones
-                .iter()
-                .any(|z| z.id == zone.id || fence_from_zone(z).id == fence.id);
-            if clash {
-                return Ok(Err(ApiError::field(
-                    "id",
-                    "a fence with this id or foreign_id exists; use PUT",
-                )));
-            }
-            zones.push(zone.clone());
+            let zone = match put_fence(&mut zones, None, &fence, &site) {
+                Ok(zone) => zone,
+                Err(e) => return Ok(Err(e)),
+            };
             Ok(commit(store, &live, zones).map(|()| fence_from_zone(&zone)))
         })
         .await??;
@@ -127,11 +120,10 @@ pub(super) async fn replace(
             }) else {
                 return Ok(Err(ApiError::not_found(format!("fence `{fence_id}` not found"))));
             };
-            let zone = match zone_from_fence(&fence, zones[index].id.clone(), &site) {
+            let zone = match put_fence(&mut zones, Some(index), &fence, &site) {
                 Ok(zone) => zone,
                 Err(e) => return Ok(Err(e)),
             };
-            zones[index] = zone.clone();
             Ok(commit(store, &live, zones).map(|()| fence_from_zone(&zone)))
         })
         .await??;
@@ -184,6 +176,38 @@ pub(super) async fn delete_all(State(state): State<AppState>, headers: HeaderMap
     Ok(StatusCode::NO_CONTENT)
 }
 
+/// Puts `fence` into `zones`: over the zone at `index` (its zone id stays), else as a new zone
+/// (zone id the fence's `foreign_id`, else its id); the zone it became.
+///
+/// # Errors
+/// 400 naming the field of a bad fence, or `id` when a new fence's id or zone id is taken.
+fn put_fence(
+    zones: &mut Vec<rtls_engine::zones::Zone>,
+    index: Option<usize>,
+    fence: &Fence,
+    site: &rtls_engine::site::Site,
+) -> ApiResult<rtls_engine::zones::Zone> {
+    let zone_id = match index {
+        Some(index) => zones[index].id.clone(),
+        None => fence.foreign_id.clone().unwrap_or_else(|| fence.id.clone()),
+    };
+    let zone = zone_from_fence(fence, zone_id, site)?;
+    match index {
+        Some(index) => zones[index] = zone.clone(),
+        None if zones
+            .iter()
+            .any(|z| z.id == zone.id || fence_from_zone(z).id == fence.id) =>
+        {
+            return Err(ApiError::field(
+                "id",
+                "a fence with this id or foreign_id exists; use PUT",
+            ))
+        }
+        None => zones.push(zone.clone()),
+    }
+    Ok(zone)
+}
+
 /// Creates `fence`, or replaces the fence with its id (its zone id stays), and hands the set
 /// to the running trackers; the fence as watched.
 ///
@@ -196,21 +220,10 @@ pub(super) async fn upsert(state: &AppState, who: &crate::auth::Principal, fence
         .query(move |store| {
             let mut zones = live.zones().to_vec();
             let index = zones.iter().position(|z| fence_from_zone(z).id == fence.id);
-            let zone_id = match index {
-                Some(index) => zones[index].id.clone(),
-                None => fence.foreign_id.clone().unwrap_or_else(|| fence.id.clone()),
-            };
-            let zone = match zone_from_fence(&fence, zone_id, &site) {
+            let zone = match put_fence(&mut zones, index, &fence, &site) {
                 Ok(zone) => zone,
                 Err(e) => return Ok(Err(e)),
             };
-            match index {
-                Some(index) => zones[index] = zone.clone(),
-                None if zones.iter().any(|z| z.id == zone.id) => {
-                    return Ok(Err(ApiError::field("id", "a fence with this zone id exists")))
-                }
-                None => zones.push(zone.clone()),
-            }
             Ok(commit(store, &live, zones).map(|()| fence_from_zone(&zone)))
         })
         .await??;
