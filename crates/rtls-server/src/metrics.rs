@@ -75,6 +75,16 @@ pub struct Metrics {
     pub store_compacted: Family<Labels, Counter>,
     /// Compaction passes that failed (the rows stay as they are; the log says why).
     pub store_compaction_failures: Counter,
+    /// Cluster: outputs not sent to the other nodes because the outbound queue was full.
+    pub cluster_peer_messages_dropped: Counter,
+    /// Cluster: tag partitions this node owns now.
+    pub cluster_partitions_owned: Gauge,
+    /// Cluster: partitions this node took over (a lease won).
+    pub cluster_takeovers: Counter,
+    /// Cluster: partitions this node gave up (released, or the lease lost).
+    pub cluster_releases: Counter,
+    /// Cluster: ingest-stream messages whose records do not parse (acknowledged, not stored).
+    pub cluster_records_unparseable: Counter,
 }
 
 impl Default for Metrics {
@@ -118,6 +128,11 @@ impl Metrics {
             webhook_deliveries: Family::default(),
             store_compacted: Family::default(),
             store_compaction_failures: Counter::default(),
+            cluster_peer_messages_dropped: Counter::default(),
+            cluster_partitions_owned: Gauge::default(),
+            cluster_takeovers: Counter::default(),
+            cluster_releases: Counter::default(),
+            cluster_records_unparseable: Counter::default(),
             registry: Registry::default(),
         };
         let m = &metrics;
@@ -240,6 +255,31 @@ impl Metrics {
             "webhook_deliveries",
             "Webhook deliveries by webhook and outcome (delivered, retried, failed, dropped)",
             m.webhook_deliveries.clone(),
+        );
+        registry.register(
+            "cluster_peer_messages_dropped",
+            "Cluster: outputs not sent to the other nodes (outbound queue full)",
+            m.cluster_peer_messages_dropped.clone(),
+        );
+        registry.register(
+            "cluster_partitions_owned",
+            "Cluster: tag partitions this node owns",
+            m.cluster_partitions_owned.clone(),
+        );
+        registry.register(
+            "cluster_takeovers",
+            "Cluster: tag partitions this node took over",
+            m.cluster_takeovers.clone(),
+        );
+        registry.register(
+            "cluster_releases",
+            "Cluster: tag partitions this node gave up (released or lease lost)",
+            m.cluster_releases.clone(),
+        );
+        registry.register(
+            "cluster_records_unparseable",
+            "Cluster: ingest-stream records that do not parse (acknowledged, not stored)",
+            m.cluster_records_unparseable.clone(),
         );
         Self { registry, ..metrics }
     }

@@ -17,6 +17,17 @@ use crate::store::Store;
 /// Records (with their ingest-log ids) for one partition.
 pub(super) type PartitionBatch = Vec<(i64, Record)>;
 
+/// What a partition thread is sent.
+pub(super) enum PartitionInput {
+    /// Records to track and publish, in ingest-log order.
+    Records(PartitionBatch),
+    /// Records another node of the cluster tracked and stored already: they rebuild the
+    /// tracks' state; nothing is published or stored for them.
+    WarmUp(Vec<Record>),
+    /// Forget every track: the partition moved to another node.
+    Reset,
+}
+
 /// At most this many records are committed in one transaction.
 const GROUP_COMMIT_RECORDS: usize = 20_000;
 /// Records replayed per store query on start.
@@ -25,10 +36,12 @@ const REPLAY_PAGE: usize = 10_000;
 pub(super) struct IngestLogWorker {
     pub store: Box<dyn Store>,
     pub rx: mpsc::Receiver<IngestBatch>,
-    pub partitions: Vec<SyncSender<PartitionBatch>>,
+    pub partitions: Vec<SyncSender<PartitionInput>>,
     pub progress: Arc<Progress>,
     pub metrics: Arc<Metrics>,
-    pub replay_after_id: i64,
+    /// Replay the ingest log after this id on start; `None` in a cluster (the ingest stream
+    /// is the log there, and a partition's new owner warms up from it).
+    pub replay_after_id: Option<i64>,
 }
 
 impl IngestLogWorker {
@@ -97,7 +110,7 @@ impl IngestLogWorker {
         for (index, batch) in per_partition.into_iter().enumerate() {
             let Some(&(last_id, _)) = batch.last() else { continue };
             self.progress.dispatched[index].fetch_max(last_id, Ordering::AcqRel);
-            if self.partitions[index].send(batch).is_err() {
+            if self.partitions[index].send(PartitionInput::Records(batch)).is_err() {
                 tracing::error!(partition = index, "partition stopped; records not tracked");
             }
         }
@@ -105,7 +118,10 @@ impl IngestLogWorker {
 
     /// Replays the ingest log after the checkpoint through the trackers.
     fn replay(&mut self) {
-        let mut after = self.replay_after_id;
+        let Some(replay_after_id) = self.replay_after_id else {
+            return;
+        };
+        let mut after = replay_after_id;
         let mut replayed = 0usize;
         let mut skipped = 0usize;
         // a record that failed its partition before must not fail it again
@@ -141,7 +157,7 @@ impl IngestLogWorker {
             tracing::info!(
                 records = replayed,
                 quarantined_skipped = skipped,
-                after_id = self.replay_after_id,
+                after_id = replay_after_id,
                 "replayed the ingest log"
             );
         }

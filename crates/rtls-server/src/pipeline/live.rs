@@ -54,7 +54,6 @@ pub struct TagState {
 }
 
 /// Latest locations and head counts, written by the partition threads.
-#[derive(Debug)]
 pub struct LiveState {
     /// The zones now: the site's, or the zone editor's set (`set_zones`).
     zones: RwLock<Arc<Vec<Zone>>>,
@@ -68,7 +67,20 @@ pub struct LiveState {
     /// Every tag's last known position, kept after its track is deleted: the muster board
     /// counts a tag that went silent on site as missing, not as gone.
     last_seen: RwLock<HashMap<String, LastSeen>>,
+    /// Told every zone set [`LiveState::set_zones`] takes (a cluster sends it to the peers).
+    zone_edits: std::sync::OnceLock<ZoneEditListener>,
 }
+
+impl std::fmt::Debug for LiveState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LiveState")
+            .field("zones_version", &self.zones_version)
+            .finish_non_exhaustive()
+    }
+}
+
+/// What is told of a zone edit.
+pub(super) type ZoneEditListener = Box<dyn Fn(&[Zone]) + Send + Sync>;
 
 /// A tag's last known position for the muster board.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -93,6 +105,7 @@ impl LiveState {
             occupants: (0..partitions.max(1)).map(|_| RwLock::new(HashMap::new())).collect(),
             recent_alarms: RwLock::new(VecDeque::new()),
             last_seen: RwLock::new(HashMap::new()),
+            zone_edits: std::sync::OnceLock::new(),
         }
     }
 
@@ -111,10 +124,23 @@ impl LiveState {
     /// Replaces the zones (validated by the caller): head counts list them at once, the
     /// partitions hand them to their trackers within a clock tick.
     pub fn set_zones(&self, zones: Vec<Zone>) {
+        if let Some(listener) = self.zone_edits.get() {
+            listener(&zones);
+        }
+        self.adopt_zones(zones);
+    }
+
+    /// Replaces the zones without telling the edit listener (a cluster peer's edit).
+    pub(super) fn adopt_zones(&self, zones: Vec<Zone>) {
         if let Ok(mut slot) = self.zones.write() {
             *slot = Arc::new(zones);
             self.zones_version.fetch_add(1, Ordering::AcqRel);
         }
+    }
+
+    /// Sets the listener told of every zone edit (once; a second is ignored).
+    pub(super) fn on_zone_edit(&self, listener: ZoneEditListener) {
+        let _ = self.zone_edits.set(listener);
     }
 
     /// A tag's latest state.

@@ -23,6 +23,7 @@
 //! twice if the server died between storing them and the next checkpoint.
 
 mod admission;
+mod fanout;
 mod ingest_log;
 mod live;
 mod outputs;
@@ -41,6 +42,7 @@ use rtls_engine::tracker::{Output, Tracker};
 use tokio::sync::{broadcast, mpsc, oneshot};
 
 pub use admission::TimeWindow;
+pub use fanout::PeerMessage;
 pub use live::{HubMessage, LastSeen, LiveState, TagState};
 pub use quarantine::QUARANTINE;
 pub use readers::{ReaderHealth, ReaderMonitor};
@@ -48,6 +50,8 @@ pub use readers::{ReaderHealth, ReaderMonitor};
 use crate::metrics::Metrics;
 use crate::sink::{IngestError, IngestFuture, MeasurementSink, Publication};
 use crate::store::{NewRecord, Store, StoreError};
+use fanout::Fanout;
+use ingest_log::PartitionInput;
 
 /// One record into a partition's tracker: [`Tracker::push`] (the default). Its error or panic
 /// quarantines the record (tests put in a failing step to exercise that path).
@@ -85,6 +89,35 @@ pub struct PipelineConfig {
     /// A partition that has not come round its loop for this long (s) is stalled: `/health`
     /// answers 503 (an idle partition comes round every 250 ms).
     pub stall_after_s: f64,
+    /// In a cluster (`rtls serve --cluster`): the replicated ingest log and the way to the
+    /// other nodes; `None`: one process, the ingest log in the store.
+    pub cluster: Option<ClusterHooks>,
+}
+
+/// The replicated ingest log of a cluster (NATS JetStream, `crate::cluster`).
+pub trait ReplicatedLog: Send + Sync {
+    /// Appends `lines` (each record's JSON line with its tag partition) durably; resolves
+    /// once the log has acknowledged every one of them.
+    ///
+    /// # Errors
+    /// [`IngestError::Unavailable`] when any was not acknowledged (the reader retries all).
+    fn append(&self, source: &str, received_ms: i64, lines: Vec<(usize, String)>) -> IngestFuture;
+}
+
+/// What the pipeline needs of a cluster: the replicated ingest log records are appended to
+/// before they are acknowledged, and the queue of outputs for the other nodes.
+#[derive(Clone)]
+pub struct ClusterHooks {
+    /// The replicated ingest log.
+    pub log: Arc<dyn ReplicatedLog>,
+    /// Outputs for the other nodes (bounded; a full queue drops and counts).
+    pub peers: mpsc::Sender<PeerMessage>,
+}
+
+impl std::fmt::Debug for ClusterHooks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ClusterHooks").finish_non_exhaustive()
+    }
 }
 
 impl Default for PipelineConfig {
@@ -105,6 +138,7 @@ impl Default for PipelineConfig {
             }),
             track_step: Tracker::push,
             stall_after_s: 10.0,
+            cluster: None,
         }
     }
 }
@@ -206,6 +240,10 @@ struct Inner {
     metrics: Arc<Metrics>,
     threads: Mutex<Vec<JoinHandle<()>>>,
     progress: Arc<Progress>,
+    fanout: Fanout,
+    /// The partition threads' queues, for a cluster's warm-ups and resets (emptied at
+    /// shutdown, so that the threads see their queues close).
+    partition_txs: Mutex<Vec<std::sync::mpsc::SyncSender<PartitionInput>>>,
 }
 
 /// The checkpoint's name in the store.
@@ -235,6 +273,24 @@ impl Pipeline {
         let readers = Arc::new(ReaderMonitor::new(site, unix_ms()));
         let (hub, _) = broadcast::channel(config.broadcast_capacity.max(16));
         let (publications, _) = broadcast::channel(config.broadcast_capacity.max(16));
+        let clustered = config.cluster.is_some();
+        let fanout = Fanout {
+            live: Arc::clone(&live),
+            hub: hub.clone(),
+            publications: publications.clone(),
+            peers: config.cluster.as_ref().map(|c| c.peers.clone()),
+            metrics: Arc::clone(&metrics),
+        };
+        let site_arc = Arc::new(site.clone());
+        if let Some(peers) = config.cluster.as_ref().map(|c| c.peers.clone()) {
+            // a zone edit made through this node's API reaches the other nodes
+            let dropped = metrics.cluster_peer_messages_dropped.clone();
+            live.on_zone_edit(Box::new(move |zones| {
+                if peers.try_send(PeerMessage::Zones { zones: zones.to_vec() }).is_err() {
+                    dropped.inc();
+                }
+            }));
+        }
         let mut threads = Vec::new();
         let spawn = |name: String, body: Box<dyn FnOnce() + Send>| {
             std::thread::Builder::new()
@@ -253,6 +309,7 @@ impl Pipeline {
             progress: Arc::clone(&progress),
             metrics: Arc::clone(&metrics),
             quarantine_stored: 0,
+            write_checkpoint: !clustered,
         };
         threads.push(spawn("rtls-outputs".into(), Box::new(move || output_worker.run()))?);
 
@@ -268,9 +325,8 @@ impl Pipeline {
                 tracker: tracker()?,
                 rx,
                 outputs: output_tx.clone(),
-                live: Arc::clone(&live),
-                hub: hub.clone(),
-                publications: publications.clone(),
+                fanout: fanout.clone(),
+                site: Arc::clone(&site_arc),
                 metrics: Arc::clone(&metrics),
                 progress: Arc::clone(&progress),
                 live_clock: config.live_clock,
@@ -295,10 +351,10 @@ impl Pipeline {
         let ingest_worker = ingest_log::IngestLogWorker {
             store: ingest_store,
             rx: ingest_rx,
-            partitions: partition_txs,
+            partitions: partition_txs.clone(),
             progress: Arc::clone(&progress),
             metrics: Arc::clone(&metrics),
-            replay_after_id: checkpoint,
+            replay_after_id: (!clustered).then_some(checkpoint),
         };
         threads.push(spawn("rtls-ingest-log".into(), Box::new(move || ingest_worker.run()))?);
 
@@ -314,6 +370,8 @@ impl Pipeline {
                 metrics,
                 threads: Mutex::new(threads),
                 progress,
+                fanout,
+                partition_txs: Mutex::new(if clustered { partition_txs } else { Vec::new() }),
             }),
         })
     }
@@ -351,8 +409,106 @@ impl Pipeline {
 
     /// Sends a message to every WebSocket subscriber (an alarm acknowledgement, a zone edit).
     pub fn broadcast(&self, message: HubMessage) {
-        // no subscriber is not an error
-        let _ = self.inner.hub.send(Arc::new(message));
+        // in a cluster, every node's subscribers
+        self.inner.fanout.hub(message);
+    }
+
+    /// Applies another node's output to this node's live state and broadcasts.
+    pub fn apply_peer(&self, message: PeerMessage) {
+        self.inner.fanout.apply(message);
+    }
+
+    /// The tag partition of `tag` (the same on every node of a cluster with the same count).
+    #[must_use]
+    pub fn partition_of(&self, tag: &str) -> usize {
+        partition_of(tag, self.inner.config.partitions.max(1))
+    }
+
+    /// The number of tag partitions.
+    #[must_use]
+    pub fn partitions(&self) -> usize {
+        self.inner.config.partitions.max(1)
+    }
+
+    /// Sends partition `index` records to rebuild its tracks from (a cluster's takeover);
+    /// blocks while the partition's queue is full.
+    pub fn warm_up_partition(&self, index: usize, records: Vec<Record>) {
+        self.to_partition(index, PartitionInput::WarmUp(records));
+    }
+
+    /// Makes partition `index` forget its tracks (a cluster's partition moved away); blocks
+    /// while its queue is full.
+    pub fn reset_partition(&self, index: usize) {
+        self.to_partition(index, PartitionInput::Reset);
+    }
+
+    fn to_partition(&self, index: usize, input: PartitionInput) {
+        let sender = self
+            .inner
+            .partition_txs
+            .lock()
+            .ok()
+            .and_then(|txs| txs.get(index).cloned());
+        if let Some(sender) = sender {
+            if sender.send(input).is_err() {
+                tracing::error!(partition = index, "partition stopped");
+            }
+        }
+    }
+
+    /// Stores and tracks records a cluster's ingest stream delivered to this node: messages
+    /// as `(source, received_ms, JSON lines)`, as [`ReplicatedLog::append`] wrote them. A line
+    /// that does not parse is counted and logged, and costs that record only. Resolves once
+    /// the records are in the store.
+    ///
+    /// # Errors
+    /// [`IngestError::Unavailable`] when they could not be stored (the stream redelivers).
+    pub async fn take_from_stream(&self, messages: &[(String, i64, String)]) -> Result<usize, IngestError> {
+        let mut records = Vec::new();
+        let mut rows = Vec::new();
+        for (source, received_ms, lines) in messages {
+            for (index, line) in lines.lines().enumerate() {
+                if line.trim().is_empty() {
+                    continue;
+                }
+                match parse_json_line(line, source, index + 1) {
+                    Ok(record) => {
+                        rows.push(NewRecord {
+                            received_ms: *received_ms,
+                            source: source.clone(),
+                            time_s: record.time_s,
+                            tag: record.tag.clone(),
+                            json: line.to_string(),
+                        });
+                        records.push(record);
+                    }
+                    Err(e) => {
+                        self.inner.metrics.cluster_records_unparseable.inc();
+                        tracing::error!(error = %e, "a record of the ingest stream does not parse; skipped");
+                    }
+                }
+            }
+        }
+        if records.is_empty() {
+            return Ok(0);
+        }
+        let count = records.len();
+        let (reply, answer) = oneshot::channel();
+        let sender = self
+            .inner
+            .ingest_tx
+            .lock()
+            .ok()
+            .and_then(|guard| guard.clone())
+            .ok_or_else(|| IngestError::Unavailable("the server is shutting down".into()))?;
+        sender
+            .send(IngestBatch { records, rows, reply })
+            .await
+            .map_err(|_| IngestError::Unavailable("the server is shutting down".into()))?;
+        answer
+            .await
+            .map_err(|_| IngestError::Unavailable("the ingest log stopped".into()))?
+            .map(|_| count)
     }
 
     /// Subscribes to the hub's messages (locations, fence events, extension events).
@@ -437,6 +593,21 @@ impl Pipeline {
         }
         let received_ms = unix_ms();
         self.inner.readers.heard(records.iter().map(|(_, r)| r), received_ms);
+        if let Some(cluster) = &self.inner.config.cluster {
+            let partitions = self.inner.config.partitions.max(1);
+            let lines = records
+                .iter()
+                .map(|(_, r)| (partition_of(&r.tag, partitions), to_json_line(r)))
+                .collect();
+            let started = std::time::Instant::now();
+            let count = records.len();
+            cluster.log.append(source, received_ms, lines).await?;
+            self.inner
+                .metrics
+                .ingest_ack_seconds
+                .observe(started.elapsed().as_secs_f64());
+            return Ok(count);
+        }
         let rows = records
             .iter()
             .map(|(_, r)| NewRecord {
@@ -499,6 +670,9 @@ impl Pipeline {
     pub fn shutdown(&self) {
         if let Ok(mut sender) = self.inner.ingest_tx.lock() {
             sender.take();
+        }
+        if let Ok(mut partitions) = self.inner.partition_txs.lock() {
+            partitions.clear();
         }
         let threads = self
             .inner

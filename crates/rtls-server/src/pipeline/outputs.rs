@@ -33,6 +33,9 @@ pub(super) struct OutputWorker {
     pub metrics: Arc<Metrics>,
     /// Quarantined records stored in this run ([`MAX_STORED_PER_RUN`] at most).
     pub quarantine_stored: usize,
+    /// Write the restart checkpoint (not in a cluster: the ingest stream's consumers are the
+    /// checkpoints there, and the store is shared by every node).
+    pub write_checkpoint: bool,
 }
 
 impl OutputWorker {
@@ -126,6 +129,9 @@ impl OutputWorker {
     }
 
     fn checkpoint(&mut self, previous: i64) -> i64 {
+        if !self.write_checkpoint {
+            return previous;
+        }
         let watermark = self.progress.watermark();
         if watermark <= previous {
             return previous;

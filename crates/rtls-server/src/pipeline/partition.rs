@@ -7,13 +7,15 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rtls_engine::lifecycle::TrackStatus;
+use rtls_engine::record::Record;
+use rtls_engine::site::Site;
 use rtls_engine::tracker::{status_name, AnchorOffsetSummary, Event, Output, TrackUpdate, Tracker};
 use rtls_engine::zones::{ZoneEvent, ZoneKind};
 use serde_json::Value;
-use tokio::sync::broadcast;
 
-use super::ingest_log::PartitionBatch;
-use super::live::{HubMessage, LiveState, TagState};
+use super::fanout::Fanout;
+use super::ingest_log::PartitionInput;
+use super::live::{HubMessage, TagState};
 use super::outputs::OutputBatch;
 use super::quarantine::{guarded, Quarantined};
 use super::{unix_ms, unix_s, Progress};
@@ -36,11 +38,12 @@ pub(super) struct PartitionWorker {
     pub offsets_posted: Option<Instant>,
     pub offsets_dirty: bool,
     pub tracker: Tracker,
-    pub rx: Receiver<PartitionBatch>,
+    pub rx: Receiver<PartitionInput>,
     pub outputs: SyncSender<OutputBatch>,
-    pub live: Arc<LiveState>,
-    pub hub: broadcast::Sender<Arc<HubMessage>>,
-    pub publications: broadcast::Sender<Publication>,
+    /// The live state and broadcasts (and, in a cluster, the peers).
+    pub fanout: Fanout,
+    /// The site, for a fresh tracker when the partition is reset.
+    pub site: Arc<Site>,
     pub metrics: Arc<Metrics>,
     pub progress: Arc<Progress>,
     pub live_clock: bool,
@@ -78,7 +81,7 @@ impl PartitionWorker {
             self.progress.beat(self.index);
             self.follow_zone_edits();
             match self.rx.recv_timeout(CLOCK_TICK) {
-                Ok(batch) => {
+                Ok(PartitionInput::Records(batch)) => {
                     // an edit made while this batch waited applies to it
                     self.follow_zone_edits();
                     let started = Instant::now();
@@ -98,6 +101,14 @@ impl PartitionWorker {
                     self.metrics.tracking_seconds.observe(started.elapsed().as_secs_f64());
                     self.offsets_dirty = true;
                 }
+                Ok(PartitionInput::WarmUp(records)) => {
+                    self.warm_up(records, &mut out);
+                    continue;
+                }
+                Ok(PartitionInput::Reset) => {
+                    self.reset(&mut out);
+                    continue;
+                }
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => {
                     if let Err(e) = self.tracker.finish(&mut out) {
@@ -116,6 +127,43 @@ impl PartitionWorker {
             self.post_offsets();
             self.emit(&mut out, processed, quarantined);
         }
+    }
+
+    /// Records a peer already tracked and stored (cluster takeover): they rebuild the tracks'
+    /// state, and what the tracker produces from them is not published or stored again. A
+    /// record the tracker refuses here was reported by the node that tracked it first.
+    fn warm_up(&mut self, records: Vec<Record>, out: &mut Output) {
+        self.follow_zone_edits();
+        let count = records.len();
+        for record in records {
+            let (tracker, step) = (&mut self.tracker, self.track_step);
+            let _ = guarded(|| step(tracker, record, out));
+        }
+        let _ = self.tracker.report_pending(out);
+        out.clear();
+        // the zone entries the warm-up passed are this partition's from now on
+        self.publish_occupants();
+        tracing::info!(
+            partition = self.index,
+            records = count,
+            "partition warmed up from the ingest stream"
+        );
+    }
+
+    /// Forgets every track (the partition moved to another node of the cluster): nothing is
+    /// published for them here any more; the new owner publishes from its warm-up on.
+    fn reset(&mut self, out: &mut Output) {
+        match Tracker::new(&self.site) {
+            Ok(tracker) => self.tracker = tracker,
+            Err(e) => tracing::error!(partition = self.index, error = %e, "a fresh tracker failed; the old one stays"),
+        }
+        out.clear();
+        self.pending_events.clear();
+        self.zone_entries.clear();
+        self.reported_lost.clear();
+        // the fresh tracker has the site's zones: hand it the live set at once
+        self.zones_version = u64::MAX;
+        self.follow_zone_edits();
     }
 
     /// Posts the tracker's learnt range offsets to the reader health, at most once per
@@ -172,7 +220,7 @@ impl PartitionWorker {
             "reason": reason,
         });
         let json = event.to_string();
-        let _ = self.publications.send(Publication {
+        self.fanout.publish(Publication {
             topic: "rtls/v1/events/record-quarantined".into(),
             payload: json.clone().into(),
         });
@@ -228,12 +276,12 @@ impl PartitionWorker {
 
     /// Hands a zone edit (the control room's zone editor) to the tracker.
     fn follow_zone_edits(&mut self) {
-        let version = self.live.zones_version();
+        let version = self.fanout.live.zones_version();
         if version == self.zones_version {
             return;
         }
         self.zones_version = version;
-        match self.tracker.replace_zones(self.live.zones().to_vec()) {
+        match self.tracker.replace_zones(self.fanout.live.zones().to_vec()) {
             Ok(()) => self.publish_occupants(),
             // the API validated the set; a failure here is a bug, and the old zones stay
             Err(e) => tracing::error!(partition = self.index, error = %e, "the edited zones were refused"),
@@ -242,6 +290,7 @@ impl PartitionWorker {
 
     fn publish_occupants(&self) {
         let occupants = self
+            .fanout
             .live
             .zones()
             .iter()
@@ -250,7 +299,7 @@ impl PartitionWorker {
                 (zone.id.clone(), tags)
             })
             .collect();
-        self.live.set_occupants(self.index, occupants);
+        self.fanout.set_occupants(self.index, occupants);
     }
 
     fn publish_update(&mut self, update: &TrackUpdate, received_ms: i64, batch: &mut OutputBatch) {
@@ -280,18 +329,18 @@ impl PartitionWorker {
             predicted: update.predicted,
             json: json_line.clone(),
         });
-        let _ = self.publications.send(Publication {
+        self.fanout.publish(Publication {
             topic: format!("rtls/v1/tracks/{}", mqtt_level(&update.tag)),
             payload: json_line.into(),
         });
         if update.status == TrackStatus::Deleted {
-            self.live.remove_tag(&update.tag);
+            self.fanout.remove_tag(&update.tag);
             return;
         }
         match location_from_update(update, &self.source, ProviderType::Uwb) {
             Ok(location) => {
                 let location = Arc::new(location);
-                self.live.set_tag(
+                self.fanout.set_tag(
                     &update.tag,
                     TagState {
                         time_s: update.time_s,
@@ -300,11 +349,11 @@ impl PartitionWorker {
                         location: Arc::clone(&location),
                     },
                 );
-                let _ = self.hub.send(Arc::new(HubMessage::Location {
+                self.fanout.hub(HubMessage::Location {
                     tag: update.tag.to_string(),
                     time_s: update.time_s,
                     location,
-                }));
+                });
                 self.metrics
                     .pipeline_latency_seconds
                     .observe((unix_s() - update.time_s).max(0.0));
@@ -335,7 +384,7 @@ impl PartitionWorker {
                 }
                 json_line = parsed.to_string();
             }
-            self.live.note_alarm(&parsed);
+            self.fanout.note_alarm(&parsed);
             self.metrics
                 .alarms
                 // a lost tag is counted as `lost`, not as its event type `lifecycle`
@@ -354,7 +403,7 @@ impl PartitionWorker {
             alarm,
             json: json_line.clone(),
         });
-        let _ = self.publications.send(Publication {
+        self.fanout.publish(Publication {
             topic: format!("rtls/v1/events/{kind}"),
             payload: json_line.into(),
         });
@@ -387,13 +436,13 @@ impl PartitionWorker {
             },
         };
         if let Some(message) = message {
-            let _ = self.hub.send(Arc::new(message));
+            self.fanout.hub(message);
         }
         if let Some(event) = parsed_alarm {
-            let _ = self.hub.send(Arc::new(HubMessage::Extension {
+            self.fanout.hub(HubMessage::Extension {
                 topic: crate::omlox::ws::Topic::RtlsAlarms,
                 event,
-            }));
+            });
         }
     }
 
@@ -403,7 +452,7 @@ impl PartitionWorker {
         let Event::Zone(ZoneEvent::Enter { zone, .. }) = event else {
             return None;
         };
-        let zones = self.live.zones();
+        let zones = self.fanout.live.zones();
         match zones.iter().find(|z| &z.id == zone)?.kind {
             ZoneKind::Hazard => Some("hazard"),
             ZoneKind::Restricted => Some("restricted"),

@@ -1,0 +1,277 @@
+//! Where a partition's outputs go: this node's live state and broadcasts, and — in a cluster —
+//! the other nodes, which apply the same messages to theirs ([`PeerMessage`]).
+//!
+//! Every node serves the APIs, the WebSocket and MQTT subscribers and the dashboard for every
+//! tag, but only the node that owns a tag's partition tracks it: what its partition threads
+//! produce is applied here and sent to the peers (`rtls.out.<node>` on NATS, by
+//! `crate::cluster`), whose [`Fanout::apply`] writes it to their live state and broadcasts.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use tokio::sync::{broadcast, mpsc};
+
+use super::live::{HubMessage, LiveState, TagState};
+use crate::metrics::Metrics;
+use crate::omlox::ws::Topic;
+use crate::omlox::Location;
+use crate::sink::Publication;
+
+/// One output of a partition, as it travels to the other nodes of a cluster (JSON).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum PeerMessage {
+    /// A track update: the tag's live state and the `location_updates` message.
+    Location {
+        /// The tag.
+        tag: String,
+        /// The update's time (s).
+        time_s: f64,
+        /// Its position (m).
+        position_m: [f64; 3],
+        /// Its lifecycle status name.
+        status: String,
+        /// The omlox `Location`.
+        location: Box<Location>,
+    },
+    /// A track deleted: the tag leaves the live state.
+    Removed {
+        /// The tag.
+        tag: String,
+    },
+    /// A hub message without live state (a fence event, an extension event).
+    Hub {
+        /// The tag of a fence event; `None` for an extension event.
+        tag: Option<String>,
+        /// The topic of an extension event; `None` for a fence event.
+        topic: Option<Topic>,
+        /// The event.
+        event: Value,
+    },
+    /// An alarm for the recent-alarm list (acknowledgements look it up).
+    Alarm {
+        /// The alarm's event JSON with its `alarm_id`.
+        event: Value,
+    },
+    /// A partition's zone occupants.
+    Occupants {
+        /// The partition.
+        partition: usize,
+        /// Zone id → tags inside.
+        occupants: HashMap<String, Vec<String>>,
+    },
+    /// An MQTT publication (tracks and events topics).
+    Publication {
+        /// The MQTT topic.
+        topic: String,
+        /// The payload (JSON text).
+        payload: String,
+    },
+    /// The zone set was edited through the API (on the node that stored the edit).
+    Zones {
+        /// The whole set.
+        zones: Vec<rtls_engine::zones::Zone>,
+    },
+}
+
+/// The live state and broadcasts of this node, and the way to the peers (cluster mode).
+#[derive(Clone)]
+pub struct Fanout {
+    pub(super) live: Arc<LiveState>,
+    pub(super) hub: broadcast::Sender<Arc<HubMessage>>,
+    pub(super) publications: broadcast::Sender<Publication>,
+    /// The cluster's outbound queue (bounded: a full queue drops and counts the message).
+    pub(super) peers: Option<mpsc::Sender<PeerMessage>>,
+    pub(super) metrics: Arc<Metrics>,
+}
+
+impl Fanout {
+    /// To the peers, if there are any; a full queue costs the message (counted).
+    pub(super) fn to_peers(&self, message: impl FnOnce() -> PeerMessage) {
+        if let Some(peers) = &self.peers {
+            if peers.try_send(message()).is_err() {
+                self.metrics.cluster_peer_messages_dropped.inc();
+            }
+        }
+    }
+
+    pub(super) fn set_tag(&self, tag: &str, state: TagState) {
+        self.to_peers(|| PeerMessage::Location {
+            tag: tag.to_string(),
+            time_s: state.time_s,
+            position_m: state.position_m,
+            status: state.status.to_string(),
+            location: Box::new((*state.location).clone()),
+        });
+        self.live.set_tag(tag, state);
+    }
+
+    pub(super) fn remove_tag(&self, tag: &str) {
+        self.to_peers(|| PeerMessage::Removed { tag: tag.to_string() });
+        self.live.remove_tag(tag);
+    }
+
+    /// A hub message; a location's is sent to the peers with its live state by `set_tag`.
+    pub(super) fn hub(&self, message: HubMessage) {
+        match &message {
+            HubMessage::Location { .. } => {}
+            HubMessage::FenceEvent { tag, event } => self.to_peers(|| PeerMessage::Hub {
+                tag: Some(tag.clone()),
+                topic: None,
+                event: event.clone(),
+            }),
+            HubMessage::Extension { topic, event } => self.to_peers(|| PeerMessage::Hub {
+                tag: None,
+                topic: Some(*topic),
+                event: event.clone(),
+            }),
+        }
+        // no subscriber is not an error
+        let _ = self.hub.send(Arc::new(message));
+    }
+
+    pub(super) fn publish(&self, publication: Publication) {
+        self.to_peers(|| PeerMessage::Publication {
+            topic: publication.topic.clone(),
+            payload: String::from_utf8_lossy(&publication.payload).into_owned(),
+        });
+        let _ = self.publications.send(publication);
+    }
+
+    pub(super) fn note_alarm(&self, alarm: &Value) {
+        self.to_peers(|| PeerMessage::Alarm { event: alarm.clone() });
+        self.live.note_alarm(alarm);
+    }
+
+    pub(super) fn set_occupants(&self, partition: usize, occupants: HashMap<String, Vec<String>>) {
+        self.to_peers(|| PeerMessage::Occupants {
+            partition,
+            occupants: occupants.clone(),
+        });
+        self.live.set_occupants(partition, occupants);
+    }
+
+    /// Applies a peer's message to this node's live state and broadcasts (not sent on).
+    pub(super) fn apply(&self, message: PeerMessage) {
+        match message {
+            PeerMessage::Location {
+                tag,
+                time_s,
+                position_m,
+                status,
+                location,
+            } => {
+                let location = Arc::new(*location);
+                self.live.set_tag(
+                    &tag,
+                    TagState {
+                        time_s,
+                        position_m,
+                        status: status_of(&status),
+                        location: Arc::clone(&location),
+                    },
+                );
+                let _ = self.hub.send(Arc::new(HubMessage::Location { tag, time_s, location }));
+            }
+            PeerMessage::Removed { tag } => self.live.remove_tag(&tag),
+            PeerMessage::Hub { tag, topic, event } => {
+                let message = match (tag, topic) {
+                    (_, Some(topic)) => HubMessage::Extension { topic, event },
+                    (Some(tag), None) => HubMessage::FenceEvent { tag, event },
+                    (None, None) => return,
+                };
+                let _ = self.hub.send(Arc::new(message));
+            }
+            PeerMessage::Alarm { event } => self.live.note_alarm(&event),
+            PeerMessage::Occupants { partition, occupants } => self.live.set_occupants(partition, occupants),
+            PeerMessage::Publication { topic, payload } => {
+                let _ = self.publications.send(Publication {
+                    topic,
+                    payload: payload.into(),
+                });
+            }
+            PeerMessage::Zones { zones } => self.live.adopt_zones(zones),
+        }
+    }
+}
+
+/// The `'static` name of a lifecycle status sent by a peer (an unknown one reads `confirmed`).
+fn status_of(name: &str) -> &'static str {
+    match name {
+        "tentative" => "tentative",
+        "coasting" => "coasting",
+        "lost" => "lost",
+        "deleted" => "deleted",
+        _ => "confirmed",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fanout(peers: Option<mpsc::Sender<PeerMessage>>) -> Fanout {
+        let site = rtls_engine::site::Site::from_toml_str(
+            "[[readers]]\nid = \"R1\"\nposition_m = [0.0, 0.0]\ntechnology = \"uwb\"\n",
+            "site.toml",
+        )
+        .expect("site");
+        Fanout {
+            live: Arc::new(LiveState::new(&site, 2)),
+            hub: broadcast::channel(16).0,
+            publications: broadcast::channel(16).0,
+            peers,
+            metrics: Arc::new(Metrics::new()),
+        }
+    }
+
+    #[test]
+    fn what_a_partition_produces_reaches_a_peer_as_it_was_applied_here() {
+        let (tx, mut rx) = mpsc::channel(16);
+        let owner = fanout(Some(tx));
+        let peer = fanout(None);
+        let mut hub = peer.hub.subscribe();
+        let location: Location = serde_json::from_value(serde_json::json!({
+            "position": { "type": "Point", "coordinates": [1.0, 2.0] },
+            "source": "rtls", "provider_type": "uwb", "provider_id": "t1", "crs": "local"
+        }))
+        .expect("location");
+        owner.set_tag(
+            "t1",
+            TagState {
+                time_s: 10.0,
+                position_m: [1.0, 2.0, 0.0],
+                status: "coasting",
+                location: Arc::new(location),
+            },
+        );
+        owner.set_occupants(1, HashMap::from([("z".to_string(), vec!["t1".to_string()])]));
+        owner.remove_tag("gone");
+        let mut sent = Vec::new();
+        while let Ok(message) = rx.try_recv() {
+            // the wire is JSON
+            let text = serde_json::to_string(&message).expect("serialise");
+            sent.push(serde_json::from_str::<PeerMessage>(&text).expect("parse"));
+        }
+        assert_eq!(sent.len(), 3);
+        for message in sent {
+            peer.apply(message);
+        }
+        assert_eq!(peer.live.tag("t1"), owner.live.tag("t1"));
+        assert_eq!(peer.live.occupants(), owner.live.occupants());
+        assert!(
+            matches!(&*hub.try_recv().expect("a location message"), HubMessage::Location { tag, .. } if tag == "t1")
+        );
+    }
+
+    #[test]
+    fn a_full_peer_queue_costs_the_message_and_counts_it() {
+        let (tx, _rx) = mpsc::channel(1);
+        let owner = fanout(Some(tx));
+        owner.remove_tag("a");
+        owner.remove_tag("b");
+        assert_eq!(owner.metrics.cluster_peer_messages_dropped.get(), 1);
+    }
+}
