@@ -66,6 +66,13 @@ pub struct ServeArgs {
     /// `text` or `json` logs (stderr).
     #[arg(long)]
     log_format: Option<String>,
+    /// Run as one node of a cluster on NATS JetStream: `nats://host:port[,nats://…]` (needs a
+    /// shared `--db postgres://…`; docs/CLUSTER.md).
+    #[arg(long, value_delimiter = ',')]
+    cluster: Vec<String>,
+    /// This node's id in the cluster (default `<hostname>-<pid>`).
+    #[arg(long, requires = "cluster")]
+    node_id: Option<String>,
 }
 
 /// Runs the server until Ctrl-C or SIGTERM.
@@ -185,6 +192,12 @@ fn apply_overrides(config: &mut ServerConfig, args: &ServeArgs) {
     }
     if let Some(db) = &args.db {
         config.server.db.clone_from(db);
+    }
+    if !args.cluster.is_empty() {
+        config.cluster.servers.clone_from(&args.cluster);
+    }
+    if let Some(node) = &args.node_id {
+        config.cluster.node_id.clone_from(node);
     }
     if let Some(listen) = args.mqtt_listen {
         config.mqtt.listen = listen;

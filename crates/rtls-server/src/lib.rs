@@ -25,6 +25,7 @@
 //! - OASIS MQTT 3.1.1 (2014).
 
 pub mod auth;
+pub mod cluster;
 pub mod config;
 pub mod convert;
 mod error;

@@ -129,8 +129,21 @@ pub async fn serve(
     // before anything starts: a missing secret variable is a configuration error
     let webhooks = Webhook::from_config(&config.webhooks).map_err(|e| ServeError::Config(e.to_string()))?;
     let metrics = Arc::new(Metrics::new());
+    // a cluster's node: the ingest log is the cluster's stream, outputs go to the peers too
+    let cluster = if config.cluster.enabled() {
+        Some(
+            crate::cluster::Cluster::join(config.cluster.clone())
+                .await
+                .map_err(|e| ServeError::Config(e.to_string()))?,
+        )
+    } else {
+        None
+    };
+    let (peers_tx, peers_rx) = tokio::sync::mpsc::channel(crate::cluster::PEER_QUEUE);
     let pipeline_config = PipelineConfig {
-        partitions: if config.pipeline.partitions == 0 {
+        partitions: if let Some(cluster) = &cluster {
+            cluster.settings.partitions
+        } else if config.pipeline.partitions == 0 {
             PipelineConfig::default().partitions
         } else {
             config.pipeline.partitions
@@ -140,6 +153,10 @@ pub async fn serve(
         time_window: Some(TimeWindow {
             max_age_s: config.pipeline.max_record_age_s,
             max_lead_s: config.pipeline.max_record_lead_s,
+        }),
+        cluster: cluster.as_ref().map(|c| crate::pipeline::ClusterHooks {
+            log: c.log(),
+            peers: peers_tx,
         }),
         ..PipelineConfig::default()
     };
@@ -272,6 +289,14 @@ pub async fn serve(
             tasks.push(tokio::spawn(bridge.run(stopped(stop_rx.clone()))));
         }
         MqttMode::Off => {}
+    }
+    if let Some(cluster) = cluster {
+        tasks.extend(crate::cluster::start_node(
+            cluster,
+            pipeline.clone(),
+            peers_rx,
+            &stop_rx,
+        ));
     }
     tasks.push(tokio::spawn(retention(
         Arc::clone(&queries),

@@ -61,6 +61,7 @@ use std::path::PathBuf;
 
 use serde::Deserialize;
 
+pub mod cluster;
 mod webhooks;
 
 pub(crate) use webhooks::validate_webhooks;
@@ -124,6 +125,8 @@ pub struct ServerConfig {
     pub webhooks: Vec<WebhookSection>,
     /// `[tls]`: HTTPS / WSS and MQTTS.
     pub tls: TlsSection,
+    /// `[cluster]`: `rtls serve` as one node of a cluster on NATS JetStream.
+    pub cluster: cluster::ClusterSection,
 }
 
 /// `[tls]`: with a certificate, the HTTP listener serves HTTPS (and WSS) only and the embedded
@@ -340,6 +343,13 @@ impl ServerConfig {
             field: field.into(),
             reason,
         };
+        self.cluster.validate().map_err(|reason| invalid("cluster", reason))?;
+        if self.cluster.enabled() && !self.server.db.starts_with("postgres") {
+            return Err(invalid(
+                "server.db",
+                "a cluster's nodes share one PostgreSQL database (postgres://…); SQLite is one process's".into(),
+            ));
+        }
         let s = &self.server;
         if !(s.retention_days.is_finite() && s.retention_days > 0.0) {
             return Err(invalid(
@@ -562,6 +572,32 @@ mod tests {
         assert!(config.webhooks.is_empty(), "the example's webhook is commented out");
     }
 
+    /// The example's commented-out `[cluster]` table, uncommented: every key is known, and the
+    /// values shown are the defaults (but for the servers).
+    #[test]
+    fn the_documented_cluster_table_parses_with_the_defaults_it_documents() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/server.toml");
+        let text = std::fs::read_to_string(path).unwrap();
+        let start = text.find("# [cluster]").expect("a [cluster] example");
+        let table: String = text[start..]
+            .lines()
+            .take_while(|line| line.starts_with('#'))
+            .map(|line| line.strip_prefix("# ").unwrap_or(line))
+            .collect::<Vec<_>>()
+            .join("\n");
+        let config: ServerConfig = toml::from_str(&table).unwrap_or_else(|e| panic!("{e}\n{table}"));
+        let keys = table.lines().filter(|l| l.contains(" = ")).count();
+        assert_eq!(keys, 7, "every key shown:\n{table}");
+        assert_eq!(config.cluster.servers.len(), 3);
+        assert_eq!(
+            cluster::ClusterSection {
+                servers: Vec::new(),
+                ..config.cluster
+            },
+            cluster::ClusterSection::default()
+        );
+    }
+
     /// The example's commented-out `[[webhooks]]` table, uncommented: every key it shows is
     /// known, and the values it shows are the defaults (but for url, name and the secret).
     #[test]
@@ -571,6 +607,7 @@ mod tests {
         let start = text.find("# [[webhooks]]").expect("a [[webhooks]] example");
         let table: String = text[start..]
             .lines()
+            .take_while(|line| !line.trim().is_empty())
             .filter(|line| !line.starts_with("#  "))
             .map(|line| line.strip_prefix("# ").unwrap_or(line))
             .collect::<Vec<_>>()
