@@ -16,10 +16,13 @@
 //!   once JetStream acknowledged every message — then they are replicated on the stream's
 //!   `replicas` servers.
 //! - **Ownership** ([`ownership`]): each partition is leased to one node through the key
-//!   `p<n>` of the key-value bucket `rtls_leases`, whose entries live `lease_ttl_s`; the owner
-//!   renews it twice per TTL. Live nodes announce themselves in `rtls_nodes`; a node claims
-//!   free partitions up to its fair share ⌈partitions / nodes⌉ and releases one a round
-//!   while above it, so a new node gets work and a dead node's work is shared out.
+//!   `p<n>` of the key-value bucket `rtls_leases` (entries renewed every round, expiring after
+//!   `lease_ttl_s` as a safety net). Nodes say they are alive on core NATS
+//!   (`rtls.nodes.<node>`, four times per `failover_s`), which works while JetStream elects
+//!   leaders (4–9 s after a server dies); a node silent for `failover_s` is dead, and its
+//!   leases are taken over by compare-and-set on their revision. A node claims partitions up
+//!   to its fair share ⌈partitions / live nodes⌉ and releases one a round while above it, so a
+//!   new node gets work and a dead node's work is shared out.
 //! - **Takeover** ([`consumer`]): the new owner reads the partition's durable consumer's ack
 //!   floor (every record at or below it is stored), replaces the consumer to deliver from the
 //!   floor on at once (not after the dead owner's acknowledgement timeout), warms the
@@ -61,16 +64,17 @@ pub const INGEST_SUBJECT: &str = "rtls.ingest";
 pub const OUTPUT_SUBJECT: &str = "rtls.out";
 /// The partition leases' bucket.
 pub const LEASES: &str = "rtls_leases";
-/// The live nodes' bucket.
-pub const NODES: &str = "rtls_nodes";
+/// The subject prefix of the nodes' heartbeats on core NATS: `rtls.nodes.<node>`.
+pub const HEARTBEAT_SUBJECT: &str = "rtls.nodes";
 /// The cluster-wide settings' bucket (the partition count every node must share).
 pub const SETTINGS: &str = "rtls_cluster";
 /// A message's payload stays below this (NATS' default `max_payload` is 1 MiB).
 const MAX_MESSAGE_BYTES: usize = 512 * 1024;
 /// How long joining is retried before `rtls serve` gives up.
 const JOIN_PATIENCE: Duration = Duration::from_secs(30);
-/// How long a payload's publication is retried before the reader is answered 503.
-const PUBLISH_RETRY_FOR: Duration = Duration::from_secs(8);
+/// How long a payload's publication is retried before the reader is answered 503: longer than a
+/// JetStream leader election (4–9 s after a server dies).
+const PUBLISH_RETRY_FOR: Duration = Duration::from_secs(12);
 /// The pause between two attempts.
 const PUBLISH_BACKOFF: Duration = Duration::from_millis(250);
 /// The header naming a message's source (the transport, e.g. `http body`).
@@ -98,7 +102,6 @@ pub struct Cluster {
     jetstream: jetstream::Context,
     stream: jetstream::stream::Stream,
     leases: jetstream::kv::Store,
-    nodes: jetstream::kv::Store,
 }
 
 impl Cluster {
@@ -153,9 +156,7 @@ impl Cluster {
             storage: jetstream::stream::StorageType::Memory,
             ..Default::default()
         };
-        let ttl = settings.lease_ttl();
-        let leases = key_value(&jetstream, bucket(LEASES, ttl)).await?;
-        let nodes = key_value(&jetstream, bucket(NODES, ttl)).await?;
+        let leases = key_value(&jetstream, bucket(LEASES, settings.lease_ttl())).await?;
         let shared = key_value(
             &jetstream,
             jetstream::kv::Config {
@@ -192,7 +193,6 @@ impl Cluster {
             jetstream,
             stream,
             leases,
-            nodes,
         })
     }
 

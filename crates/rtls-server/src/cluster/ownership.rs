@@ -1,7 +1,9 @@
 //! Which node runs which partition: leases in the `rtls_leases` bucket, renewed by their
-//! owner, claimed up to each live node's fair share.
+//! owner, claimed up to each live node's fair share; the nodes' heartbeats on core NATS say
+//! which owners are alive.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use async_nats::jetstream::kv::{Operation, UpdateErrorKind};
@@ -10,7 +12,7 @@ use futures_util::StreamExt;
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
 
-use super::{consumer, Cluster};
+use super::{consumer, Cluster, HEARTBEAT_SUBJECT};
 use crate::pipeline::Pipeline;
 
 /// A partition this node holds.
@@ -28,8 +30,11 @@ pub struct Ownership {
     cluster: Cluster,
     pipeline: Pipeline,
     owned: BTreeMap<usize, Owned>,
-    /// The live nodes counted last (kept while the bucket cannot be listed).
-    nodes: usize,
+    /// When each other node was last heard (its heartbeats on `rtls.nodes.<node>`).
+    heard: Arc<Mutex<HashMap<String, Instant>>>,
+    /// When this node started: it takes no lease from a silent owner before it could have
+    /// heard that owner.
+    started: Instant,
 }
 
 /// The fair share of `partitions` among `nodes` live nodes: ⌈partitions / nodes⌉.
@@ -46,14 +51,34 @@ impl Ownership {
             cluster,
             pipeline,
             owned: BTreeMap::new(),
-            nodes: 1,
+            heard: Arc::default(),
+            started: Instant::now(),
         }
     }
 
-    /// Runs rounds every quarter of the lease TTL until `shutdown`, then hands every partition
+    /// Runs rounds every quarter of `failover_s` until `shutdown`, then hands every partition
     /// back (its records acknowledged so far stay acknowledged; the next owner starts there).
     pub async fn run(mut self, mut shutdown: watch::Receiver<bool>) {
-        let round = self.cluster.settings.lease_ttl().mul_f64(0.25);
+        let round = self.cluster.settings.failover().mul_f64(0.25);
+        let listener = match self.cluster.client.subscribe(format!("{HEARTBEAT_SUBJECT}.*")).await {
+            Ok(mut heartbeats) => {
+                let heard = Arc::clone(&self.heard);
+                let prefix = format!("{HEARTBEAT_SUBJECT}.");
+                Some(tokio::spawn(async move {
+                    while let Some(beat) = heartbeats.next().await {
+                        if let Some(node) = beat.subject.as_str().strip_prefix(&prefix) {
+                            if let Ok(mut heard) = heard.lock() {
+                                heard.insert(node.to_string(), Instant::now());
+                            }
+                        }
+                    }
+                }))
+            }
+            Err(e) => {
+                tracing::error!(error = %e, "the nodes' heartbeats cannot be heard; this node takes free partitions only");
+                None
+            }
+        };
         loop {
             self.round().await;
             tokio::select! {
@@ -65,16 +90,17 @@ impl Ownership {
         for partition in partitions {
             self.release(partition, "shutdown").await;
         }
-        let _ = self.cluster.nodes.delete(&self.cluster.node).await;
+        if let Some(listener) = listener {
+            listener.abort();
+        }
     }
 
     async fn round(&mut self) {
-        let cluster = &self.cluster;
-        if let Err(e) = cluster.nodes.put(&cluster.node, Bytes::from_static(b"alive")).await {
-            tracing::warn!(error = %e, "announcing this node failed");
+        let beat = format!("{HEARTBEAT_SUBJECT}.{}", self.cluster.node);
+        if let Err(e) = self.cluster.client.publish(beat, Bytes::new()).await {
+            tracing::warn!(error = %e, "this node's heartbeat was not sent");
         }
-        self.nodes = self.live_nodes().await;
-        let nodes = self.nodes;
+        let nodes = 1 + self.live_peers();
         self.renew().await;
         self.reap_finished().await;
         let fair = fair_share(self.cluster.settings.partitions, nodes);
@@ -92,15 +118,25 @@ impl Ownership {
             .set(i64::try_from(self.owned.len()).unwrap_or(i64::MAX));
     }
 
-    /// The nodes that announced themselves within the TTL (this one included).
-    async fn live_nodes(&self) -> usize {
-        match self.cluster.nodes.keys().await {
-            Ok(keys) => keys.filter_map(|k| async move { k.ok() }).count().await.max(1),
-            Err(e) => {
-                tracing::warn!(error = %e, "listing the live nodes failed");
-                self.nodes
-            }
-        }
+    /// The other nodes heard within `failover_s`.
+    fn live_peers(&self) -> usize {
+        let failover = self.cluster.settings.failover();
+        self.heard.lock().map_or(0, |heard| {
+            heard
+                .iter()
+                .filter(|(node, at)| **node != self.cluster.node && at.elapsed() < failover)
+                .count()
+        })
+    }
+
+    /// Whether `node` was heard within `failover_s` (this node is).
+    fn alive(&self, node: &str) -> bool {
+        node == self.cluster.node
+            || self.heard.lock().is_ok_and(|heard| {
+                heard
+                    .get(node)
+                    .is_some_and(|at| at.elapsed() < self.cluster.settings.failover())
+            })
     }
 
     /// Renews every lease; a lease another node holds now, or one not renewed for a TTL, is
@@ -160,8 +196,10 @@ impl Ownership {
         }
     }
 
-    /// Claims free partitions up to `fair`, starting at a place of this node's own so that
-    /// nodes starting together do not all race for the same keys.
+    /// Claims partitions up to `fair`: free ones, and those of owners silent for `failover_s`
+    /// (by compare-and-set on the lease's revision, so that two nodes cannot both take one).
+    /// It starts at a place of this node's own, so that nodes starting together do not all race
+    /// for the same keys.
     async fn claim(&mut self, fair: usize) {
         let count = self.cluster.settings.partitions;
         let offset = self
@@ -170,6 +208,8 @@ impl Ownership {
             .bytes()
             .fold(0usize, |h, b| h.wrapping_mul(31).wrapping_add(usize::from(b)))
             % count;
+        let me = Bytes::from(self.cluster.node.clone());
+        let may_take = self.started.elapsed() >= self.cluster.settings.failover();
         for step in 0..count {
             if self.owned.len() >= fair {
                 break;
@@ -178,15 +218,22 @@ impl Ownership {
             if self.owned.contains_key(&partition) {
                 continue;
             }
-            let Ok(revision) = self
-                .cluster
-                .leases
-                .create(lease_key(partition), Bytes::from(self.cluster.node.clone()))
-                .await
-            else {
-                continue;
+            let key = lease_key(partition);
+            let claimed = match self.cluster.leases.entry(key.clone()).await {
+                Ok(Some(entry)) if entry.operation == Operation::Put => {
+                    let owner = String::from_utf8_lossy(&entry.value).into_owned();
+                    if owner != self.cluster.node && (!may_take || self.alive(&owner)) {
+                        continue;
+                    }
+                    tracing::info!(partition, from = %owner, "taking over the lease of a silent node");
+                    self.cluster.leases.update(&key, me.clone(), entry.revision).await.ok()
+                }
+                Ok(_) => self.cluster.leases.create(&key, me.clone()).await.ok(),
+                Err(_) => None,
             };
-            self.start(partition, revision);
+            if let Some(revision) = claimed {
+                self.start(partition, revision);
+            }
         }
     }
 

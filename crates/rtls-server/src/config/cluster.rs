@@ -16,8 +16,12 @@ pub struct ClusterSection {
     pub partitions: usize,
     /// Copies of the ingest stream and buckets (3 in a 3-server NATS cluster; 1 for one server).
     pub replicas: usize,
-    /// How long a partition lease lives without renewal (s): a dead node's partitions move
-    /// after at most this plus a round.
+    /// A node not heard from for this long (s) is dead: its partitions are taken over. Nodes
+    /// say they are alive on core NATS every quarter of it, which keeps working while
+    /// JetStream elects leaders.
+    pub failover_s: f64,
+    /// How long a partition lease lives without renewal (s): the safety net when its owner
+    /// cannot reach JetStream; longer than a JetStream leader election (4–9 s).
     pub lease_ttl_s: f64,
     /// How much of a partition's recent records its new owner tracks again (s).
     pub warmup_s: f64,
@@ -32,7 +36,8 @@ impl Default for ClusterSection {
             node_id: String::new(),
             partitions: 12,
             replicas: 3,
-            lease_ttl_s: 3.0,
+            failover_s: 2.5,
+            lease_ttl_s: 30.0,
             warmup_s: 30.0,
             stream_max_age_h: 24.0,
         }
@@ -65,7 +70,8 @@ impl ClusterSection {
             return Err(format!("[cluster] replicas = {}: must be 1..=5", self.replicas));
         }
         for (key, value, low) in [
-            ("lease_ttl_s", self.lease_ttl_s, 1.0),
+            ("failover_s", self.failover_s, 0.5),
+            ("lease_ttl_s", self.lease_ttl_s, 10.0),
             ("warmup_s", self.warmup_s, 0.0),
             ("stream_max_age_h", self.stream_max_age_h, 0.01),
         ] {
@@ -94,6 +100,10 @@ impl ClusterSection {
     pub(crate) fn lease_ttl(&self) -> Duration {
         Duration::from_secs_f64(self.lease_ttl_s)
     }
+
+    pub(crate) fn failover(&self) -> Duration {
+        Duration::from_secs_f64(self.failover_s)
+    }
 }
 
 #[cfg(test)]
@@ -117,7 +127,7 @@ mod tests {
                 ..good.clone()
             },
             ClusterSection {
-                lease_ttl_s: 0.5,
+                failover_s: 0.1,
                 ..good.clone()
             },
             ClusterSection {

@@ -587,7 +587,7 @@ mod tests {
             .join("\n");
         let config: ServerConfig = toml::from_str(&table).unwrap_or_else(|e| panic!("{e}\n{table}"));
         let keys = table.lines().filter(|l| l.contains(" = ")).count();
-        assert_eq!(keys, 7, "every key shown:\n{table}");
+        assert_eq!(keys, 8, "every key shown:\n{table}");
         assert_eq!(config.cluster.servers.len(), 3);
         assert_eq!(
             cluster::ClusterSection {
