@@ -188,7 +188,7 @@ pub async fn serve(
         )?;
         // the webhooks' subscription, as soon as the hub exists (the trackers' replay of the
         // ingest log has just started: alarms it raised in these microseconds are not sent)
-        let hub = want_hub.then(|| pipeline.subscribe());
+        let hub = want_hub.then(|| pipeline.subscribe_local());
         // the tokens issued through the API before this start (their hashes)
         let issued = query_store.list_config(crate::http::tokens::TOKEN_CONFIG)?;
         for (id, json) in issued {
@@ -277,15 +277,16 @@ pub async fn serve(
             tasks.push(tokio::spawn(broker.run(stopped(stop_rx.clone()))));
         }
         MqttMode::External => {
-            let url = config.mqtt.url.clone().unwrap_or_default();
-            let bridge = ExternalBroker::connect(
-                &url,
-                Arc::clone(&sink),
-                pipeline.publications(),
-                crate::mqtt::MEASUREMENT_FILTER,
-            )
-            .await
-            .map_err(|e| ServeError::Config(format!("mqtt.url: {e}")))?;
+            let mut url = config.mqtt.url.clone().unwrap_or_default();
+            let mut filter = crate::mqtt::MEASUREMENT_FILTER.to_string();
+            if config.cluster.enabled() {
+                // one client id per node, and each measurement to one node of the cluster
+                url = crate::cluster::node_mqtt_url(&url, &config.cluster.node_name());
+                filter = crate::cluster::shared_measurement_filter();
+            }
+            let bridge = ExternalBroker::connect(&url, Arc::clone(&sink), pipeline.local_publications(), &filter)
+                .await
+                .map_err(|e| ServeError::Config(format!("mqtt.url: {e}")))?;
             tasks.push(tokio::spawn(bridge.run(stopped(stop_rx.clone()))));
         }
         MqttMode::Off => {}

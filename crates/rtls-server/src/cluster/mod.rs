@@ -233,6 +233,38 @@ pub fn start_node(
     ]
 }
 
+/// The external MQTT broker's URL for this node: a client id of its own (`<id>-<node>`, or
+/// `rtls-<node>` when the URL names none), since a broker disconnects a client whose id
+/// another takes. A URL that does not parse is returned as it is (the bridge reports it).
+#[must_use]
+pub fn node_mqtt_url(url: &str, node: &str) -> String {
+    let Ok(mut parsed) = url::Url::parse(url) else {
+        return url.to_string();
+    };
+    let pairs: Vec<(String, String)> = parsed.query_pairs().into_owned().collect();
+    let client_id = pairs
+        .iter()
+        .find(|(k, _)| k == "client_id")
+        .map_or_else(|| format!("rtls-{node}"), |(_, id)| format!("{id}-{node}"));
+    {
+        let mut query = parsed.query_pairs_mut();
+        query.clear();
+        for (key, value) in pairs.iter().filter(|(k, _)| k != "client_id") {
+            query.append_pair(key, value);
+        }
+        query.append_pair("client_id", &client_id);
+    }
+    parsed.to_string()
+}
+
+/// The external broker's measurement subscription in a cluster: a shared subscription
+/// (`$share/rtls/…`, MQTT 5 and mosquitto ≥ 1.6 for 3.1.1 clients), so that each message
+/// reaches one node, not every node.
+#[must_use]
+pub fn shared_measurement_filter() -> String {
+    format!("$share/rtls/{}", crate::mqtt::MEASUREMENT_FILTER)
+}
+
 /// Opens the key-value bucket, creating its stream first if needed. The stream is created
 /// here with the key-value layout (`KV_<bucket>`, subjects `$KV.<bucket>.>`, one value per
 /// key, rollups, reads from the leader) rather than through `create_key_value`, which asks for the
@@ -381,6 +413,22 @@ fn message_origin(headers: Option<&HeaderMap>) -> (String, i64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_node_has_a_client_id_of_its_own_at_the_external_broker() {
+        assert_eq!(
+            node_mqtt_url("mqtt://broker:1883?client_id=site-1", "n2"),
+            "mqtt://broker:1883?client_id=site-1-n2"
+        );
+        assert_eq!(
+            node_mqtt_url("mqtt://u:p@broker:1883", "n2"),
+            "mqtt://u:p@broker:1883?client_id=rtls-n2"
+        );
+        assert_eq!(
+            node_mqtt_url("mqtts://broker:8883?ca_file=ca.pem&client_id=a", "n1"),
+            "mqtts://broker:8883?ca_file=ca.pem&client_id=a-n1"
+        );
+    }
 
     #[test]
     fn records_are_grouped_by_partition_and_split_below_the_message_limit() {

@@ -84,6 +84,9 @@ pub struct Fanout {
     pub(super) publications: broadcast::Sender<Publication>,
     /// The cluster's outbound queue (bounded: a full queue drops and counts the message).
     pub(super) peers: Option<mpsc::Sender<PeerMessage>>,
+    /// In a cluster: this node's own hub messages and publications only, for what must leave
+    /// the cluster once (webhooks, an external MQTT broker), not once per node.
+    pub(super) local: Option<(broadcast::Sender<Arc<HubMessage>>, broadcast::Sender<Publication>)>,
     pub(super) metrics: Arc<Metrics>,
 }
 
@@ -128,8 +131,12 @@ impl Fanout {
                 event: event.clone(),
             }),
         }
+        let message = Arc::new(message);
+        if let Some((local_hub, _)) = &self.local {
+            let _ = local_hub.send(Arc::clone(&message));
+        }
         // no subscriber is not an error
-        let _ = self.hub.send(Arc::new(message));
+        let _ = self.hub.send(message);
     }
 
     pub(super) fn publish(&self, publication: Publication) {
@@ -137,6 +144,9 @@ impl Fanout {
             topic: publication.topic.clone(),
             payload: String::from_utf8_lossy(&publication.payload).into_owned(),
         });
+        if let Some((_, local_publications)) = &self.local {
+            let _ = local_publications.send(publication.clone());
+        }
         let _ = self.publications.send(publication);
     }
 
@@ -151,6 +161,20 @@ impl Fanout {
             occupants: occupants.clone(),
         });
         self.live.set_occupants(partition, occupants);
+    }
+
+    /// This node's own hub messages (all of them without a cluster).
+    pub(super) fn subscribe_local(&self) -> broadcast::Receiver<Arc<HubMessage>> {
+        self.local
+            .as_ref()
+            .map_or_else(|| self.hub.subscribe(), |(hub, _)| hub.subscribe())
+    }
+
+    /// This node's own publications (all of them without a cluster).
+    pub(super) fn local_publications(&self) -> broadcast::Sender<Publication> {
+        self.local
+            .as_ref()
+            .map_or_else(|| self.publications.clone(), |(_, publications)| publications.clone())
     }
 
     /// Applies a peer's message to this node's live state and broadcasts (not sent on).
@@ -222,6 +246,9 @@ mod tests {
             live: Arc::new(LiveState::new(&site, 2)),
             hub: broadcast::channel(16).0,
             publications: broadcast::channel(16).0,
+            local: peers
+                .as_ref()
+                .map(|_| (broadcast::channel(16).0, broadcast::channel(16).0)),
             peers,
             metrics: Arc::new(Metrics::new()),
         }

@@ -279,6 +279,12 @@ impl Pipeline {
             hub: hub.clone(),
             publications: publications.clone(),
             peers: config.cluster.as_ref().map(|c| c.peers.clone()),
+            local: clustered.then(|| {
+                (
+                    broadcast::channel(config.broadcast_capacity.max(16)).0,
+                    broadcast::channel(config.broadcast_capacity.max(16)).0,
+                )
+            }),
             metrics: Arc::clone(&metrics),
         };
         let site_arc = Arc::new(site.clone());
@@ -517,10 +523,25 @@ impl Pipeline {
         self.inner.hub.subscribe()
     }
 
-    /// The MQTT publications' channel (tracks and events), for the broker or the bridge.
+    /// The MQTT publications' channel (tracks and events), for the embedded broker: in a
+    /// cluster, every node's.
     #[must_use]
     pub fn publications(&self) -> broadcast::Sender<Publication> {
         self.inner.publications.clone()
+    }
+
+    /// The publications this node produced (all of them without a cluster), for what must
+    /// leave the cluster once: the bridge to an external broker.
+    #[must_use]
+    pub fn local_publications(&self) -> broadcast::Sender<Publication> {
+        self.inner.fanout.local_publications()
+    }
+
+    /// Subscribes to the hub messages this node produced (all of them without a cluster), for
+    /// what must leave the cluster once: the webhooks.
+    #[must_use]
+    pub fn subscribe_local(&self) -> broadcast::Receiver<Arc<HubMessage>> {
+        self.inner.fanout.subscribe_local()
     }
 
     /// The metrics.

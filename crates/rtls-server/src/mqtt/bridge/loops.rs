@@ -242,7 +242,7 @@ impl IngestLoop<'_> {
     /// the measurement filter, which a persistent session may still deliver from an older
     /// subscription.
     async fn start(&self, publish: Publish) -> Option<PendingIngest> {
-        if !matches(&publish.topic, &self.measurement_filter) {
+        if !matches(&publish.topic, unshared(&self.measurement_filter)) {
             tracing::warn!(topic = %publish.topic, filter = %self.measurement_filter,
                 "mqtt: acknowledging and ignoring a message outside the measurement filter");
             self.acknowledge(&publish).await;
@@ -331,5 +331,26 @@ async fn sleep_until_opt(deadline: Option<Instant>) {
     match deadline {
         Some(deadline) => tokio::time::sleep_until(deadline).await,
         None => std::future::pending().await,
+    }
+}
+
+/// A filter without its shared-subscription prefix (`$share/<group>/<filter>` → `<filter>`):
+/// the broker delivers the messages under their own topics.
+fn unshared(filter: &str) -> &str {
+    filter
+        .strip_prefix("$share/")
+        .and_then(|rest| rest.split_once('/'))
+        .map_or(filter, |(_, filter)| filter)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::unshared;
+
+    #[test]
+    fn a_shared_subscription_is_matched_by_the_filter_inside_it() {
+        assert_eq!(unshared("$share/rtls/rtls/v1/measurements/#"), "rtls/v1/measurements/#");
+        assert_eq!(unshared("rtls/v1/measurements/#"), "rtls/v1/measurements/#");
+        assert_eq!(unshared("$share/only-a-group"), "$share/only-a-group");
     }
 }
