@@ -116,6 +116,8 @@ impl Ownership {
             .metrics()
             .cluster_partitions_owned
             .set(i64::try_from(self.owned.len()).unwrap_or(i64::MAX));
+        self.pipeline
+            .set_cluster_status(&self.cluster.node, self.owned.keys().copied().collect());
     }
 
     /// The other nodes heard within `failover_s`.

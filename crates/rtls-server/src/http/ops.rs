@@ -37,8 +37,15 @@ pub(super) async fn health(State(state): State<AppState>) -> Response {
     } else {
         status
     };
+    let cluster = state.pipeline.cluster_status().map(|(node, owned)| {
+        json!({
+            "node": node,
+            "owned_partitions": owned,
+        })
+    });
     let body = json!({
         "status": if status == StatusCode::OK { "ok" } else { "degraded" },
+        "cluster": cluster,
         "store": store_state,
         "partitions": partitions.iter().enumerate().map(|(index, p)| json!({
             "partition": index,

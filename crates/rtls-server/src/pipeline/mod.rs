@@ -244,6 +244,8 @@ struct Inner {
     /// The partition threads' queues, for a cluster's warm-ups and resets (emptied at
     /// shutdown, so that the threads see their queues close).
     partition_txs: Mutex<Vec<std::sync::mpsc::SyncSender<PartitionInput>>>,
+    /// In a cluster: this node's id and the partitions it owns now (for `/health`).
+    cluster_status: Mutex<Option<(String, Vec<usize>)>>,
 }
 
 /// The checkpoint's name in the store.
@@ -378,6 +380,7 @@ impl Pipeline {
                 progress,
                 fanout,
                 partition_txs: Mutex::new(if clustered { partition_txs } else { Vec::new() }),
+                cluster_status: Mutex::new(None),
             }),
         })
     }
@@ -422,6 +425,19 @@ impl Pipeline {
     /// Applies another node's output to this node's live state and broadcasts.
     pub fn apply_peer(&self, message: PeerMessage) {
         self.inner.fanout.apply(message);
+    }
+
+    /// Records this node's id and the partitions it owns (the cluster's ownership does).
+    pub fn set_cluster_status(&self, node: &str, owned: Vec<usize>) {
+        if let Ok(mut status) = self.inner.cluster_status.lock() {
+            *status = Some((node.to_string(), owned));
+        }
+    }
+
+    /// In a cluster: this node's id and the partitions it owns now.
+    #[must_use]
+    pub fn cluster_status(&self) -> Option<(String, Vec<usize>)> {
+        self.inner.cluster_status.lock().ok().and_then(|status| status.clone())
     }
 
     /// The tag partition of `tag` (the same on every node of a cluster with the same count).
