@@ -5,6 +5,10 @@
 //! tag, but only the node that owns a tag's partition tracks it: what its partition threads
 //! produce is applied here and sent to the peers (`rtls.out.<node>` on NATS, by
 //! `crate::cluster`), whose [`Fanout::apply`] writes it to their live state and broadcasts.
+//!
+//! Collision events are not sent on: every node judges them itself from the same track
+//! updates (`super::collisions`), with the same name-based event ids. Proximities pushed to
+//! one node are.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -16,7 +20,7 @@ use tokio::sync::{broadcast, mpsc};
 use super::live::{HubMessage, LiveState, TagState};
 use crate::metrics::Metrics;
 use crate::omlox::ws::Topic;
-use crate::omlox::Location;
+use crate::omlox::{Location, Proximity};
 use crate::sink::Publication;
 
 /// One output of a partition, as it travels to the other nodes of a cluster (JSON).
@@ -68,6 +72,11 @@ pub enum PeerMessage {
         topic: String,
         /// The payload (JSON text).
         payload: String,
+    },
+    /// A proximity a provider pushed to the node that sends it (`proximity_updates`).
+    Proximity {
+        /// The `Proximity`, as pushed.
+        proximity: Box<Proximity>,
     },
     /// The zone set was edited through the API (on the node that stored the edit).
     Zones {
@@ -130,6 +139,11 @@ impl Fanout {
                 topic: Some(*topic),
                 event: event.clone(),
             }),
+            HubMessage::Proximity(proximity) => self.to_peers(|| PeerMessage::Proximity {
+                proximity: Box::new(Proximity::clone(proximity)),
+            }),
+            // every node judges collisions from the track updates it applies
+            HubMessage::Collision { .. } => {}
         }
         let message = Arc::new(message);
         if let Some((local_hub, _)) = &self.local {
@@ -215,6 +229,9 @@ impl Fanout {
                     topic,
                     payload: payload.into(),
                 });
+            }
+            PeerMessage::Proximity { proximity } => {
+                let _ = self.hub.send(Arc::new(HubMessage::Proximity(Arc::new(*proximity))));
             }
             PeerMessage::Zones { zones } => self.live.adopt_zones(zones),
         }
