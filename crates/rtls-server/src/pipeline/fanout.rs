@@ -311,6 +311,36 @@ mod tests {
     }
 
     #[test]
+    fn proximities_reach_the_peers_and_collisions_stay_on_their_node() {
+        let (tx, mut rx) = mpsc::channel(16);
+        let owner = fanout(Some(tx));
+        let peer = fanout(None);
+        let mut hub = peer.hub.subscribe();
+        let proximity: Proximity = serde_json::from_value(serde_json::json!({
+            "source": "gate-3", "provider_type": "rfid", "provider_id": "rfid-77", "accuracy": 0.4
+        }))
+        .expect("proximity");
+        owner.hub(HubMessage::Proximity(Arc::new(proximity.clone())));
+        let event: crate::omlox::CollisionEvent = serde_json::from_value(serde_json::json!({
+            "id": "e", "collision_type": "collision_start",
+            "collisions": [{"id": "a", "object_type": "trackable"}, {"id": "b", "object_type": "trackable"}]
+        }))
+        .expect("collision event");
+        owner.hub(HubMessage::Collision {
+            tags: ["a".into(), "b".into()],
+            event: Arc::new(event),
+        });
+        let sent: Vec<PeerMessage> = std::iter::from_fn(|| rx.try_recv().ok()).collect();
+        assert_eq!(sent.len(), 1, "{sent:?}");
+        let text = serde_json::to_string(&sent[0]).expect("serialise");
+        peer.apply(serde_json::from_str(&text).expect("parse"));
+        assert_eq!(
+            *hub.try_recv().expect("the proximity"),
+            HubMessage::Proximity(Arc::new(proximity))
+        );
+    }
+
+    #[test]
     fn a_full_peer_queue_costs_the_message_and_counts_it() {
         let (tx, _rx) = mpsc::channel(1);
         let owner = fanout(Some(tx));
