@@ -186,6 +186,9 @@ pub async fn serve(
             pipeline_config,
             pipeline_metrics,
         )?;
+        // the stored trackables (the configured ones just added), for the topics about them
+        let trackables = crate::http::trackable_sync::read_trackables(&mut *query_store)?;
+        pipeline.live().set_trackables(trackables);
         // the webhooks' subscription, as soon as the hub exists (the trackers' replay of the
         // ingest log has just started: alarms it raised in these microseconds are not sent)
         let hub = want_hub.then(|| pipeline.subscribe_local());
@@ -292,6 +295,13 @@ pub async fn serve(
         MqttMode::Off => {}
     }
     if let Some(cluster) = cluster {
+        // trackables changed through another node reach this one's live topics
+        tasks.push(tokio::spawn(crate::http::trackable_sync::refresh_trackables_every(
+            Arc::clone(&queries),
+            pipeline.clone(),
+            crate::http::trackable_sync::CLUSTER_PERIOD,
+            stopped(stop_rx.clone()),
+        )));
         tasks.extend(crate::cluster::start_node(
             cluster,
             pipeline.clone(),

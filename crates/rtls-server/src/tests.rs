@@ -446,3 +446,58 @@ fn ingested_location_becomes_a_fix_record() {
         }
     );
 }
+
+#[test]
+fn motions_and_collision_events_match_schema() {
+    let location = location_from_update(&update(), "site", ProviderType::Uwb).unwrap();
+    let trackable = crate::pipeline::trackables::implicit_trackable("miner-017");
+    let motion = crate::omlox::TrackableMotion::of(&trackable, location);
+    assert_eq!(
+        (motion.id.as_str(), motion.location.provider_id.as_str()),
+        ("miner-017", "miner-017")
+    );
+    assert_valid("TrackableMotion", &serde_json::to_value(&motion).unwrap(), |_| {});
+
+    use crate::omlox::collision::{Body, CollisionDetector, CollisionSettings};
+    use crate::omlox::CollisionType;
+    let body = |id: &str, t: f64, x: f64| Body {
+        id: id.into(),
+        provider_id: id.into(),
+        time_s: 1_567_461_744.0 + t,
+        coordinates: vec![x, 0.0],
+        floor: 0.0,
+        radius_m: 1.0,
+        sigma_m: 0.2,
+        exit_tolerance_m: 0.0,
+        tolerance_timeout_s: None,
+    };
+    let mut detector = CollisionDetector::new(CollisionSettings::default());
+    detector.update(body("a", 0.0, 0.0));
+    let mut transitions = detector.update(body("b", 0.1, 1.5));
+    transitions.extend(detector.update(body("a", 0.2, 0.0)));
+    transitions.extend(detector.update(body("b", 0.3, 9.0)));
+    let kinds: Vec<CollisionType> = transitions.iter().map(|t| t.kind).collect();
+    assert_eq!(
+        kinds,
+        [
+            CollisionType::CollisionStart,
+            CollisionType::Colliding,
+            CollisionType::CollisionEnd
+        ]
+    );
+    for transition in &transitions {
+        let event = crate::pipeline::collisions::collision_event(transition).unwrap();
+        let value = serde_json::to_value(&event).unwrap();
+        assert_valid("CollisionEvent", &value, |_| {});
+        assert_eq!(value["start_time"], "2019-09-02T22:02:24.100Z");
+        assert_eq!(value["collisions"][0]["id"], transition.trigger.id.as_str());
+        // the same transition has the same event id (a replay repeats it)
+        assert_eq!(
+            event.id,
+            crate::pipeline::collisions::collision_event(transition).unwrap().id
+        );
+    }
+    let end = serde_json::to_value(crate::pipeline::collisions::collision_event(&transitions[2]).unwrap()).unwrap();
+    assert_eq!(end["end_time"], "2019-09-02T22:02:24.300Z");
+    assert!(end.get("collision_area").is_none() && end.get("collision_time").is_none());
+}

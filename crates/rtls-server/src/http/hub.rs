@@ -12,6 +12,7 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::Value;
 
+use super::trackable_sync::refresh_trackables;
 use super::{parse_json, ApiError, ApiResult, AppState};
 use crate::auth::{Access, Principal};
 use crate::convert::record_from_location;
@@ -245,7 +246,9 @@ pub(super) async fn create_trackable(
     super::assign_id_if_unset(&mut value);
     let trackable: Trackable = parse_json(value.to_string().as_bytes())?;
     check_uuid(&trackable.id)?;
-    create(&state, &who, TRACKABLE, trackable.id.clone(), &trackable).await
+    let created = create(&state, &who, TRACKABLE, trackable.id.clone(), &trackable).await?;
+    refresh_trackables(&state).await;
+    Ok(created)
 }
 
 fn check_uuid(id: &str) -> ApiResult<()> {
@@ -282,6 +285,7 @@ pub(super) async fn put_trackable(
     }
     check_uuid(&trackable.id)?;
     replace(&state, &who, TRACKABLE, trackable_id, &trackable).await?;
+    refresh_trackables(&state).await;
     Ok(Json(trackable))
 }
 
@@ -292,7 +296,9 @@ pub(super) async fn delete_trackable(
     headers: HeaderMap,
 ) -> ApiResult<StatusCode> {
     let who = state.authorize(&headers, Access::Write)?;
-    delete(&state, &who, TRACKABLE, trackable_id).await
+    let deleted = delete(&state, &who, TRACKABLE, trackable_id).await?;
+    refresh_trackables(&state).await;
+    Ok(deleted)
 }
 
 /// `GET /v2/trackables/{trackable_id}/location`: the newest location among its providers.
@@ -353,7 +359,9 @@ pub(super) async fn known_provider_or_404(state: &AppState, provider_id: &str) -
 /// `DELETE /v2/trackables`: deletes every stored trackable; 204.
 pub(super) async fn delete_all_trackables(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<StatusCode> {
     let who = state.authorize(&headers, Access::Write)?;
-    delete_all(&state, &who, TRACKABLE).await
+    let deleted = delete_all(&state, &who, TRACKABLE).await?;
+    refresh_trackables(&state).await;
+    Ok(deleted)
 }
 
 /// `DELETE /v2/providers`: deletes every stored provider and forgets every tag's latest

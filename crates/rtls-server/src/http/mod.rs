@@ -21,6 +21,7 @@ pub mod rate;
 mod relations;
 mod sensors;
 pub mod tokens;
+pub mod trackable_sync;
 mod v2;
 mod ws;
 mod zone_frame;

@@ -8,16 +8,22 @@
 //! m) is the proximity's `accuracy` — the estimated distance to the emitter — when it is
 //! above 0, else the zone's `radius`, else the server's default accuracy. `source`,
 //! `provider_type`, `provider_id`, timestamps and `properties` are the proximity's.
+//!
+//! Once the locations are durable, the proximities themselves, as received, go to the
+//! WebSocket's `proximity_updates` subscribers.
 
 use axum::body::Bytes;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode};
+
+use std::sync::Arc;
 
 use super::hub::ingest_locations;
 use super::zones::{all_zones, position_m, zone_by_source};
 use super::{parse_json, ApiError, ApiResult, AppState};
 use crate::auth::Access;
 use crate::omlox::{Location, Point, ProviderType, Proximity, Zone};
+use crate::pipeline::HubMessage;
 
 /// `PUT /v2/providers/proximities`: an array of `Proximity`; 204 when durable.
 ///
@@ -39,7 +45,16 @@ pub(super) async fn put_proximities(
         .enumerate()
         .map(|(index, proximity)| location_of(&state, &zones, proximity, &format!("[{index}].")))
         .collect::<ApiResult<Vec<_>>>()?;
-    ingest_locations(&state, &locations).await
+    let status = ingest_locations(&state, &locations).await?;
+    publish(&state, proximities);
+    Ok(status)
+}
+
+/// Sends accepted proximities to the `proximity_updates` subscribers.
+fn publish(state: &AppState, proximities: Vec<Proximity>) {
+    for proximity in proximities {
+        state.pipeline.broadcast(HubMessage::Proximity(Arc::new(proximity)));
+    }
 }
 
 /// `PUT /v2/providers/{provider_id}/proximity`: one `Proximity`, whose `provider_id` must
@@ -66,11 +81,13 @@ pub(super) async fn put_proximity(
     }
     let zones = all_zones(&state).await?;
     let location = location_of(&state, &zones, &proximity, "")?;
-    ingest_locations(&state, &[location]).await.map_err(|mut e| {
+    let status = ingest_locations(&state, &[location]).await.map_err(|mut e| {
         // a single location's fields are not indexed
         e.field = e.field.map(|f| f.trim_start_matches("[0].").to_string());
         e
-    })
+    })?;
+    publish(&state, vec![proximity]);
+    Ok(status)
 }
 
 /// The location a proximity means (see the module documentation), its zone one of `zones`;

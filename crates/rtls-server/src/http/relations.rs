@@ -86,14 +86,7 @@ fn fences_of(state: &AppState, tags: &[String], spatial: bool) -> Vec<Fence> {
 
 /// A trackable's motion: its newest location and its shape; `None` without a location.
 fn motion(state: &AppState, trackable: &Trackable) -> Option<TrackableMotion> {
-    Some(TrackableMotion {
-        id: trackable.id.clone(),
-        location: newest_location(state, trackable)?,
-        name: trackable.name.clone(),
-        extrusion: trackable.extrusion,
-        geometry: trackable.geometry.clone(),
-        properties: trackable.properties.clone(),
-    })
+    Some(TrackableMotion::of(trackable, newest_location(state, trackable)?))
 }
 
 /// The stored trackables with one of `tags` among their providers.

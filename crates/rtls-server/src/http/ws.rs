@@ -1,13 +1,18 @@
 //! The omlox WebSocket `/v2/ws/socket`: subscribe to `location_updates`(`:geojson`),
 //! `fence_events`(`:geojson`; geometries in WGS-84 longitude/latitude when the site has a
-//! `[frame] origin`, as RFC 7946 wants, else site metres) and the extension topics `rtls:alarms` (predictive hazard alarms,
-//! lost tags, no coverage, model switches) and `rtls:events` (everything else).
+//! `[frame] origin`, as RFC 7946 wants, else site metres), `trackable_motions` (a
+//! `TrackableMotion` per track update of a trackable: [`crate::pipeline::trackables`]),
+//! `collision_events` (`CollisionEvent`s: [`crate::omlox::collision`]), `proximity_updates`
+//! (the `Proximity` objects providers push) and the extension topics `rtls:alarms` (predictive
+//! hazard alarms, lost tags, no coverage, model switches) and `rtls:events` (everything else).
 //!
 //! Client: `{"event":"subscribe","topic":"location_updates","params":{"provider_id":"tag-7"}}`
 //! → `{"event":"subscribed","topic":…,"subscription_id":1}`, then
 //! `{"event":"message","topic":…,"subscription_id":1,"payload":[…]}` for every update.
-//! `params.provider_id` (or `tag`) filters by tag. A client that falls more than the broadcast
-//! capacity behind misses messages (counted in `rtls_websocket_dropped`).
+//! `params.provider_id` (or `tag`) filters by tag (on `collision_events`: either tag whose
+//! update placed one of the two trackables); `params.trackable_id` filters `trackable_motions`
+//! and `collision_events` (either of the two) by trackable. A client that falls more than the
+//! broadcast capacity behind misses messages (counted in `rtls_websocket_dropped`).
 //!
 //! Batching: every message waiting in the broadcast queue when the socket is ready is sent
 //! together, one `message` per subscription whose `payload` holds all of them in order (up to
@@ -33,7 +38,8 @@ use super::{metrics, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::{fence_from_zone, wgs84_geometry};
 use crate::omlox::ws::{Topic, WsErrorCode, WsEvent, WsMessage};
-use crate::omlox::Location;
+use crate::omlox::{CollisionEvent, Location, Proximity, TrackableMotion};
+use crate::pipeline::trackables::TrackableIndex;
 use crate::pipeline::HubMessage;
 
 /// Query of the upgrade request.
@@ -65,6 +71,8 @@ struct Subscription {
     topic: Topic,
     /// Only this tag's messages.
     tag: Option<String>,
+    /// Only this trackable's messages (`trackable_motions`, `collision_events`).
+    trackable: Option<String>,
 }
 
 async fn serve(mut socket: WebSocket, state: AppState) {
@@ -126,7 +134,9 @@ async fn serve(mut socket: WebSocket, state: AppState) {
                         Err(_) => break,
                     }
                 }
-                if deliver(&mut socket, &batch, &subscriptions, &fences, state.site.frame.as_ref()).await.is_err() {
+                let trackables = state.pipeline.live().trackables();
+                let context = Context { fences: &fences, frame: state.site.frame.as_ref(), trackables: &trackables };
+                if deliver(&mut socket, &batch, &subscriptions, &context).await.is_err() {
                     break;
                 }
             }
@@ -163,21 +173,19 @@ fn handle(text: &str, subscriptions: &mut HashMap<u64, Subscription>, next_id: &
             let Some(topic) = request.topic else {
                 return WsMessage::error(WsErrorCode::SubscriptionFailed, "`topic` is required");
             };
-            if matches!(
-                topic,
-                Topic::TrackableMotions | Topic::CollisionEvents | Topic::ProximityUpdates
-            ) {
-                return WsMessage::error(WsErrorCode::SubscriptionFailed, "this hub does not provide that topic");
-            }
             let tag = request.params.as_ref().and_then(|p| {
                 p.get("provider_id")
                     .or_else(|| p.get("tag"))
                     .and_then(Value::as_str)
                     .map(String::from)
             });
+            let trackable = request
+                .params
+                .as_ref()
+                .and_then(|p| p.get("trackable_id").and_then(Value::as_str).map(String::from));
             let id = *next_id;
             *next_id += 1;
-            subscriptions.insert(id, Subscription { topic, tag });
+            subscriptions.insert(id, Subscription { topic, tag, trackable });
             WsMessage::subscribed(topic, id)
         }
         WsEvent::Unsubscribe => match request
@@ -194,26 +202,37 @@ fn handle(text: &str, subscriptions: &mut HashMap<u64, Subscription>, next_id: &
     }
 }
 
+/// What the payloads of a batch are built with.
+struct Context<'a> {
+    /// Fence geometries by fence id (for `fence_events:geojson`).
+    fences: &'a HashMap<String, Value>,
+    /// The site's georeference.
+    frame: Option<&'a rtls_engine::site::FrameSettings>,
+    /// The stored trackables by provider (for `trackable_motions`).
+    trackables: &'a TrackableIndex,
+}
+
 /// Sends hub messages to every matching subscription: one WebSocket message per subscription
 /// with the payloads of all of them, in order.
 async fn deliver(
     socket: &mut WebSocket,
     batch: &[Arc<HubMessage>],
     subscriptions: &HashMap<u64, Subscription>,
-    fences: &HashMap<String, Value>,
-    frame: Option<&rtls_engine::site::FrameSettings>,
+    context: &Context<'_>,
 ) -> Result<(), axum::Error> {
     for (&id, subscription) in subscriptions {
-        let payloads: Vec<Payload<'_>> = if subscription.topic == Topic::RtlsPositions {
-            compact_positions(batch, subscription)
+        let payloads: Vec<Payload<'_>> = match subscription.topic {
+            Topic::RtlsPositions => compact_positions(batch, subscription)
                 .into_iter()
                 .map(Payload::Built)
-                .collect()
-        } else {
-            batch
+                .collect(),
+            Topic::TrackableMotions => motions(batch, subscription, context.trackables)
+                .map(|motion| Payload::Motion(Box::new(motion)))
+                .collect(),
+            _ => batch
                 .iter()
-                .filter_map(|message| payload(message, subscription, fences, frame))
-                .collect()
+                .filter_map(|message| payload(message, subscription, context.fences, context.frame))
+                .collect(),
         };
         if !payloads.is_empty() {
             let delivery = Delivery {
@@ -236,6 +255,9 @@ enum Payload<'a> {
     Location(&'a Location),
     Shared(&'a Value),
     Built(Value),
+    Motion(Box<TrackableMotion>),
+    Collision(&'a CollisionEvent),
+    Proximity(&'a Proximity),
 }
 
 /// A `message` to a subscription, written as [`WsMessage::message`] is (same keys, same order).
@@ -269,6 +291,18 @@ fn payload<'a>(
             let geometry = event["fence_id"].as_str().and_then(|id| fences.get(id)).cloned();
             json!({ "type": "Feature", "geometry": geometry, "properties": event })
         }
+        (HubMessage::Collision { tags, event }, Topic::CollisionEvents)
+            if tags.iter().any(|tag| wanted(subscription, tag))
+                && subscription
+                    .trackable
+                    .as_deref()
+                    .is_none_or(|t| event.collisions.iter().any(|c| c.id == t)) =>
+        {
+            return Some(Payload::Collision(event));
+        }
+        (HubMessage::Proximity(proximity), Topic::ProximityUpdates) if wanted(subscription, &proximity.provider_id) => {
+            return Some(Payload::Proximity(proximity));
+        }
         (HubMessage::Extension { topic, event }, wanted_topic)
             if *topic == wanted_topic
                 && subscription
@@ -295,6 +329,28 @@ fn compact_positions(batch: &[Arc<HubMessage>], subscription: &Subscription) -> 
         }
     }
     columns.finish()
+}
+
+/// The batch's track updates as the motions of the trackables they move
+/// ([`TrackableIndex::of`]), filtered by tag and trackable.
+fn motions<'a>(
+    batch: &'a [Arc<HubMessage>],
+    subscription: &'a Subscription,
+    trackables: &'a TrackableIndex,
+) -> impl Iterator<Item = TrackableMotion> + 'a {
+    batch.iter().flat_map(move |message| {
+        let mut out = Vec::new();
+        if let HubMessage::Location { tag, location, .. } = message.as_ref() {
+            if wanted(subscription, tag) {
+                for trackable in trackables.of(tag).iter() {
+                    if subscription.trackable.as_deref().is_none_or(|t| t == trackable.id) {
+                        out.push(TrackableMotion::of(trackable, Location::clone(location)));
+                    }
+                }
+            }
+        }
+        out
+    })
 }
 
 fn wanted(subscription: &Subscription, tag: &str) -> bool {

@@ -4,11 +4,14 @@
 //!
 //! - [`Location`], [`Point`], [`Polygon`], [`Region`] — positions and geometries (GeoJSON).
 //! - [`Trackable`], [`LocationProvider`], [`Zone`], [`Fence`], [`FenceEvent`],
-//!   [`TrackableMotion`], [`Proximity`], [`SimpleTransform`].
+//!   [`TrackableMotion`], [`Proximity`], [`SimpleTransform`], [`CollisionEvent`] and its
+//!   [`Collision`]s.
 //! - [`ws`] — WebSocket messages, topics and error codes.
+//! - [`collision`] — collisions between trackables judged from their tracks' uncertainty.
 //! - [`time`] — ISO 8601 UTC timestamps ↔ seconds since the Unix epoch.
 //! - [`ingest`] — field-level validation of the `PUT /v2/providers/locations` body.
 
+pub mod collision;
 pub mod ingest;
 pub mod time;
 pub mod ws;
@@ -429,6 +432,91 @@ pub struct TrackableMotion {
     /// The trackable's properties.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub properties: Option<Properties>,
+}
+
+impl TrackableMotion {
+    /// The motion of `trackable` at `location` (one of its providers' locations): the
+    /// trackable's id, name, extrusion, geometry and properties with that location — what
+    /// `GET /v2/trackables/motions` answers and the `trackable_motions` topic sends.
+    #[must_use]
+    pub fn of(trackable: &Trackable, location: Location) -> Self {
+        Self {
+            id: trackable.id.clone(),
+            location,
+            name: trackable.name.clone(),
+            extrusion: trackable.extrusion,
+            geometry: trackable.geometry.clone(),
+            properties: trackable.properties.clone(),
+        }
+    }
+}
+
+/// What a [`CollisionEvent`] says about a pair of trackables (`collision_type`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CollisionType {
+    /// The two started colliding (sent once per collision).
+    CollisionStart,
+    /// They still collide after a position update of one of them.
+    Colliding,
+    /// They separated (sent once per collision).
+    CollisionEnd,
+}
+
+/// What collides (`#/components/schemas/Collision`): one of the two objects of a
+/// [`CollisionEvent`].
+///
+/// # Units
+/// `position` in the site frame (`crs: local`), m; `geometry` likewise.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Collision {
+    /// The trackable's id.
+    pub id: String,
+    /// Always `trackable`.
+    pub object_type: String,
+    /// The position the collision was judged at (the trackable's newest location).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<Point>,
+    /// The region judged to collide: a polygon about `position` (see [`collision`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geometry: Option<Polygon>,
+    /// Logical floor (absent = 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor: Option<f64>,
+}
+
+/// A collision between two trackables started, goes on, or ended
+/// (`#/components/schemas/CollisionEvent`).
+///
+/// # Units
+/// Timestamps ISO 8601 UTC with milliseconds; `center_distance` m; `collision_area` in the
+/// site frame, m.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CollisionEvent {
+    /// UUID of this event.
+    pub id: String,
+    /// Start, continuing, or end.
+    pub collision_type: CollisionType,
+    /// When the two first collided.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_time: Option<String>,
+    /// When they were released (on `collision_end`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end_time: Option<String>,
+    /// When this continuing event was triggered (on `colliding`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collision_time: Option<String>,
+    /// The two objects, the one whose update triggered the event first.
+    pub collisions: Vec<Collision>,
+    /// Where the two regions overlap (the middle of the overlap on the line between the
+    /// centres); absent on `collision_end`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collision_area: Option<Point>,
+    /// Centre-to-centre distance, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub center_distance: Option<f64>,
 }
 
 /// A provider seen by a proximity system (`#/components/schemas/Proximity`): an RFID reader

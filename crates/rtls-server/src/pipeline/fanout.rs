@@ -5,6 +5,10 @@
 //! tag, but only the node that owns a tag's partition tracks it: what its partition threads
 //! produce is applied here and sent to the peers (`rtls.out.<node>` on NATS, by
 //! `crate::cluster`), whose [`Fanout::apply`] writes it to their live state and broadcasts.
+//!
+//! Collision events are not sent on: every node judges them itself from the same track
+//! updates (`super::collisions`), with the same name-based event ids. Proximities pushed to
+//! one node are.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -16,7 +20,7 @@ use tokio::sync::{broadcast, mpsc};
 use super::live::{HubMessage, LiveState, TagState};
 use crate::metrics::Metrics;
 use crate::omlox::ws::Topic;
-use crate::omlox::Location;
+use crate::omlox::{Location, Proximity};
 use crate::sink::Publication;
 
 /// One output of a partition, as it travels to the other nodes of a cluster (JSON).
@@ -68,6 +72,11 @@ pub enum PeerMessage {
         topic: String,
         /// The payload (JSON text).
         payload: String,
+    },
+    /// A proximity a provider pushed to the node that sends it (`proximity_updates`).
+    Proximity {
+        /// The `Proximity`, as pushed.
+        proximity: Box<Proximity>,
     },
     /// The zone set was edited through the API (on the node that stored the edit).
     Zones {
@@ -130,6 +139,11 @@ impl Fanout {
                 topic: Some(*topic),
                 event: event.clone(),
             }),
+            HubMessage::Proximity(proximity) => self.to_peers(|| PeerMessage::Proximity {
+                proximity: Box::new(Proximity::clone(proximity)),
+            }),
+            // every node judges collisions from the track updates it applies
+            HubMessage::Collision { .. } => {}
         }
         let message = Arc::new(message);
         if let Some((local_hub, _)) = &self.local {
@@ -216,6 +230,9 @@ impl Fanout {
                     payload: payload.into(),
                 });
             }
+            PeerMessage::Proximity { proximity } => {
+                let _ = self.hub.send(Arc::new(HubMessage::Proximity(Arc::new(*proximity))));
+            }
             PeerMessage::Zones { zones } => self.live.adopt_zones(zones),
         }
     }
@@ -290,6 +307,36 @@ mod tests {
         assert_eq!(peer.live.occupants(), owner.live.occupants());
         assert!(
             matches!(&*hub.try_recv().expect("a location message"), HubMessage::Location { tag, .. } if tag == "t1")
+        );
+    }
+
+    #[test]
+    fn proximities_reach_the_peers_and_collisions_stay_on_their_node() {
+        let (tx, mut rx) = mpsc::channel(16);
+        let owner = fanout(Some(tx));
+        let peer = fanout(None);
+        let mut hub = peer.hub.subscribe();
+        let proximity: Proximity = serde_json::from_value(serde_json::json!({
+            "source": "gate-3", "provider_type": "rfid", "provider_id": "rfid-77", "accuracy": 0.4
+        }))
+        .expect("proximity");
+        owner.hub(HubMessage::Proximity(Arc::new(proximity.clone())));
+        let event: crate::omlox::CollisionEvent = serde_json::from_value(serde_json::json!({
+            "id": "e", "collision_type": "collision_start",
+            "collisions": [{"id": "a", "object_type": "trackable"}, {"id": "b", "object_type": "trackable"}]
+        }))
+        .expect("collision event");
+        owner.hub(HubMessage::Collision {
+            tags: ["a".into(), "b".into()],
+            event: Arc::new(event),
+        });
+        let sent: Vec<PeerMessage> = std::iter::from_fn(|| rx.try_recv().ok()).collect();
+        assert_eq!(sent.len(), 1, "{sent:?}");
+        let text = serde_json::to_string(&sent[0]).expect("serialise");
+        peer.apply(serde_json::from_str(&text).expect("parse"));
+        assert_eq!(
+            *hub.try_recv().expect("the proximity"),
+            HubMessage::Proximity(Arc::new(proximity))
         );
     }
 

@@ -8,8 +8,9 @@ use rtls_engine::site::Site;
 use rtls_engine::zones::Zone;
 use serde_json::Value;
 
+use super::trackables::TrackableIndex;
 use crate::omlox::ws::Topic;
-use crate::omlox::Location;
+use crate::omlox::{CollisionEvent, Location, Proximity, Trackable};
 
 /// A message for WebSocket subscribers, already in omlox JSON.
 #[derive(Debug, Clone, PartialEq)]
@@ -31,6 +32,16 @@ pub enum HubMessage {
         /// The `FenceEvent` object.
         event: Value,
     },
+    /// Two trackables started or stopped colliding, or still collide (`collision_events`).
+    Collision {
+        /// The tags whose updates placed the two trackables, in the event's order.
+        tags: [String; 2],
+        /// The `CollisionEvent`.
+        event: Arc<CollisionEvent>,
+    },
+    /// A proximity a provider pushed (`PUT /v2/providers/proximities`), as received
+    /// (`proximity_updates`).
+    Proximity(Arc<Proximity>),
     /// A predictive alarm, lost tag, model switch, … on an extension topic.
     Extension {
         /// `rtls:alarms` or `rtls:events`.
@@ -69,6 +80,8 @@ pub struct LiveState {
     last_seen: RwLock<HashMap<String, LastSeen>>,
     /// Told every zone set [`LiveState::set_zones`] takes (a cluster sends it to the peers).
     zone_edits: std::sync::OnceLock<ZoneEditListener>,
+    /// The stored omlox trackables by provider, for the topics about trackables.
+    trackables: RwLock<Arc<TrackableIndex>>,
 }
 
 impl std::fmt::Debug for LiveState {
@@ -106,6 +119,20 @@ impl LiveState {
             recent_alarms: RwLock::new(VecDeque::new()),
             last_seen: RwLock::new(HashMap::new()),
             zone_edits: std::sync::OnceLock::new(),
+            trackables: RwLock::default(),
+        }
+    }
+
+    /// The stored trackables by provider ([`TrackableIndex`]).
+    #[must_use]
+    pub fn trackables(&self) -> Arc<TrackableIndex> {
+        self.trackables.read().map(|t| Arc::clone(&t)).unwrap_or_default()
+    }
+
+    /// Replaces the stored trackables (after a change to them through the API, or at start).
+    pub fn set_trackables(&self, trackables: Vec<Trackable>) {
+        if let Ok(mut slot) = self.trackables.write() {
+            *slot = Arc::new(TrackableIndex::new(trackables));
         }
     }
 

@@ -23,6 +23,7 @@
 //! twice if the server died between storing them and the next checkpoint.
 
 mod admission;
+pub(crate) mod collisions;
 mod fanout;
 mod ingest_log;
 mod live;
@@ -30,6 +31,7 @@ mod outputs;
 mod partition;
 mod quarantine;
 pub mod readers;
+pub mod trackables;
 
 use std::sync::atomic::{AtomicI64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -299,6 +301,16 @@ impl Pipeline {
                 }
             }));
         }
+        // the collision thread is not joined at shutdown: it ends when the hub's last sender
+        // (this pipeline's, its partitions') is gone
+        let collision_worker = collisions::CollisionWorker::new(Arc::clone(&live), &hub, Default::default());
+        std::thread::Builder::new()
+            .name("rtls-collisions".into())
+            .spawn(move || collision_worker.run())
+            .map_err(|e| PipelineError::Thread {
+                name: "rtls-collisions".into(),
+                reason: e.to_string(),
+            })?;
         let mut threads = Vec::new();
         let spawn = |name: String, body: Box<dyn FnOnce() + Send>| {
             std::thread::Builder::new()

@@ -1,0 +1,185 @@
+//! The collision thread: reads every track update from the hub, moves the trackables its tag
+//! belongs to ([`super::trackables`]) in one [`CollisionDetector`], and publishes the
+//! collisions it finds as omlox `CollisionEvent`s on the hub (`collision_events`).
+//!
+//! One thread for every partition's tags, since two colliding tags may be tracked on
+//! different partitions. It reads the hub as a WebSocket client does: if it falls more than
+//! the broadcast capacity behind it misses updates (logged), and the trackables concerned are
+//! judged again at their next update. It holds the hub weakly and ends when the pipeline's
+//! last sender is gone.
+//!
+//! Each update is judged against the other trackables' newest updates as they reached the hub.
+//! Live, the partitions keep pace with the records' clock and those are a fraction of a
+//! second apart; a replayed burst, though, may run one partition's whole stretch of time
+//! before another's, and collisions between their tags in that stretch are then not seen.
+
+use std::sync::Arc;
+
+use tokio::sync::broadcast;
+use tokio::sync::broadcast::error::RecvError;
+
+use super::live::{HubMessage, LiveState};
+use crate::convert::uuid_for;
+use crate::omlox::collision::{Body, CollisionDetector, CollisionSettings, Side, Transition};
+use crate::omlox::time::format_timestamp;
+use crate::omlox::{Collision, CollisionEvent, CollisionType, Location, Point, Polygon, Trackable};
+
+/// Vertices of the polygon that draws a trackable's judged disc in a `Collision`.
+const DISC_VERTICES: usize = 16;
+
+pub(super) struct CollisionWorker {
+    pub live: Arc<LiveState>,
+    pub hub: broadcast::WeakSender<Arc<HubMessage>>,
+    pub rx: broadcast::Receiver<Arc<HubMessage>>,
+    pub detector: CollisionDetector,
+}
+
+impl CollisionWorker {
+    pub(super) fn new(
+        live: Arc<LiveState>,
+        hub: &broadcast::Sender<Arc<HubMessage>>,
+        settings: CollisionSettings,
+    ) -> Self {
+        Self {
+            live,
+            rx: hub.subscribe(),
+            hub: hub.downgrade(),
+            detector: CollisionDetector::new(settings),
+        }
+    }
+
+    pub(super) fn run(mut self) {
+        loop {
+            match self.rx.blocking_recv() {
+                Ok(message) => {
+                    if let HubMessage::Location { tag, time_s, location } = message.as_ref() {
+                        if !self.on_location(tag, *time_s, location) {
+                            return;
+                        }
+                    }
+                }
+                Err(RecvError::Lagged(missed)) => {
+                    tracing::warn!(missed, "collision detection fell behind the track updates");
+                }
+                Err(RecvError::Closed) => return,
+            }
+        }
+    }
+
+    /// Judges one update; `false` when the hub is gone.
+    fn on_location(&mut self, tag: &str, time_s: f64, location: &Location) -> bool {
+        let lost = location
+            .properties
+            .as_ref()
+            .and_then(|p| p.get("rtls:status"))
+            .and_then(|s| s.as_str())
+            == Some("lost");
+        let index = self.live.trackables();
+        let mut transitions = Vec::new();
+        for trackable in index.of(tag).iter() {
+            if lost {
+                transitions.extend(self.detector.remove(&trackable.id, time_s));
+            } else {
+                transitions.extend(self.detector.update(body(trackable, tag, time_s, location)));
+            }
+        }
+        if transitions.is_empty() {
+            return true;
+        }
+        let Some(hub) = self.hub.upgrade() else {
+            return false;
+        };
+        for transition in &transitions {
+            match collision_event(transition) {
+                Ok(event) => {
+                    let tags = [
+                        transition.trigger.provider_id.clone(),
+                        transition.other.provider_id.clone(),
+                    ];
+                    // no subscriber is not an error
+                    let _ = hub.send(Arc::new(HubMessage::Collision {
+                        tags,
+                        event: Arc::new(event),
+                    }));
+                }
+                Err(e) => tracing::warn!(error = %e, "collision event not representable"),
+            }
+        }
+        true
+    }
+}
+
+/// `trackable` at `location`, an update of its provider `tag` (module documentation of
+/// [`crate::omlox::collision`] for what is judged).
+fn body(trackable: &Trackable, tag: &str, time_s: f64, location: &Location) -> Body {
+    Body {
+        id: trackable.id.clone(),
+        provider_id: tag.to_string(),
+        time_s,
+        coordinates: location.position.coordinates.clone(),
+        floor: location.floor.unwrap_or(0.0),
+        radius_m: trackable.radius.unwrap_or(0.0).max(0.0),
+        sigma_m: location.accuracy.unwrap_or(0.0),
+        exit_tolerance_m: trackable.exit_tolerance.unwrap_or(0.0).max(0.0),
+        // ms; absent or negative (−1 in the spec) is no timeout
+        tolerance_timeout_s: trackable
+            .tolerance_timeout
+            .filter(|ms| *ms >= 0.0)
+            .map(|ms| ms / 1000.0),
+    }
+}
+
+/// The omlox event of a transition: a name-based id (the same transition, replayed, has the
+/// same id), timestamps from the records' clock.
+///
+/// # Errors
+/// [`crate::ServerError::Unrepresentable`] when a time cannot be written as a timestamp.
+pub(crate) fn collision_event(transition: &Transition) -> crate::Result<CollisionEvent> {
+    let kind = transition.kind;
+    let name = format!(
+        "{}|{}|{:?}|{}",
+        transition.trigger.id, transition.other.id, kind, transition.time_s
+    );
+    let time = format_timestamp(transition.time_s, "collision_time")?;
+    Ok(CollisionEvent {
+        id: uuid_for("collision-event", &name),
+        collision_type: kind,
+        start_time: Some(format_timestamp(transition.start_s, "start_time")?),
+        end_time: (kind == CollisionType::CollisionEnd).then(|| time.clone()),
+        collision_time: (kind == CollisionType::Colliding).then_some(time),
+        collisions: vec![collision(&transition.trigger), collision(&transition.other)],
+        collision_area: transition.area_m.map(|[x, y]| Point {
+            coordinates: vec![x, y],
+        }),
+        center_distance: Some(transition.distance_m),
+    })
+}
+
+/// One side as an omlox `Collision`: its position and its judged disc as a polygon.
+fn collision(side: &Side) -> Collision {
+    let centre = [
+        side.coordinates.first().copied().unwrap_or(0.0),
+        side.coordinates.get(1).copied().unwrap_or(0.0),
+    ];
+    let ring: Vec<Vec<f64>> = (0..=DISC_VERTICES)
+        .map(|i| {
+            // the last vertex repeats the first: a closed ring
+            let angle = std::f64::consts::TAU * (i % DISC_VERTICES) as f64 / DISC_VERTICES as f64;
+            vec![
+                centre[0] + side.extent_m * angle.cos(),
+                centre[1] + side.extent_m * angle.sin(),
+            ]
+        })
+        .collect();
+    Collision {
+        id: side.id.clone(),
+        object_type: "trackable".into(),
+        position: Some(Point {
+            coordinates: side.coordinates.clone(),
+        }),
+        geometry: (side.extent_m > 0.0).then(|| Polygon {
+            coordinates: vec![ring],
+        }),
+        floor: Some(side.floor),
+    }
+}
