@@ -11,7 +11,7 @@
 //!                                         WebSocket, MQTT and dashboard subscribers
 //! ```
 //!
-//! - **Ingest** ([`StreamLog`]): a payload's records are published per tag partition (one
+//! - **Ingest** (`StreamLog`, [`Cluster::log`]): a payload's records are published per tag partition (one
 //!   message per partition and payload, their JSON lines) and acknowledged to the reader only
 //!   once JetStream acknowledged every message — then they are replicated on the stream's
 //!   `replicas` servers.
@@ -29,7 +29,7 @@
 //!   partition's tracker up on the records of the last `warmup_s` up to the floor (tracked,
 //!   not published or stored again), then takes the records after the floor as live ones.
 //! - **Outputs** ([`peers`]): the partition threads' outputs go to this node's subscribers and,
-//!   as [`PeerMessage`]s, to `rtls.out.<node>`, which every other node applies to its own.
+//!   as [`PeerMessage`](crate::pipeline::PeerMessage)s, to `rtls.out.<node>`, which every other node applies to its own.
 //!   Zone edits and alarm acknowledgements are stored in the shared PostgreSQL and announced
 //!   the same way.
 //!
