@@ -6,10 +6,12 @@
 //! cargo test --release -p rtls-cli --test cluster_bench -- --ignored --nocapture
 //! ```
 //!
-//! Four HTTP publishers, each with 4 payloads of 250 fixes in flight, send to the nodes in turn;
-//! a WebSocket client on the first node subscribes to `location_updates`. Latency is the
-//! receive time minus the location's `timestamp_generated`, which is the record's send time.
-//! 3 s of warm-up are not measured; then 15 s are. One JSON line per node count.
+//! Two runs per node count: at the maximum rate (four HTTP publishers, each with 4 payloads of
+//! 250 fixes in flight, sending to the nodes in turn, 1 000 tags) and at a mine's load (6 000
+//! records/s offered: the same 16 lanes each sending a payload of 25 fixes every 66.7 ms). A
+//! WebSocket client on the first node subscribes to `location_updates`; latency is the receive
+//! time minus the location's `timestamp_generated`, which is the record's send time. 3 s of
+//! warm-up are not measured; then 15 s are. One JSON line per run.
 
 mod common;
 
@@ -24,6 +26,10 @@ use tokio_tungstenite::tungstenite::Message;
 const PUBLISHERS: usize = 4;
 const IN_FLIGHT: usize = 4;
 const BATCH: usize = 250;
+/// A payload at the offered rate (a reader's scan of 25 tags).
+const PACED_BATCH: usize = 25;
+/// The offered rate of the paced runs (records/s): a mine of 600 tags at 10 Hz (here 1 000 tags at 6 Hz).
+const PACED_RPS: f64 = 6_000.0;
 const TAGS_PER_PUBLISHER: usize = 250;
 const PARTITIONS: usize = 12;
 const WARMUP: Duration = Duration::from_secs(3);
@@ -36,7 +42,8 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
-async fn run(nodes_count: usize, nats_binary: &str, postgres_url: &str) -> serde_json::Value {
+/// One run with `nodes_count` nodes, at the maximum rate or at `offered_rps`.
+async fn run(nodes_count: usize, offered_rps: Option<f64>, nats_binary: &str, postgres_url: &str) -> serde_json::Value {
     let dir = common::temp_dir("cluster-bench", &format!("n{nodes_count}"));
     std::fs::write(dir.join("site.toml"), cluster::SITE).unwrap();
     let schema = cluster::Schema::new(postgres_url, &format!("bench{nodes_count}"));
@@ -91,13 +98,27 @@ async fn run(nodes_count: usize, nats_binary: &str, postgres_url: &str) -> serde
     for publisher in 0..PUBLISHERS {
         for lane in 0..IN_FLIGHT {
             let (acked, running, targets, client) = (acked.clone(), running.clone(), targets.clone(), client.clone());
+            let (batch, pause) = match offered_rps {
+                Some(rate) => (
+                    PACED_BATCH,
+                    Some(Duration::from_secs_f64(
+                        (PACED_BATCH * PUBLISHERS * IN_FLIGHT) as f64 / rate,
+                    )),
+                ),
+                None => (BATCH, None),
+            };
             senders.push(tokio::spawn(async move {
                 let mut round = lane;
+                let mut next = tokio::time::Instant::now();
                 while running.load(Ordering::Relaxed) {
+                    if let Some(pause) = pause {
+                        tokio::time::sleep_until(next).await;
+                        next += pause;
+                    }
                     let t = unix_s();
-                    let body: String = (0..BATCH)
+                    let body: String = (0..batch)
                         .map(|i| {
-                            let tag = publisher * TAGS_PER_PUBLISHER + (round * BATCH + i) % TAGS_PER_PUBLISHER;
+                            let tag = publisher * TAGS_PER_PUBLISHER + (round * batch + i) % TAGS_PER_PUBLISHER;
                             format!(
                                 "{{\"t\": {t}, \"tag\": \"tag-{tag}\", \"kind\": \"fix\", \"position_m\": [{}, 5.0], \
                                  \"covariance_m2\": [0.04, 0, 0, 0.04]}}\n",
@@ -113,7 +134,7 @@ async fn run(nodes_count: usize, nats_binary: &str, postgres_url: &str) -> serde
                         .send()
                         .await;
                     if matches!(&response, Ok(r) if r.status().is_success()) {
-                        acked.fetch_add(BATCH as u64, Ordering::Relaxed);
+                        acked.fetch_add(batch as u64, Ordering::Relaxed);
                     }
                     round += IN_FLIGHT;
                 }
@@ -140,6 +161,7 @@ async fn run(nodes_count: usize, nats_binary: &str, postgres_url: &str) -> serde
     let _ = std::fs::remove_dir_all(&dir);
     serde_json::json!({
         "nodes": nodes_count,
+        "offered_rps": offered_rps,
         "sustained_rps": sustained.round(),
         "rps_per_node": (sustained / nodes_count as f64).round(),
         "p50_ms": (percentile(&latencies, 0.5) * 1e3 * 10.0).round() / 10.0,
@@ -156,6 +178,8 @@ async fn acknowledged_records_per_second_with_one_two_and_three_nodes() {
         return;
     };
     for nodes in 1..=3 {
-        println!("{}", run(nodes, &nats, &postgres).await);
+        for offered in [None, Some(PACED_RPS)] {
+            println!("{}", run(nodes, offered, &nats, &postgres).await);
+        }
     }
 }
