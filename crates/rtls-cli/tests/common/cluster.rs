@@ -12,7 +12,8 @@ pub const WRITE: &str = "cluster-test-write-token";
 /// The read token.
 pub const READ: &str = "cluster-test-read-token";
 
-/// A 2-D fix-then-filter site.
+/// A 2-D fix-then-filter site; no re-ordering window (as the single-process load test,
+/// `crates/rtls-server/examples/loadtest.rs`), so latency is the pipeline's.
 pub const SITE: &str = r#"
 name = "cluster test"
 [[readers]]
@@ -28,6 +29,8 @@ pipeline = "fix-then-filter"
 motion_model = "cv"
 filter = "ekf"
 dimensions = 2
+reorder_window_s = 0.0
+rewind_horizon_s = 2.0
 "#;
 
 /// `RTLS_TEST_NATS_SERVER` and `RTLS_TEST_POSTGRES_URL`, or `None` after saying why.

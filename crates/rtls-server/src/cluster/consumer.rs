@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use async_nats::jetstream::consumer::{pull, AckPolicy, DeliverPolicy};
-use futures_util::StreamExt;
+use futures_util::{FutureExt, StreamExt};
 use rtls_engine::record::parse_json_line;
 use tokio::sync::watch;
 
@@ -12,10 +12,12 @@ use super::{cluster_error, message_origin, Cluster, ClusterError, INGEST_SUBJECT
 use crate::pipeline::Pipeline;
 use crate::sink::IngestError;
 
-/// Messages fetched from the stream at once.
-const FETCH_MESSAGES: usize = 256;
-/// How long one fetch waits for messages.
+/// Messages stored and tracked together at most (and pulled from the stream at once).
+const BATCH_MESSAGES: usize = 256;
+/// How long one warm-up fetch waits for messages.
 const FETCH_WAIT: Duration = Duration::from_millis(100);
+/// The pull's heartbeat: a silent server is noticed after two of them.
+const HEARTBEAT: Duration = Duration::from_secs(1);
 /// How long the stream waits for an acknowledgement before it redelivers (a live owner
 /// acknowledges within milliseconds; a dead owner's consumer is replaced at takeover).
 const ACK_WAIT: Duration = Duration::from_secs(10);
@@ -116,26 +118,35 @@ pub async fn run(
         from_sequence = floor.map_or(1, |f| f + 1),
         "partition taken over"
     );
+    // a continuous pull: messages come as they are published, not when a fetch expires
+    let mut deliveries = consumer
+        .stream()
+        .max_messages_per_batch(BATCH_MESSAGES)
+        .heartbeat(HEARTBEAT)
+        .messages()
+        .await
+        .map_err(|e| cluster_error(&format!("reading from {name}"), e))?;
     while !*stop.borrow() {
-        let mut batch = consumer
-            .fetch()
-            .max_messages(FETCH_MESSAGES)
-            .expires(FETCH_WAIT)
-            .messages()
-            .await
-            .map_err(|e| cluster_error(&format!("fetching from {name}"), e))?;
+        // the first message waits; those already delivered join it
+        let first = tokio::select! {
+            next = deliveries.next() => next,
+            _ = stop.changed() => break,
+        };
         let mut messages = Vec::new();
-        while let Some(message) = batch.next().await {
-            match message {
-                Ok(message) => messages.push(message),
-                Err(e) => {
-                    tracing::warn!(partition, error = %e, "a fetch from the ingest stream failed");
-                    break;
-                }
+        match first {
+            Some(Ok(message)) => messages.push(message),
+            Some(Err(e)) => {
+                // missed heartbeats while NATS elects a leader: the pull is renewed
+                tracing::warn!(partition, error = %e, "reading from the ingest stream failed; going on");
+                continue;
             }
+            None => return Err(ClusterError(format!("the consumer {name} ended"))),
         }
-        if messages.is_empty() {
-            continue;
+        while messages.len() < BATCH_MESSAGES {
+            match deliveries.next().now_or_never() {
+                Some(Some(Ok(message))) => messages.push(message),
+                _ => break,
+            }
         }
         let payloads: Vec<(String, i64, String)> = messages
             .iter()
@@ -201,7 +212,7 @@ async fn warm_up(
     while !done {
         let mut batch = reader
             .fetch()
-            .max_messages(FETCH_MESSAGES * 4)
+            .max_messages(BATCH_MESSAGES * 4)
             .expires(FETCH_WAIT)
             .messages()
             .await

@@ -22,6 +22,7 @@ use crate::metrics::Metrics;
 use crate::omlox::ws::Topic;
 use crate::omlox::{Location, Proximity};
 use crate::sink::Publication;
+use rtls_engine::tracker::AnchorOffsetSummary;
 
 /// One output of a partition, as it travels to the other nodes of a cluster (JSON).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -78,6 +79,20 @@ pub enum PeerMessage {
         /// The `Proximity`, as pushed.
         proximity: Box<Proximity>,
     },
+    /// Readers named by records another node received: `(reader, records)` at `at_ms`.
+    ReadersHeard {
+        /// Each reader and how many records named it.
+        counts: Vec<(String, u64)>,
+        /// When they were received (ms since the Unix epoch).
+        at_ms: i64,
+    },
+    /// What a partition's tracks learnt of the readers' range offsets (reader health).
+    Offsets {
+        /// The partition.
+        partition: usize,
+        /// Per reader: `(reader, tags, mean_m, min_m, max_m, mean_std_m)`.
+        summaries: Vec<(String, usize, f64, f64, f64, f64)>,
+    },
     /// The zone set was edited through the API (on the node that stored the edit).
     Zones {
         /// The whole set.
@@ -97,6 +112,8 @@ pub struct Fanout {
     /// the cluster once (webhooks, an external MQTT broker), not once per node.
     pub(super) local: Option<(broadcast::Sender<Arc<HubMessage>>, broadcast::Sender<Publication>)>,
     pub(super) metrics: Arc<Metrics>,
+    /// Reader health (records heard, learnt range offsets).
+    pub(super) readers: Arc<super::ReaderMonitor>,
 }
 
 impl Fanout {
@@ -177,6 +194,19 @@ impl Fanout {
         self.live.set_occupants(partition, occupants);
     }
 
+    /// Posts what a partition's tracks learnt of the readers' range offsets, here and to the
+    /// peers.
+    pub(super) fn post_offsets(&self, partition: usize, summaries: Vec<AnchorOffsetSummary>) {
+        self.to_peers(|| PeerMessage::Offsets {
+            partition,
+            summaries: summaries
+                .iter()
+                .map(|s| (s.anchor.clone(), s.tags, s.mean_m, s.min_m, s.max_m, s.mean_std_m))
+                .collect(),
+        });
+        self.readers.learnt_offsets(partition, summaries);
+    }
+
     /// This node's own hub messages (all of them without a cluster).
     pub(super) fn subscribe_local(&self) -> broadcast::Receiver<Arc<HubMessage>> {
         self.local
@@ -234,6 +264,21 @@ impl Fanout {
                 let _ = self.hub.send(Arc::new(HubMessage::Proximity(Arc::new(*proximity))));
             }
             PeerMessage::Zones { zones } => self.live.adopt_zones(zones),
+            PeerMessage::ReadersHeard { counts, at_ms } => self.readers.heard_counts(&counts, at_ms),
+            PeerMessage::Offsets { partition, summaries } => self.readers.learnt_offsets(
+                partition,
+                summaries
+                    .into_iter()
+                    .map(|(anchor, tags, mean_m, min_m, max_m, mean_std_m)| AnchorOffsetSummary {
+                        anchor,
+                        tags,
+                        mean_m,
+                        min_m,
+                        max_m,
+                        mean_std_m,
+                    })
+                    .collect(),
+            ),
         }
     }
 }
@@ -268,6 +313,7 @@ mod tests {
                 .map(|_| (broadcast::channel(16).0, broadcast::channel(16).0)),
             peers,
             metrics: Arc::new(Metrics::new()),
+            readers: Arc::new(crate::pipeline::ReaderMonitor::new(&site, 0)),
         }
     }
 
@@ -338,6 +384,34 @@ mod tests {
             *hub.try_recv().expect("the proximity"),
             HubMessage::Proximity(Arc::new(proximity))
         );
+    }
+
+    #[test]
+    fn reader_health_counts_what_every_node_received_and_learnt() {
+        let (tx, mut rx) = mpsc::channel(16);
+        let owner = fanout(Some(tx));
+        let peer = fanout(None);
+        owner.to_peers(|| PeerMessage::ReadersHeard {
+            counts: vec![("R1".into(), 3)],
+            at_ms: 1_000,
+        });
+        let summary = AnchorOffsetSummary {
+            anchor: "R1".into(),
+            tags: 2,
+            mean_m: 0.12,
+            min_m: 0.1,
+            max_m: 0.14,
+            mean_std_m: 0.02,
+        };
+        owner.post_offsets(4, vec![summary.clone()]);
+        while let Ok(message) = rx.try_recv() {
+            let text = serde_json::to_string(&message).expect("serialise");
+            peer.apply(serde_json::from_str(&text).expect("parse"));
+        }
+        let health = peer.readers.health(1_000);
+        let r1 = health.iter().find(|r| r.id == "R1").expect("R1");
+        assert_eq!((r1.records, r1.last_heard_ms), (3, Some(1_000)));
+        assert_eq!(r1.range_offset.as_ref(), Some(&summary));
     }
 
     #[test]

@@ -283,6 +283,7 @@ impl Pipeline {
             hub: hub.clone(),
             publications: publications.clone(),
             peers: config.cluster.as_ref().map(|c| c.peers.clone()),
+            readers: Arc::clone(&readers),
             local: clustered.then(|| {
                 (
                     broadcast::channel(config.broadcast_capacity.max(16)).0,
@@ -339,7 +340,6 @@ impl Pipeline {
             partition_txs.push(tx);
             let worker = partition::PartitionWorker {
                 index,
-                readers: Arc::clone(&readers),
                 offsets_posted: None,
                 offsets_dirty: false,
                 tracker: tracker()?,
@@ -643,6 +643,11 @@ impl Pipeline {
         let received_ms = unix_ms();
         self.inner.readers.heard(records.iter().map(|(_, r)| r), received_ms);
         if let Some(cluster) = &self.inner.config.cluster {
+            // every node's reader health counts the records any node received
+            self.inner.fanout.to_peers(|| PeerMessage::ReadersHeard {
+                counts: ReaderMonitor::counts(records.iter().map(|(_, r)| r)),
+                at_ms: received_ms,
+            });
             let partitions = self.inner.config.partitions.max(1);
             let lines = records
                 .iter()

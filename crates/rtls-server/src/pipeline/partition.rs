@@ -32,8 +32,6 @@ const CLOCK_TICK: Duration = Duration::from_millis(250);
 
 pub(super) struct PartitionWorker {
     pub index: usize,
-    /// Reader health, where the tracker's learnt range offsets are posted.
-    pub readers: Arc<super::ReaderMonitor>,
     /// When the offsets were last posted, and whether a batch has come since.
     pub offsets_posted: Option<Instant>,
     pub offsets_dirty: bool,
@@ -174,7 +172,7 @@ impl PartitionWorker {
             .is_none_or(|at| at.elapsed() >= super::readers::OFFSET_PUBLISH_PERIOD);
         if self.offsets_dirty && due {
             let summaries = AnchorOffsetSummary::by_anchor(&self.tracker.range_offsets());
-            self.readers.learnt_offsets(self.index, summaries);
+            self.fanout.post_offsets(self.index, summaries);
             self.offsets_posted = Some(Instant::now());
             self.offsets_dirty = false;
         }

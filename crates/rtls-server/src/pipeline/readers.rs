@@ -158,6 +158,33 @@ impl ReaderMonitor {
         }
     }
 
+    /// How many times each reader is named by `records` (for a cluster's other nodes, which
+    /// apply it with [`ReaderMonitor::heard_counts`]).
+    #[must_use]
+    pub fn counts<'a>(records: impl IntoIterator<Item = &'a Record>) -> Vec<(String, u64)> {
+        let mut counts: HashMap<String, u64> = HashMap::new();
+        for record in records {
+            for_each_reader(&record.measurement, |reader| {
+                *counts.entry(reader.to_string()).or_default() += 1;
+            });
+        }
+        counts.into_iter().collect()
+    }
+
+    /// Notes readers heard `count` times each at `now_ms` (another node of a cluster received
+    /// their records).
+    pub fn heard_counts(&self, counts: &[(String, u64)], now_ms: i64) {
+        let Ok(mut counters) = self.counters.write() else {
+            return;
+        };
+        for (reader, count) in counts {
+            let counter = counters.entry(reader.clone()).or_default();
+            for _ in 0..*count {
+                counter.heard(now_ms);
+            }
+        }
+    }
+
     /// Every reader of the site, then any reader records named that the site lacks, at `now_ms`.
     #[must_use]
     pub fn health(&self, now_ms: i64) -> Vec<ReaderHealth> {
