@@ -6,7 +6,8 @@
 //! cargo test --release -p rtls-cli --test cluster_bench -- --ignored --nocapture
 //! ```
 //!
-//! Two runs per node count: at the maximum rate (four HTTP publishers, each with 4 payloads of
+//! Node count 0 is the baseline: one `rtls serve` without `--cluster` on the same PostgreSQL
+//! (its ingest log there). Two runs per node count: at the maximum rate (four HTTP publishers, each with 4 payloads of
 //! 250 fixes in flight, sending to the nodes in turn, 1 000 tags) and at a mine's load (6 000
 //! records/s offered: the same 16 lanes each sending a payload of 25 fixes every 66.7 ms). A
 //! WebSocket client on the first node subscribes to `location_updates`; latency is the receive
@@ -47,15 +48,22 @@ async fn run(nodes_count: usize, offered_rps: Option<f64>, nats_binary: &str, po
     let dir = common::temp_dir("cluster-bench", &format!("n{nodes_count}"));
     std::fs::write(dir.join("site.toml"), cluster::SITE).unwrap();
     let schema = cluster::Schema::new(postgres_url, &format!("bench{nodes_count}"));
-    let (nats, urls) = cluster::nats_cluster(nats_binary, &dir);
-    let nodes: Vec<cluster::Node> = (0..nodes_count)
+    // 0 nodes: the baseline, one rtls serve without a cluster on the same PostgreSQL
+    let (nats, urls) = if nodes_count == 0 {
+        (Vec::new(), Vec::new())
+    } else {
+        cluster::nats_cluster(nats_binary, &dir)
+    };
+    let nodes: Vec<cluster::Node> = (0..nodes_count.max(1))
         .map(|i| cluster::start_node(&dir, i, &urls, &schema.db))
         .collect();
     let client = reqwest::Client::builder()
         .timeout(Duration::from_secs(30))
         .build()
         .unwrap();
-    cluster::wait_balanced(&client, &nodes, PARTITIONS).await;
+    if nodes_count > 0 {
+        cluster::wait_balanced(&client, &nodes, PARTITIONS).await;
+    }
 
     let (mut socket, _) =
         tokio_tungstenite::connect_async(format!("ws://{}/v2/ws/socket?token={}", nodes[0].http, cluster::READ))
@@ -163,7 +171,7 @@ async fn run(nodes_count: usize, offered_rps: Option<f64>, nats_binary: &str, po
         "nodes": nodes_count,
         "offered_rps": offered_rps,
         "sustained_rps": sustained.round(),
-        "rps_per_node": (sustained / nodes_count as f64).round(),
+        "rps_per_node": (sustained / nodes_count.max(1) as f64).round(),
         "p50_ms": (percentile(&latencies, 0.5) * 1e3 * 10.0).round() / 10.0,
         "p99_ms": (percentile(&latencies, 0.99) * 1e3 * 10.0).round() / 10.0,
         "location_updates_measured": latencies.len(),
@@ -177,7 +185,7 @@ async fn acknowledged_records_per_second_with_one_two_and_three_nodes() {
     let Some((nats, postgres)) = cluster::services() else {
         return;
     };
-    for nodes in 1..=3 {
+    for nodes in 0..=3 {
         for offered in [None, Some(PACED_RPS)] {
             println!("{}", run(nodes, offered, &nats, &postgres).await);
         }

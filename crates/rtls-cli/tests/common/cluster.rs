@@ -160,16 +160,22 @@ pub struct Node {
     pub log: PathBuf,
 }
 
-/// Starts node `index` of the cluster at `nats`, on the site in `<dir>/site.toml`.
+/// Starts node `index` of the cluster at `nats`, on the site in `<dir>/site.toml`; with no
+/// NATS servers, one `rtls serve` without a cluster (the baseline).
 pub fn start_node(dir: &Path, index: usize, nats: &[String], db: &str) -> Node {
     let log = dir.join(format!("node{index}.log"));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_rtls"))
+    let mut command = Command::new(env!("CARGO_BIN_EXE_rtls"));
+    command
         .arg("serve")
         .arg("--site")
         .arg(dir.join("site.toml"))
-        .args(["--http", "127.0.0.1:0", "--no-mqtt"])
-        .args(["--cluster", &nats.join(",")])
-        .args(["--node-id", &format!("node{index}")])
+        .args(["--http", "127.0.0.1:0", "--no-mqtt"]);
+    if !nats.is_empty() {
+        command
+            .args(["--cluster", &nats.join(",")])
+            .args(["--node-id", &format!("node{index}")]);
+    }
+    let mut child = command
         .args(["--db", db])
         .env("RTLS_WRITE_TOKEN", WRITE)
         .env("RTLS_READ_TOKEN", READ)
