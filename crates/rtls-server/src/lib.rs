@@ -24,6 +24,7 @@
 //! - omlox™ hub API 2.0.0, OpenAPI 3.0.2 description (PROFIBUS & PROFINET International).
 //! - OASIS MQTT 3.1.1 (2014).
 
+pub mod adapters;
 pub mod auth;
 pub mod cluster;
 pub mod config;
