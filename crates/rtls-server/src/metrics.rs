@@ -20,7 +20,8 @@ pub struct Metrics {
     pub ingest_commits: Counter,
     /// Payloads refused with a client error, by transport.
     pub ingest_rejected: Family<Labels, Counter>,
-    /// Payloads refused at ingest, by reason (`format`, `site`, `time_window`).
+    /// Payloads refused at ingest, by reason (`format`, `site`, `time_window`), and vendor
+    /// messages without a position (`no_position`, `anchor`; [`crate::adapters`]).
     pub ingest_refused: Family<Labels, Counter>,
     /// Payloads refused because the ingest queue stayed full.
     pub ingest_overloaded: Counter,
@@ -153,7 +154,7 @@ impl Metrics {
         );
         registry.register(
             "ingest_refused",
-            "Payloads refused at ingest (nothing of them stored), by reason: format, site, time_window",
+            "Payloads refused at ingest (nothing of them stored), by reason: format, site, time_window; vendor adapter messages without a position: no_position, anchor",
             m.ingest_refused.clone(),
         );
         registry.register(

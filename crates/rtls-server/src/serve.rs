@@ -158,6 +158,7 @@ pub async fn serve(
             log: c.log(),
             peers: peers_tx,
         }),
+        default_accuracy_m: config.server.default_accuracy_m,
         ..PipelineConfig::default()
     };
     // the stores are synchronous (the PostgreSQL client blocks on a runtime of its own): open

@@ -6,6 +6,7 @@
 //! configured. Errors are omlox `Error` objects `{type, code, message}` plus `field` — the
 //! offending field's path — when one field is at fault.
 
+mod adapters;
 mod alarms;
 mod api;
 mod dashboard;
@@ -364,6 +365,7 @@ pub fn router(state: AppState) -> Router {
         .route("/api/v1/tokens", get(tokens::list).post(tokens::issue))
         .route("/api/v1/tokens/{token_id}", delete(tokens::revoke))
         .route("/api/v1/measurements", post(api::ingest_measurements))
+        .route("/api/v1/adapters/{vendor}", post(adapters::ingest))
         .route("/api/v1/tags", get(api::tags))
         .route("/api/v1/positions", get(positions::positions))
         .route("/api/v1/tracks.geojson", get(api::tracks_geojson))

@@ -182,8 +182,8 @@ impl ExternalBroker {
     /// `mqtt://user:password@broker:1883?client_id=rtls-site-1`; the client id defaults to
     /// [`DEFAULT_CLIENT_ID`]; `mqtts://broker?ca_file=ca.pem` for TLS, see the `tls` module), connects with a persistent session and manual acknowledgements,
     /// and subscribes to `measurement_filter` (normally
-    /// [`MEASUREMENT_FILTER`](super::MEASUREMENT_FILTER)) at QoS 1. Measurement payloads will
-    /// go to `sink`; whatever is sent on `publications` will be published to the broker.
+    /// [`MEASUREMENT_FILTER`](super::MEASUREMENT_FILTER)) and to its
+    /// [`adapter_filter`](super::adapter_filter) (vendor feeds) at QoS 1. Both go to `sink`; whatever is sent on `publications` will be published to the broker.
     ///
     /// # Errors
     /// [`BridgeError::InvalidUrl`], [`BridgeError::Tls`], [`BridgeError::InvalidFilter`], or
@@ -255,8 +255,10 @@ impl ExternalBroker {
         }
         let counters = Arc::new(Counters::default());
         add(&counters.connections, 1);
-        if let Err(error) = client.try_subscribe(measurement_filter, QoS::AtLeastOnce) {
-            tracing::error!(url = %display_url, %error, "mqtt: cannot queue the measurement subscription");
+        for filter in [measurement_filter.to_owned(), super::adapter_filter(measurement_filter)] {
+            if let Err(error) = client.try_subscribe(filter, QoS::AtLeastOnce) {
+                tracing::error!(url = %display_url, %error, "mqtt: cannot queue the measurement subscription");
+            }
         }
         Ok(Self {
             client,

@@ -17,6 +17,7 @@
 //! | topic | direction | payload |
 //! | --- | --- | --- |
 //! | `rtls/v1/measurements/{reader}` | reader → server | JSON Lines of the measurement record format (`docs/FORMATS.md`), one or more records per message |
+//! | `rtls/v1/adapters/{vendor}/…` | a vendor's engine (or a bridge from its broker) → server | one message of the vendor's feed, read by its adapter ([`crate::adapters`]: `pozyx`, `quuppa`, `sewio`) |
 //! | `rtls/v1/tracks/{tag}`, `rtls/v1/events/{type}`, … | server → subscribers | the JSON of each [`Publication`](crate::sink::Publication) the server emits |
 //! | `rtls/v1/errors/{client_id}` | embedded broker → that client only | `{"topic": …, "error": …}` for a payload the sink refused as invalid |
 //!
@@ -103,6 +104,30 @@ pub const MEASUREMENT_PREFIX: &str = "rtls/v1/measurements/";
 
 /// The topic filter of every measurement topic, for subscribing on an external broker.
 pub const MEASUREMENT_FILTER: &str = "rtls/v1/measurements/#";
+
+/// The topic filter of every vendor adapter topic (`rtls/v1/adapters/{vendor}/…`,
+/// [`crate::adapters`]), for subscribing on an external broker.
+pub const ADAPTER_FILTER: &str = "rtls/v1/adapters/#";
+
+/// The adapter filter beside a measurement filter: shared in the same group when the
+/// measurement filter is a shared subscription (`$share/{group}/…`, a cluster's nodes).
+///
+/// # Examples
+/// ```
+/// use rtls_server::mqtt::adapter_filter;
+/// assert_eq!(adapter_filter("rtls/v1/measurements/#"), "rtls/v1/adapters/#");
+/// assert_eq!(adapter_filter("$share/rtls/rtls/v1/measurements/#"), "$share/rtls/rtls/v1/adapters/#");
+/// ```
+#[must_use]
+pub fn adapter_filter(measurement_filter: &str) -> String {
+    match measurement_filter
+        .strip_prefix("$share/")
+        .and_then(|rest| rest.split_once('/'))
+    {
+        Some((group, _)) => format!("$share/{group}/{ADAPTER_FILTER}"),
+        None => ADAPTER_FILTER.to_string(),
+    }
+}
 
 /// The prefix of the per-client error topics (`rtls/v1/errors/{client_id}`).
 pub const ERROR_PREFIX: &str = "rtls/v1/errors/";

@@ -287,9 +287,12 @@ impl Session {
                 topic.chars().take(64).collect::<String>()
             )));
         }
-        if !valid_topic(topic) || !topic.starts_with(prefix.as_str()) || topic.len() == prefix.len() {
+        let measurement = topic.starts_with(prefix.as_str()) && topic.len() > prefix.len();
+        let adapter = crate::adapters::Vendor::from_topic(topic).is_some();
+        if !valid_topic(topic) || !(measurement || adapter) {
             return Some(self.violation(format!(
-                "PUBLISH on {topic:?}: clients may publish only to {prefix}{{reader}}"
+                "PUBLISH on {topic:?}: clients may publish only to {prefix}{{reader}} or {}{{vendor}}/…",
+                crate::adapters::MQTT_PREFIX
             )));
         }
         add(&self.shared.counters.publishes_received, 1);

@@ -94,6 +94,9 @@ pub struct PipelineConfig {
     /// In a cluster (`rtls serve --cluster`): the replicated ingest log and the way to the
     /// other nodes; `None`: one process, the ingest log in the store.
     pub cluster: Option<ClusterHooks>,
+    /// The accuracy (σ, m) of a vendor adapter's fix whose message gives none
+    /// (`server.default_accuracy_m`; [`crate::adapters`]).
+    pub default_accuracy_m: f64,
 }
 
 /// The replicated ingest log of a cluster (NATS JetStream, `crate::cluster`).
@@ -138,6 +141,7 @@ impl Default for PipelineConfig {
                 max_age_s: 86_400.0,
                 max_lead_s: 60.0,
             }),
+            default_accuracy_m: 1.0,
             track_step: Tracker::push,
             stall_after_s: 10.0,
             cluster: None,
@@ -708,6 +712,37 @@ impl Pipeline {
         result.map(|_| count)
     }
 
+    /// Parses a payload of a vendor's feed with its adapter ([`crate::adapters`]), counts each
+    /// message without a position in `rtls_ingest_refused_total{reason}` (`no_position`,
+    /// `anchor`) and stores and queues the fixes as [`Pipeline::submit_records`] does.
+    ///
+    /// # Errors
+    /// [`IngestError::Invalid`] naming `source: field` when the payload is malformed (counted
+    /// with reason `format`; nothing of it is stored); otherwise as [`Pipeline::submit_records`].
+    pub async fn submit_adapter(
+        &self,
+        vendor: crate::adapters::Vendor,
+        source: &str,
+        payload: &[u8],
+    ) -> Result<AdapterOutcome, IngestError> {
+        let parsed = crate::adapters::parse(vendor, payload, self.inner.config.default_accuracy_m)
+            .map_err(|e| self.refused("format", format!("{source}: {e}")))?;
+        for refusal in &parsed.refusals {
+            self.inner
+                .metrics
+                .ingest_refused
+                .get_or_create(&vec![("reason".into(), refusal.reason.into())])
+                .inc();
+            tracing::debug!(%source, at = %refusal.at, tag = ?refusal.tag, reason = refusal.reason,
+                detail = %refusal.detail, "adapter: message without a position refused");
+        }
+        let accepted = self.submit_records(source, parsed.records).await?;
+        Ok(AdapterOutcome {
+            accepted,
+            refusals: parsed.refusals,
+        })
+    }
+
     /// A payload refused for `reason` (`format`, `site`, `time_window`): counted in
     /// `rtls_ingest_refused_total{reason}` (nothing of the payload is stored).
     fn refused(&self, reason: &str, message: String) -> IngestError {
@@ -743,11 +778,33 @@ impl Pipeline {
     }
 }
 
+/// What [`Pipeline::submit_adapter`] did with a vendor payload.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct AdapterOutcome {
+    /// Fixes stored and queued.
+    pub accepted: usize,
+    /// Messages without a position (counted, not stored).
+    pub refusals: Vec<crate::adapters::Refusal>,
+}
+
 impl MeasurementSink for Pipeline {
+    /// JSON lines of our format, or — from an MQTT topic `rtls/v1/adapters/{vendor}/…` — a
+    /// vendor's message through its adapter (refused messages are counted and logged).
     fn ingest(&self, source: &str, payload: bytes::Bytes) -> IngestFuture {
         let pipeline = self.clone();
         let source = source.to_string();
-        Box::pin(async move { pipeline.submit_lines(&source, &payload).await })
+        let vendor = source
+            .strip_prefix("mqtt:")
+            .and_then(crate::adapters::Vendor::from_topic);
+        Box::pin(async move {
+            match vendor {
+                Some(vendor) => pipeline
+                    .submit_adapter(vendor, &source, &payload)
+                    .await
+                    .map(|outcome| outcome.accepted),
+                None => pipeline.submit_lines(&source, &payload).await,
+            }
+        })
     }
 }
 

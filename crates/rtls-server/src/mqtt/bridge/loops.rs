@@ -126,11 +126,11 @@ impl ConnectionLoop<'_> {
                         "mqtt: reconnected to the external broker");
                     // A broker that lost the session (restart without persistence) lost the
                     // subscription too; subscribing again is harmless otherwise.
-                    if let Err(error) = self
-                        .client
-                        .try_subscribe(self.measurement_filter.as_str(), QoS::AtLeastOnce)
-                    {
-                        tracing::error!(%error, "mqtt: cannot queue the measurement subscription");
+                    let adapters = crate::mqtt::adapter_filter(&self.measurement_filter);
+                    for filter in [self.measurement_filter.as_str(), adapters.as_str()] {
+                        if let Err(error) = self.client.try_subscribe(filter, QoS::AtLeastOnce) {
+                            tracing::error!(%error, "mqtt: cannot queue the measurement subscription");
+                        }
                     }
                 }
                 Ok(Event::Incoming(Packet::Publish(publish))) => {
@@ -242,7 +242,9 @@ impl IngestLoop<'_> {
     /// the measurement filter, which a persistent session may still deliver from an older
     /// subscription.
     async fn start(&self, publish: Publish) -> Option<PendingIngest> {
-        if !matches(&publish.topic, unshared(&self.measurement_filter)) {
+        if !matches(&publish.topic, unshared(&self.measurement_filter))
+            && !matches(&publish.topic, crate::mqtt::ADAPTER_FILTER)
+        {
             tracing::warn!(topic = %publish.topic, filter = %self.measurement_filter,
                 "mqtt: acknowledging and ignoring a message outside the measurement filter");
             self.acknowledge(&publish).await;
