@@ -7,7 +7,9 @@ mod common;
 use std::time::Duration;
 
 use axum::http::{Method, StatusCode};
+use bytes::Bytes;
 use common::{call, eventually, metric_value, state, READ, WRITE};
+use rtls_server::sink::MeasurementSink;
 use serde_json::json;
 
 /// Sewio RTLS Studio's WebSockets connector documentation: tag 18's position.
@@ -80,10 +82,26 @@ async fn vendor_messages_are_authorised_parsed_counted_and_tracked() {
     );
     assert!((tag.time_s - 1_476_800_216.865).abs() < 0.6, "{}", tag.time_s);
 
+    // over MQTT the sink reads a vendor topic with its adapter: a Quuppa fix, stored
+    let sink: &dyn MeasurementSink = &state.pipeline;
+    let stored = sink
+        .ingest(
+            "mqtt:rtls/v1/adapters/quuppa/qpe-1",
+            Bytes::from_static(QUUPPA.as_bytes()),
+        )
+        .await;
+    assert_eq!(stored, Ok(1));
+    assert_eq!(state.query(|s| s.record_count()).await.unwrap(), 3);
+    let presence = QUUPPA.replace(r#""locationType": "position""#, r#""locationType": "presence""#);
+    let stored = sink
+        .ingest("mqtt:rtls/v1/adapters/quuppa/qpe-1", Bytes::from(presence))
+        .await;
+    assert_eq!(stored, Ok(0));
+
     let metrics = call(&app, Method::GET, "/metrics", Some(READ), "").await.text();
     assert_eq!(
         metric_value(&metrics, "rtls_ingest_refused_total{reason=\"no_position\"}"),
-        1.0
+        2.0
     );
     assert_eq!(
         metric_value(&metrics, "rtls_ingest_refused_total{reason=\"format\"}"),

@@ -236,6 +236,7 @@ async fn publishing_outside_the_prefix_or_at_qos_2_closes_the_connection() {
         ("outside", "rtls/v1/tracks/tag-1".to_owned(), QoS::AtLeastOnce),
         ("bare-prefix", "rtls/v1/measurements/".to_owned(), QoS::AtMostOnce),
         ("qos2", measurement_topic("qos2"), QoS::ExactlyOnce),
+        ("no-vendor", "rtls/v1/adapters/zebra/tags".to_owned(), QoS::AtLeastOnce),
     ] {
         let mut writer = TestClient::start(client_options(broker.addr, client_id, Some(WRITE_TOKEN)), false);
         writer.connected().await;
@@ -249,7 +250,26 @@ async fn publishing_outside_the_prefix_or_at_qos_2_closes_the_connection() {
             .await;
     }
     assert!(sink.calls().is_empty());
-    assert_eq!(broker.stats.snapshot().protocol_violations, 3);
+    assert_eq!(broker.stats.snapshot().protocol_violations, 4);
+}
+
+#[tokio::test]
+async fn a_vendor_topic_reaches_the_sink_and_is_acknowledged() {
+    let sink = TestSink::new();
+    let broker = TestBroker::start(test_config(), sink.clone()).await;
+    let mut engine = TestClient::start(client_options(broker.addr, "pozyx-gateway", Some(WRITE_TOKEN)), false);
+    engine.connected().await;
+    let message = r#"[{"tagId": "10006789", "timestamp": 1671165464.3779979, "success": true, "data": {"coordinates": {"x": 29340, "y": 69521, "z": 1000}}}]"#;
+    engine
+        .client
+        .publish("rtls/v1/adapters/pozyx/tags/10006789", QoS::AtLeastOnce, false, message)
+        .await
+        .expect("queued");
+    engine.expect_incoming(2 * SECOND, "PUBACK", is_puback).await;
+    let calls = sink.calls();
+    assert_eq!(calls.len(), 1);
+    assert_eq!(calls[0].source, "mqtt:rtls/v1/adapters/pozyx/tags/10006789");
+    assert_eq!(calls[0].payload, Bytes::from(message));
 }
 
 #[tokio::test]
