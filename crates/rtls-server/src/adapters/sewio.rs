@@ -15,9 +15,11 @@
 //! - Sewio, "WebSockets Connector", <http://rtlsstudio.com/studio/index.php/websockets-connector/>
 //!   — the example messages of the tests: tag 18's position (`posX` " 6.34", `posY` " 2.27",
 //!   `clr` " 0.10" at 2016-10-18 14:16:56.365) and tag 1's battery update.
-//! - The REST feed list of the tests: repository `kedwards/reactls`, file
-//!   `src/components/feedResultsFake.js` (an RTLS Studio `feeds` response: tag 3
-//!   "Mike Anderson" at `posX` -20.57852, `posY` -14.91251, `posZ` 0).
+//! - The REST feed list of the tests (`sewio_feeds.json`): the first three feeds of an RTLS
+//!   Studio `feeds` response in repository `kedwards/reactls`, file
+//!   `src/components/feedResultsFake.js` (anchors 1 and 2 — their `barometerCalibration` and
+//!   `location` left out — and tag 3 "Mike Anderson" at `posX` -20.57852, `posY` -14.91251,
+//!   `posZ` 0).
 
 use serde_json::{Map, Value};
 
@@ -50,6 +52,7 @@ pub(super) fn parse(value: &Value, default_accuracy_m: f64) -> Result<Parsed, Ad
         };
         let dot = if at.is_empty() { String::new() } else { format!("{at}.") };
         let tag = tag_id(feed.get("id"), &format!("{dot}id"))?;
+        let at = if at.is_empty() { "-".to_string() } else { at };
         if feed.get("type").and_then(Value::as_str) == Some("anchor") {
             parsed.refusals.push(Refusal {
                 at,
