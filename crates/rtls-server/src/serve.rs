@@ -159,6 +159,7 @@ pub async fn serve(
             peers: peers_tx,
         }),
         default_accuracy_m: config.server.default_accuracy_m,
+        generic_adapter: config.adapters.generic.clone(),
         ..PipelineConfig::default()
     };
     // the stores are synchronous (the PostgreSQL client blocks on a runtime of its own): open

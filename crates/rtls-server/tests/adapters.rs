@@ -44,6 +44,11 @@ async fn vendor_messages_are_authorised_parsed_counted_and_tracked() {
     assert_eq!(reply.status, StatusCode::NOT_FOUND);
     assert!(reply.text().contains("pozyx, quuppa, sewio"), "{}", reply.text());
 
+    // the generic adapter without [adapters.generic] says what to configure
+    let reply = call(&app, Method::POST, "/api/v1/adapters/generic", Some(WRITE), QUUPPA).await;
+    assert_eq!(reply.status, StatusCode::BAD_REQUEST);
+    assert!(reply.text().contains("[adapters.generic]"), "{}", reply.text());
+
     // a malformed message names the field; nothing is stored
     let bad = QUUPPA.replace("-1.09", "\"west\"");
     let reply = call(&app, Method::POST, "/api/v1/adapters/quuppa", Some(WRITE), &bad).await;
@@ -105,7 +110,7 @@ async fn vendor_messages_are_authorised_parsed_counted_and_tracked() {
     );
     assert_eq!(
         metric_value(&metrics, "rtls_ingest_refused_total{reason=\"format\"}"),
-        1.0
+        2.0
     );
     state.pipeline.shutdown();
 }

@@ -9,6 +9,9 @@
 //! | Quuppa (QPE) | `quuppa` | `DefaultLocation` tag data (`/qpe/getTagData`, output targets): one tag object, an array of them, or a `{"tags": [...]}` response | m, Unix ms | <https://www.quuppa.com/documentation/QSP/topics/QSP_udp_logging_api.html> |
 //! | Sewio (RTLS Studio) | `sewio` | a feed with `datastreams` `posX`/`posY`/`posZ`/`clr`: a WebSocket message `{"body": feed, "resource": …}`, a REST feed or a REST `{"results": [feed, …]}` | m, UTC `YYYY-MM-DD hh:mm:ss.sss` | <http://rtlsstudio.com/studio/index.php/websockets-connector/> |
 //!
+//! A gateway of none of these vendors can be read by the generic adapter (`generic`,
+//! [`GenericAdapter`]) once its field names are configured in `[adapters.generic]`.
+//!
 //! Each adapter's module names the published example messages its tests use. OpenRTLS and
 //! Zebra Dart are not here: no published message format or example was found for them.
 //!
@@ -36,9 +39,12 @@
 //! assert!(parsed.refusals.is_empty());
 //! ```
 
+mod generic;
 mod pozyx;
 mod quuppa;
 mod sewio;
+
+pub use generic::{GenericAdapter, LengthUnit, TimeUnit};
 
 use rtls_engine::record::{Measurement, Record};
 use serde_json::Value;
@@ -55,19 +61,22 @@ pub enum Vendor {
     Quuppa,
     /// Sewio RTLS Studio: WebSocket / REST feeds.
     Sewio,
+    /// A gateway whose field names are configured (`[adapters.generic]`, [`GenericAdapter`]).
+    Generic,
 }
 
 impl Vendor {
     /// Every vendor, in the order of the documentation.
-    pub const ALL: [Vendor; 3] = [Vendor::Pozyx, Vendor::Quuppa, Vendor::Sewio];
+    pub const ALL: [Vendor; 4] = [Vendor::Pozyx, Vendor::Quuppa, Vendor::Sewio, Vendor::Generic];
 
-    /// The vendor's name in routes and topics (`pozyx`, `quuppa`, `sewio`).
+    /// The vendor's name in routes and topics (`pozyx`, `quuppa`, `sewio`, `generic`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
             Vendor::Pozyx => "pozyx",
             Vendor::Quuppa => "quuppa",
             Vendor::Sewio => "sewio",
+            Vendor::Generic => "generic",
         }
     }
 
@@ -106,6 +115,10 @@ pub enum AdapterError {
     /// The payload is not JSON.
     #[error("not valid JSON ({0}): send the vendor's message unchanged")]
     Json(String),
+    /// The generic adapter was asked for but the server's configuration has no
+    /// `[adapters.generic]`.
+    #[error("the generic adapter is not configured: add [adapters.generic] (tag, time, x, y paths) to the server's configuration")]
+    NotConfigured,
     /// A field is missing or has the wrong type or value.
     #[error("{field}: {reason}")]
     Field {
@@ -148,11 +161,13 @@ pub struct Parsed {
 }
 
 /// Parses one payload of `vendor`'s feed into fix records (see the [module](self) for units and
-/// refusals); `default_accuracy_m` (σ, m) weighs fixes whose message gives no accuracy.
+/// refusals); `default_accuracy_m` (σ, m) weighs fixes whose message gives no accuracy. The
+/// generic adapter needs its settings: [`GenericAdapter::parse`].
 ///
 /// # Errors
 /// [`AdapterError::Json`] when the payload is not JSON, [`AdapterError::Field`] naming the first
-/// malformed field (a missing tag id, a non-numeric coordinate, a time stamp that is not one).
+/// malformed field (a missing tag id, a non-numeric coordinate, a time stamp that is not one),
+/// [`AdapterError::NotConfigured`] for [`Vendor::Generic`].
 ///
 /// # Examples
 /// ```
@@ -166,6 +181,7 @@ pub fn parse(vendor: Vendor, payload: &[u8], default_accuracy_m: f64) -> Result<
         Vendor::Pozyx => pozyx::parse(&value, default_accuracy_m),
         Vendor::Quuppa => quuppa::parse(&value, default_accuracy_m),
         Vendor::Sewio => sewio::parse(&value, default_accuracy_m),
+        Vendor::Generic => Err(AdapterError::NotConfigured),
     }
 }
 

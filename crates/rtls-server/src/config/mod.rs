@@ -43,6 +43,12 @@
 //! self_signed = false            # true: generate one for localhost (a demo) if the files are absent
 //! reload_s = 10.0                # a renewed certificate is picked up within this
 //!
+//! [adapters.generic]             # optional: a gateway's JSON by field paths (docs/SERVER.md, Vendor adapters)
+//! tag = "tagId"                  # paths of keys separated by dots; a number indexes an array
+//! time = "ts"                    # time_unit = "s" (default), "ms" or "rfc3339"
+//! x = "pos.x"                    # y, z (optional) likewise; position_unit = "m" (default), "cm" or "mm"
+//! y = "pos.y"                    # accuracy = "…" (optional radius, position_unit); items = "…" (array path)
+//!
 //! [[webhooks]]                   # zero or more: alarms POSTed as JSON (docs/SERVER.md, Webhooks)
 //! url = "https://ops.example.com/rtls/alarms"   # http:// or https://
 //! name = "ops"                   # the `webhook` label of metrics and logs; default: the URL's host[:port]
@@ -127,6 +133,17 @@ pub struct ServerConfig {
     pub tls: TlsSection,
     /// `[cluster]`: `rtls serve` as one node of a cluster on NATS JetStream.
     pub cluster: cluster::ClusterSection,
+    /// `[adapters]`: settings of the vendor adapters ([`crate::adapters`]).
+    pub adapters: AdaptersSection,
+}
+
+/// `[adapters]`: settings of the vendor adapters.
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct AdaptersSection {
+    /// `[adapters.generic]`: the field names of a generic gateway's JSON
+    /// ([`crate::adapters::GenericAdapter`]); without it `generic` payloads are refused.
+    pub generic: Option<crate::adapters::GenericAdapter>,
 }
 
 /// `[tls]`: with a certificate, the HTTP listener serves HTTPS (and WSS) only and the embedded
@@ -344,6 +361,11 @@ impl ServerConfig {
             reason,
         };
         self.cluster.validate().map_err(|reason| invalid("cluster", reason))?;
+        if let Some(generic) = &self.adapters.generic {
+            generic
+                .validate()
+                .map_err(|reason| invalid("adapters.generic", reason))?;
+        }
         if self.cluster.enabled() && !self.server.db.starts_with("postgres") {
             return Err(invalid(
                 "server.db",

@@ -11,7 +11,7 @@ use super::{metrics, ApiError, ApiResult, AppState};
 use crate::adapters::Vendor;
 use crate::auth::Access;
 
-/// `POST /api/v1/adapters/{vendor}` (`pozyx`, `quuppa`, `sewio`), with the write token as
+/// `POST /api/v1/adapters/{vendor}` (`pozyx`, `quuppa`, `sewio`, `generic`), with the write token as
 /// `/api/v1/measurements`: the body is one payload of the vendor's feed, unchanged. 200
 /// `{"accepted": n, "refused": [{"at", "tag", "reason", "detail"}]}` once the fixes are
 /// stored (messages without a position are listed and counted in

@@ -97,6 +97,9 @@ pub struct PipelineConfig {
     /// The accuracy (σ, m) of a vendor adapter's fix whose message gives none
     /// (`server.default_accuracy_m`; [`crate::adapters`]).
     pub default_accuracy_m: f64,
+    /// The generic adapter's field names (`[adapters.generic]`); `None`: `generic` payloads
+    /// are refused.
+    pub generic_adapter: Option<crate::adapters::GenericAdapter>,
 }
 
 /// The replicated ingest log of a cluster (NATS JetStream, `crate::cluster`).
@@ -142,6 +145,7 @@ impl Default for PipelineConfig {
                 max_lead_s: 60.0,
             }),
             default_accuracy_m: 1.0,
+            generic_adapter: None,
             track_step: Tracker::push,
             stall_after_s: 10.0,
             cluster: None,
@@ -725,8 +729,12 @@ impl Pipeline {
         source: &str,
         payload: &[u8],
     ) -> Result<AdapterOutcome, IngestError> {
-        let parsed = crate::adapters::parse(vendor, payload, self.inner.config.default_accuracy_m)
-            .map_err(|e| self.refused("format", format!("{source}: {e}")))?;
+        let default_accuracy_m = self.inner.config.default_accuracy_m;
+        let parsed = match (vendor, &self.inner.config.generic_adapter) {
+            (crate::adapters::Vendor::Generic, Some(generic)) => generic.parse(payload, default_accuracy_m),
+            _ => crate::adapters::parse(vendor, payload, default_accuracy_m),
+        }
+        .map_err(|e| self.refused("format", format!("{source}: {e}")))?;
         for refusal in &parsed.refusals {
             self.inner
                 .metrics
