@@ -594,6 +594,28 @@ mod tests {
         assert!(config.webhooks.is_empty(), "the example's webhook is commented out");
     }
 
+    /// The example's commented-out `[adapters.generic]` table, uncommented: it parses, validates
+    /// and reads Quuppa's `locationTS` in milliseconds.
+    #[test]
+    fn the_documented_generic_adapter_table_parses_and_validates() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/server.toml");
+        let text = std::fs::read_to_string(path).unwrap();
+        let start = text
+            .find("# [adapters.generic]")
+            .expect("an [adapters.generic] example");
+        let table: String = text[start..]
+            .lines()
+            .take_while(|line| line.starts_with('#'))
+            .map(|line| line.strip_prefix("# ").unwrap_or(line))
+            .collect::<Vec<_>>()
+            .join("\n");
+        let config: ServerConfig = toml::from_str(&table).unwrap_or_else(|e| panic!("{e}\n{table}"));
+        config.validate().unwrap();
+        let generic = config.adapters.generic.expect("the generic adapter");
+        assert_eq!(generic.time_unit, crate::adapters::TimeUnit::Ms);
+        assert_eq!(generic.z.as_deref(), Some("location.2"));
+    }
+
     /// The example's commented-out `[cluster]` table, uncommented: every key is known, and the
     /// values shown are the defaults (but for the servers).
     #[test]
