@@ -23,6 +23,7 @@
 //! twice if the server died between storing them and the next checkpoint.
 
 mod admission;
+mod cluster_side;
 pub(crate) mod collisions;
 mod fanout;
 mod ingest_log;
@@ -31,6 +32,7 @@ mod outputs;
 mod partition;
 mod quarantine;
 pub mod readers;
+mod submit;
 pub mod trackables;
 
 use std::sync::atomic::{AtomicI64, Ordering};
@@ -38,19 +40,21 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use rtls_engine::record::{parse_json_line, to_json_line, Record};
+use rtls_engine::record::Record;
 use rtls_engine::site::Site;
 use rtls_engine::tracker::{Output, Tracker};
 use tokio::sync::{broadcast, mpsc, oneshot};
 
 pub use admission::TimeWindow;
+pub use cluster_side::{ClusterHooks, ReplicatedLog};
 pub use fanout::PeerMessage;
 pub use live::{HubMessage, LastSeen, LiveState, TagState};
 pub use quarantine::QUARANTINE;
 pub use readers::{ReaderHealth, ReaderMonitor};
+pub use submit::AdapterOutcome;
 
 use crate::metrics::Metrics;
-use crate::sink::{IngestError, IngestFuture, MeasurementSink, Publication};
+use crate::sink::{IngestError, Publication};
 use crate::store::{NewRecord, Store, StoreError};
 use fanout::Fanout;
 use ingest_log::PartitionInput;
@@ -100,32 +104,6 @@ pub struct PipelineConfig {
     /// The generic adapter's field names (`[adapters.generic]`); `None`: `generic` payloads
     /// are refused.
     pub generic_adapter: Option<crate::adapters::GenericAdapter>,
-}
-
-/// The replicated ingest log of a cluster (NATS JetStream, `crate::cluster`).
-pub trait ReplicatedLog: Send + Sync {
-    /// Appends `lines` (each record's JSON line with its tag partition) durably; resolves
-    /// once the log has acknowledged every one of them.
-    ///
-    /// # Errors
-    /// [`IngestError::Unavailable`] when any was not acknowledged (the reader retries all).
-    fn append(&self, source: &str, received_ms: i64, lines: Vec<(usize, String)>) -> IngestFuture;
-}
-
-/// What the pipeline needs of a cluster: the replicated ingest log records are appended to
-/// before they are acknowledged, and the queue of outputs for the other nodes.
-#[derive(Clone)]
-pub struct ClusterHooks {
-    /// The replicated ingest log.
-    pub log: Arc<dyn ReplicatedLog>,
-    /// Outputs for the other nodes (bounded; a full queue drops and counts).
-    pub peers: mpsc::Sender<PeerMessage>,
-}
-
-impl std::fmt::Debug for ClusterHooks {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("ClusterHooks").finish_non_exhaustive()
-    }
 }
 
 impl Default for PipelineConfig {
@@ -442,117 +420,6 @@ impl Pipeline {
         self.inner.fanout.hub(message);
     }
 
-    /// Applies another node's output to this node's live state and broadcasts.
-    pub fn apply_peer(&self, message: PeerMessage) {
-        self.inner.fanout.apply(message);
-    }
-
-    /// Records this node's id and the partitions it owns (the cluster's ownership does).
-    pub fn set_cluster_status(&self, node: &str, owned: Vec<usize>) {
-        if let Ok(mut status) = self.inner.cluster_status.lock() {
-            *status = Some((node.to_string(), owned));
-        }
-    }
-
-    /// In a cluster: this node's id and the partitions it owns now.
-    #[must_use]
-    pub fn cluster_status(&self) -> Option<(String, Vec<usize>)> {
-        self.inner.cluster_status.lock().ok().and_then(|status| status.clone())
-    }
-
-    /// The tag partition of `tag` (the same on every node of a cluster with the same count).
-    #[must_use]
-    pub fn partition_of(&self, tag: &str) -> usize {
-        partition_of(tag, self.inner.config.partitions.max(1))
-    }
-
-    /// The number of tag partitions.
-    #[must_use]
-    pub fn partitions(&self) -> usize {
-        self.inner.config.partitions.max(1)
-    }
-
-    /// Sends partition `index` records to rebuild its tracks from (a cluster's takeover);
-    /// blocks while the partition's queue is full.
-    pub fn warm_up_partition(&self, index: usize, records: Vec<Record>) {
-        self.to_partition(index, PartitionInput::WarmUp(records));
-    }
-
-    /// Makes partition `index` forget its tracks (a cluster's partition moved away); blocks
-    /// while its queue is full.
-    pub fn reset_partition(&self, index: usize) {
-        self.to_partition(index, PartitionInput::Reset);
-    }
-
-    fn to_partition(&self, index: usize, input: PartitionInput) {
-        let sender = self
-            .inner
-            .partition_txs
-            .lock()
-            .ok()
-            .and_then(|txs| txs.get(index).cloned());
-        if let Some(sender) = sender {
-            if sender.send(input).is_err() {
-                tracing::error!(partition = index, "partition stopped");
-            }
-        }
-    }
-
-    /// Stores and tracks records a cluster's ingest stream delivered to this node: messages
-    /// as `(source, received_ms, JSON lines)`, as [`ReplicatedLog::append`] wrote them. A line
-    /// that does not parse is counted and logged, and costs that record only. Resolves once
-    /// the records are in the store.
-    ///
-    /// # Errors
-    /// [`IngestError::Unavailable`] when they could not be stored (the stream redelivers).
-    pub async fn take_from_stream(&self, messages: &[(String, i64, String)]) -> Result<usize, IngestError> {
-        let mut records = Vec::new();
-        let mut rows = Vec::new();
-        for (source, received_ms, lines) in messages {
-            for (index, line) in lines.lines().enumerate() {
-                if line.trim().is_empty() {
-                    continue;
-                }
-                match parse_json_line(line, source, index + 1) {
-                    Ok(record) => {
-                        rows.push(NewRecord {
-                            received_ms: *received_ms,
-                            source: source.clone(),
-                            time_s: record.time_s,
-                            tag: record.tag.clone(),
-                            json: line.to_string(),
-                        });
-                        records.push(record);
-                    }
-                    Err(e) => {
-                        self.inner.metrics.cluster_records_unparseable.inc();
-                        tracing::error!(error = %e, "a record of the ingest stream does not parse; skipped");
-                    }
-                }
-            }
-        }
-        if records.is_empty() {
-            return Ok(0);
-        }
-        let count = records.len();
-        let (reply, answer) = oneshot::channel();
-        let sender = self
-            .inner
-            .ingest_tx
-            .lock()
-            .ok()
-            .and_then(|guard| guard.clone())
-            .ok_or_else(|| IngestError::Unavailable("the server is shutting down".into()))?;
-        sender
-            .send(IngestBatch { records, rows, reply })
-            .await
-            .map_err(|_| IngestError::Unavailable("the server is shutting down".into()))?;
-        answer
-            .await
-            .map_err(|_| IngestError::Unavailable("the ingest log stopped".into()))?
-            .map(|_| count)
-    }
-
     /// Subscribes to the hub's messages (locations, fence events, extension events).
     #[must_use]
     pub fn subscribe(&self) -> broadcast::Receiver<Arc<HubMessage>> {
@@ -586,182 +453,6 @@ impl Pipeline {
         &self.inner.metrics
     }
 
-    /// Parses a payload of JSON lines (`source` names it in errors, e.g. `http body`), checks
-    /// every record against the site, and stores and queues them all (or none).
-    ///
-    /// # Errors
-    /// [`IngestError::Invalid`] naming `source:line: field` for the first bad line;
-    /// [`IngestError::Unavailable`] when the payload could not be stored.
-    pub async fn submit_lines(&self, source: &str, payload: &[u8]) -> Result<usize, IngestError> {
-        let text = std::str::from_utf8(payload).map_err(|e| {
-            let line = 1 + payload[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
-            IngestError::Invalid(format!("{source}:{line}: not UTF-8 text"))
-        })?;
-        let mut records = Vec::new();
-        for (index, line) in text.lines().enumerate() {
-            if line.trim().is_empty() {
-                continue;
-            }
-            if records.len() == self.inner.config.max_records_per_payload {
-                return Err(IngestError::Invalid(format!(
-                    "{source}: more than {} records in one payload; split it",
-                    self.inner.config.max_records_per_payload
-                )));
-            }
-            let record = parse_json_line(line, source, index + 1).map_err(|e| self.refused("format", e.to_string()))?;
-            records.push((index + 1, record));
-        }
-        self.submit_numbered(source, records).await
-    }
-
-    /// Stores and queues records built elsewhere (the omlox location ingest); `source` names
-    /// them in errors, with the 1-based index as the line.
-    ///
-    /// # Errors
-    /// As [`Pipeline::submit_lines`].
-    pub async fn submit_records(&self, source: &str, records: Vec<Record>) -> Result<usize, IngestError> {
-        let numbered = records.into_iter().enumerate().map(|(i, r)| (i + 1, r)).collect();
-        self.submit_numbered(source, numbered).await
-    }
-
-    async fn submit_numbered(&self, source: &str, records: Vec<(usize, Record)>) -> Result<usize, IngestError> {
-        if records.is_empty() {
-            return Ok(0);
-        }
-        {
-            let validator = self
-                .inner
-                .validator
-                .lock()
-                .map_err(|_| IngestError::Unavailable("the record validator failed".into()))?;
-            for (line, record) in &records {
-                validator
-                    .check_record(record, source, *line)
-                    .map_err(|e| self.refused("site", e.to_string()))?;
-            }
-        }
-        if let Some(window) = self.inner.config.time_window.filter(|_| self.inner.config.live_clock) {
-            let now_s = unix_s();
-            for (line, record) in &records {
-                if let Some(reason) = window.refusal(record.time_s, now_s) {
-                    return Err(self.refused("time_window", format!("{source}:{line}: field `t`: {reason}")));
-                }
-            }
-        }
-        let received_ms = unix_ms();
-        self.inner.readers.heard(records.iter().map(|(_, r)| r), received_ms);
-        if let Some(cluster) = &self.inner.config.cluster {
-            // every node's reader health counts the records any node received
-            self.inner.fanout.to_peers(|| PeerMessage::ReadersHeard {
-                counts: ReaderMonitor::counts(records.iter().map(|(_, r)| r)),
-                at_ms: received_ms,
-            });
-            let partitions = self.inner.config.partitions.max(1);
-            let lines = records
-                .iter()
-                .map(|(_, r)| (partition_of(&r.tag, partitions), to_json_line(r)))
-                .collect();
-            let started = std::time::Instant::now();
-            let count = records.len();
-            cluster.log.append(source, received_ms, lines).await?;
-            self.inner
-                .metrics
-                .ingest_ack_seconds
-                .observe(started.elapsed().as_secs_f64());
-            return Ok(count);
-        }
-        let rows = records
-            .iter()
-            .map(|(_, r)| NewRecord {
-                received_ms,
-                source: source.to_string(),
-                time_s: r.time_s,
-                tag: r.tag.clone(),
-                json: to_json_line(r),
-            })
-            .collect();
-        let count = records.len();
-        let (reply, answer) = oneshot::channel();
-        let batch = IngestBatch {
-            records: records.into_iter().map(|(_, r)| r).collect(),
-            rows,
-            reply,
-        };
-        let sender = self
-            .inner
-            .ingest_tx
-            .lock()
-            .ok()
-            .and_then(|guard| guard.clone())
-            .ok_or_else(|| IngestError::Unavailable("the server is shutting down".into()))?;
-        let started = std::time::Instant::now();
-        match tokio::time::timeout(self.inner.config.submit_timeout, sender.send(batch)).await {
-            Ok(Ok(())) => {}
-            Ok(Err(_)) => return Err(IngestError::Unavailable("the server is shutting down".into())),
-            Err(_) => {
-                self.inner.metrics.ingest_overloaded.inc();
-                return Err(IngestError::Unavailable(format!(
-                    "ingest queue full for {:?}; retry later",
-                    self.inner.config.submit_timeout
-                )));
-            }
-        }
-        let result = answer
-            .await
-            .map_err(|_| IngestError::Unavailable("the ingest log stopped".into()))?;
-        self.inner
-            .metrics
-            .ingest_ack_seconds
-            .observe(started.elapsed().as_secs_f64());
-        result.map(|_| count)
-    }
-
-    /// Parses a payload of a vendor's feed with its adapter ([`crate::adapters`]), counts each
-    /// message without a position in `rtls_ingest_refused_total{reason}` (`no_position`,
-    /// `anchor`) and stores and queues the fixes as [`Pipeline::submit_records`] does.
-    ///
-    /// # Errors
-    /// [`IngestError::Invalid`] naming `source: field` when the payload is malformed (counted
-    /// with reason `format`; nothing of it is stored); otherwise as [`Pipeline::submit_records`].
-    pub async fn submit_adapter(
-        &self,
-        vendor: crate::adapters::Vendor,
-        source: &str,
-        payload: &[u8],
-    ) -> Result<AdapterOutcome, IngestError> {
-        let default_accuracy_m = self.inner.config.default_accuracy_m;
-        let parsed = match (vendor, &self.inner.config.generic_adapter) {
-            (crate::adapters::Vendor::Generic, Some(generic)) => generic.parse(payload, default_accuracy_m),
-            _ => crate::adapters::parse(vendor, payload, default_accuracy_m),
-        }
-        .map_err(|e| self.refused("format", format!("{source}: {e}")))?;
-        for refusal in &parsed.refusals {
-            self.inner
-                .metrics
-                .ingest_refused
-                .get_or_create(&vec![("reason".into(), refusal.reason.into())])
-                .inc();
-            tracing::debug!(%source, at = %refusal.at, tag = ?refusal.tag, reason = refusal.reason,
-                detail = %refusal.detail, "adapter: message without a position refused");
-        }
-        let accepted = self.submit_records(source, parsed.records).await?;
-        Ok(AdapterOutcome {
-            accepted,
-            refusals: parsed.refusals,
-        })
-    }
-
-    /// A payload refused for `reason` (`format`, `site`, `time_window`): counted in
-    /// `rtls_ingest_refused_total{reason}` (nothing of the payload is stored).
-    fn refused(&self, reason: &str, message: String) -> IngestError {
-        self.inner
-            .metrics
-            .ingest_refused
-            .get_or_create(&vec![("reason".into(), reason.into())])
-            .inc();
-        IngestError::Invalid(message)
-    }
-
     /// Stops taking records, lets every thread drain its queue (the trackers flush, the
     /// outputs are stored, the checkpoint is written) and waits for them.
     pub fn shutdown(&self) {
@@ -783,36 +474,6 @@ impl Pipeline {
                 tracing::error!(thread = %name, "pipeline thread panicked");
             }
         }
-    }
-}
-
-/// What [`Pipeline::submit_adapter`] did with a vendor payload.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct AdapterOutcome {
-    /// Fixes stored and queued.
-    pub accepted: usize,
-    /// Messages without a position (counted, not stored).
-    pub refusals: Vec<crate::adapters::Refusal>,
-}
-
-impl MeasurementSink for Pipeline {
-    /// JSON lines of our format, or — from an MQTT topic `rtls/v1/adapters/{vendor}/…` — a
-    /// vendor's message through its adapter (refused messages are counted and logged).
-    fn ingest(&self, source: &str, payload: bytes::Bytes) -> IngestFuture {
-        let pipeline = self.clone();
-        let source = source.to_string();
-        let vendor = source
-            .strip_prefix("mqtt:")
-            .and_then(crate::adapters::Vendor::from_topic);
-        Box::pin(async move {
-            match vendor {
-                Some(vendor) => pipeline
-                    .submit_adapter(vendor, &source, &payload)
-                    .await
-                    .map(|outcome| outcome.accepted),
-                None => pipeline.submit_lines(&source, &payload).await,
-            }
-        })
     }
 }
 
