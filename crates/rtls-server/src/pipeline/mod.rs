@@ -210,7 +210,7 @@ impl Progress {
     }
 }
 
-/// The running pipeline: the [`MeasurementSink`] the transports feed, the live state the APIs
+/// The running pipeline: the [`MeasurementSink`](crate::sink::MeasurementSink) the transports feed, the live state the APIs
 /// read, and the broadcasts they subscribe to. Cheap to clone.
 #[derive(Clone)]
 pub struct Pipeline {
