@@ -392,6 +392,53 @@ async fn proximities_place_a_provider_at_its_reader_and_are_tracked() {
         "at the gate: {location}"
     );
 
+    // the same location in WGS-84 through the site's frame (`?crs=EPSG:4326`), one and all
+    let [lon, lat, _] = FRAME.wgs84_of([x, y, 0.0]).unwrap();
+    let in_degrees = call_json(&app, "/v2/providers/rfid-77/location?crs=EPSG:4326").await;
+    assert_eq!(in_degrees["crs"], "EPSG:4326", "{in_degrees}");
+    let [got_lon, got_lat] = [0, 1].map(|k| in_degrees["position"]["coordinates"][k].as_f64().unwrap());
+    assert!(
+        (got_lon - lon).abs() < 1e-9 && (got_lat - lat).abs() < 1e-9,
+        "{in_degrees} against ({lon}, {lat})"
+    );
+    assert_eq!(in_degrees["accuracy"], location["accuracy"], "accuracy stays in metres");
+    let all = call_json(&app, "/v2/providers/locations?crs=EPSG:4326").await;
+    let listed = all
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|l| l["provider_id"] == "rfid-77")
+        .expect("rfid-77 listed");
+    assert_eq!(listed["position"], in_degrees["position"]);
+    assert_eq!(
+        call_json(&app, "/v2/providers/rfid-77/location?crs=local").await["position"],
+        location["position"]
+    );
+    let reply = call(
+        &app,
+        Method::GET,
+        "/v2/providers/locations?crs=EPSG:3857",
+        Some(READ),
+        "",
+    )
+    .await;
+    assert_eq!(
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "EPSG:3857").as_deref(),
+        Some("crs")
+    );
+    let reply = call(
+        &rtls_server::http::router(plain.clone()),
+        Method::GET,
+        "/v2/providers/rfid-77/location?crs=EPSG:4326",
+        Some(READ),
+        "",
+    )
+    .await;
+    assert_eq!(
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "no [frame]").as_deref(),
+        Some("crs")
+    );
+
     // refused: unknown source, a technology that is not proximity-based, a negative distance,
     // a mismatched provider, a bad body, a site without a georeference, no token
     let mut uwb = proximity("gate-3", 3007.0);

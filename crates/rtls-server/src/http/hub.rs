@@ -4,7 +4,7 @@
 //! `relations.rs`, proximities in `proximity.rs`, sensor data in `sensors.rs`).
 
 use axum::body::Bytes;
-use axum::extract::{Path, State};
+use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
@@ -12,6 +12,7 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::Value;
 
+use super::location_crs::{in_frame, requested_frame, CrsQuery};
 use super::trackable_sync::refresh_trackables;
 use super::{parse_json, ApiError, ApiResult, AppState};
 use crate::auth::{Access, Principal};
@@ -94,15 +95,20 @@ pub(super) fn server_error(error: ServerError) -> ApiError {
 }
 
 /// `GET /v2/providers/locations`: every tag's latest location.
-pub(super) async fn get_locations(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Location>>> {
+pub(super) async fn get_locations(
+    State(state): State<AppState>,
+    Query(crs): Query<CrsQuery>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<Location>>> {
     state.authorize(&headers, Access::Read)?;
+    let frame = requested_frame(&state, &crs)?;
     Ok(Json(
         state
             .pipeline
             .live()
             .tags()
             .into_values()
-            .map(|t| Location::clone(&t.location))
+            .map(|t| in_frame(Location::clone(&t.location), frame))
             .collect(),
     ))
 }
@@ -111,14 +117,16 @@ pub(super) async fn get_locations(State(state): State<AppState>, headers: Header
 pub(super) async fn get_provider_location(
     State(state): State<AppState>,
     Path(provider_id): Path<String>,
+    Query(crs): Query<CrsQuery>,
     headers: HeaderMap,
 ) -> ApiResult<Json<Location>> {
     state.authorize(&headers, Access::Read)?;
+    let frame = requested_frame(&state, &crs)?;
     state
         .pipeline
         .live()
         .tag(&provider_id)
-        .map(|t| Json(Location::clone(&t.location)))
+        .map(|t| Json(in_frame(Location::clone(&t.location), frame)))
         .ok_or_else(|| ApiError::not_found(format!("provider `{provider_id}` has no location")))
 }
 
@@ -305,12 +313,14 @@ pub(super) async fn delete_trackable(
 pub(super) async fn get_trackable_location(
     State(state): State<AppState>,
     Path(trackable_id): Path<String>,
+    Query(crs): Query<CrsQuery>,
     headers: HeaderMap,
 ) -> ApiResult<Json<Location>> {
     state.authorize(&headers, Access::Read)?;
+    let frame = requested_frame(&state, &crs)?;
     let trackable = stored_trackable(&state, &trackable_id).await?;
     newest_location(&state, &trackable)
-        .map(Json)
+        .map(|location| Json(in_frame(location, frame)))
         .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
 }
 

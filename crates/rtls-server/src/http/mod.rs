@@ -13,6 +13,7 @@ mod dashboard;
 pub mod fences;
 mod hub;
 pub mod listener;
+mod location_crs;
 mod muster;
 mod ops;
 pub mod plans;

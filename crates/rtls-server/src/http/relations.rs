@@ -10,13 +10,14 @@
 
 use std::collections::{BTreeSet, HashMap};
 
-use axum::extract::{Path, RawQuery, State};
+use axum::extract::{Path, Query, RawQuery, State};
 use axum::http::HeaderMap;
 use axum::Json;
 
 use super::hub::{
     implicit_provider, known_provider, known_provider_or_404, list_stored, newest_location, stored_trackable, PROVIDER,
 };
+use super::location_crs::{in_frame, requested_frame, CrsQuery};
 use super::{query_value, ApiError, ApiResult, AppState, TRACKABLE_CONFIG};
 use crate::auth::Access;
 use crate::convert::fence_from_zone;
@@ -164,9 +165,11 @@ pub(super) async fn trackable_fences(
 pub(super) async fn trackable_locations(
     State(state): State<AppState>,
     Path(trackable_id): Path<String>,
+    Query(crs): Query<CrsQuery>,
     headers: HeaderMap,
 ) -> ApiResult<Json<Vec<Location>>> {
     state.authorize(&headers, Access::Read)?;
+    let frame = requested_frame(&state, &crs)?;
     let trackable = stored_trackable(&state, &trackable_id).await?;
     let live = state.pipeline.live();
     Ok(Json(
@@ -175,7 +178,7 @@ pub(super) async fn trackable_locations(
             .iter()
             .flatten()
             .filter_map(|p| live.tag(p))
-            .map(|t| Location::clone(&t.location))
+            .map(|t| in_frame(Location::clone(&t.location), frame))
             .collect(),
     ))
 }
@@ -230,12 +233,14 @@ pub(super) async fn fence_locations(
     headers: HeaderMap,
 ) -> ApiResult<Json<Vec<Location>>> {
     state.authorize(&headers, Access::Read)?;
+    let crs = CrsQuery::of(query_value(query.as_deref(), "crs"));
+    let frame = requested_frame(&state, &crs)?;
     let (_, tags) = fence_with_tags(&state, &fence_id, spatial_query(query.as_deref())?)?;
     let live = state.pipeline.live();
     Ok(Json(
         tags.iter()
             .filter_map(|t| live.tag(t))
-            .map(|t| Location::clone(&t.location))
+            .map(|t| in_frame(Location::clone(&t.location), frame))
             .collect(),
     ))
 }
