@@ -221,7 +221,18 @@ pub(super) async fn delete_provider(
     headers: HeaderMap,
 ) -> ApiResult<StatusCode> {
     let who = state.authorize(&headers, Access::Write)?;
-    delete(&state, &who, PROVIDER, provider_id).await
+    // a tracked tag is listed as a provider by its live location: deleting the provider
+    // forgets that too (until the tag's next update), so GET no longer returns it
+    let live = state.pipeline.live();
+    let tracked = live.tag(&provider_id).is_some();
+    live.remove_tag(&provider_id);
+    match delete(&state, &who, PROVIDER, provider_id.clone()).await {
+        Err(not_stored) if tracked && not_stored.status == StatusCode::NOT_FOUND => {
+            state.audit(&who, "location-deleted", &provider_id).await;
+            Ok(StatusCode::NO_CONTENT)
+        }
+        outcome => outcome,
+    }
 }
 
 // ---- trackables (stored) ----
