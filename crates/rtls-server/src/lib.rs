@@ -37,6 +37,7 @@ pub mod metrics;
 pub mod mqtt;
 pub mod omlox;
 pub mod pipeline;
+pub mod pushed;
 pub mod serve;
 pub mod sink;
 pub mod store;

@@ -313,6 +313,21 @@ async fn omlox_location_ingest_and_trackables_name_the_bad_field() {
         live.tag("forklift-9"),
         state.pipeline.metrics().encode().unwrap()
     );
+    // the pushed location comes back as pushed, with our estimate alongside
+    let back = call(&app, Method::GET, "/v2/providers/forklift-9/location", Some(READ), "")
+        .await
+        .json();
+    let t = rtls_server::omlox::time::parse_timestamp(back["timestamp_generated"].as_str().unwrap(), "t").unwrap();
+    let k = (t - now).round();
+    assert_eq!(back["source"], "other-rtls", "{back}");
+    assert_eq!(back["accuracy"], 0.3, "{back}");
+    assert_eq!(back["position"]["coordinates"], json!([1.0 + k, 5.0]), "{back}");
+    let filtered = &back["properties"]["rtls:filtered"];
+    assert!(
+        filtered["position"]["coordinates"][0].is_number() && filtered["accuracy"].is_number(),
+        "{back}"
+    );
+    assert_eq!(filtered["rtls:source"], "fix", "{back}");
     let mismatch = location("forklift-8", 1.0, now + 9.0).to_string();
     let reply = call(
         &app,

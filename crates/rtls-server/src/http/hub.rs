@@ -72,6 +72,13 @@ pub(super) async fn ingest_locations(state: &AppState, locations: &[Location]) -
         .map(|(index, location)| record_from_location(location, index, state.default_accuracy_m, received_s))
         .collect::<Result<Vec<_>, _>>()
         .map_err(server_error)?;
+    // before the records: their track updates keep what the provider said
+    for (location, record) in locations.iter().zip(&records) {
+        state.pipeline.note_pushed(crate::pushed::PushedLocation {
+            location: location.clone(),
+            time_s: record.time_s,
+        });
+    }
     state.pipeline.submit_records("omlox locations", records).await?;
     Ok(StatusCode::NO_CONTENT)
 }

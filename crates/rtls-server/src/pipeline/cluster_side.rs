@@ -38,6 +38,16 @@ impl std::fmt::Debug for ClusterHooks {
 }
 
 impl Pipeline {
+    /// Notes a location a provider pushed, here and (in a cluster) on every node: the tag's
+    /// track outputs keep what the provider said ([`crate::pushed`]).
+    pub fn note_pushed(&self, pushed: crate::pushed::PushedLocation) {
+        self.inner.fanout.to_peers(|| PeerMessage::Pushed {
+            location: Box::new(pushed.location.clone()),
+            time_s: pushed.time_s,
+        });
+        self.inner.live.note_pushed(pushed);
+    }
+
     /// Applies another node's output to this node's live state and broadcasts.
     pub fn apply_peer(&self, message: PeerMessage) {
         self.inner.fanout.apply(message);

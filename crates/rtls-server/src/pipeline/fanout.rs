@@ -79,6 +79,14 @@ pub enum PeerMessage {
         /// The `Proximity`, as pushed.
         proximity: Box<Proximity>,
     },
+    /// A location a provider pushed to the node that sends it (its track's outputs keep what
+    /// the provider said, on whichever node tracks it).
+    Pushed {
+        /// As pushed.
+        location: Box<Location>,
+        /// Its time (s).
+        time_s: f64,
+    },
     /// Readers named by records another node received: `(reader, records)` at `at_ms`.
     ReadersHeard {
         /// Each reader and how many records named it.
@@ -264,6 +272,10 @@ impl Fanout {
                 let _ = self.hub.send(Arc::new(HubMessage::Proximity(Arc::new(*proximity))));
             }
             PeerMessage::Zones { zones } => self.live.adopt_zones(zones),
+            PeerMessage::Pushed { location, time_s } => self.live.note_pushed(crate::pushed::PushedLocation {
+                location: *location,
+                time_s,
+            }),
             PeerMessage::ReadersHeard { counts, at_ms } => self.readers.heard_counts(&counts, at_ms),
             PeerMessage::Offsets { partition, summaries } => self.readers.learnt_offsets(
                 partition,

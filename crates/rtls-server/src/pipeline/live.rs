@@ -80,6 +80,10 @@ pub struct LiveState {
     last_seen: RwLock<HashMap<String, LastSeen>>,
     /// Told every zone set [`LiveState::set_zones`] takes (a cluster sends it to the peers).
     zone_edits: std::sync::OnceLock<ZoneEditListener>,
+    /// The latest locations each provider pushed (`PUT /v2/providers/locations`), oldest
+    /// first, [`PUSHED_KEPT`] at most: a track's update comes after its fix's push, later ones
+    /// may be pushed meanwhile.
+    pushed: RwLock<HashMap<String, VecDeque<Arc<crate::pushed::PushedLocation>>>>,
     /// The stored omlox trackables by provider, for the topics about trackables.
     trackables: RwLock<Arc<TrackableIndex>>,
 }
@@ -91,6 +95,9 @@ impl std::fmt::Debug for LiveState {
             .finish_non_exhaustive()
     }
 }
+
+/// Pushed locations kept per provider.
+const PUSHED_KEPT: usize = 32;
 
 /// What is told of a zone edit.
 pub(super) type ZoneEditListener = Box<dyn Fn(&[Zone]) + Send + Sync>;
@@ -120,7 +127,32 @@ impl LiveState {
             last_seen: RwLock::new(HashMap::new()),
             zone_edits: std::sync::OnceLock::new(),
             trackables: RwLock::default(),
+            pushed: RwLock::default(),
         }
+    }
+
+    /// Notes a location a provider pushed (its track's outputs keep what it said).
+    pub fn note_pushed(&self, pushed: crate::pushed::PushedLocation) {
+        if let Ok(mut all) = self.pushed.write() {
+            let kept = all.entry(pushed.location.provider_id.clone()).or_default();
+            if kept.len() == PUSHED_KEPT {
+                kept.pop_front();
+            }
+            kept.push_back(Arc::new(pushed));
+        }
+    }
+
+    /// The location `tag`'s provider pushed for the fix of `time_s`, else its newest; `None`
+    /// when it pushes none.
+    #[must_use]
+    pub fn pushed(&self, tag: &str, time_s: f64) -> Option<Arc<crate::pushed::PushedLocation>> {
+        let all = self.pushed.read().ok()?;
+        let kept = all.get(tag)?;
+        kept.iter()
+            .rev()
+            .find(|p| crate::pushed::same_time(p.time_s, time_s))
+            .or_else(|| kept.back())
+            .cloned()
     }
 
     /// The stored trackables by provider ([`TrackableIndex`]).

@@ -337,6 +337,11 @@ impl PartitionWorker {
         }
         match location_from_update(update, &self.source, ProviderType::Uwb) {
             Ok(location) => {
+                // a provider that pushes its own locations keeps what it said
+                let location = match self.fanout.live.pushed(&update.tag, update.time_s) {
+                    Some(pushed) => crate::pushed::with_pushed(location, &pushed, update.time_s),
+                    None => location,
+                };
                 let location = Arc::new(location);
                 self.fanout.set_tag(
                     &update.tag,
