@@ -76,6 +76,9 @@ pub struct Metrics {
     pub store_compacted: Family<Labels, Counter>,
     /// Compaction passes that failed (the rows stay as they are; the log says why).
     pub store_compaction_failures: Counter,
+    /// Track updates the collision detection missed by falling behind the hub (the trackables
+    /// concerned are judged again at their next update).
+    pub collision_updates_missed: Counter,
     /// Cluster: outputs not sent to the other nodes because the outbound queue was full.
     pub cluster_peer_messages_dropped: Counter,
     /// Cluster: tag partitions this node owns now.
@@ -129,6 +132,7 @@ impl Metrics {
             webhook_deliveries: Family::default(),
             store_compacted: Family::default(),
             store_compaction_failures: Counter::default(),
+            collision_updates_missed: Counter::default(),
             cluster_peer_messages_dropped: Counter::default(),
             cluster_partitions_owned: Gauge::default(),
             cluster_takeovers: Counter::default(),
@@ -256,6 +260,11 @@ impl Metrics {
             "webhook_deliveries",
             "Webhook deliveries by webhook and outcome (delivered, retried, failed, dropped)",
             m.webhook_deliveries.clone(),
+        );
+        registry.register(
+            "collision_updates_missed",
+            "Track updates the collision detection missed by falling behind the hub",
+            m.collision_updates_missed.clone(),
         );
         registry.register(
             "cluster_peer_messages_dropped",

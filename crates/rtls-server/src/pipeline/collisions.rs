@@ -32,6 +32,8 @@ pub(super) struct CollisionWorker {
     pub hub: broadcast::WeakSender<Arc<HubMessage>>,
     pub rx: broadcast::Receiver<Arc<HubMessage>>,
     pub detector: CollisionDetector,
+    /// Hub messages missed by falling behind (`rtls_collision_updates_missed_total`).
+    pub missed: prometheus_client::metrics::counter::Counter,
 }
 
 impl CollisionWorker {
@@ -39,8 +41,10 @@ impl CollisionWorker {
         live: Arc<LiveState>,
         hub: &broadcast::Sender<Arc<HubMessage>>,
         settings: CollisionSettings,
+        missed: prometheus_client::metrics::counter::Counter,
     ) -> Self {
         Self {
+            missed,
             live,
             rx: hub.subscribe(),
             hub: hub.downgrade(),
@@ -59,6 +63,7 @@ impl CollisionWorker {
                     }
                 }
                 Err(RecvError::Lagged(missed)) => {
+                    self.missed.inc_by(missed);
                     tracing::warn!(missed, "collision detection fell behind the track updates");
                 }
                 Err(RecvError::Closed) => return,
@@ -181,5 +186,38 @@ fn collision(side: &Side) -> Collision {
             coordinates: vec![ring],
         }),
         floor: Some(side.floor),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn falling_behind_the_hub_is_counted() {
+        let site = rtls_engine::site::Site::from_toml_str(
+            "[[readers]]\nid = \"R1\"\nposition_m = [0.0, 0.0]\ntechnology = \"uwb\"\n",
+            "site.toml",
+        )
+        .expect("site");
+        let (hub, _) = broadcast::channel(2);
+        let missed = prometheus_client::metrics::counter::Counter::default();
+        let worker = CollisionWorker::new(
+            Arc::new(LiveState::new(&site, 1)),
+            &hub,
+            CollisionSettings::default(),
+            missed.clone(),
+        );
+        for k in 0..5 {
+            hub.send(Arc::new(HubMessage::Extension {
+                topic: crate::omlox::ws::Topic::RtlsEvents,
+                event: serde_json::json!({ "k": k }),
+            }))
+            .expect("a subscriber");
+        }
+        drop(hub);
+        // five messages into a ring of two: three missed, then the hub is gone and it ends
+        worker.run();
+        assert_eq!(missed.get(), 3);
     }
 }

@@ -290,7 +290,12 @@ impl Pipeline {
         }
         // the collision thread is not joined at shutdown: it ends when the hub's last sender
         // (this pipeline's, its partitions') is gone
-        let collision_worker = collisions::CollisionWorker::new(Arc::clone(&live), &hub, Default::default());
+        let collision_worker = collisions::CollisionWorker::new(
+            Arc::clone(&live),
+            &hub,
+            Default::default(),
+            metrics.collision_updates_missed.clone(),
+        );
         std::thread::Builder::new()
             .name("rtls-collisions".into())
             .spawn(move || collision_worker.run())
