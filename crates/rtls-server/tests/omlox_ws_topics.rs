@@ -355,3 +355,65 @@ async fn proximity_updates_carry_the_proximities_providers_push() {
     assert_eq!(proximities[0], proximity("rfid-77", "gate-3", 6000.5));
     running.stop().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn location_updates_come_in_wgs84_when_a_subscription_asks_for_it() {
+    let running = start("ws-crs", 1).await;
+    let http = running.bound.http;
+    let (mut socket, ids) = subscribe(
+        http,
+        &[
+            json!({"event": "subscribe", "topic": "location_updates", "params": {"provider_id": "miner-9", "crs": "EPSG:4326"}}),
+            json!({"event": "subscribe", "topic": "location_updates", "params": {"provider_id": "miner-9"}}),
+        ],
+    )
+    .await;
+    let (wgs84, local) = (ids[0], ids[1]);
+    // another CRS is refused with omlox's subscription-failed error
+    socket
+        .send(Message::Text(
+            json!({"event": "subscribe", "topic": "location_updates", "params": {"crs": "EPSG:3857"}})
+                .to_string()
+                .into(),
+        ))
+        .await
+        .unwrap();
+    let refusal = next_json(&mut socket).await;
+    assert_eq!(
+        (refusal["event"].as_str(), refusal["code"].as_u64()),
+        (Some("error"), Some(10002)),
+        "{refusal}"
+    );
+
+    let client = reqwest::Client::new();
+    assert!(post_measurements(&client, http, walk("miner-9", 5000.0, 4.0))
+        .await
+        .status()
+        .is_success());
+    // the same updates, once per subscription: match them by their time
+    let (mut in_degrees, mut in_metres) = (std::collections::HashMap::new(), std::collections::HashMap::new());
+    while in_degrees.keys().filter(|t| in_metres.contains_key(*t)).count() < 3 {
+        let (_, id, payload) = next_message(&mut socket).await;
+        for location in payload {
+            let stamp = location["timestamp_generated"].as_str().unwrap().to_string();
+            if id == wgs84 {
+                in_degrees.insert(stamp, location);
+            } else if id == local {
+                in_metres.insert(stamp, location);
+            }
+        }
+    }
+    for (stamp, degrees) in &in_degrees {
+        let Some(metres) = in_metres.get(stamp) else { continue };
+        let xy = [0, 1].map(|k| metres["position"]["coordinates"][k].as_f64().unwrap());
+        let [lon, lat, _] = FRAME.wgs84_of([xy[0], xy[1], 0.0]).unwrap();
+        assert_eq!(degrees["crs"], "EPSG:4326", "{degrees}");
+        let got = [0, 1].map(|k| degrees["position"]["coordinates"][k].as_f64().unwrap());
+        assert!(
+            (got[0] - lon).abs() < 1e-9 && (got[1] - lat).abs() < 1e-9,
+            "{degrees} against {metres}"
+        );
+        assert_eq!(degrees["accuracy"], metres["accuracy"]);
+    }
+    running.stop().await;
+}

@@ -73,6 +73,9 @@ struct Subscription {
     tag: Option<String>,
     /// Only this trackable's messages (`trackable_motions`, `collision_events`).
     trackable: Option<String>,
+    /// `params.crs = "EPSG:4326"` on `location_updates`: positions in WGS-84 through the
+    /// site's `[frame]`.
+    wgs84: bool,
 }
 
 async fn serve(mut socket: WebSocket, state: AppState) {
@@ -110,7 +113,7 @@ async fn serve(mut socket: WebSocket, state: AppState) {
                     Message::Close(_) => break,
                     _ => continue,
                 };
-                let reply = handle(&text, &mut subscriptions, &mut next_id);
+                let reply = handle(&text, &mut subscriptions, &mut next_id, state.site.frame.is_some());
                 if send(&mut socket, &reply).await.is_err() {
                     break;
                 }
@@ -152,7 +155,12 @@ async fn send(socket: &mut WebSocket, message: &impl serde::Serialize) -> Result
 }
 
 /// Answers one client message.
-fn handle(text: &str, subscriptions: &mut HashMap<u64, Subscription>, next_id: &mut u64) -> WsMessage {
+fn handle(
+    text: &str,
+    subscriptions: &mut HashMap<u64, Subscription>,
+    next_id: &mut u64,
+    georeferenced: bool,
+) -> WsMessage {
     // read the event and the topic first, so an unknown one gets its own omlox error code
     let value: Value = match serde_json::from_str(text) {
         Ok(value) => value,
@@ -183,9 +191,38 @@ fn handle(text: &str, subscriptions: &mut HashMap<u64, Subscription>, next_id: &
                 .params
                 .as_ref()
                 .and_then(|p| p.get("trackable_id").and_then(Value::as_str).map(String::from));
+            let wgs84 = match request
+                .params
+                .as_ref()
+                .and_then(|p| p.get("crs"))
+                .and_then(Value::as_str)
+            {
+                None | Some("local") => false,
+                Some("EPSG:4326") if georeferenced && topic == Topic::LocationUpdates => true,
+                Some("EPSG:4326") if topic == Topic::LocationUpdates => {
+                    return WsMessage::error(
+                        WsErrorCode::SubscriptionFailed,
+                        "crs EPSG:4326: the site has no [frame] origin, so locations are only in crs local",
+                    )
+                }
+                Some(other) => {
+                    return WsMessage::error(
+                        WsErrorCode::SubscriptionFailed,
+                        &format!("crs `{other}`: only local, or EPSG:4326 on location_updates"),
+                    )
+                }
+            };
             let id = *next_id;
             *next_id += 1;
-            subscriptions.insert(id, Subscription { topic, tag, trackable });
+            subscriptions.insert(
+                id,
+                Subscription {
+                    topic,
+                    tag,
+                    trackable,
+                    wgs84,
+                },
+            );
             WsMessage::subscribed(topic, id)
         }
         WsEvent::Unsubscribe => match request
@@ -278,7 +315,10 @@ fn payload<'a>(
 ) -> Option<Payload<'a>> {
     let payload = match (message.as_ref(), subscription.topic) {
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdates) if wanted(subscription, tag) => {
-            return Some(Payload::Location(location));
+            if !subscription.wgs84 {
+                return Some(Payload::Location(location));
+            }
+            serde_json::to_value(super::location_crs::in_frame(Location::clone(location), frame)).ok()?
         }
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
             let position = json!(location.position);
