@@ -203,12 +203,6 @@ impl Cluster {
             jetstream: self.jetstream.clone(),
         })
     }
-
-    /// The NATS client.
-    #[must_use]
-    pub fn client(&self) -> &async_nats::Client {
-        &self.client
-    }
 }
 
 /// Starts this node's cluster tasks: partition ownership (and the consumers of the partitions

@@ -7,7 +7,7 @@ use axum::http::HeaderMap;
 use axum::Json;
 use serde_json::{json, Value};
 
-use super::{metrics, ApiError, ApiResult, AppState};
+use super::{ApiError, ApiResult, AppState};
 use crate::adapters::Vendor;
 use crate::auth::Access;
 
@@ -37,14 +37,6 @@ pub(super) async fn ingest(
             "accepted": outcome.accepted,
             "refused": outcome.refusals,
         }))),
-        Err(error) => {
-            if matches!(error, crate::sink::IngestError::Invalid(_)) {
-                metrics(&state)
-                    .ingest_rejected
-                    .get_or_create(&vec![("transport".into(), "http".into())])
-                    .inc();
-            }
-            Err(error.into())
-        }
+        Err(error) => Err(super::api::refused_over_http(&state, error)),
     }
 }

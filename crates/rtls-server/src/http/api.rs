@@ -28,16 +28,20 @@ pub(super) async fn ingest_measurements(
     state.authorize(&headers, Access::Write)?;
     match state.pipeline.submit_lines("request body", &body).await {
         Ok(accepted) => Ok(Json(json!({ "accepted": accepted }))),
-        Err(error) => {
-            if matches!(error, crate::sink::IngestError::Invalid(_)) {
-                metrics(&state)
-                    .ingest_rejected
-                    .get_or_create(&vec![("transport".into(), "http".into())])
-                    .inc();
-            }
-            Err(error.into())
-        }
+        Err(error) => Err(refused_over_http(&state, error)),
     }
+}
+
+/// An ingest error as the HTTP answer; a refused payload (a client error) is counted in
+/// `rtls_ingest_rejected_total{transport="http"}`.
+pub(super) fn refused_over_http(state: &AppState, error: crate::sink::IngestError) -> ApiError {
+    if matches!(error, crate::sink::IngestError::Invalid(_)) {
+        metrics(state)
+            .ingest_rejected
+            .get_or_create(&vec![("transport".into(), "http".into())])
+            .inc();
+    }
+    error.into()
 }
 
 /// `GET /api/v1/tags`: every tag's latest state, with its omlox `Location` (covariance in its

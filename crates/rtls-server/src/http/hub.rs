@@ -14,7 +14,7 @@ use serde_json::Value;
 
 use super::location_crs::{in_frame, requested_frame, CrsQuery};
 use super::trackable_sync::refresh_trackables;
-use super::{parse_json, ApiError, ApiResult, AppState};
+use super::{parse_json, same_as_path, ApiError, ApiResult, AppState};
 use crate::auth::{Access, Principal};
 use crate::convert::record_from_location;
 use crate::omlox::ingest::parse_locations;
@@ -52,14 +52,8 @@ pub(super) async fn put_provider_location(
     state.authorize(&headers, Access::Write)?;
     let text = utf8(&body)?;
     let locations = parse_locations(&format!("[{text}]")).map_err(server_error)?;
-    if let Some(location) = locations.iter().find(|l| l.provider_id != provider_id) {
-        return Err(ApiError::field(
-            "provider_id",
-            format!(
-                "`{}` does not match the path's provider `{provider_id}`",
-                location.provider_id
-            ),
-        ));
+    for location in &locations {
+        same_as_path("provider_id", &location.provider_id, &provider_id)?;
     }
     ingest_locations(&state, &locations).await
 }
@@ -212,12 +206,7 @@ pub(super) async fn put_provider(
 ) -> ApiResult<StatusCode> {
     let who = state.authorize(&headers, Access::Write)?;
     let provider: LocationProvider = parse_json(&body)?;
-    if provider.id != provider_id {
-        return Err(ApiError::field(
-            "id",
-            format!("`{}` does not match the path's `{provider_id}`", provider.id),
-        ));
-    }
+    same_as_path("id", &provider.id, &provider_id)?;
     replace(&state, &who, PROVIDER, provider_id, &provider).await
 }
 
@@ -303,12 +292,7 @@ pub(super) async fn put_trackable(
 ) -> ApiResult<Json<Trackable>> {
     let who = state.authorize(&headers, Access::Write)?;
     let trackable: Trackable = parse_json(&body)?;
-    if trackable.id != trackable_id {
-        return Err(ApiError::field(
-            "id",
-            format!("`{}` does not match the path's `{trackable_id}`", trackable.id),
-        ));
-    }
+    same_as_path("id", &trackable.id, &trackable_id)?;
     check_uuid(&trackable.id)?;
     replace(&state, &who, TRACKABLE, trackable_id, &trackable).await?;
     refresh_trackables(&state).await;

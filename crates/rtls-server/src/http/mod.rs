@@ -326,6 +326,20 @@ pub(crate) fn assign_id_if_unset(value: &mut Value) {
     }
 }
 
+/// Checks that the id a body names (`field`) is the path's: a 400 naming `field` otherwise.
+///
+/// # Errors
+/// A 400 with `field` when `in_body` differs from `in_path`.
+pub(super) fn same_as_path(field: &str, in_body: &str, in_path: &str) -> ApiResult<()> {
+    if in_body == in_path {
+        return Ok(());
+    }
+    Err(ApiError::field(
+        field,
+        format!("`{in_body}` does not match the path's `{in_path}`"),
+    ))
+}
+
 /// Parses a JSON body into `T`, naming the offending field's path on failure.
 ///
 /// # Errors

@@ -20,7 +20,7 @@ use std::sync::Arc;
 
 use super::hub::ingest_locations;
 use super::zones::{all_zones, position_m, zone_by_source};
-use super::{parse_json, ApiError, ApiResult, AppState};
+use super::{parse_json, same_as_path, ApiError, ApiResult, AppState};
 use crate::auth::Access;
 use crate::omlox::{Location, Point, ProviderType, Proximity, Zone};
 use crate::pipeline::HubMessage;
@@ -70,15 +70,7 @@ pub(super) async fn put_proximity(
 ) -> ApiResult<StatusCode> {
     state.authorize(&headers, Access::Write)?;
     let proximity: Proximity = parse_json(&body)?;
-    if proximity.provider_id != provider_id {
-        return Err(ApiError::field(
-            "provider_id",
-            format!(
-                "`{}` does not match the path's provider `{provider_id}`",
-                proximity.provider_id
-            ),
-        ));
-    }
+    same_as_path("provider_id", &proximity.provider_id, &provider_id)?;
     let zones = all_zones(&state).await?;
     let location = location_of(&state, &zones, &proximity, "")?;
     let status = ingest_locations(&state, &[location]).await.map_err(|mut e| {

@@ -22,7 +22,7 @@ use serde_json::Value;
 
 use super::hub::{create, delete, delete_all, get_stored, list_stored, replace};
 use super::zone_frame::{fence_ring_m, ZoneFrame};
-use super::{parse_json, query_value, ApiError, ApiResult, AppState};
+use super::{parse_json, query_value, same_as_path, ApiError, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::uuid_for;
 use crate::omlox::time::parse_timestamp;
@@ -158,12 +158,7 @@ pub(super) async fn replace_zone(
         object.entry("id").or_insert_with(|| Value::String(zone_id.clone()));
     }
     let zone: Zone = parse_json(value.to_string().as_bytes())?;
-    if zone.id != zone_id {
-        return Err(ApiError::field(
-            "id",
-            format!("`{}` does not match the path's `{zone_id}`", zone.id),
-        ));
-    }
+    same_as_path("id", &zone.id, &zone_id)?;
     if zone_id == site_zone(&state).id {
         return Err(site_zone_is_read_only(&zone_id));
     }

@@ -9,7 +9,7 @@ use tokio::sync::{mpsc, oneshot};
 
 use super::fanout::PeerMessage;
 use super::ingest_log::PartitionInput;
-use super::{partition_of, IngestBatch, Pipeline};
+use super::{IngestBatch, Pipeline};
 use crate::sink::{IngestError, IngestFuture};
 use crate::store::NewRecord;
 
@@ -64,18 +64,6 @@ impl Pipeline {
     #[must_use]
     pub fn cluster_status(&self) -> Option<(String, Vec<usize>)> {
         self.inner.cluster_status.lock().ok().and_then(|status| status.clone())
-    }
-
-    /// The tag partition of `tag` (the same on every node of a cluster with the same count).
-    #[must_use]
-    pub fn partition_of(&self, tag: &str) -> usize {
-        partition_of(tag, self.inner.config.partitions.max(1))
-    }
-
-    /// The number of tag partitions.
-    #[must_use]
-    pub fn partitions(&self) -> usize {
-        self.inner.config.partitions.max(1)
     }
 
     /// Sends partition `index` records to rebuild its tracks from (a cluster's takeover);
@@ -142,13 +130,7 @@ impl Pipeline {
         }
         let count = records.len();
         let (reply, answer) = oneshot::channel();
-        let sender = self
-            .inner
-            .ingest_tx
-            .lock()
-            .ok()
-            .and_then(|guard| guard.clone())
-            .ok_or_else(|| IngestError::Unavailable("the server is shutting down".into()))?;
+        let sender = self.ingest_sender()?;
         sender
             .send(IngestBatch { records, rows, reply })
             .await

@@ -458,6 +458,19 @@ impl Pipeline {
         &self.inner.metrics
     }
 
+    /// The ingest-log thread's queue, while the server takes records.
+    ///
+    /// # Errors
+    /// [`IngestError::Unavailable`] once it is shutting down.
+    fn ingest_sender(&self) -> Result<mpsc::Sender<IngestBatch>, IngestError> {
+        self.inner
+            .ingest_tx
+            .lock()
+            .ok()
+            .and_then(|guard| guard.clone())
+            .ok_or_else(|| IngestError::Unavailable("the server is shutting down".into()))
+    }
+
     /// Stops taking records, lets every thread drain its queue (the trackers flush, the
     /// outputs are stored, the checkpoint is written) and waits for them.
     pub fn shutdown(&self) {

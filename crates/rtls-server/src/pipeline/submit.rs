@@ -112,13 +112,7 @@ impl Pipeline {
             rows,
             reply,
         };
-        let sender = self
-            .inner
-            .ingest_tx
-            .lock()
-            .ok()
-            .and_then(|guard| guard.clone())
-            .ok_or_else(|| IngestError::Unavailable("the server is shutting down".into()))?;
+        let sender = self.ingest_sender()?;
         let started = std::time::Instant::now();
         match tokio::time::timeout(self.inner.config.submit_timeout, sender.send(batch)).await {
             Ok(Ok(())) => {}
