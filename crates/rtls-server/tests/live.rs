@@ -263,23 +263,31 @@ async fn postgresql_storage_serves_history() {
         tokio::time::sleep(Duration::from_millis(25)).await;
     }
     assert!(rows.len() >= 20, "{} states in PostgreSQL", rows.len());
-    let events: Value = client
-        .get(format!(
-            "http://{http}/api/v1/events?tag=miner-pg&type=zone-enter,zone-exit"
-        ))
-        .bearer_auth(READ)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    let kinds: Vec<&str> = events
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["type"].as_str().unwrap())
-        .collect();
+    // the output thread stores a batch's states before its events: poll for the events too
+    let mut kinds: Vec<String> = Vec::new();
+    for _ in 0..400 {
+        let events: Value = client
+            .get(format!(
+                "http://{http}/api/v1/events?tag=miner-pg&type=zone-enter,zone-exit"
+            ))
+            .bearer_auth(READ)
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        kinds = events
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e["type"].as_str().unwrap().to_string())
+            .collect();
+        if kinds.len() >= 2 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(25)).await;
+    }
     assert_eq!(kinds, ["zone-enter", "zone-exit"]);
     stop(running).await;
     tokio::task::spawn_blocking(move || {

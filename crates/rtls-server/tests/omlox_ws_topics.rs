@@ -7,7 +7,6 @@ mod common;
 use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
-use rtls_engine::site::{FrameSettings, GeodeticOrigin};
 use rtls_server::config::MqttMode;
 use rtls_server::omlox::collision::K_SIGMA_95;
 use rtls_server::omlox::{Trackable, TrackableType};
@@ -15,19 +14,10 @@ use rtls_server::serve::ServeOptions;
 use serde_json::{json, Value};
 use tokio_tungstenite::tungstenite::Message;
 
-use common::{post_measurements, temp_dir, walk, Running, READ, WRITE};
+use common::{post_measurements, temp_dir, walk, Running, FRAME, READ, WRITE};
 
 /// The configured forklift: a trackable with a 1 m radius moved by the tag `forklift-tag`.
 const FORKLIFT: &str = "6f1c2d3e-0000-4000-8000-00000000f0f1";
-
-const FRAME: FrameSettings = FrameSettings {
-    origin: GeodeticOrigin {
-        latitude_deg: 47.3769,
-        longitude_deg: 8.5417,
-        height_m: 455.0,
-    },
-    x_axis_bearing_deg: 90.0,
-};
 
 type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 

@@ -8,19 +8,9 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::http::{Method, StatusCode};
-use common::{assert_omlox_error, call, call_json, eventually, state, READ, WRITE};
-use rtls_engine::site::{FrameSettings, GeodeticOrigin};
+use common::{assert_omlox_error, call, call_json, eventually, state, FRAME, READ, WRITE};
 use rtls_server::http::AppState;
 use serde_json::{json, Value};
-
-const FRAME: FrameSettings = FrameSettings {
-    origin: GeodeticOrigin {
-        latitude_deg: 47.3769,
-        longitude_deg: 8.5417,
-        height_m: 455.0,
-    },
-    x_axis_bearing_deg: 90.0,
-};
 
 /// `state` with the site georeferenced at [`FRAME`].
 fn georeferenced(mut state: AppState) -> AppState {

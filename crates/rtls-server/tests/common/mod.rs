@@ -17,6 +17,16 @@ use rtls_server::store::{self, SqliteSync, Store};
 use serde_json::Value;
 use tower::ServiceExt;
 
+/// A georeferenced site frame (Zürich), for the tests of WGS-84 conversions.
+pub const FRAME: rtls_engine::site::FrameSettings = rtls_engine::site::FrameSettings {
+    origin: rtls_engine::site::GeodeticOrigin {
+        latitude_deg: 47.3769,
+        longitude_deg: 8.5417,
+        height_m: 455.0,
+    },
+    x_axis_bearing_deg: 90.0,
+};
+
 pub const WRITE: &str = "write-token-0123";
 pub const READ: &str = "read-token-4567";
 
