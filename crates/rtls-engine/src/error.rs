@@ -27,6 +27,10 @@ pub enum EngineError {
         /// What is wrong and what is allowed.
         reason: &'static str,
     },
+    /// A tracker's checkpoint ([`crate::tracker::TrackerState`]) does not fit the tracker it
+    /// was to be restored into (another layout, or inconsistent content).
+    #[error("checkpoint not restored: {0}")]
+    Checkpoint(String),
     /// A filter step failed.
     #[error("estimation failed: {0}")]
     Estimation(#[from] rtls_estimation::EstimationError),

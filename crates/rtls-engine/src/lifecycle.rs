@@ -28,7 +28,7 @@ use crate::error::{EngineError, Result};
 ///
 /// # Units
 /// Seconds; counts are numbers of updates.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct LifecycleSettings {
     /// `M`: updates needed to confirm a tentative track.
@@ -100,7 +100,7 @@ impl LifecycleSettings {
 }
 
 /// Where a track is in its life.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum TrackStatus {
     /// Started, not yet confirmed.
     Tentative,
@@ -147,7 +147,7 @@ pub enum LifecycleEvent {
 /// assert!(track.tick(74.0).is_err()); // time went backwards
 /// # Ok::<(), rtls_engine::EngineError>(())
 /// ```
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Lifecycle {
     settings: LifecycleSettings,
     status: TrackStatus,

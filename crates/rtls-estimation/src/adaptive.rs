@@ -81,6 +81,7 @@ pub struct AdaptiveNoise {
 
 /// One measurement class's current noise scale for one track (a value the track owns).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct NoiseScale {
     /// `λ̄`, the weighted running average of the scale samples (unclamped).
     average: f64,

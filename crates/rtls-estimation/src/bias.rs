@@ -88,6 +88,7 @@ pub struct BiasModel {
 
 /// A track's biases, one slot per reader it has heard: a value the track owns.
 #[derive(Debug, Clone, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct BiasVector {
     values: DVector<f64>,
     covariance: DMatrix<f64>,

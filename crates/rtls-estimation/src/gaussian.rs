@@ -31,10 +31,33 @@ pub type Matrix<const N: usize> = SMatrix<f64, N, N>;
 /// # Ok::<(), rtls_estimation::EstimationError>(())
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(try_from = "GaussianParts<N>")
+)]
 pub struct Gaussian<const N: usize> {
     mean: Vector<N>,
     covariance: Matrix<N>,
     time_s: f64,
+}
+
+/// A [`Gaussian`] as stored: it becomes one only through [`Gaussian::new`]'s checks.
+#[cfg(feature = "serde")]
+#[derive(serde::Deserialize)]
+struct GaussianParts<const N: usize> {
+    mean: Vector<N>,
+    covariance: Matrix<N>,
+    time_s: f64,
+}
+
+#[cfg(feature = "serde")]
+impl<const N: usize> TryFrom<GaussianParts<N>> for Gaussian<N> {
+    type Error = EstimationError;
+
+    fn try_from(parts: GaussianParts<N>) -> Result<Self> {
+        Self::new(parts.mean, parts.covariance, parts.time_s)
+    }
 }
 
 impl<const N: usize> Gaussian<N> {

@@ -117,7 +117,7 @@ pub(crate) fn read_line(
 /// };
 /// assert!(record.validate("input.jsonl", 1).is_ok());
 /// ```
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Record {
     /// Time of the measurement, s.
     pub time_s: f64,
@@ -161,7 +161,7 @@ pub struct AnchorReading {
 /// let fix = Measurement::Fix { position_m: vec![1.0, 2.0], covariance_m2: vec![0.25, 0.0, 0.0, 0.25] };
 /// assert_eq!(fix.kind(), "fix");
 /// ```
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Measurement {
     /// Distance to an anchor (UWB time of arrival, ultrasonic time of flight).
     Range {

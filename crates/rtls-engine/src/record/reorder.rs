@@ -65,7 +65,7 @@ impl Emitted {
 /// assert_eq!(reorderer.push(at(1.0)).unwrap(), vec![Emitted::Late { record: at(1.0), lateness_s: 1.0 }]);
 /// assert_eq!(reorderer.finish(), vec![Emitted::InOrder(at(3.0))]);
 /// ```
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Reorderer {
     window_s: f64,
     /// Held records by (time, arrival number).
@@ -76,7 +76,7 @@ pub struct Reorderer {
 }
 
 /// A finite time stamp, totally ordered.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 struct TimeKey(f64);
 
 impl Eq for TimeKey {}
@@ -94,6 +94,15 @@ impl Ord for TimeKey {
 }
 
 impl Reorderer {
+    /// Continues from `earlier`'s held records and clocks (a tracker's checkpoint), with this
+    /// re-ordering window.
+    pub(crate) fn resume(&mut self, earlier: Reorderer) {
+        self.held = earlier.held;
+        self.arrivals = earlier.arrivals;
+        self.newest_s = earlier.newest_s;
+        self.last_released_s = earlier.last_released_s;
+    }
+
     /// A re-orderer that holds records for up to `window_s` of newer data.
     ///
     /// # Errors

@@ -61,7 +61,7 @@ pub fn implausible_time(time_s: f64) -> Option<String> {
 /// assert!(gate.check(3.0).is_ok());
 /// assert_eq!(gate.newest_s(), Some(3.0));
 /// ```
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TimeGate {
     max_jump_s: f64,
     newest_s: Option<f64>,
@@ -70,6 +70,13 @@ pub struct TimeGate {
 }
 
 impl TimeGate {
+    /// Continues from `earlier`'s newest time and run of jumps (a tracker's checkpoint), with
+    /// this gate's maximum jump.
+    pub(crate) fn resume(&mut self, earlier: TimeGate) {
+        self.newest_s = earlier.newest_s;
+        self.jumped = earlier.jumped;
+    }
+
     /// A gate allowing jumps of up to `max_jump_s` ahead of the newest accepted record.
     ///
     /// # Errors

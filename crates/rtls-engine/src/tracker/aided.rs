@@ -22,7 +22,7 @@ use crate::error::Result;
 
 /// An accelerometer sample a track holds: the control input of its next predictions (for at
 /// most [`super::track::ACCELERATION_HOLD_S`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(super) struct HeldAcceleration {
     /// The sample's time, s.
     pub(super) time_s: f64,

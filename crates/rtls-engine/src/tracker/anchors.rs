@@ -49,7 +49,7 @@ impl Anchor {
 }
 
 /// A resolved anchor measurement: anchor indices, bias-corrected value and its variance.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) enum AnchorReading {
     /// Bias- and scale-corrected range `(r − b) / s` (m), variance m², to the anchor at `position_m` (the
     /// reader's site position, or the record's for a moving anchor).

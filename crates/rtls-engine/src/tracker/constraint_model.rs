@@ -101,7 +101,7 @@ impl Constraints {
 pub(super) const SHADOW_STEP_M: f64 = 0.5;
 
 /// A track's open epoch: when it opened and which readers heard the tag in it.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Hearing {
     pub(super) open_since_s: Option<f64>,
     pub(super) heard: Vec<usize>,

@@ -29,14 +29,14 @@ use super::track::{rejected, Shared, Track};
 #[derive(Debug, Clone)]
 pub(crate) struct Core<const N: usize> {
     pub(crate) shared: Shared,
-    index: HashMap<Arc<str>, usize>,
-    tracks: Vec<Track<N>>,
+    pub(super) index: HashMap<Arc<str>, usize>,
+    pub(super) tracks: Vec<Track<N>>,
     /// Each track's recent inputs and copies, for re-filtering a late record (empty and
     /// unused when `rewind_horizon_s` is 0); indexed as `tracks`.
-    histories: Vec<History<N>>,
+    pub(super) histories: Vec<History<N>>,
     /// Tracks given a record since the last [`Self::report_pending`] (indices, may repeat):
     /// the only ones that can have an update pending, so a report does not walk every track.
-    touched: Vec<usize>,
+    pub(super) touched: Vec<usize>,
     pub(crate) monitor: ZoneMonitor,
 }
 

@@ -9,7 +9,7 @@ use rtls_positioning::gnss::ClockPrior;
 use crate::site::GnssSettings;
 
 /// A buffered pseudorange: its time, satellite id, position and value as received.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(super) struct Reading {
     pub(super) time_s: f64,
     pub(super) satellite: Arc<str>,
@@ -19,7 +19,7 @@ pub(super) struct Reading {
 }
 
 /// A track's GNSS state: the open epoch and the receiver clock filter.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct GnssTrack {
     pub(super) epoch: Vec<Reading>,
     pub(super) clock: Option<ReceiverClock>,
@@ -33,7 +33,7 @@ impl GnssTrack {
 }
 
 /// The receiver clock filter: `[b, ḃ]` (m, m/s) with its covariance at `time_s`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(super) struct ReceiverClock {
     pub(super) mean: Vector2<f64>,
     pub(super) covariance: Matrix2<f64>,

@@ -11,7 +11,7 @@ use crate::error::Result;
 
 /// `X = cov(eₓ, e_h)` (`N × 3`) at `time_s`, the position filter's side; the channel's side is
 /// always its current state.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct HeadingCross<const N: usize> {
     time_s: f64,
     cross: SMatrix<f64, N, 3>,

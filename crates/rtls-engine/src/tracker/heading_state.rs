@@ -31,7 +31,7 @@ pub(super) const GRAVITY_TIME_CONSTANT_S: f64 = 1.0;
 pub(super) const GRAVITY_MPS2: f64 = 9.806_65;
 
 /// A track's heading channel and what it holds between records.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub(crate) struct HeadingChannel {
     pub(super) state: Option<HeadingState>,
     /// The last yaw rate `(t, ω rad/s, σ_ω² (rad/s)²)`, held until the next.
@@ -63,7 +63,7 @@ pub(crate) struct HeadingChannel {
 }
 
 /// A track position after a position update, for the course chord.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub(super) struct CoursePoint {
     pub(super) time_s: f64,
     pub(super) position_m: [f64; 2],

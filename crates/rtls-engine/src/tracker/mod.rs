@@ -139,6 +139,7 @@ mod alarms;
 mod anchors;
 mod anonymous;
 mod bounds;
+mod checkpoint;
 mod consider;
 mod constraint_model;
 mod constraints;
@@ -166,6 +167,8 @@ mod tests;
 #[cfg(test)]
 mod tests_anonymous;
 #[cfg(test)]
+mod tests_checkpoint;
+#[cfg(test)]
 mod tests_constraints;
 #[cfg(test)]
 mod tests_gnss;
@@ -187,6 +190,7 @@ mod track;
 mod update;
 
 pub use anonymous::ANONYMOUS_TAG;
+pub use checkpoint::TrackerState;
 pub use noise::{InnovationTotals, Innovations, NoiseClass};
 pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
 pub use range_bias::{AnchorOffsetSummary, RangeOffset};

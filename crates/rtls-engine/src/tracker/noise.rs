@@ -9,7 +9,7 @@ use rtls_estimation::filter::Updated;
 
 /// Measurement classes that keep separate noise scales: their errors come from different
 /// physics, so one being worse than stated says nothing about the others.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum NoiseClass {
     /// Tightly coupled ranges.
     Range,
@@ -66,7 +66,7 @@ impl NoiseClass {
 
 /// Where a measurement comes from, for its error correlation in time: one reader's readings
 /// of one class, or a whole class of component measurements (fixes, velocities).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub(super) struct Source {
     pub(super) class: NoiseClass,
     /// The reader's index for anchor readings; `usize::MAX` for a class-wide source.
@@ -75,7 +75,7 @@ pub(super) struct Source {
 
 /// A track's noise scales, one per [`NoiseClass`], the time of each class's last update and of
 /// each source's last measurement (a value the track owns).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct NoiseScales {
     scales: [NoiseScale; NoiseClass::COUNT],
     last_update_s: [f64; NoiseClass::COUNT],
@@ -84,7 +84,7 @@ pub(crate) struct NoiseScales {
 }
 
 /// One source's time of its last measurement, s, and its innovations' correlation.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 struct SourceHistory {
     source: Source,
     last_s: f64,

@@ -9,7 +9,7 @@ use crate::lifecycle::{LifecycleEvent, TrackStatus};
 use crate::zones::ZoneEvent;
 
 /// What produced a track update.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum UpdateSource {
     /// A position fix: solved from an epoch's anchor measurements (fix-then-filter), from a
     /// fingerprint scan, or a `fix` record.

@@ -10,7 +10,7 @@ const ROUND_WINDOW_S: f64 = 2.0;
 
 /// A reading's part in a learning round: what [`BiasObservation`] needs but its variance, which
 /// [`RangeBiases`] sets from the time since its last round.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(super) struct RoundReading {
     /// `ν = r − b̂ − h(x)`: the offset-corrected range against the track's position, m.
     pub(super) innovation_m: f64,
@@ -21,7 +21,7 @@ pub(super) struct RoundReading {
 }
 
 /// One reading of the open round.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 struct Pending {
     anchor: usize,
     reading: RoundReading,
@@ -29,7 +29,7 @@ struct Pending {
 }
 
 /// Each anchor's offset as this track has learnt it, and the readings of the open round.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct RangeBiases {
     biases: BiasVector,
     /// Slot in `biases` of each anchor index; `None` before the anchor's first learning round.

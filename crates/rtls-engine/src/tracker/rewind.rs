@@ -16,7 +16,7 @@ use super::track::Track;
 use crate::record::Measurement;
 
 /// What a track was given.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(super) enum Input {
     /// A record of the tag.
     Record(Measurement),
@@ -26,7 +26,7 @@ pub(super) enum Input {
 
 /// The track before the input at `input_index` (counted since the track began), whose time is
 /// `time_s`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Snapshot<const N: usize> {
     input_index: u64,
     time_s: f64,
@@ -34,7 +34,7 @@ struct Snapshot<const N: usize> {
 }
 
 /// A track's inputs over the horizon and the copies of it to rewind to.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct History<const N: usize> {
     /// `(time, input)` in time order; the first has index `first_index`.
     inputs: VecDeque<(f64, Input)>,

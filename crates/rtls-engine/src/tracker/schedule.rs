@@ -64,7 +64,7 @@ pub(crate) struct Scheduling {
 }
 
 /// A track's nodes for the next cycle: its task nodes and the firing set last reported.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct TrackSchedule {
     task_nodes: Vec<usize>,
     /// The task-node and monitor sets last reported, ascending.

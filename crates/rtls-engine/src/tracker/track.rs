@@ -83,7 +83,7 @@ pub(crate) struct Shared {
 }
 
 /// One tag's track: its state (a value it owns), lifecycle and pending work.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Track<const N: usize> {
     pub(super) tag: Arc<str>,
     /// The filtered state; `None` until the first fix.

@@ -15,7 +15,7 @@
 //!   combined with the slab distance, exact outside and inside).
 
 mod geometry;
-mod monitor;
+pub(crate) mod monitor;
 mod muster;
 
 pub use monitor::{AntiFlap, ZoneEvent, ZoneMonitor};

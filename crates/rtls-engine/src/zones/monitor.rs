@@ -131,7 +131,7 @@ impl ZoneEvent {
 }
 
 /// One tag's state with respect to one zone.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 struct Membership {
     /// Confirmed inside.
     inside: bool,
@@ -144,10 +144,17 @@ struct Membership {
     next_dwell_s: f64,
 }
 
-#[derive(Debug, Clone)]
-struct TagState {
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct TagState {
     last_time_s: f64,
     zones: Vec<Membership>,
+}
+
+/// Every tag's zone memberships, with the zone ids they are indexed by.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct Memberships {
+    zone_ids: Vec<String>,
+    tags: BTreeMap<String, TagState>,
 }
 
 /// Turns tag positions into zone events and keeps per-zone head counts.
@@ -304,6 +311,48 @@ impl ZoneMonitor {
             .map(|j| self.tags.values().filter(|s| s.zones[j].inside).count())
             .collect();
         self.zones = fresh.zones;
+        Ok(())
+    }
+
+    /// Every tag's memberships, with the ids of the zones they refer to (a tracker's
+    /// checkpoint, [`crate::tracker::TrackerState`]).
+    pub(crate) fn memberships(&self) -> Memberships {
+        Memberships {
+            zone_ids: self.zones.iter().map(|zone| zone.id.clone()).collect(),
+            tags: self.tags.clone(),
+        }
+    }
+
+    /// Takes the memberships of a checkpoint: each zone's by its id; a zone the checkpoint did
+    /// not know starts empty for every tag, one it knew and this monitor does not is dropped.
+    ///
+    /// # Errors
+    /// [`EngineError::Checkpoint`] when a tag's entry does not have one membership per zone of
+    /// the checkpoint.
+    pub(crate) fn restore_memberships(&mut self, memberships: Memberships) -> Result<()> {
+        let old_index: Vec<Option<usize>> = self
+            .zones
+            .iter()
+            .map(|zone| memberships.zone_ids.iter().position(|id| *id == zone.id))
+            .collect();
+        let mut tags = memberships.tags;
+        for state in tags.values_mut() {
+            if state.zones.len() != memberships.zone_ids.len() {
+                return Err(EngineError::Checkpoint(format!(
+                    "a tag has {} zone memberships for {} zones",
+                    state.zones.len(),
+                    memberships.zone_ids.len()
+                )));
+            }
+            state.zones = old_index
+                .iter()
+                .map(|old| old.map_or_else(Membership::default, |i| state.zones[i]))
+                .collect();
+        }
+        self.counts = (0..self.zones.len())
+            .map(|j| tags.values().filter(|s| s.zones[j].inside).count())
+            .collect();
+        self.tags = tags;
         Ok(())
     }
 

@@ -75,6 +75,7 @@ pub struct ErrorCorrelation {
 
 /// One source's running sums (a value its track owns).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CorrelationEstimate {
     /// The previous measurement's time, s, and its normalised innovation (first two components).
     previous: Option<(f64, [f64; 2])>,

@@ -70,6 +70,7 @@ pub struct HeadingModel {
 
 /// The state of a [`HeadingModel`]: `[ψ, b_g, δ]` with its covariance and time.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct HeadingState {
     state: Gaussian<3>,
 }

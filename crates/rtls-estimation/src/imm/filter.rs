@@ -13,6 +13,7 @@ use crate::error::{EstimationError, Result};
 /// The IMM state a track owns: one estimate per mode (in the mode's layout), the mode
 /// probabilities `μⱼ` and the time stamp.
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ImmState {
     estimates: Vec<ModeEstimate>,
     probabilities: Vec<f64>,

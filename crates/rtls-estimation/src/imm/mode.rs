@@ -15,6 +15,7 @@ use crate::measurement::{ComponentSelection, NoiseCovariance};
 
 /// A mode-conditioned estimate in its mode's [`StateLayout`] (the size varies between modes).
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ModeEstimate {
     /// Mean, one entry per layout component.
     pub mean: DVector<f64>,
