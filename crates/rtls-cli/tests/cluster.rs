@@ -35,6 +35,8 @@ async fn a_cluster_loses_no_acknowledged_record_when_a_node_and_a_nats_server_di
     };
     let dir = common::temp_dir("cluster", "kill");
     std::fs::write(dir.join("site.toml"), common::cluster::SITE).unwrap();
+    // a checkpoint a second, so the dead node's partitions have one however soon it dies
+    std::fs::write(dir.join("server.toml"), "[cluster]\ncheckpoint_s = 1.0\n").unwrap();
     let schema = common::cluster::Schema::new(&postgres_url, "cluster");
     let db = schema.db.clone();
 
@@ -125,6 +127,12 @@ async fn a_cluster_loses_no_acknowledged_record_when_a_node_and_a_nats_server_di
         );
         tokio::time::sleep(Duration::from_millis(100)).await;
     };
+    // the dead node's partitions continued from its checkpoints, not from their priors
+    let (mut restored, mut refused) = (0.0, 0.0);
+    for node in &nodes[1..] {
+        restored += metric(&client, &node.http, "rtls_cluster_resumes_total{outcome=\"restored\"}").await;
+        refused += metric(&client, &node.http, "rtls_cluster_resumes_total{outcome=\"refused\"}").await;
+    }
     tokio::time::sleep(Duration::from_secs(4)).await;
     let nats_killed_at = unix_s();
     let _ = nats[1].0.kill();
@@ -205,6 +213,7 @@ async fn a_cluster_loses_no_acknowledged_record_when_a_node_and_a_nats_server_di
             "acknowledged": acked.len(), "refused": failed, "stored_rows": rows, "lost": lost,
             "duplicates": rows.saturating_sub(acked.len()),
             "partitions_resumed_after_s": resumed, "owned_just_after_kill": takeovers_before,
+            "restored_from_checkpoints": restored, "checkpoints_refused": refused,
             "longest_track_gap_after_node_kill_s": node_gap, "longest_track_gap_after_nats_kill_s": nats_gap, "tags_with_history": per_tag.len(), "tags_served": served,
         })
     );
@@ -215,6 +224,10 @@ async fn a_cluster_loses_no_acknowledged_record_when_a_node_and_a_nats_server_di
     );
     assert_eq!(lost, 0, "acknowledged records missing from the history");
     assert!(resumed <= 5.0, "partitions resumed {resumed:.1} s after the node died");
+    assert!(
+        restored >= 1.0 && refused == 0.0,
+        "takeovers restored from a checkpoint: {restored}, checkpoints refused: {refused}"
+    );
     assert_eq!(per_tag.len(), TAGS, "tags with a history after the node died");
     assert!(
         node_gap <= 5.0,

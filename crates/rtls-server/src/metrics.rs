@@ -89,6 +89,14 @@ pub struct Metrics {
     pub cluster_releases: Counter,
     /// Cluster: ingest-stream messages whose records do not parse (acknowledged, not stored).
     pub cluster_records_unparseable: Counter,
+    /// Cluster: partition checkpoints by `outcome` (`written`, `failed`).
+    pub cluster_checkpoints: Family<Labels, Counter>,
+    /// Cluster: the last partition checkpoint's size, bytes.
+    pub cluster_checkpoint_bytes: Gauge,
+    /// Cluster: takeovers by how the partition's tracks resumed (`outcome`: `restored` from a
+    /// checkpoint, `warmed-up` on the last `warmup_s` without one, `refused` a checkpoint
+    /// that could not be restored, then warmed up).
+    pub cluster_resumes: Family<Labels, Counter>,
 }
 
 impl Default for Metrics {
@@ -138,6 +146,9 @@ impl Metrics {
             cluster_takeovers: Counter::default(),
             cluster_releases: Counter::default(),
             cluster_records_unparseable: Counter::default(),
+            cluster_checkpoints: Family::default(),
+            cluster_checkpoint_bytes: Gauge::default(),
+            cluster_resumes: Family::default(),
             registry: Registry::default(),
         };
         let m = &metrics;
@@ -290,6 +301,21 @@ impl Metrics {
             "cluster_records_unparseable",
             "Cluster: ingest-stream records that do not parse (acknowledged, not stored)",
             m.cluster_records_unparseable.clone(),
+        );
+        registry.register(
+            "cluster_checkpoints",
+            "Cluster: partition checkpoints stored (outcome written) or not (failed)",
+            m.cluster_checkpoints.clone(),
+        );
+        registry.register(
+            "cluster_checkpoint_bytes",
+            "Cluster: size of the last partition checkpoint, bytes",
+            m.cluster_checkpoint_bytes.clone(),
+        );
+        registry.register(
+            "cluster_resumes",
+            "Cluster: takeovers by how the tracks resumed (restored, warmed-up, refused)",
+            m.cluster_resumes.clone(),
         );
         Self { registry, ..metrics }
     }

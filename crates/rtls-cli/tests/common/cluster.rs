@@ -170,6 +170,9 @@ pub fn start_node(dir: &Path, index: usize, nats: &[String], db: &str) -> Node {
         .arg("--site")
         .arg(dir.join("site.toml"))
         .args(["--http", "127.0.0.1:0", "--no-mqtt"]);
+    if dir.join("server.toml").exists() {
+        command.arg("--config").arg(dir.join("server.toml"));
+    }
     if !nats.is_empty() {
         command
             .args(["--cluster", &nats.join(",")])

@@ -8,7 +8,7 @@ use futures_util::{FutureExt, StreamExt};
 use rtls_engine::record::parse_json_line;
 use tokio::sync::watch;
 
-use super::{cluster_error, message_origin, Cluster, ClusterError, INGEST_SUBJECT};
+use super::{checkpoints, cluster_error, message_origin, Cluster, ClusterError, INGEST_SUBJECT};
 use crate::pipeline::Pipeline;
 use crate::sink::IngestError;
 
@@ -75,10 +75,9 @@ pub async fn run(
     //    the partition's consumers is stored
     let previous = previous_consumers(&stream, partition).await?;
     let floor = previous.iter().map(|(_, floor)| *floor).max();
-    // 2. the tracks' state from the records before the floor
-    if let Some(floor) = floor.filter(|&f| f > 0) {
-        warm_up(&cluster, &pipeline, partition, &subject, floor).await?;
-    }
+    // 2. the tracks' state: the newest checkpoint and the records after it up to the floor,
+    //    or, without one, the records of the last `warmup_s` before the floor
+    let floor = resume(&cluster, &pipeline, partition, &subject, floor).await?;
     // 3. a consumer of this takeover's own, delivering from the floor on at once: the old
     //    one's unacknowledged messages would wait for ACK_WAIT on a dead owner, and a stale
     //    owner's late acknowledgements must not land on the new consumer
@@ -126,6 +125,7 @@ pub async fn run(
         .messages()
         .await
         .map_err(|e| cluster_error(&format!("reading from {name}"), e))?;
+    let mut checkpointing = Checkpointing::new(&cluster, partition, floor.unwrap_or(0));
     while !*stop.borrow() {
         // the first message waits; those already delivered join it
         let first = tokio::select! {
@@ -179,29 +179,229 @@ pub async fn run(
                 .await
                 .map_err(|e| cluster_error(&format!("acknowledging on {name}"), e))?;
         }
+        if let Some(sequence) = messages.last().and_then(|m| m.info().ok()).map(|i| i.stream_sequence) {
+            checkpointing.stored(sequence, &pipeline);
+        }
     }
+    // the next owner starts from the state this node stops at
+    checkpointing.finish(&pipeline).await;
     Ok(())
 }
 
-/// Tracks the partition's records of the last `warmup_s` up to `floor` (inclusive) without
-/// publishing or storing anything: the new owner's tracks start where the old owner's were.
+/// The checkpoints of one owned partition: one every `checkpoint_s` while records come, at
+/// most one at a time, and a last one when the partition stops here.
+struct Checkpointing {
+    cluster: Cluster,
+    partition: usize,
+    /// The last stream sequence stored, and the last one a checkpoint was asked for at.
+    stored: u64,
+    checkpointed: u64,
+    next_due: tokio::time::Instant,
+    /// The checkpoint being taken and written (aborted if this is dropped: a checkpoint asked
+    /// for after the partition's reset would hold no tracks).
+    in_flight: Option<AbortOnDrop>,
+}
+
+/// A task aborted when its handle is dropped.
+struct AbortOnDrop(tokio::task::JoinHandle<()>);
+
+impl Drop for AbortOnDrop {
+    fn drop(&mut self) {
+        self.0.abort();
+    }
+}
+
+impl Checkpointing {
+    fn new(cluster: &Cluster, partition: usize, resumed_after: u64) -> Self {
+        Self {
+            cluster: cluster.clone(),
+            partition,
+            stored: resumed_after,
+            checkpointed: resumed_after,
+            next_due: tokio::time::Instant::now() + period(cluster),
+            in_flight: None,
+        }
+    }
+
+    /// Records up to `sequence` are stored (and on their way to the partition): a checkpoint
+    /// is taken if one is due and none is being taken.
+    fn stored(&mut self, sequence: u64, pipeline: &Pipeline) {
+        self.stored = self.stored.max(sequence);
+        let idle = self.in_flight.as_ref().is_none_or(|task| task.0.is_finished());
+        if self.cluster.settings.checkpoint_s > 0.0 && idle && tokio::time::Instant::now() >= self.next_due {
+            self.next_due = tokio::time::Instant::now() + period(&self.cluster);
+            self.checkpointed = self.stored;
+            let (cluster, pipeline, partition, sequence) =
+                (self.cluster.clone(), pipeline.clone(), self.partition, self.stored);
+            self.in_flight = Some(AbortOnDrop(tokio::spawn(async move {
+                take(&cluster, &pipeline, partition, sequence).await;
+            })));
+        }
+    }
+
+    /// Waits for the checkpoint being taken, then takes one of the last records stored if
+    /// that one does not hold them.
+    async fn finish(mut self, pipeline: &Pipeline) {
+        if let Some(mut task) = self.in_flight.take() {
+            let _ = (&mut task.0).await;
+        }
+        if self.cluster.settings.checkpoint_s > 0.0 && self.stored > self.checkpointed {
+            take(&self.cluster, pipeline, self.partition, self.stored).await;
+        }
+    }
+}
+
+fn period(cluster: &Cluster) -> Duration {
+    Duration::from_secs_f64(cluster.settings.checkpoint_s.max(0.1))
+}
+
+/// Takes partition `partition`'s state, which holds its records up to `sequence`, and stores
+/// it; counted in `rtls_cluster_checkpoints_total{outcome}`, a failure logged.
+async fn take(cluster: &Cluster, pipeline: &Pipeline, partition: usize, sequence: u64) {
+    let written = async {
+        let state = pipeline
+            .checkpoint_partition(partition)
+            .await
+            .map_err(|reason| ClusterError(format!("taking the state: {reason}")))?;
+        checkpoints::write(&cluster.checkpoints, partition, sequence, &state, &cluster.node).await?;
+        Ok::<usize, ClusterError>(state.len())
+    };
+    let metrics = pipeline.metrics();
+    let outcome = match written.await {
+        Ok(bytes) => {
+            metrics
+                .cluster_checkpoint_bytes
+                .set(i64::try_from(bytes).unwrap_or(i64::MAX));
+            tracing::debug!(partition, sequence, bytes, "checkpoint written");
+            "written"
+        }
+        Err(e) => {
+            tracing::warn!(partition, sequence, error = %e, "checkpoint not written");
+            "failed"
+        }
+    };
+    metrics
+        .cluster_checkpoints
+        .get_or_create(&vec![("outcome".to_owned(), outcome.to_owned())])
+        .inc();
+}
+
+/// Rebuilds the partition's tracks on this node before it consumes: from the newest
+/// checkpoint (when there is one no older than `checkpoint_max_age_s`, of this site and
+/// build) and the records after it up to the ack floor, or else from the records of the last
+/// `warmup_s` up to the floor. Returns the sequence after which the new consumer starts: the
+/// floor, or the checkpoint's sequence when an owner's acknowledgements were lost after it
+/// (every record the checkpoint holds is stored).
+///
+/// # Errors
+/// [`ClusterError`] when the stream cannot be read.
+async fn resume(
+    cluster: &Cluster,
+    pipeline: &Pipeline,
+    partition: usize,
+    subject: &str,
+    floor: Option<u64>,
+) -> Result<Option<u64>, ClusterError> {
+    let settings = &cluster.settings;
+    let outcome = |what: &str| {
+        pipeline
+            .metrics()
+            .cluster_resumes
+            .get_or_create(&vec![("outcome".to_owned(), what.to_owned())])
+            .inc();
+    };
+    let checkpoint = if settings.checkpoint_s > 0.0 {
+        checkpoints::read(&cluster.checkpoints, partition)
+            .await
+            .unwrap_or_else(|e| {
+                tracing::warn!(partition, error = %e, "no usable checkpoint; warming up instead");
+                None
+            })
+    } else {
+        None
+    };
+    if let Some(checkpoint) = checkpoint {
+        let age_s = (crate::pipeline::unix_ms() - checkpoint.taken_ms) as f64 / 1000.0;
+        if age_s > settings.checkpoint_max_age_s {
+            tracing::info!(
+                partition,
+                age_s,
+                "the checkpoint is too old to restore; warming up instead"
+            );
+        } else {
+            match pipeline.restore_partition(partition, checkpoint.state).await {
+                Ok(tracks) => {
+                    let resume_after = floor.unwrap_or(0).max(checkpoint.sequence);
+                    warm_up(
+                        cluster,
+                        pipeline,
+                        partition,
+                        subject,
+                        WarmUpFrom::After(checkpoint.sequence),
+                        resume_after,
+                    )
+                    .await?;
+                    outcome("restored");
+                    tracing::info!(partition, tracks, sequence = checkpoint.sequence, from = %checkpoint.node,
+                        age_s, "partition restored from its checkpoint");
+                    return Ok(Some(resume_after));
+                }
+                Err(reason) => {
+                    outcome("refused");
+                    tracing::warn!(partition, reason, "the checkpoint was not restored; warming up instead");
+                }
+            }
+        }
+    }
+    if let Some(floor) = floor.filter(|&f| f > 0) {
+        warm_up(
+            cluster,
+            pipeline,
+            partition,
+            subject,
+            WarmUpFrom::RecentSeconds(settings.warmup_s),
+            floor,
+        )
+        .await?;
+        outcome("warmed-up");
+    }
+    Ok(floor)
+}
+
+/// Where a warm-up starts in the partition's stream.
+enum WarmUpFrom {
+    /// The records of the last `warmup_s` (no checkpoint).
+    RecentSeconds(f64),
+    /// The records after a checkpoint's sequence.
+    After(u64),
+}
+
+/// Tracks the partition's records from `from` up to `floor` (inclusive) without publishing or
+/// storing anything: the new owner's tracks continue where the old owner's were.
 async fn warm_up(
     cluster: &Cluster,
     pipeline: &Pipeline,
     partition: usize,
     subject: &str,
+    from: WarmUpFrom,
     floor: u64,
 ) -> Result<(), ClusterError> {
-    if cluster.settings.warmup_s <= 0.0 {
-        return Ok(());
-    }
-    let start = time::OffsetDateTime::now_utc() - time::Duration::seconds_f64(cluster.settings.warmup_s);
+    let deliver_policy = match from {
+        WarmUpFrom::RecentSeconds(seconds) if seconds <= 0.0 => return Ok(()),
+        WarmUpFrom::RecentSeconds(seconds) => DeliverPolicy::ByStartTime {
+            start_time: time::OffsetDateTime::now_utc() - time::Duration::seconds_f64(seconds),
+        },
+        WarmUpFrom::After(sequence) if sequence >= floor => return Ok(()),
+        WarmUpFrom::After(sequence) => DeliverPolicy::ByStartSequence {
+            start_sequence: sequence + 1,
+        },
+    };
     let reader = cluster
         .stream
         .create_consumer(pull::Config {
             filter_subject: subject.to_string(),
             ack_policy: AckPolicy::None,
-            deliver_policy: DeliverPolicy::ByStartTime { start_time: start },
+            deliver_policy,
             inactive_threshold: Duration::from_secs(30),
             ..Default::default()
         })

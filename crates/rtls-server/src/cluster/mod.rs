@@ -24,20 +24,23 @@
 //!   to its fair share ⌈partitions / live nodes⌉ and releases one a round while above it, so a
 //!   new node gets work and a dead node's work is shared out.
 //! - **Takeover** ([`consumer`]): the new owner reads the partition's durable consumer's ack
-//!   floor (every record at or below it is stored), replaces the consumer to deliver from the
-//!   floor on at once (not after the dead owner's acknowledgement timeout), warms the
-//!   partition's tracker up on the records of the last `warmup_s` up to the floor (tracked,
-//!   not published or stored again), then takes the records after the floor as live ones.
+//!   floor (every record at or below it is stored), restores the partition's tracker from its
+//!   newest checkpoint ([`checkpoints`]) and tracks the records after it up to the floor (or,
+//!   without a usable checkpoint, the records of the last `warmup_s`; tracked, not published
+//!   or stored again), replaces the consumer to deliver from the floor on at once (not after
+//!   the dead owner's acknowledgement timeout), then takes the records after the floor as live
+//!   ones.
 //! - **Outputs** ([`peers`]): the partition threads' outputs go to this node's subscribers and,
 //!   as [`PeerMessage`](crate::pipeline::PeerMessage)s, to `rtls.out.<node>`, which every other node applies to its own.
 //!   Zone edits and alarm acknowledgements are stored in the shared PostgreSQL and announced
 //!   the same way.
 //!
-//! A checkpoint is the consumer's ack floor plus the warm-up window: a partition that moves
-//! is rebuilt from the last `warmup_s` of its records, never replayed from the start. The
-//! tracker's own state is not serialised: a track's filter forgets its start within seconds,
-//! while learnt range offsets and heading biases start again from their priors.
+//! A checkpoint ([`checkpoints`]) is the partition tracker's state, stored every
+//! `checkpoint_s` and when the partition is given up, with the stream sequence up to which it
+//! holds the records: a partition that moves continues from it plus the records after it,
+//! never replayed from the start.
 
+pub mod checkpoints;
 pub mod consumer;
 pub mod ownership;
 pub mod peers;
@@ -102,6 +105,7 @@ pub struct Cluster {
     jetstream: jetstream::Context,
     stream: jetstream::stream::Stream,
     leases: jetstream::kv::Store,
+    checkpoints: jetstream::kv::Store,
 }
 
 impl Cluster {
@@ -165,6 +169,18 @@ impl Cluster {
             },
         )
         .await?;
+        // a checkpoint is of no use once the records after it have left the stream
+        let checkpoints = key_value(
+            &jetstream,
+            jetstream::kv::Config {
+                storage: jetstream::stream::StorageType::File,
+                ..bucket(
+                    checkpoints::CHECKPOINTS,
+                    Duration::from_secs_f64(settings.stream_max_age_h * 3600.0),
+                )
+            },
+        )
+        .await?;
         let count = settings.partitions.to_string();
         match shared.create("partitions", Bytes::from(count.clone())).await {
             Ok(_) => {}
@@ -193,6 +209,7 @@ impl Cluster {
             jetstream,
             stream,
             leases,
+            checkpoints,
         })
     }
 

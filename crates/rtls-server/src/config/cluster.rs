@@ -23,8 +23,15 @@ pub struct ClusterSection {
     /// How long a partition lease lives without renewal (s): the safety net when its owner
     /// cannot reach JetStream; longer than a JetStream leader election (4–9 s).
     pub lease_ttl_s: f64,
-    /// How much of a partition's recent records its new owner tracks again (s).
+    /// How much of a partition's recent records its new owner tracks again (s), when it has
+    /// no usable checkpoint.
     pub warmup_s: f64,
+    /// How often an owner stores each partition's tracker state in the bucket
+    /// `rtls_checkpoints` (s); 0: never (a new owner always warms up on `warmup_s`).
+    pub checkpoint_s: f64,
+    /// A checkpoint older than this (s) is not restored: the records after it would take
+    /// too long to track again, and the new owner warms up on `warmup_s` instead.
+    pub checkpoint_max_age_s: f64,
     /// How long the ingest stream keeps records (h).
     pub stream_max_age_h: f64,
 }
@@ -39,6 +46,8 @@ impl Default for ClusterSection {
             failover_s: 2.5,
             lease_ttl_s: 30.0,
             warmup_s: 30.0,
+            checkpoint_s: 5.0,
+            checkpoint_max_age_s: 300.0,
             stream_max_age_h: 24.0,
         }
     }
@@ -73,6 +82,8 @@ impl ClusterSection {
             ("failover_s", self.failover_s, 0.5),
             ("lease_ttl_s", self.lease_ttl_s, 10.0),
             ("warmup_s", self.warmup_s, 0.0),
+            ("checkpoint_s", self.checkpoint_s, 0.0),
+            ("checkpoint_max_age_s", self.checkpoint_max_age_s, 0.0),
             ("stream_max_age_h", self.stream_max_age_h, 0.01),
         ] {
             if !(value.is_finite() && value >= low) {

@@ -125,7 +125,7 @@ fn the_documented_cluster_table_parses_with_the_defaults_it_documents() {
         .join("\n");
     let config: ServerConfig = toml::from_str(&table).unwrap_or_else(|e| panic!("{e}\n{table}"));
     let keys = table.lines().filter(|l| l.contains(" = ")).count();
-    assert_eq!(keys, 8, "every key shown:\n{table}");
+    assert_eq!(keys, 10, "every key shown:\n{table}");
     assert_eq!(config.cluster.servers.len(), 3);
     assert_eq!(
         cluster::ClusterSection {

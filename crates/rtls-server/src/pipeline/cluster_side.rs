@@ -78,6 +78,43 @@ impl Pipeline {
         self.to_partition(index, PartitionInput::Reset);
     }
 
+    /// Partition `index`'s state, encoded (a cluster's checkpoint): taken after every record
+    /// already handed to the pipeline has reached the partition, so it holds each record
+    /// [`Self::take_from_stream`] stored before this call.
+    ///
+    /// # Errors
+    /// Why there is none (the server is stopping, the encoding failed).
+    pub async fn checkpoint_partition(&self, index: usize) -> Result<Vec<u8>, String> {
+        let (reply, _) = oneshot::channel();
+        let (state, answer) = oneshot::channel();
+        let sender = self.ingest_sender().map_err(|e| e.to_string())?;
+        sender
+            .send(IngestBatch {
+                records: Vec::new(),
+                rows: Vec::new(),
+                reply,
+                then: Some((index, PartitionInput::Checkpoint(state))),
+            })
+            .await
+            .map_err(|_| "the server is shutting down".to_string())?;
+        answer.await.map_err(|_| "the partition stopped".to_string())?
+    }
+
+    /// Makes partition `index` continue from an encoded checkpoint (a cluster's takeover);
+    /// answers its track count.
+    ///
+    /// # Errors
+    /// Why the checkpoint was not taken (see the partition's restore); the partition keeps
+    /// its state then.
+    pub async fn restore_partition(&self, index: usize, bytes: Vec<u8>) -> Result<usize, String> {
+        let (reply, answer) = oneshot::channel();
+        let pipeline = self.clone();
+        tokio::task::spawn_blocking(move || pipeline.to_partition(index, PartitionInput::Restore(bytes, reply)))
+            .await
+            .map_err(|e| e.to_string())?;
+        answer.await.map_err(|_| "the partition stopped".to_string())?
+    }
+
     fn to_partition(&self, index: usize, input: PartitionInput) {
         let sender = self
             .inner
@@ -132,7 +169,12 @@ impl Pipeline {
         let (reply, answer) = oneshot::channel();
         let sender = self.ingest_sender()?;
         sender
-            .send(IngestBatch { records, rows, reply })
+            .send(IngestBatch {
+                records,
+                rows,
+                reply,
+                then: None,
+            })
             .await
             .map_err(|_| IngestError::Unavailable("the server is shutting down".into()))?;
         answer

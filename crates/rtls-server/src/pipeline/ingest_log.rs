@@ -7,7 +7,7 @@ use std::sync::mpsc::SyncSender;
 use std::sync::Arc;
 
 use rtls_engine::record::{parse_json_line, Record};
-use tokio::sync::mpsc;
+use tokio::sync::{mpsc, oneshot};
 
 use super::{partition_of, quarantine, IngestBatch, Progress};
 use crate::metrics::Metrics;
@@ -26,6 +26,11 @@ pub(super) enum PartitionInput {
     WarmUp(Vec<Record>),
     /// Forget every track: the partition moved to another node.
     Reset,
+    /// Encode the partition's state (a cluster's checkpoint): it holds every record sent
+    /// to the partition before this input.
+    Checkpoint(oneshot::Sender<Result<Vec<u8>, String>>),
+    /// Continue from an encoded checkpoint (a cluster's takeover); answers the track count.
+    Restore(Vec<u8>, oneshot::Sender<Result<usize, String>>),
 }
 
 /// At most this many records are committed in one transaction.
@@ -61,7 +66,12 @@ impl IngestLogWorker {
                 }
             }
             let rows: Vec<_> = batches.iter_mut().flat_map(|b| std::mem::take(&mut b.rows)).collect();
-            let ids = match self.store.append_records(&rows) {
+            let stored = if rows.is_empty() {
+                Ok(Vec::new())
+            } else {
+                self.store.append_records(&rows)
+            };
+            let ids = match stored {
                 Ok(ids) if ids.len() == rows.len() => ids,
                 Ok(ids) => {
                     let reason = format!("the store returned {} ids for {} records", ids.len(), rows.len());
@@ -79,12 +89,20 @@ impl IngestLogWorker {
             // acknowledge first (the records are durable), then track them
             let mut ids = ids.into_iter();
             let mut records = Vec::with_capacity(rows.len());
+            let mut then = Vec::new();
             for batch in batches {
                 let count = batch.records.len();
                 records.extend(batch.records.into_iter().zip(ids.by_ref()).map(|(r, id)| (id, r)));
                 let _ = batch.reply.send(Ok(count));
+                then.extend(batch.then);
             }
             self.dispatch(records);
+            // after the records committed with them (a checkpoint holds them)
+            for (index, input) in then {
+                if let Some(partition) = self.partitions.get(index) {
+                    let _ = partition.send(input);
+                }
+            }
         }
         tracing::info!("ingest log closed");
         // dropping the partition senders lets the partitions drain and stop

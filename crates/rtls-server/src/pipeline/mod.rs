@@ -30,6 +30,7 @@ mod ingest_log;
 mod live;
 mod outputs;
 mod partition;
+mod partition_state;
 mod quarantine;
 pub mod readers;
 mod submit;
@@ -49,6 +50,7 @@ pub use admission::TimeWindow;
 pub use cluster_side::{ClusterHooks, ReplicatedLog};
 pub use fanout::PeerMessage;
 pub use live::{HubMessage, LastSeen, LiveState, TagState};
+pub use partition_state::site_fingerprint;
 pub use quarantine::QUARANTINE;
 pub use readers::{ReaderHealth, ReaderMonitor};
 pub use submit::AdapterOutcome;
@@ -164,6 +166,9 @@ struct IngestBatch {
     records: Vec<Record>,
     rows: Vec<NewRecord>,
     reply: oneshot::Sender<Result<usize, IngestError>>,
+    /// An input for a partition, sent after the batch's records (and every record before
+    /// them) were dispatched: a checkpoint then holds them.
+    then: Option<(usize, PartitionInput)>,
 }
 
 /// Progress counters shared by the threads, for the restart checkpoint.
@@ -346,6 +351,7 @@ impl Pipeline {
                 reported_lost: Default::default(),
                 source: site.name.clone().unwrap_or_else(|| "rtls".into()),
                 zones_version: 0,
+                site_fingerprint: partition_state::site_fingerprint(&site_arc),
                 track_step: config.track_step,
                 pending_events: Vec::new(),
                 last_unused_log: None,

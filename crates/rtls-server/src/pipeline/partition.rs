@@ -56,6 +56,8 @@ pub(super) struct PartitionWorker {
     pub source: String,
     /// The version of the live zone set the tracker holds.
     pub zones_version: u64,
+    /// The site's and build's fingerprint, which a checkpoint must carry to be restored.
+    pub site_fingerprint: u64,
     /// One record into the tracker ([`super::TrackStep`]).
     pub track_step: super::TrackStep,
     /// Events of the partition's own (quarantined records) waiting for the next batch.
@@ -105,6 +107,14 @@ impl PartitionWorker {
                 }
                 Ok(PartitionInput::Reset) => {
                     self.reset(&mut out);
+                    continue;
+                }
+                Ok(PartitionInput::Checkpoint(reply)) => {
+                    let _ = reply.send(self.checkpoint());
+                    continue;
+                }
+                Ok(PartitionInput::Restore(bytes, reply)) => {
+                    let _ = reply.send(self.restore(&bytes, &mut out));
                     continue;
                 }
                 Err(RecvTimeoutError::Timeout) => {}
@@ -286,7 +296,7 @@ impl PartitionWorker {
         }
     }
 
-    fn publish_occupants(&self) {
+    pub(super) fn publish_occupants(&self) {
         let occupants = self
             .fanout
             .live

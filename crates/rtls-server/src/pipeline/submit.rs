@@ -111,6 +111,7 @@ impl Pipeline {
             records: records.into_iter().map(|(_, r)| r).collect(),
             rows,
             reply,
+            then: None,
         };
         let sender = self.ingest_sender()?;
         let started = std::time::Instant::now();
