@@ -14,6 +14,7 @@
 
 use rtls_engine::lifecycle::LifecycleEvent;
 use rtls_engine::record::{Measurement, Record};
+use rtls_engine::site::FrameSettings;
 use rtls_engine::tracker::{status_name, Event, TrackUpdate};
 use rtls_engine::zones::{Shape, Zone as SiteZone, ZoneEvent, ZoneKind};
 use serde_json::{json, Value};
@@ -362,13 +363,61 @@ pub fn extension_payload(event: &Event, mut value: Value) -> Result<(Topic, Valu
     Ok((topic, value))
 }
 
+/// A pushed Location in the site's local metres: as it is in `local` (or without `crs`); in
+/// `EPSG:4326` its position `[longitude, latitude(, height)]` (degrees, m above the WGS-84
+/// ellipsoid; the frame origin's height when absent) is taken to the site frame through the
+/// site's `[frame]` georeference ([`FrameSettings::site_of_wgs84`]) and `crs` becomes `local`.
+/// `accuracy` is a radius in metres in either CRS and stays as it is.
+///
+/// # Errors
+/// [`ServerError::InvalidField`] (`crs`, with `index`) for another CRS, for `EPSG:4326` on a site
+/// without a `[frame]`, and (`position`) for coordinates that are not a longitude and latitude.
+pub fn location_in_site(location: &Location, index: usize, frame: Option<&FrameSettings>) -> Result<Location> {
+    let err = |field: &str, reason: String| ServerError::InvalidField {
+        index,
+        field: field.into(),
+        reason,
+    };
+    match location.crs.as_deref() {
+        None | Some("local") => Ok(location.clone()),
+        Some("EPSG:4326") => {
+            let frame = frame.ok_or_else(|| {
+                err(
+                    "crs",
+                    "the site has no [frame] origin to place EPSG:4326 coordinates: send site coordinates with crs \"local\""
+                        .into(),
+                )
+            })?;
+            let coordinates = &location.position.coordinates;
+            let (lon, lat) = match coordinates.as_slice() {
+                [lon, lat] | [lon, lat, _] if lon.abs() <= 180.0 && lat.abs() <= 90.0 => (*lon, *lat),
+                _ => {
+                    return Err(err(
+                        "position",
+                        format!("{coordinates:?} is not [longitude, latitude(, height)] in degrees"),
+                    ))
+                }
+            };
+            let height_m = coordinates.get(2).copied().unwrap_or(frame.origin.height_m);
+            let site = frame
+                .site_of_wgs84([lon, lat, height_m])
+                .ok_or_else(|| err("position", format!("{coordinates:?} has no place in the site frame")))?;
+            let mut local = location.clone();
+            local.position.coordinates = site[..coordinates.len()].to_vec();
+            local.crs = Some("local".into());
+            Ok(local)
+        }
+        Some(other) => Err(err("crs", format!("`{other}` is not one of local, EPSG:4326"))),
+    }
+}
+
 /// An ingested Location as an engine record: `Measurement::Fix` with the position and the
 /// covariance `accuracy² I` (`default_accuracy_m` when the location has none), the tag
 /// `provider_id`, the time `timestamp_generated` (else `timestamp_sent`, else `received_s`).
 ///
 /// # Errors
-/// [`ServerError::InvalidField`] (with `index`) for a non-local `crs` (geographic coordinates
-/// need the zone's ground control points, issue 8) or a non-positive accuracy.
+/// [`ServerError::InvalidField`] (with `index`) for a non-local `crs` (take the location to the
+/// site frame first: [`location_in_site`]) or a non-positive accuracy.
 pub fn record_from_location(
     location: &Location,
     index: usize,
@@ -383,7 +432,7 @@ pub fn record_from_location(
     if let Some(crs) = location.crs.as_deref().filter(|c| *c != "local") {
         return Err(err(
             "crs",
-            format!("`{crs}` is not supported yet: send site coordinates with crs \"local\""),
+            format!("`{crs}`: the location is to be taken to the site frame first"),
         ));
     }
     let accuracy = location.accuracy.unwrap_or(default_accuracy_m);

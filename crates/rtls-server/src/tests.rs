@@ -10,7 +10,7 @@ use serde_json::{json, Value};
 
 use crate::convert::{
     accuracy_m, course_deg, extension_message, fence_event_from_zone_event, fence_from_zone, location_from_update,
-    record_from_location, uuid_for, ZoneEventOut,
+    location_in_site, record_from_location, uuid_for, ZoneEventOut,
 };
 use crate::omlox::ingest::parse_locations;
 use crate::omlox::time::{format_timestamp, parse_timestamp};
@@ -321,6 +321,7 @@ fn trackables_providers_and_zones_match_schema() {
         exit_delay: None,
         radius: Some(0.5),
         properties: None,
+        locating_rules: None,
     };
     assert_valid("Trackable", &serde_json::to_value(&trackable).unwrap(), |_| {});
     let provider = LocationProvider {
@@ -415,6 +416,45 @@ fn ingest_errors_name_index_and_field() {
 }
 
 #[test]
+fn a_wgs84_location_is_taken_to_the_site_frame_through_its_georeference() {
+    let frame = rtls_engine::site::FrameSettings {
+        origin: rtls_engine::site::GeodeticOrigin {
+            latitude_deg: 47.3769,
+            longitude_deg: 8.5417,
+            height_m: 455.0,
+        },
+        x_axis_bearing_deg: 90.0,
+    };
+    let mut location = parse_locations(&json!([good("t1")]).to_string()).unwrap().remove(0);
+    // site (12, -7) in WGS-84, as a provider with a GNSS receiver would send it
+    let [lon, lat, _] = frame.wgs84_of([12.0, -7.0, 0.0]).unwrap();
+    location.position.coordinates = vec![lon, lat];
+    location.crs = Some("EPSG:4326".into());
+    let local = location_in_site(&location, 0, Some(&frame)).unwrap();
+    assert_eq!(local.crs.as_deref(), Some("local"));
+    let [x, y] = local.position.coordinates[..] else {
+        panic!("{local:?}")
+    };
+    assert!((x - 12.0).abs() < 1e-6 && (y + 7.0).abs() < 1e-6, "{x} {y}");
+    assert_eq!(local.accuracy, location.accuracy);
+    // a local location is left as it is
+    let mut site_metres = location.clone();
+    site_metres.crs = None;
+    assert_eq!(location_in_site(&site_metres, 0, Some(&frame)).unwrap(), site_metres);
+    // no georeference, another CRS, coordinates that are no longitude and latitude
+    let message = location_in_site(&location, 2, None).unwrap_err().to_string();
+    assert!(message.starts_with("[2].crs: the site has no [frame]"), "{message}");
+    let mut other = location.clone();
+    other.crs = Some("EPSG:25832".into());
+    let message = location_in_site(&other, 0, Some(&frame)).unwrap_err().to_string();
+    assert!(message.contains("not one of local, EPSG:4326"), "{message}");
+    let mut off_earth = location.clone();
+    off_earth.position.coordinates = vec![8.5, 95.0];
+    let message = location_in_site(&off_earth, 0, Some(&frame)).unwrap_err().to_string();
+    assert!(message.starts_with("[0].position:"), "{message}");
+}
+
+#[test]
 fn ingested_location_becomes_a_fix_record() {
     let locations = parse_locations(&json!([good("t1")]).to_string()).unwrap();
     let record = record_from_location(&locations[0], 0, 1.0, 99.0).unwrap();
@@ -430,7 +470,7 @@ fn ingested_location_becomes_a_fix_record() {
     geographic.crs = Some("EPSG:4326".into());
     let message = record_from_location(&geographic, 3, 1.0, 0.0).unwrap_err().to_string();
     assert!(
-        message.starts_with("[3].crs: `EPSG:4326` is not supported"),
+        message.starts_with("[3].crs: `EPSG:4326`: the location is to be taken to the site frame first"),
         "{message}"
     );
     let mut untimed = locations[0].clone();

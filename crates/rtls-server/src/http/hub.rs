@@ -16,7 +16,7 @@ use super::location_crs::{in_frame, requested_frame, CrsQuery};
 use super::trackable_sync::refresh_trackables;
 use super::{parse_json, same_as_path, ApiError, ApiResult, AppState};
 use crate::auth::{Access, Principal};
-use crate::convert::record_from_location;
+use crate::convert::{location_in_site, record_from_location};
 use crate::omlox::ingest::parse_locations;
 use crate::omlox::{Location, LocationProvider, Trackable};
 use crate::pipeline::unix_s;
@@ -51,6 +51,12 @@ pub(super) async fn put_provider_location(
 ) -> ApiResult<StatusCode> {
     state.authorize(&headers, Access::Write)?;
     let text = utf8(&body)?;
+    if text.trim().is_empty() {
+        return Err(ApiError::new(
+            StatusCode::BAD_REQUEST,
+            "request body: a Location is required",
+        ));
+    }
     let locations = parse_locations(&format!("[{text}]")).map_err(server_error)?;
     for location in &locations {
         same_as_path("provider_id", &location.provider_id, &provider_id)?;
@@ -60,6 +66,13 @@ pub(super) async fn put_provider_location(
 
 pub(super) async fn ingest_locations(state: &AppState, locations: &[Location]) -> ApiResult<StatusCode> {
     let received_s = unix_s();
+    // EPSG:4326 positions in site metres: what is tracked, stored and pushed on
+    let locations = locations
+        .iter()
+        .enumerate()
+        .map(|(index, location)| location_in_site(location, index, state.site.frame.as_ref()))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(server_error)?;
     let records = locations
         .iter()
         .enumerate()
