@@ -125,6 +125,7 @@ pub fn crew(miners: usize) -> Vec<Trackable> {
                 exit_delay: None,
                 radius: None,
                 properties: None,
+                locating_rules: None,
             }
         })
         .collect()

@@ -43,6 +43,7 @@ async fn start(name: &str, partitions: usize) -> Running {
         exit_delay: None,
         radius: Some(1.0),
         properties: Some(json!({"fleet": "north"}).as_object().unwrap().clone()),
+        locating_rules: None,
     };
     common::serve_on_loopback(ServeOptions {
         site,

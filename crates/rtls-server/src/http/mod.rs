@@ -19,6 +19,7 @@ mod ops;
 pub mod plans;
 pub mod positions;
 mod proximity;
+mod query_flags;
 pub mod rate;
 mod relations;
 mod sensors;
@@ -394,6 +395,7 @@ pub fn router(state: AppState) -> Router {
         .fallback(unknown_route)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
+        .layer(axum::middleware::from_fn(query_flags::check_boolean_parameters))
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),
             authorize_writes_first,

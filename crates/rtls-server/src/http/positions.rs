@@ -126,7 +126,9 @@ mod tests {
             "properties": { "rtls:covariance_m2": [0.1, 0.2, 0.3, 0.2, 0.5, 0.6, 0.3, 0.6, 0.9],
                             "rtls:status": "coasting", "rtls:predicted": true },
         }));
-        let no_position = location(json!({ "position": { "type": "Point", "coordinates": [] } }));
+        // a location built without a position (deserialising refuses one)
+        let mut no_position = location(json!({ "position": { "type": "Point", "coordinates": [0.0, 0.0] } }));
+        no_position.position.coordinates.clear();
         columns.push("a", 10.00049, &planar);
         columns.push("b", 11.0, &spatial);
         columns.push("no position", 12.0, &no_position);

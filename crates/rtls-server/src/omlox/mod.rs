@@ -29,6 +29,7 @@ pub type Properties = Map<String, Value>;
 #[serde(tag = "type", rename = "Point")]
 pub struct Point {
     /// `[x, y]` or `[x, y, z]` (or longitude, latitude, elevation under EPSG:4326).
+    #[serde(deserialize_with = "position")]
     pub coordinates: Vec<f64>,
 }
 
@@ -38,7 +39,33 @@ pub struct Point {
 #[serde(tag = "type", rename = "Polygon")]
 pub struct Polygon {
     /// Rings of positions `[x, y(, z)]`.
+    #[serde(deserialize_with = "rings")]
     pub coordinates: Vec<Vec<Vec<f64>>>,
+}
+
+/// A GeoJSON position: two or three numbers (the schema's `minItems` 2, `maxItems` 3).
+fn position<'de, D: serde::Deserializer<'de>>(deserializer: D) -> std::result::Result<Vec<f64>, D::Error> {
+    let position = Vec::<f64>::deserialize(deserializer)?;
+    if (2..=3).contains(&position.len()) {
+        Ok(position)
+    } else {
+        Err(serde::de::Error::custom(format!(
+            "a position has 2 or 3 coordinates, not {}",
+            position.len()
+        )))
+    }
+}
+
+/// Polygon rings whose every position has two or three numbers.
+fn rings<'de, D: serde::Deserializer<'de>>(deserializer: D) -> std::result::Result<Vec<Vec<Vec<f64>>>, D::Error> {
+    let rings = Vec::<Vec<Vec<f64>>>::deserialize(deserializer)?;
+    match rings.iter().flatten().find(|p| !(2..=3).contains(&p.len())) {
+        Some(bad) => Err(serde::de::Error::custom(format!(
+            "a position has 2 or 3 coordinates, not {}",
+            bad.len()
+        ))),
+        None => Ok(rings),
+    }
 }
 
 /// A fence's region: a Point (with the fence's `radius`) or a Polygon.
@@ -48,11 +75,13 @@ pub enum Region {
     /// A circle around a point (radius in [`Fence::radius`], m).
     Point {
         /// `[x, y(, z)]`.
+        #[serde(deserialize_with = "position")]
         coordinates: Vec<f64>,
     },
     /// A polygon.
     Polygon {
         /// Closed rings.
+        #[serde(deserialize_with = "rings")]
         coordinates: Vec<Vec<Vec<f64>>>,
     },
 }
@@ -176,9 +205,9 @@ pub enum TrackableType {
     Virtual,
 }
 
-/// A tracked object (`#/components/schemas/Trackable`); `locating_rules` is not modelled yet.
+/// A tracked object (`#/components/schemas/Trackable`). Fields the schema does not name are
+/// ignored, as the spec allows; `locating_rules` is kept as given (not evaluated).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Trackable {
     /// UUID.
     pub id: String,
@@ -186,40 +215,66 @@ pub struct Trackable {
     #[serde(rename = "type")]
     pub kind: TrackableType,
     /// Name.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
     /// Outline (local to the trackable).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub geometry: Option<Polygon>,
     /// Extrusion of the geometry, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub extrusion: Option<f64>,
     /// Assigned location provider ids.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub location_providers: Option<Vec<String>>,
     /// Location expiry before a fence exit, ms (-1 = infinite).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub fence_timeout: Option<f64>,
     /// Collision release distance, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub exit_tolerance: Option<f64>,
     /// Collision release timeout, ms.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub tolerance_timeout: Option<f64>,
     /// Exit delay, ms.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub exit_delay: Option<f64>,
     /// Radius around the trackable, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub radius: Option<f64>,
-    /// Application properties.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// Application properties (an object; `null` is refused).
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub properties: Option<Properties>,
+    /// The rule set choosing among the providers' locations (`#/components/schemas/RuleSet`),
+    /// kept and returned as given (not evaluated).
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
+    pub locating_rules: Option<Vec<LocatingRule>>,
+}
+
+/// One rule of a trackable's rule set (`#/components/schemas/LocatingRule`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LocatingRule {
+    /// The conditions, e.g. `type = 'uwb' AND accuracy < 5`.
+    pub expression: String,
+    /// The higher, the more preferred.
+    pub priority: f64,
+}
+
+/// An optional field that, when present, must not be `null`: the schema types it (a number,
+/// an object, a rule set) and does not make it nullable.
+fn not_null<'de, D, T>(deserializer: D) -> std::result::Result<Option<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de>,
+{
+    match Option::<T>::deserialize(deserializer)? {
+        Some(value) => Ok(Some(value)),
+        None => Err(serde::de::Error::custom("must not be null")),
+    }
 }
 
 /// A location provider (`#/components/schemas/LocationProvider`): a tag, a phone, a GPS unit.
+/// Fields the schema does not name are ignored, as the spec allows.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct LocationProvider {
     /// Provider id (EUI-64 upper-case hex where applicable).
     pub id: String,
@@ -227,25 +282,25 @@ pub struct LocationProvider {
     #[serde(rename = "type")]
     pub kind: ProviderType,
     /// Name.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
     /// Application-defined sensor data.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub sensors: Option<Value>,
     /// Location expiry before a fence exit, ms.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub fence_timeout: Option<f64>,
     /// Release distance, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub exit_tolerance: Option<f64>,
     /// Release timeout, ms.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub tolerance_timeout: Option<f64>,
     /// Exit delay, ms.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub exit_delay: Option<f64>,
-    /// Application properties.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// Application properties (an object; `null` is refused).
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub properties: Option<Properties>,
 }
 

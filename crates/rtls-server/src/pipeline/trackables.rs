@@ -69,6 +69,7 @@ pub fn implicit_trackable(tag: &str) -> Trackable {
         exit_delay: None,
         radius: None,
         properties: None,
+        locating_rules: None,
     }
 }
 

@@ -1,0 +1,161 @@
+//! What the omlox OpenAPI run through schemathesis found (docs/SERVER.md, "omlox conformance"),
+//! each pinned through the router: boolean query parameters are checked, a location body is
+//! required, `properties` is an object (never `null`), fields the schema does not name are
+//! ignored on providers and trackables, `locating_rules` is kept, and a location pushed in
+//! EPSG:4326 is tracked in site metres through the site's georeference.
+
+mod common;
+
+use std::time::Duration;
+
+use axum::http::{Method, StatusCode};
+use common::{assert_omlox_error, call, eventually, state, FRAME, WRITE};
+use serde_json::json;
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn boolean_parameters_bodies_and_properties_are_checked_and_extra_fields_ignored() {
+    let app = rtls_server::http::router(state("conformance-checks"));
+    for uri in [
+        "/v2/providers/locations?geojson=null&geojson=null",
+        "/v2/fences/summary?geojson=1",
+        "/v2/trackables/motions?geojson=",
+        "/v2/providers/AABB/fences?spatial_query=null",
+    ] {
+        let reply = call(&app, Method::GET, uri, Some(WRITE), "").await;
+        let field = assert_omlox_error(&reply, StatusCode::BAD_REQUEST, uri);
+        assert!(
+            matches!(field.as_deref(), Some("geojson" | "spatial_query")),
+            "{uri}: {field:?}"
+        );
+    }
+    let reply = call(
+        &app,
+        Method::GET,
+        "/v2/providers/locations?geojson=false",
+        Some(WRITE),
+        "",
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::OK);
+
+    // PUT of a provider's location without a body is no empty update
+    let reply = call(&app, Method::PUT, "/v2/providers/AABB/location", Some(WRITE), "").await;
+    assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "a location without a body");
+
+    // properties is an object: null is refused, an unknown field ignored
+    let provider = json!({"id": "AABB", "type": "uwb", "name": "tag", "properties": null});
+    let reply = call(&app, Method::POST, "/v2/providers", Some(WRITE), &provider.to_string()).await;
+    assert_eq!(
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "properties null").as_deref(),
+        Some("properties")
+    );
+    let provider = json!({"id": "AABB", "type": "uwb", "vendor_field": {"x": 1}, "properties": {"a": 1}});
+    let reply = call(&app, Method::POST, "/v2/providers", Some(WRITE), &provider.to_string()).await;
+    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    assert_eq!(reply.json()["properties"]["a"], 1);
+    assert!(reply.json().get("vendor_field").is_none());
+
+    // an optional number is a number when present
+    let provider = json!({"id": "CCDD", "type": "uwb", "exit_delay": null});
+    let reply = call(&app, Method::POST, "/v2/providers", Some(WRITE), &provider.to_string()).await;
+    assert_eq!(
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "exit_delay null").as_deref(),
+        Some("exit_delay")
+    );
+    // a rule without its priority is no rule
+    let trackable = json!({"id": "0c0ffee0-3b0e-4f3a-9a53-1c1d7d3f2a10", "type": "omlox",
+                           "locating_rules": [{"expression": "type = 'uwb'", "priority": {}}]});
+    let reply = call(
+        &app,
+        Method::POST,
+        "/v2/trackables",
+        Some(WRITE),
+        &trackable.to_string(),
+    )
+    .await;
+    assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "a rule's priority");
+    // a GeoJSON position has two or three numbers
+    let trackable = json!({"id": "0c0ffee1-3b0e-4f3a-9a53-1c1d7d3f2a10", "type": "omlox",
+                           "geometry": {"type": "Polygon", "coordinates": [[[0.0, 0.0, 0.0, 0.0]]]}});
+    let reply = call(
+        &app,
+        Method::POST,
+        "/v2/trackables",
+        Some(WRITE),
+        &trackable.to_string(),
+    )
+    .await;
+    assert!(
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "a 4-number position")
+            .is_some_and(|field| field.starts_with("geometry")),
+        "{}",
+        reply.text()
+    );
+    // a trackable's locating rules are kept as given
+    let rules = json!([{"expression": "type = 'uwb' AND accuracy < 5", "priority": 9.0}]);
+    let trackable = json!({"id": "6b1b3e1c-3b0e-4f3a-9a53-1c1d7d3f2a10", "type": "omlox",
+                           "locating_rules": rules, "unmodelled": true});
+    let reply = call(
+        &app,
+        Method::POST,
+        "/v2/trackables",
+        Some(WRITE),
+        &trackable.to_string(),
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    let reply = call(
+        &app,
+        Method::GET,
+        "/v2/trackables/6b1b3e1c-3b0e-4f3a-9a53-1c1d7d3f2a10",
+        Some(WRITE),
+        "",
+    )
+    .await;
+    assert_eq!(reply.json()["locating_rules"], rules);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_location_pushed_in_wgs84_is_tracked_in_site_metres() {
+    let local_state = state("conformance-wgs84");
+    let mut geo_state = local_state.clone();
+    let mut site = (*geo_state.site).clone();
+    site.frame = Some(FRAME);
+    geo_state.site = std::sync::Arc::new(site);
+    let geo_app = rtls_server::http::router(geo_state);
+    let local_app = rtls_server::http::router(local_state.clone());
+
+    let stamp = |t: f64| rtls_server::omlox::time::format_timestamp(t, "t").unwrap();
+    let wgs84 = |t: f64| {
+        let [lon, lat, _] = FRAME.wgs84_of([6.0, 4.0, 0.0]).unwrap();
+        json!({"position": {"type": "Point", "coordinates": [lon, lat]}, "crs": "EPSG:4326",
+               "source": "gnss", "provider_type": "gps", "provider_id": "truck-4",
+               "timestamp_generated": stamp(t), "accuracy": 0.5})
+    };
+    let body = json!([wgs84(3000.0), wgs84(3001.0), wgs84(3002.0)]).to_string();
+    // a site without a georeference cannot place it, and says so
+    let reply = call(&local_app, Method::PUT, "/v2/providers/locations", Some(WRITE), &body).await;
+    assert_eq!(
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "no frame").as_deref(),
+        Some("[0].crs")
+    );
+    let reply = call(&geo_app, Method::PUT, "/v2/providers/locations", Some(WRITE), &body).await;
+    assert_eq!(reply.status, StatusCode::NO_CONTENT, "{}", reply.text());
+    let tracked = eventually(Duration::from_secs(10), || {
+        local_state.pipeline.live().tag("truck-4").is_some()
+    })
+    .await;
+    assert!(tracked, "the WGS-84 pushes are tracked");
+    let location = call(
+        &local_app,
+        Method::GET,
+        "/v2/providers/truck-4/location",
+        Some(WRITE),
+        "",
+    )
+    .await
+    .json();
+    let xy = &location["position"]["coordinates"];
+    let (x, y) = (xy[0].as_f64().unwrap(), xy[1].as_f64().unwrap());
+    assert!((x - 6.0).abs() < 1e-3 && (y - 4.0).abs() < 1e-3, "{location}");
+}
