@@ -91,6 +91,30 @@ async fn boolean_parameters_bodies_and_properties_are_checked_and_extra_fields_i
         "{}",
         reply.text()
     );
+    // a geometry's type is checked, and an id that is no UUID is no id to assign
+    for (trackable, what) in [
+        (
+            json!({"type": "omlox", "geometry": {"type": "AAA", "coordinates": [[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 0.0]]]}}),
+            "geometry",
+        ),
+        (json!({"id": "", "type": "omlox"}), "id"),
+        (json!({"id": null, "type": "omlox"}), "id"),
+    ] {
+        let reply = call(
+            &app,
+            Method::POST,
+            "/v2/trackables",
+            Some(WRITE),
+            &trackable.to_string(),
+        )
+        .await;
+        let field = assert_omlox_error(&reply, StatusCode::BAD_REQUEST, &trackable.to_string());
+        assert!(
+            field.is_some_and(|f| f.starts_with(what)),
+            "{trackable}: {}",
+            reply.text()
+        );
+    }
     // a trackable's locating rules are kept as given
     let rules = json!([{"expression": "type = 'uwb' AND accuracy < 5", "priority": 9.0}]);
     let trackable = json!({"id": "6b1b3e1c-3b0e-4f3a-9a53-1c1d7d3f2a10", "type": "omlox",

@@ -68,8 +68,8 @@ pub(super) async fn get(
         .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))
 }
 
-/// `POST /v2/fences`: 201 with the fence (a UUID is assigned when `id` is absent, empty or the
-/// nil UUID); 400
+/// `POST /v2/fences`: 201 with the fence (a UUID is assigned when `id` is absent or the nil
+/// UUID); 400
 /// naming the field of a bad fence or an id in use.
 pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, body: Bytes) -> ApiResult<Response> {
     let who = state.authorize(&headers, Access::Operate)?;

@@ -262,7 +262,7 @@ pub(super) async fn trackable_summary(
     Ok(Json(list_stored(&state, TRACKABLE).await?))
 }
 
-/// `POST /v2/trackables`: a UUID is generated when `id` is absent, empty or the nil UUID; 201
+/// `POST /v2/trackables`: a UUID is generated when `id` is absent or the nil UUID; 201
 /// with the trackable.
 pub(super) async fn create_trackable(
     State(state): State<AppState>,

@@ -311,14 +311,15 @@ impl AppState {
     }
 }
 
-/// Gives a JSON object about to be created a fresh UUIDv4 `id` when it has none: absent, null,
-/// empty, or the nil UUID (`00000000-0000-0000-0000-000000000000`, which omlox clients send for
-/// "the hub assigns it"). Any other id is kept (and checked by the caller).
+/// Gives a JSON object about to be created a fresh UUIDv4 `id` when it has none: absent, or the
+/// nil UUID (`00000000-0000-0000-0000-000000000000`, which omlox clients send for "the hub
+/// assigns it"). Any other id is kept and checked by the caller: `null` and `""` are not
+/// UUIDs (the schema's `string`, format `uuid`) and are refused there.
 pub(crate) fn assign_id_if_unset(value: &mut Value) {
     if let Value::Object(object) = value {
         let unset = match object.get("id") {
-            None | Some(Value::Null) => true,
-            Some(Value::String(id)) => id.is_empty() || uuid::Uuid::parse_str(id).is_ok_and(|u| u.is_nil()),
+            None => true,
+            Some(Value::String(id)) => uuid::Uuid::parse_str(id).is_ok_and(|u| u.is_nil()),
             Some(_) => false,
         };
         if unset {
@@ -522,13 +523,8 @@ mod tests {
     use super::*;
 
     #[test]
-    fn an_absent_empty_null_or_nil_id_is_assigned_and_any_other_kept() {
-        for body in [
-            json!({}),
-            json!({"id": null}),
-            json!({"id": ""}),
-            json!({"id": "00000000-0000-0000-0000-000000000000"}),
-        ] {
+    fn an_absent_or_nil_id_is_assigned_and_any_other_kept() {
+        for body in [json!({}), json!({"id": "00000000-0000-0000-0000-000000000000"})] {
             let mut value = body.clone();
             assign_id_if_unset(&mut value);
             let id = uuid::Uuid::parse_str(value["id"].as_str().unwrap()).unwrap();
@@ -538,6 +534,8 @@ mod tests {
             json!("forklift-9"),
             json!("7c9e6679-7425-40de-944b-e07fc1f90ae7"),
             json!(7),
+            json!(null),
+            json!(""),
         ] {
             let mut value = json!({ "id": id.clone() });
             assign_id_if_unset(&mut value);

@@ -129,7 +129,7 @@ pub(super) async fn get(
     zone(&state, &zone_id).await.map(Json)
 }
 
-/// `POST /v2/zones`: 201 with the stored zone. A UUID is assigned when `id` is absent, empty or
+/// `POST /v2/zones`: 201 with the stored zone. A UUID is assigned when `id` is absent or
 /// the nil UUID (as for trackables and fences); 400 naming the field of an invalid zone or of
 /// an id in use.
 pub(super) async fn create_zone(State(state): State<AppState>, headers: HeaderMap, body: Bytes) -> ApiResult<Response> {
