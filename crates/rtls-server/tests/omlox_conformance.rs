@@ -182,4 +182,29 @@ async fn a_location_pushed_in_wgs84_is_tracked_in_site_metres() {
     let xy = &location["position"]["coordinates"];
     let (x, y) = (xy[0].as_f64().unwrap(), xy[1].as_f64().unwrap());
     assert!((x - 6.0).abs() < 1e-3 && (y - 4.0).abs() < 1e-3, "{location}");
+
+    // a fence drawn in EPSG:4326 is watched in site metres
+    let square = [[20.0, 20.0], [30.0, 20.0], [30.0, 30.0], [20.0, 30.0], [20.0, 20.0]];
+    let ring: Vec<[f64; 2]> = square
+        .iter()
+        .map(|&[x, y]| {
+            let [lon, lat, _] = FRAME.wgs84_of([x, y, 0.0]).unwrap();
+            [lon, lat]
+        })
+        .collect();
+    let fence = json!({"id": "00000000-0000-0000-0000-000000000000", "crs": "EPSG:4326",
+                       "region": {"type": "Polygon", "coordinates": [ring]}, "name": "yard"});
+    let reply = call(&local_app, Method::POST, "/v2/fences", Some(WRITE), &fence.to_string()).await;
+    assert_eq!(
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "no frame").as_deref(),
+        Some("crs")
+    );
+    let reply = call(&geo_app, Method::POST, "/v2/fences", Some(WRITE), &fence.to_string()).await;
+    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    let created = reply.json();
+    let vertices = created["region"]["coordinates"][0].as_array().unwrap().clone();
+    for (vertex, [x, y]) in vertices.iter().zip(square) {
+        let (vx, vy) = (vertex[0].as_f64().unwrap(), vertex[1].as_f64().unwrap());
+        assert!((vx - x).abs() < 1e-6 && (vy - y).abs() < 1e-6, "{created}");
+    }
 }

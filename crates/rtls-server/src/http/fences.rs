@@ -5,8 +5,11 @@
 //! predictive hazard alarms follow within a clock tick; tags inside an unchanged zone stay
 //! inside). Deleting `zones/current` (`DELETE /api/v1/zones/edits`) returns to the site file.
 //!
-//! A fence is written in the site's local metres (`crs` absent or `local`): a `Polygon` region
-//! (closed ring) or a `Point` with `radius` (a 32-gon). `properties` may carry `rtls:kind`
+//! A fence is written in the site's local metres (`crs` absent or `local`), or in `EPSG:4326`
+//! (longitude, latitude in degrees) on a site with a `[frame]`, whose georeference takes it to
+//! site metres: a `Polygon` region (closed ring) or a `Point` with `radius` (m, a 32-gon).
+//! (omlox reads a fence without `crs` as EPSG:4326; here it is local, as everything this API
+//! writes and reads without `crs`.) `properties` may carry `rtls:kind`
 //! (`hazard`, `restricted`, `area-of-interest`, default), and `rtls:floor` (a site floor id) or
 //! `rtls:z_range_m`; without either the zone spans every height. The zone's id is the fence's
 //! `foreign_id` when given, else its UUID.
@@ -288,15 +291,61 @@ pub fn stored_zones(store: &mut dyn Store) -> Result<Option<Vec<SiteZone>>, Stri
     Ok(Some(zones))
 }
 
+/// A region given in EPSG:4326 (`[longitude, latitude(, height)]`, degrees) in site metres,
+/// through the site's `[frame]` georeference; a Point's radius is metres in either CRS.
+///
+/// # Errors
+/// A 400 naming `crs` on a site without a frame, or the position that is no longitude and
+/// latitude.
+fn region_in_site(region: &Region, site: &Site) -> ApiResult<Region> {
+    let frame = site.frame.as_ref().ok_or_else(|| {
+        ApiError::field(
+            "crs",
+            "the site has no [frame] origin to place EPSG:4326 coordinates: send site metres with crs \"local\"",
+        )
+    })?;
+    let to_site = |position: &[f64], field: String| -> ApiResult<Vec<f64>> {
+        let [lon, lat] = position[..2] else {
+            return Err(ApiError::field(field, "a position is [longitude, latitude]"));
+        };
+        let height_m = position.get(2).copied().unwrap_or(frame.origin.height_m);
+        match frame.site_of_wgs84([lon, lat, height_m]) {
+            Some(site_m) if lon.abs() <= 180.0 && lat.abs() <= 90.0 => Ok(site_m[..position.len()].to_vec()),
+            _ => Err(ApiError::field(field, "a position is [longitude, latitude] in degrees")),
+        }
+    };
+    Ok(match region {
+        Region::Point { coordinates } => Region::Point {
+            coordinates: to_site(coordinates, "region.coordinates".into())?,
+        },
+        Region::Polygon { coordinates } => Region::Polygon {
+            coordinates: coordinates
+                .iter()
+                .enumerate()
+                .map(|(r, ring)| {
+                    ring.iter()
+                        .enumerate()
+                        .map(|(i, p)| to_site(p, format!("region.coordinates[{r}][{i}]")))
+                        .collect::<ApiResult<Vec<_>>>()
+                })
+                .collect::<ApiResult<Vec<_>>>()?,
+        },
+    })
+}
+
 /// A fence as a site zone with id `zone_id` (see the module documentation).
 fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site) -> ApiResult<SiteZone> {
-    if fence.crs.as_deref().is_some_and(|crs| crs != "local") {
-        return Err(ApiError::field(
-            "crs",
-            "fences are written in the site's local metres (crs absent or \"local\")",
-        ));
-    }
-    let vertices_m: Vec<[f64; 2]> = match &fence.region {
+    let region = match fence.crs.as_deref() {
+        None | Some("local") => fence.region.clone(),
+        Some("EPSG:4326") => region_in_site(&fence.region, site)?,
+        Some(other) => {
+            return Err(ApiError::field(
+                "crs",
+                format!("`{other}` is not one of local, EPSG:4326"),
+            ))
+        }
+    };
+    let vertices_m: Vec<[f64; 2]> = match &region {
         Region::Polygon { coordinates } => {
             let ring = coordinates
                 .first()

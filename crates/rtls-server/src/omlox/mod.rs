@@ -650,7 +650,7 @@ pub struct SimpleTransform {
     /// The position: `[x, y(, z)]` m (`local`) or `[longitude, latitude(, height)]` (`EPSG:4326`).
     pub position: Point,
     /// The zone used for the transformation (set in the answer).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub source: Option<String>,
     /// `local` (the default) or `EPSG:4326`.
     #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
