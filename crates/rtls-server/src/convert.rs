@@ -6,8 +6,9 @@
 //! - **Ids**: omlox ids are UUIDs; ours are names. [`uuid_for`] derives a stable name-based UUID
 //!   (RFC 4122 version 5, the `uuid` crate) from a namespace and a name, so the same zone or tag
 //!   always gets the same id; the name goes in `foreign_id` / `provider_id`.
-//! - **Frame**: everything is `crs: "local"` (site metres); +y is taken as north and +x as east
-//!   for `course` until the site has ground control points (issue 8).
+//! - **Frame**: everything is `crs: "local"` (site metres) unless a read asks for `EPSG:4326`.
+//!   `course` is from true north, as omlox defines it: through the site's `[frame]` (the
+//!   bearing of its `x` axis, [`true_course_deg`]); on a site without one, +y is taken as north.
 //! - **Accuracy**: the 1-σ radius of the horizontal position covariance's major axis,
 //!   `√λ_max` of the x–y block — conservative in every direction, and exactly σ for a circular
 //!   error. Back on ingest, `accuracy = a` becomes the covariance `a² I`.
@@ -141,6 +142,31 @@ pub fn course_deg(vx_mps: f64, vy_mps: f64) -> Option<f64> {
         return None;
     }
     Some(vx_mps.atan2(vy_mps).to_degrees().rem_euclid(360.0))
+}
+
+/// A course measured clockwise from the site's +y axis (`course_deg`) as omlox's, clockwise
+/// from true north: `c + (β − 90°)` modulo 360°, where `β` is the bearing of the site's `x`
+/// axis (`[frame] x_axis_bearing_deg`; +y is then at `β − 90°`). Without a frame, +y is north.
+///
+/// # Examples
+/// ```
+/// use rtls_engine::site::{FrameSettings, GeodeticOrigin};
+/// use rtls_server::convert::true_course_deg;
+/// let origin = GeodeticOrigin { latitude_deg: 47.0, longitude_deg: 8.0, height_m: 0.0 };
+/// // x east (bearing 90°): +y is north, nothing turns
+/// let east = FrameSettings { origin, x_axis_bearing_deg: 90.0 };
+/// assert_eq!(true_course_deg(30.0, Some(&east)), 30.0);
+/// // x north (bearing 0°): moving along +x (site course 90°) is moving north
+/// let north = FrameSettings { origin, x_axis_bearing_deg: 0.0 };
+/// assert_eq!(true_course_deg(90.0, Some(&north)), 0.0);
+/// assert_eq!(true_course_deg(90.0, None), 90.0);
+/// ```
+#[must_use]
+pub fn true_course_deg(site_course_deg: f64, frame: Option<&FrameSettings>) -> f64 {
+    match frame {
+        Some(frame) => (site_course_deg + frame.x_axis_bearing_deg - 90.0).rem_euclid(360.0),
+        None => site_course_deg,
+    }
 }
 
 /// A track update as an omlox Location: `crs: "local"`, `provider_id` the tag, `source` the

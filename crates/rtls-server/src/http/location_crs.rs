@@ -3,8 +3,8 @@
 //! height in m above the ellipsoid) through the site's `[frame]` georeference.
 //!
 //! Only the position changes frame: `accuracy` stays a radius in metres (omlox's unit in every
-//! CRS), and `course` stays in the site frame's convention (+y taken as north, as everywhere
-//! in these APIs until the course is rotated by the frame's bearing).
+//! CRS), and `course` is from true north in either (the partition turned it through the
+//! frame's bearing, `crate::convert::true_course_deg`).
 
 use rtls_engine::site::FrameSettings;
 use serde::Deserialize;

@@ -346,7 +346,11 @@ impl PartitionWorker {
             return;
         }
         match location_from_update(update, &self.source, ProviderType::Uwb) {
-            Ok(location) => {
+            Ok(mut location) => {
+                // omlox's course is from true north
+                location.course = location
+                    .course
+                    .map(|course| crate::convert::true_course_deg(course, self.site.frame.as_ref()));
                 // a provider that pushes its own locations keeps what it said
                 let location = match self.fanout.live.pushed(&update.tag, update.time_s) {
                     Some(pushed) => crate::pushed::with_pushed(location, &pushed, update.time_s),
