@@ -9,7 +9,7 @@ mod common;
 use std::time::Duration;
 
 use axum::http::{Method, StatusCode};
-use common::{assert_omlox_error, call, eventually, state, FRAME, WRITE};
+use common::{assert_omlox_error, call, eventually, state, walk, FRAME, WRITE};
 use serde_json::json;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -207,4 +207,48 @@ async fn a_location_pushed_in_wgs84_is_tracked_in_site_metres() {
         let (vx, vy) = (vertex[0].as_f64().unwrap(), vertex[1].as_f64().unwrap());
         assert!((vx - x).abs() < 1e-6 && (vy - y).abs() < 1e-6, "{created}");
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn course_is_from_true_north_through_the_frame() {
+    // the plan's x axis points north: a tag walking along +x walks north (course 0°)
+    let mut site = common::site();
+    site.frame = Some(rtls_engine::site::FrameSettings {
+        x_axis_bearing_deg: 0.0,
+        ..FRAME
+    });
+    let state = common::state_on_site(
+        "conformance-course",
+        site,
+        rtls_server::pipeline::PipelineConfig {
+            partitions: 2,
+            live_clock: false,
+            ..rtls_server::pipeline::PipelineConfig::default()
+        },
+    );
+    let app = rtls_server::http::router(state.clone());
+    let reply = call(
+        &app,
+        Method::POST,
+        "/api/v1/measurements",
+        Some(WRITE),
+        &walk("walker", 3000.0, 6.0),
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::OK, "{}", reply.text());
+    let moving = eventually(Duration::from_secs(10), || {
+        state
+            .pipeline
+            .live()
+            .tag("walker")
+            .is_some_and(|t| t.location.speed.is_some_and(|v| v > 0.5))
+    })
+    .await;
+    assert!(moving, "the walk is tracked");
+    let location = call(&app, Method::GET, "/v2/providers/walker/location", Some(WRITE), "")
+        .await
+        .json();
+    let course = location["course"].as_f64().unwrap();
+    // site course 90° (along +x), turned by the bearing 0° − 90°
+    assert!(course.min(360.0 - course) < 5.0, "{location}");
 }

@@ -106,9 +106,13 @@ pub fn state(name: &str) -> AppState {
 /// A state with the test site and `config` over the SQLite file of `name` as it is (a fresh
 /// one unless an earlier state of `name` wrote it: a restart).
 pub fn state_on(name: &str, config: PipelineConfig) -> AppState {
+    state_on_site(name, site(), config)
+}
+
+/// As [`state_on`], on `site`.
+pub fn state_on_site(name: &str, site: Site, config: PipelineConfig) -> AppState {
     std::fs::create_dir_all(db_path(name).parent().expect("dir")).expect("temp dir");
     let path = db_path(name);
-    let site = site();
     let pipeline = Pipeline::start(
         &site,
         open_sqlite(&path),
