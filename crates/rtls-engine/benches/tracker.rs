@@ -6,6 +6,9 @@
 //!   bookkeeping adds to).
 //! - `tightly_coupled/ranges`: UWB ranges of 1 000 tags to 4 anchors (one per record) into the
 //!   EKF, next to the bare EKF predict + range update.
+//! - `checkpoint`: a cluster checkpoint of the 1 000 tightly coupled tracks — the tracker's state
+//!   taken and encoded as CBOR (`Tracker::state`, what `rtls serve --cluster` stores every
+//!   `checkpoint_s`), and decoded and restored into a fresh tracker; its size is printed.
 //! - per-record latency percentiles (p50, p99, p99.9, max) of both streams, printed, measured with
 //!   `Instant` around each `push` (ticks over all tracks included).
 //!
@@ -236,5 +239,36 @@ fn tightly_coupled(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, fix_then_filter, tightly_coupled);
+fn checkpoint(c: &mut Criterion) {
+    let site = site("tightly-coupled", "ekf");
+    let (tracker, _) = warmed(&site, &|r| range_round(RANGE_TAGS, r), 20);
+    let encode = |tracker: &Tracker| {
+        let mut bytes = Vec::new();
+        ciborium::into_writer(&tracker.state(), &mut bytes).expect("encode");
+        bytes
+    };
+    let bytes = encode(&tracker);
+    println!(
+        "checkpoint of {} tracks: {} bytes ({} bytes per track)",
+        tracker.track_count(),
+        bytes.len(),
+        bytes.len() / tracker.track_count().max(1)
+    );
+    let mut group = c.benchmark_group("checkpoint");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(tracker.track_count() as u64));
+    group.bench_function("take_and_encode_1k_tracks", |b| b.iter(|| encode(black_box(&tracker))));
+    group.bench_function("decode_and_restore_1k_tracks", |b| {
+        b.iter(|| {
+            let state: rtls_engine::tracker::TrackerState =
+                ciborium::from_reader(black_box(bytes.as_slice())).expect("decode");
+            let mut fresh = Tracker::new(&site).expect("tracker");
+            fresh.restore(state).expect("restore");
+            fresh
+        });
+    });
+    group.finish();
+}
+
+criterion_group!(benches, fix_then_filter, tightly_coupled, checkpoint);
 criterion_main!(benches);
