@@ -7,8 +7,10 @@
 //! hazard alarms, lost tags, no coverage, model switches) and `rtls:events` (everything else).
 //!
 //! Client: `{"event":"subscribe","topic":"location_updates","params":{"provider_id":"tag-7"}}`
-//! → `{"event":"subscribed","topic":…,"subscription_id":1}`, then
-//! `{"event":"message","topic":…,"subscription_id":1,"payload":[…]}` for every update.
+//! → `{"event":"subscribed","topic":…,"subscription_id":0}`, then
+//! `{"event":"message","topic":…,"subscription_id":0,"payload":[…]}` for every update.
+//! A connection's subscriptions are numbered from 0: a client that files its one subscription
+//! under 0 whatever the hub answers (the Go omlox client does) gets its messages.
 //! `params.provider_id` (or `tag`) filters by tag (on `collision_events`: either tag whose
 //! update placed one of the two trackables); `params.trackable_id` filters `trackable_motions`
 //! and `collision_events` (either of the two) by trackable. A client that falls more than the
@@ -17,7 +19,9 @@
 //! Batching: every message waiting in the broadcast queue when the socket is ready is sent
 //! together, one `message` per subscription whose `payload` holds all of them in order (up to
 //! [`MAX_BATCH`]): a screen with ten thousand tags gets one frame per output tick, not one per
-//! tag.
+//! tag. A frame stays below [`MAX_FRAME_BYTES`] (a larger batch goes in several `message`s):
+//! WebSocket libraries close the connection on larger messages by default (32 KiB in Go's
+//! `nhooyr.io/websocket`).
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -32,6 +36,9 @@ use tokio::sync::broadcast::error::{RecvError, TryRecvError};
 
 /// At most this many hub messages go into one WebSocket send.
 pub const MAX_BATCH: usize = 4096;
+
+/// A `message` frame's size at most, bytes (one payload object larger than that goes alone).
+pub const MAX_FRAME_BYTES: usize = 32 * 1024 - 512;
 
 use super::positions::PositionColumns;
 use super::{metrics, ApiResult, AppState};
@@ -95,7 +102,7 @@ async fn serve(mut socket: WebSocket, state: AppState) {
         })
         .collect();
     let mut subscriptions: HashMap<u64, Subscription> = HashMap::new();
-    let mut next_id = 1u64;
+    let mut next_id = 0u64;
     // a ping every PING_PERIOD keeps a quiet subscription open through the listener's idle
     // timeout, and finds dead peers
     let mut ping = tokio::time::interval_at(tokio::time::Instant::now() + PING_PERIOD, PING_PERIOD);
@@ -271,17 +278,52 @@ async fn deliver(
                 .filter_map(|message| payload(message, subscription, context.fences, context.frame))
                 .collect(),
         };
-        if !payloads.is_empty() {
-            let delivery = Delivery {
-                event: WsEvent::Message,
-                topic: subscription.topic,
-                subscription_id: id,
-                payload: payloads,
-            };
-            send(socket, &delivery).await?;
+        if payloads.is_empty() {
+            continue;
+        }
+        for frame in frames(subscription.topic, id, &payloads) {
+            socket.send(Message::Text(frame.into())).await?;
         }
     }
     Ok(())
+}
+
+/// The `message` frames of one subscription's payloads, in order, each below
+/// [`MAX_FRAME_BYTES`] (a payload object larger than that alone in its frame), written as
+/// [`Delivery`] writes one.
+fn frames(topic: Topic, subscription_id: u64, payloads: &[Payload<'_>]) -> Vec<String> {
+    let envelope = Delivery {
+        event: WsEvent::Message,
+        topic,
+        subscription_id,
+        payload: Vec::new(),
+    };
+    // `{…,"payload":[]}` → the head up to `[` and the tail `]}`
+    let empty = serde_json::to_string(&envelope).unwrap_or_default();
+    let head = &empty[..empty.len() - 2];
+    let mut frames = Vec::new();
+    let mut frame = String::from(head);
+    let mut items = 0usize;
+    for payload in payloads {
+        let Ok(item) = serde_json::to_string(payload) else {
+            continue;
+        };
+        if items > 0 && frame.len() + 1 + item.len() + 2 > MAX_FRAME_BYTES {
+            frame.push_str("]}");
+            frames.push(std::mem::replace(&mut frame, String::from(head)));
+            items = 0;
+        }
+        if items > 0 {
+            frame.push(',');
+        }
+        frame.push_str(&item);
+        items += 1;
+    }
+    if items > 0 {
+        frame.push_str("]}");
+        frames.push(frame);
+    }
+    frames
 }
 
 /// One object of a `message`'s payload: the hub message's own (shared by every connection and
@@ -395,4 +437,39 @@ fn motions<'a>(
 
 fn wanted(subscription: &Subscription, tag: &str) -> bool {
     subscription.tag.as_deref().is_none_or(|t| t == tag)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_large_batch_goes_in_frames_below_the_limit_in_order() {
+        let payloads: Vec<Payload<'_>> = (0..400)
+            .map(|i| Payload::Built(json!({"provider_id": format!("tag-{i:03}"), "pad": "x".repeat(200)})))
+            .collect();
+        let split = frames(Topic::LocationUpdates, 0, &payloads);
+        assert!(split.len() > 2, "{} frames", split.len());
+        let mut ids = Vec::new();
+        for frame in &split {
+            assert!(frame.len() <= MAX_FRAME_BYTES, "{} bytes", frame.len());
+            let message: Value = serde_json::from_str(frame).unwrap();
+            assert_eq!(message["event"], "message");
+            assert_eq!(message["topic"], "location_updates");
+            assert_eq!(message["subscription_id"], 0);
+            ids.extend(
+                message["payload"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|p| p["provider_id"].as_str().unwrap().to_string()),
+            );
+        }
+        let expected: Vec<String> = (0..400).map(|i| format!("tag-{i:03}")).collect();
+        assert_eq!(ids, expected);
+        // one object over the limit goes alone, and a small batch is one frame
+        let big = [Payload::Built(json!({"pad": "x".repeat(MAX_FRAME_BYTES)}))];
+        assert_eq!(frames(Topic::LocationUpdates, 3, &big).len(), 1);
+        assert_eq!(frames(Topic::FenceEvents, 1, &payloads[..2]).len(), 1);
+    }
 }
