@@ -226,6 +226,18 @@ fn kind_name(kind: ZoneKind) -> &'static str {
     }
 }
 
+/// The omlox fence id of the zone `zone_id`: the zone id itself when it is a UUID (a zone
+/// created through the API is named by its fence's UUID), else a name-based UUID of it. Fences
+/// and their events name a zone alike.
+#[must_use]
+pub fn fence_id(zone_id: &str) -> String {
+    if Uuid::parse_str(zone_id).is_ok() {
+        zone_id.to_string()
+    } else {
+        uuid_for("fence", zone_id)
+    }
+}
+
 /// A site zone as an omlox Fence in local coordinates: a polygon becomes a closed GeoJSON
 /// Polygon ring, a box its x–y rectangle; the height range becomes `extrusion` (and
 /// `rtls:z_range_m`), the kind `rtls:kind`, the floor id `rtls:floor`.
@@ -263,12 +275,7 @@ pub fn fence_from_zone(zone: &SiteZone) -> Fence {
         properties.insert("rtls:z_range_m".into(), json!(range));
     }
     Fence {
-        // a zone created through the API is named by its fence's UUID
-        id: if Uuid::parse_str(&zone.id).is_ok() {
-            zone.id.clone()
-        } else {
-            uuid_for("fence", &zone.id)
-        },
+        id: fence_id(&zone.id),
         region: Region::Polygon {
             coordinates: vec![closed],
         },
@@ -322,7 +329,7 @@ pub fn fence_event_from_zone_event(event: &ZoneEvent, entry_time_s: Option<f64>)
     };
     Ok(ZoneEventOut::Fence(FenceEvent {
         id: uuid_for("fence-event", &format!("{tag}\0{zone}\0{event_type:?}\0{time_s}")),
-        fence_id: uuid_for("fence", zone),
+        fence_id: fence_id(zone),
         event_type,
         provider_id: Some(tag.clone()),
         trackable_id: None,
