@@ -116,7 +116,7 @@ async fn boolean_parameters_bodies_and_properties_are_checked_and_extra_fields_i
         );
     }
     // a trackable's locating rules are kept as given
-    let rules = json!([{"expression": "type = 'uwb' AND accuracy < 5", "priority": 9.0}]);
+    let rules = json!([{"expression": "type = 'uwb' AND accuracy < 5", "priority": 9}]);
     let trackable = json!({"id": "6b1b3e1c-3b0e-4f3a-9a53-1c1d7d3f2a10", "type": "omlox",
                            "locating_rules": rules, "unmodelled": true});
     let reply = call(

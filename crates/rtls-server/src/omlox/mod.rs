@@ -268,16 +268,31 @@ pub struct Trackable {
     #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub location_providers: Option<Vec<String>>,
     /// Location expiry before a fence exit, ms (-1 = infinite).
-    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        deserialize_with = "not_null",
+        serialize_with = "integral_if_whole",
+        skip_serializing_if = "Option::is_none"
+    )]
     pub fence_timeout: Option<f64>,
     /// Collision release distance, m.
     #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub exit_tolerance: Option<f64>,
     /// Collision release timeout, ms.
-    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        deserialize_with = "not_null",
+        serialize_with = "integral_if_whole",
+        skip_serializing_if = "Option::is_none"
+    )]
     pub tolerance_timeout: Option<f64>,
     /// Exit delay, ms.
-    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        deserialize_with = "not_null",
+        serialize_with = "integral_if_whole",
+        skip_serializing_if = "Option::is_none"
+    )]
     pub exit_delay: Option<f64>,
     /// Radius around the trackable, m.
     #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
@@ -297,7 +312,27 @@ pub struct LocatingRule {
     /// The conditions, e.g. `type = 'uwb' AND accuracy < 5`.
     pub expression: String,
     /// The higher, the more preferred.
+    #[serde(serialize_with = "whole_as_integer")]
     pub priority: f64,
+}
+
+/// A number written as an integer when it is one (`5000`, not `5000.0`): the timeouts (ms) and
+/// priorities omlox clients read as integers (the Go client's decoder refuses `5000.0`).
+fn whole_as_integer<S: serde::Serializer>(value: &f64, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+    // |v| < 2⁵³: every such whole f64 is exactly an i64
+    if value.fract() == 0.0 && value.abs() < 9_007_199_254_740_992.0 {
+        serializer.serialize_i64(*value as i64)
+    } else {
+        serializer.serialize_f64(*value)
+    }
+}
+
+/// [`whole_as_integer`] of an optional number (skipped when absent by the field's attribute).
+fn integral_if_whole<S: serde::Serializer>(value: &Option<f64>, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+    match value {
+        Some(value) => whole_as_integer(value, serializer),
+        None => serializer.serialize_none(),
+    }
 }
 
 /// An optional field that, when present, must not be `null`: the schema types it (a number,
@@ -329,16 +364,31 @@ pub struct LocationProvider {
     #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub sensors: Option<Value>,
     /// Location expiry before a fence exit, ms.
-    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        deserialize_with = "not_null",
+        serialize_with = "integral_if_whole",
+        skip_serializing_if = "Option::is_none"
+    )]
     pub fence_timeout: Option<f64>,
     /// Release distance, m.
     #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub exit_tolerance: Option<f64>,
     /// Release timeout, ms.
-    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        deserialize_with = "not_null",
+        serialize_with = "integral_if_whole",
+        skip_serializing_if = "Option::is_none"
+    )]
     pub tolerance_timeout: Option<f64>,
     /// Exit delay, ms.
-    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        deserialize_with = "not_null",
+        serialize_with = "integral_if_whole",
+        skip_serializing_if = "Option::is_none"
+    )]
     pub exit_delay: Option<f64>,
     /// Application properties (an object; `null` is refused).
     #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
@@ -438,16 +488,28 @@ pub struct Fence {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
     /// Location expiry, ms (-1 = infinite).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        serialize_with = "integral_if_whole",
+        skip_serializing_if = "Option::is_none"
+    )]
     pub timeout: Option<f64>,
     /// Exit distance tolerance, m.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub exit_tolerance: Option<f64>,
     /// Tolerance timeout, ms.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        serialize_with = "integral_if_whole",
+        skip_serializing_if = "Option::is_none"
+    )]
     pub tolerance_timeout: Option<f64>,
     /// Exit delay, ms.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        serialize_with = "integral_if_whole",
+        skip_serializing_if = "Option::is_none"
+    )]
     pub exit_delay: Option<f64>,
     /// `local` or an EPSG id; absent means EPSG:4326.
     #[serde(default, skip_serializing_if = "Option::is_none")]
