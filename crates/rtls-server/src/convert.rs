@@ -305,7 +305,8 @@ pub enum ZoneEventOut {
     Extension(Topic, Value),
 }
 
-/// Converts a zone event. The fence id is [`uuid_for`]`("fence", zone)`, the provider the tag;
+/// Converts a zone event. The fence id is [`fence_id`]`(zone)`, the provider the tag (the
+/// partition adds the `trackables` the tag is assigned to);
 /// the event id is derived from tag, zone, kind and time. An exit carries `entry_time` when
 /// `entry_time_s` (the matching entry's time, s) is known.
 ///

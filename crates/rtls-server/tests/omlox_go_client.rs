@@ -353,6 +353,15 @@ async fn the_go_omlox_client_session_creates_pushes_subscribes_and_receives_ever
             .map(|e| e["event_type"].as_str().unwrap())
             .collect();
         assert_eq!(kinds, ["region_entry", "region_exit"], "{tag}: {fence_events:#?}");
+        // omlox: a fence event names the trackables its provider is assigned to
+        let trackable = if tag == TAG_A { ids[0] } else { ids[1] }.to_string();
+        assert!(
+            fence_events
+                .iter()
+                .filter(|e| e["provider_id"] == tag)
+                .all(|e| e["trackables"] == serde_json::json!([trackable])),
+            "{tag} is {trackable}'s provider: {fence_events:#?}"
+        );
     }
     for socket in [&locations_socket, &fences_socket] {
         assert!(

@@ -429,7 +429,10 @@ impl PartitionWorker {
             Event::Zone(zone_event) => {
                 let entry = self.track_zone_entry(zone_event);
                 match fence_event_from_zone_event(zone_event, entry) {
-                    Ok(ZoneEventOut::Fence(fence_event)) => {
+                    Ok(ZoneEventOut::Fence(mut fence_event)) => {
+                        // omlox: "the ids of trackables the provider is assigned to"
+                        let assigned = self.fanout.live.trackables().assigned(zone_event.tag());
+                        fence_event.trackables = (!assigned.is_empty()).then_some(assigned);
                         serde_json::to_value(fence_event)
                             .ok()
                             .map(|event| HubMessage::FenceEvent {

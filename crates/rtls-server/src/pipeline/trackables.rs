@@ -51,6 +51,16 @@ impl TrackableIndex {
             None => Cow::Owned(vec![Arc::new(implicit_trackable(provider_id))]),
         }
     }
+
+    /// The ids of the stored trackables `provider_id` is assigned to, in id order (a fence
+    /// event's `trackables`); empty when none lists it.
+    #[must_use]
+    pub fn assigned(&self, provider_id: &str) -> Vec<String> {
+        self.by_provider
+            .get(provider_id)
+            .map(|list| list.iter().map(|t| t.id.clone()).collect())
+            .unwrap_or_default()
+    }
 }
 
 /// The trackable of a tag no stored trackable lists (see the module documentation).
@@ -97,5 +107,10 @@ mod tests {
         assert_eq!(ids("tag-2"), ["crate", "forklift"]);
         assert_eq!(ids("tag-3"), ["tag-3"]);
         assert_eq!(index.of("tag-3")[0].kind, TrackableType::Omlox);
+        assert_eq!(index.assigned("tag-2"), ["crate", "forklift"]);
+        assert!(
+            index.assigned("tag-3").is_empty(),
+            "an implicit trackable is no assignment"
+        );
     }
 }
