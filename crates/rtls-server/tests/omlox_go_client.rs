@@ -241,14 +241,14 @@ async fn the_go_omlox_client_session_creates_pushes_subscribes_and_receives_ever
     let mut fence_events: Vec<Value> = Vec::new();
     let (mut updates, mut undecodable_locations, mut strings_kept) = (0usize, Vec::new(), 0usize);
     let (mut by_client, mut by_hub_id, mut messages) = (0usize, 0usize, 0usize);
+    let trackable_ids = [ids[0].to_string(), ids[1].to_string()];
     let fence_done = |events: &[Value]| {
-        [TAG_A, TAG_B].iter().all(|tag| {
-            ["region_entry", "region_exit"].iter().all(|kind| {
-                events
-                    .iter()
-                    .any(|e| e["provider_id"] == *tag && e["event_type"] == *kind)
-            })
-        })
+        let by = |key: &str, of: &str| {
+            ["region_entry", "region_exit"]
+                .iter()
+                .all(|kind| events.iter().any(|e| e[key] == of && e["event_type"] == *kind))
+        };
+        [TAG_A, TAG_B].iter().all(|tag| by("provider_id", tag)) && trackable_ids.iter().all(|id| by("trackable_id", id))
     };
     let deadline = tokio::time::Instant::now() + WAIT;
     while !(wanted.is_empty() && fence_done(&fence_events)) {
@@ -362,6 +362,14 @@ async fn the_go_omlox_client_session_creates_pushes_subscribes_and_receives_ever
                 .all(|e| e["trackables"] == serde_json::json!([trackable])),
             "{tag} is {trackable}'s provider: {fence_events:#?}"
         );
+        // and the trackable's own entry and exit (omlox: `trackable_id`, no `provider_id`)
+        let kinds: Vec<&str> = fence_events
+            .iter()
+            .filter(|e| e["trackable_id"] == trackable.as_str())
+            .inspect(|e| assert!(e.get("provider_id").is_none(), "{e}"))
+            .map(|e| e["event_type"].as_str().unwrap())
+            .collect();
+        assert_eq!(kinds, ["region_entry", "region_exit"], "{trackable}: {fence_events:#?}");
     }
     for socket in [&locations_socket, &fences_socket] {
         assert!(

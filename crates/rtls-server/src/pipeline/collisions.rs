@@ -1,6 +1,8 @@
 //! The collision thread: reads every track update from the hub, moves the trackables its tag
 //! belongs to ([`super::trackables`]) in one [`CollisionDetector`], and publishes the
-//! collisions it finds as omlox `CollisionEvent`s on the hub (`collision_events`).
+//! collisions it finds as omlox `CollisionEvent`s on the hub (`collision_events`). It also
+//! turns the providers' fence events into the trackables' ([`super::trackable_fences`]),
+//! published on the hub as `fence_events`.
 //!
 //! One thread for every partition's tags, since two colliding tags may be tracked on
 //! different partitions. It reads the hub as a WebSocket client does: if it falls more than
@@ -19,10 +21,11 @@ use tokio::sync::broadcast;
 use tokio::sync::broadcast::error::RecvError;
 
 use super::live::{HubMessage, LiveState};
+use super::trackable_fences::TrackableFences;
 use crate::convert::uuid_for;
 use crate::omlox::collision::{Body, CollisionDetector, CollisionSettings, Side, Transition};
 use crate::omlox::time::format_timestamp;
-use crate::omlox::{Collision, CollisionEvent, CollisionType, Location, Point, Polygon, Trackable};
+use crate::omlox::{Collision, CollisionEvent, CollisionType, FenceEvent, Location, Point, Polygon, Trackable};
 
 /// Vertices of the polygon that draws a trackable's judged disc in a `Collision`.
 const DISC_VERTICES: usize = 16;
@@ -34,6 +37,8 @@ pub(super) struct CollisionWorker {
     pub detector: CollisionDetector,
     /// Hub messages missed by falling behind (`rtls_collision_updates_missed_total`).
     pub missed: prometheus_client::metrics::counter::Counter,
+    /// The trackables inside each fence.
+    pub fences: TrackableFences,
 }
 
 impl CollisionWorker {
@@ -49,6 +54,7 @@ impl CollisionWorker {
             rx: hub.subscribe(),
             hub: hub.downgrade(),
             detector: CollisionDetector::new(settings),
+            fences: TrackableFences::default(),
         }
     }
 
@@ -56,10 +62,13 @@ impl CollisionWorker {
         loop {
             match self.rx.blocking_recv() {
                 Ok(message) => {
-                    if let HubMessage::Location { tag, time_s, location } = message.as_ref() {
-                        if !self.on_location(tag, *time_s, location) {
-                            return;
-                        }
+                    let going_on = match message.as_ref() {
+                        HubMessage::Location { tag, time_s, location } => self.on_location(tag, *time_s, location),
+                        HubMessage::FenceEvent { tag, event } => self.on_fence_event(tag, event),
+                        _ => true,
+                    };
+                    if !going_on {
+                        return;
                     }
                 }
                 Err(RecvError::Lagged(missed)) => {
@@ -108,6 +117,37 @@ impl CollisionWorker {
                     }));
                 }
                 Err(e) => tracing::warn!(error = %e, "collision event not representable"),
+            }
+        }
+        true
+    }
+}
+
+impl CollisionWorker {
+    /// Publishes the trackable-level events of a provider's fence event; `false` when the hub
+    /// is gone.
+    fn on_fence_event(&mut self, tag: &str, event: &serde_json::Value) -> bool {
+        // a trackable's own event (derived here) names no provider: nothing to derive
+        if event.get("provider_id").is_none() {
+            return true;
+        }
+        let Ok(event) = serde_json::from_value::<FenceEvent>(event.clone()) else {
+            return true;
+        };
+        let derived = self.fences.on_provider_event(&event);
+        if derived.is_empty() {
+            return true;
+        }
+        let Some(hub) = self.hub.upgrade() else {
+            return false;
+        };
+        for trackable_event in derived {
+            if let Ok(event) = serde_json::to_value(trackable_event) {
+                // no subscriber is not an error
+                let _ = hub.send(Arc::new(HubMessage::FenceEvent {
+                    tag: tag.to_string(),
+                    event,
+                }));
             }
         }
         true

@@ -34,6 +34,7 @@ mod partition_state;
 mod quarantine;
 pub mod readers;
 mod submit;
+mod trackable_fences;
 pub mod trackables;
 
 use std::sync::atomic::{AtomicI64, Ordering};
