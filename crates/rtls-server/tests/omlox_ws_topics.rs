@@ -356,10 +356,11 @@ async fn location_updates_come_in_wgs84_when_a_subscription_asks_for_it() {
         &[
             json!({"event": "subscribe", "topic": "location_updates", "params": {"provider_id": "miner-9", "crs": "EPSG:4326"}}),
             json!({"event": "subscribe", "topic": "location_updates", "params": {"provider_id": "miner-9"}}),
+            json!({"event": "subscribe", "topic": "trackable_motions", "params": {"provider_id": "miner-9", "crs": "EPSG:4326"}}),
         ],
     )
     .await;
-    let (wgs84, local) = (ids[0], ids[1]);
+    let (wgs84, local, motions) = (ids[0], ids[1], ids[2]);
     // another CRS is refused with omlox's subscription-failed error
     socket
         .send(Message::Text(
@@ -383,18 +384,30 @@ async fn location_updates_come_in_wgs84_when_a_subscription_asks_for_it() {
         .is_success());
     // the same updates, once per subscription: match them by their time
     let (mut in_degrees, mut in_metres) = (std::collections::HashMap::new(), std::collections::HashMap::new());
-    while in_degrees.keys().filter(|t| in_metres.contains_key(*t)).count() < 3 {
+    let mut motions_in_degrees = std::collections::HashMap::new();
+    let matched = |of: &std::collections::HashMap<String, Value>, metres: &std::collections::HashMap<String, Value>| {
+        of.keys().filter(|t| metres.contains_key(*t)).count()
+    };
+    while matched(&in_degrees, &in_metres) < 3 || matched(&motions_in_degrees, &in_metres) < 3 {
         let (_, id, payload) = next_message(&mut socket).await;
-        for location in payload {
+        for object in payload {
+            // a motion carries its trackable's location
+            let location = if id == motions {
+                object["location"].clone()
+            } else {
+                object
+            };
             let stamp = location["timestamp_generated"].as_str().unwrap().to_string();
             if id == wgs84 {
                 in_degrees.insert(stamp, location);
             } else if id == local {
                 in_metres.insert(stamp, location);
+            } else if id == motions {
+                motions_in_degrees.insert(stamp, location);
             }
         }
     }
-    for (stamp, degrees) in &in_degrees {
+    for (stamp, degrees) in in_degrees.iter().chain(&motions_in_degrees) {
         let Some(metres) = in_metres.get(stamp) else { continue };
         let xy = [0, 1].map(|k| metres["position"]["coordinates"][k].as_f64().unwrap());
         let [lon, lat, _] = FRAME.wgs84_of([xy[0], xy[1], 0.0]).unwrap();

@@ -205,8 +205,8 @@ fn handle(
                 .and_then(Value::as_str)
             {
                 None | Some("local") => false,
-                Some("EPSG:4326") if georeferenced && topic == Topic::LocationUpdates => true,
-                Some("EPSG:4326") if topic == Topic::LocationUpdates => {
+                Some("EPSG:4326") if georeferenced && carries_locations(topic) => true,
+                Some("EPSG:4326") if carries_locations(topic) => {
                     return WsMessage::error(
                         WsErrorCode::SubscriptionFailed,
                         "crs EPSG:4326: the site has no [frame] origin, so locations are only in crs local",
@@ -215,7 +215,7 @@ fn handle(
                 Some(other) => {
                     return WsMessage::error(
                         WsErrorCode::SubscriptionFailed,
-                        &format!("crs `{other}`: only local, or EPSG:4326 on location_updates"),
+                        &format!("crs `{other}`: only local, or EPSG:4326 on location_updates and trackable_motions"),
                     )
                 }
             };
@@ -270,7 +270,7 @@ async fn deliver(
                 .into_iter()
                 .map(Payload::Built)
                 .collect(),
-            Topic::TrackableMotions => motions(batch, subscription, context.trackables)
+            Topic::TrackableMotions => motions(batch, subscription, context.trackables, context.frame)
                 .map(|motion| Payload::Motion(Box::new(motion)))
                 .collect(),
             _ => batch
@@ -419,6 +419,7 @@ fn motions<'a>(
     batch: &'a [Arc<HubMessage>],
     subscription: &'a Subscription,
     trackables: &'a TrackableIndex,
+    frame: Option<&'a rtls_engine::site::FrameSettings>,
 ) -> impl Iterator<Item = TrackableMotion> + 'a {
     batch.iter().flat_map(move |message| {
         let mut out = Vec::new();
@@ -426,13 +427,23 @@ fn motions<'a>(
             if wanted(subscription, tag) {
                 for trackable in trackables.of(tag).iter() {
                     if subscription.trackable.as_deref().is_none_or(|t| t == trackable.id) {
-                        out.push(TrackableMotion::of(trackable, Location::clone(location)));
+                        let location = if subscription.wgs84 {
+                            super::location_crs::in_frame(Location::clone(location), frame)
+                        } else {
+                            Location::clone(location)
+                        };
+                        out.push(TrackableMotion::of(trackable, location));
                     }
                 }
             }
         }
         out
     })
+}
+
+/// The topics whose payloads carry an omlox `Location` (`params.crs` applies to them).
+fn carries_locations(topic: Topic) -> bool {
+    matches!(topic, Topic::LocationUpdates | Topic::TrackableMotions)
 }
 
 fn wanted(subscription: &Subscription, tag: &str) -> bool {
