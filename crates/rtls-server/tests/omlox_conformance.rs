@@ -210,7 +210,7 @@ async fn a_location_pushed_in_wgs84_is_tracked_in_site_metres() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn course_is_from_true_north_through_the_frame() {
+async fn course_is_from_true_north_and_motions_come_in_wgs84_on_request() {
     // the plan's x axis points north: a tag walking along +x walks north (course 0°)
     let mut site = common::site();
     site.frame = Some(rtls_engine::site::FrameSettings {
@@ -251,4 +251,55 @@ async fn course_is_from_true_north_through_the_frame() {
     let course = location["course"].as_f64().unwrap();
     // site course 90° (along +x), turned by the bearing 0° − 90°
     assert!(course.min(360.0 - course) < 5.0, "{location}");
+
+    // a trackable's motion in WGS-84 on request, as the location reads
+    let trackable = json!({"id": "00000000-0000-0000-0000-000000000000", "type": "omlox",
+                           "location_providers": ["walker"]});
+    let created = call(
+        &app,
+        Method::POST,
+        "/v2/trackables",
+        Some(WRITE),
+        &trackable.to_string(),
+    )
+    .await;
+    assert_eq!(created.status, StatusCode::CREATED, "{}", created.text());
+    let id = created.json()["id"].as_str().unwrap().to_string();
+    let motion = |crs: &'static str| {
+        let (app, id) = (app.clone(), id.clone());
+        async move {
+            call(
+                &app,
+                Method::GET,
+                &format!("/v2/trackables/{id}/motion?crs={crs}"),
+                Some(WRITE),
+                "",
+            )
+            .await
+        }
+    };
+    let (local, wgs84) = (motion("local").await.json(), motion("EPSG:4326").await.json());
+    let xy = [0, 1].map(|k| local["location"]["position"]["coordinates"][k].as_f64().unwrap());
+    let frame = state.site.frame.unwrap();
+    let [lon, lat, _] = frame.wgs84_of([xy[0], xy[1], 0.0]).unwrap();
+    let got = [0, 1].map(|k| wgs84["location"]["position"]["coordinates"][k].as_f64().unwrap());
+    assert_eq!(wgs84["location"]["crs"], "EPSG:4326", "{wgs84}");
+    assert!(
+        (got[0] - lon).abs() < 1e-9 && (got[1] - lat).abs() < 1e-9,
+        "{wgs84} against {local}"
+    );
+    let all = call(
+        &app,
+        Method::GET,
+        "/v2/trackables/motions?crs=EPSG:4326",
+        Some(WRITE),
+        "",
+    )
+    .await;
+    assert_eq!(all.json()[0]["location"]["crs"], "EPSG:4326");
+    let refused = motion("EPSG:3857").await;
+    assert_eq!(
+        assert_omlox_error(&refused, StatusCode::BAD_REQUEST, "another CRS").as_deref(),
+        Some("crs")
+    );
 }

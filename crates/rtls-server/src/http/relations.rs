@@ -13,6 +13,7 @@ use std::collections::{BTreeSet, HashMap};
 use axum::extract::{Path, Query, RawQuery, State};
 use axum::http::HeaderMap;
 use axum::Json;
+use rtls_engine::site::FrameSettings;
 
 use super::hub::{
     implicit_provider, known_provider, known_provider_or_404, list_stored, newest_location, stored_trackable, PROVIDER,
@@ -85,9 +86,13 @@ fn fences_of(state: &AppState, tags: &[String], spatial: bool) -> Vec<Fence> {
         .collect()
 }
 
-/// A trackable's motion: its newest location and its shape; `None` without a location.
-fn motion(state: &AppState, trackable: &Trackable) -> Option<TrackableMotion> {
-    Some(TrackableMotion::of(trackable, newest_location(state, trackable)?))
+/// A trackable's motion: its newest location (in `frame`, or site metres) and its shape;
+/// `None` without a location.
+fn motion(state: &AppState, trackable: &Trackable, frame: Option<&FrameSettings>) -> Option<TrackableMotion> {
+    Some(TrackableMotion::of(
+        trackable,
+        in_frame(newest_location(state, trackable)?, frame),
+    ))
 }
 
 /// The stored trackables with one of `tags` among their providers.
@@ -200,26 +205,34 @@ pub(super) async fn trackable_providers(
 /// `GET /v2/trackables/{trackable_id}/motion`: its motion — the newest location among its
 /// providers (with our track's `speed`, m/s, and `course`, degrees from north) and its name,
 /// geometry, extrusion and properties; 404 for an unknown trackable or one without a location.
+/// `?crs=EPSG:4326` gives the location in WGS-84 (as on the location reads).
 pub(super) async fn trackable_motion(
     State(state): State<AppState>,
     Path(trackable_id): Path<String>,
+    Query(crs): Query<CrsQuery>,
     headers: HeaderMap,
 ) -> ApiResult<Json<TrackableMotion>> {
     state.authorize(&headers, Access::Read)?;
+    let frame = requested_frame(&state, &crs)?;
     let trackable = stored_trackable(&state, &trackable_id).await?;
-    motion(&state, &trackable)
+    motion(&state, &trackable, frame)
         .map(Json)
         .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
 }
 
-/// `GET /v2/trackables/motions`: the motion of every stored trackable that has a location.
+/// `GET /v2/trackables/motions`: the motion of every stored trackable that has a location
+/// (`?crs=` as on [`trackable_motion`]).
 pub(super) async fn trackable_motions(
     State(state): State<AppState>,
+    Query(crs): Query<CrsQuery>,
     headers: HeaderMap,
 ) -> ApiResult<Json<Vec<TrackableMotion>>> {
     state.authorize(&headers, Access::Read)?;
+    let frame = requested_frame(&state, &crs)?;
     let trackables: Vec<Trackable> = list_stored(&state, TRACKABLE_CONFIG).await?;
-    Ok(Json(trackables.iter().filter_map(|t| motion(&state, t)).collect()))
+    Ok(Json(
+        trackables.iter().filter_map(|t| motion(&state, t, frame)).collect(),
+    ))
 }
 
 // ---- fences ----
@@ -280,7 +293,11 @@ pub(super) async fn fence_motions(
     headers: HeaderMap,
 ) -> ApiResult<Json<Vec<TrackableMotion>>> {
     state.authorize(&headers, Access::Read)?;
+    let crs = CrsQuery::of(query_value(query.as_deref(), "crs"));
+    let frame = requested_frame(&state, &crs)?;
     let (_, tags) = fence_with_tags(&state, &fence_id, spatial_query(query.as_deref())?)?;
     let trackables = trackables_with(&state, &tags).await?;
-    Ok(Json(trackables.iter().filter_map(|t| motion(&state, t)).collect()))
+    Ok(Json(
+        trackables.iter().filter_map(|t| motion(&state, t, frame)).collect(),
+    ))
 }
