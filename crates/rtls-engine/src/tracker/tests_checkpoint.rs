@@ -2,42 +2,10 @@
 //! an encoding that keeps non-finite floats (CBOR): the records after the checkpoint give
 //! exactly the outputs of a tracker that never stopped.
 
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
-
-use super::tests::{site_text, slant, ANCHORS};
+use super::tests::site_text;
+use super::tests_rewind::three_walkers;
 use super::*;
-use crate::record::Measurement;
 use crate::site::Site;
-
-/// Ranges at 10 Hz to every anchor of three walkers crossing the office zone, σ = 0.1 m, each
-/// anchor's ranges 0.2 m long (the site's stated bias) plus an offset the tracks learn.
-fn walkers(seconds: f64, seed: u64) -> Vec<Record> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, 0.1).unwrap();
-    let mut records = Vec::new();
-    for k in 0..(seconds * 10.0) as usize {
-        let t = k as f64 * 0.1;
-        for (w, tag) in ["w1", "w2", "w3"].into_iter().enumerate() {
-            let offset = 2.0 * w as f64;
-            let position = [4.0 + offset + 0.5 * t, 5.0 + offset + 0.3 * t];
-            for (i, (id, a)) in ANCHORS.into_iter().enumerate() {
-                records.push(Record {
-                    time_s: t,
-                    tag: tag.into(),
-                    measurement: Measurement::Range {
-                        anchor: id.into(),
-                        range_m: slant(position, a) + 0.2 + 0.05 * i as f64 + noise.sample(&mut rng),
-                        std_m: None,
-                        anchor_position_m: None,
-                    },
-                });
-            }
-        }
-    }
-    records
-}
 
 /// What a run produced, as text (every float printed exactly).
 fn outputs(out: &Output) -> Vec<String> {
@@ -85,7 +53,7 @@ fn a_restored_tracker_continues_exactly_as_the_one_that_never_stopped() {
                 .replace("\nimm\n", "\n");
         }
         let site = Site::from_toml_str(&text, "checkpoint.toml").unwrap();
-        let records = walkers(16.0, 3);
+        let records = three_walkers(16.0, 3);
         let split = records.len() / 2 + 7;
 
         let mut whole = Tracker::new(&site).unwrap();
@@ -131,7 +99,7 @@ fn a_state_of_the_other_dimension_is_refused_and_changes_nothing() {
     let spatial = Site::from_toml_str(&spatial_text, "3d.toml").unwrap();
     let mut tracker = Tracker::new(&planar).unwrap();
     let mut out = Output::default();
-    feed(&mut tracker, &walkers(3.0, 5), &mut out);
+    feed(&mut tracker, &three_walkers(3.0, 5), &mut out);
     let state = tracker.state();
     let mut other = Tracker::new(&spatial).unwrap();
     let error = other.restore(state).unwrap_err();
@@ -145,7 +113,7 @@ fn alarm_flags_and_zone_memberships_follow_their_zone_ids() {
     let site = Site::from_toml_str(&site_text("tightly-coupled", "ekf", ""), "zones.toml").unwrap();
     let mut tracker = Tracker::new(&site).unwrap();
     let mut out = Output::default();
-    feed(&mut tracker, &walkers(16.0, 9), &mut out);
+    feed(&mut tracker, &three_walkers(16.0, 9), &mut out);
     let inside = tracker.head_count("office");
     assert!(inside > 0, "a walker is in the office at the end");
     // the office is dropped and re-added under the new tracker: memberships go with the id

@@ -23,7 +23,7 @@ fn rewinding(pipeline: &str) -> Tracker {
 }
 
 /// Ranges at 10 Hz to all four anchors (equal time stamps per epoch) of three walkers, σ = 0.1 m.
-fn three_walkers(seconds: f64, seed: u64) -> Vec<Record> {
+pub(super) fn three_walkers(seconds: f64, seed: u64) -> Vec<Record> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, 0.1).unwrap();
     let mut records = Vec::new();

@@ -320,52 +320,76 @@ async fn resume(
     } else {
         None
     };
-    if let Some(checkpoint) = checkpoint {
-        let age_s = (crate::pipeline::unix_ms() - checkpoint.taken_ms) as f64 / 1000.0;
-        if age_s > settings.checkpoint_max_age_s {
-            tracing::info!(
-                partition,
-                age_s,
-                "the checkpoint is too old to restore; warming up instead"
-            );
-        } else {
-            match pipeline.restore_partition(partition, checkpoint.state).await {
-                Ok(tracks) => {
-                    let resume_after = floor.unwrap_or(0).max(checkpoint.sequence);
-                    warm_up(
-                        cluster,
-                        pipeline,
-                        partition,
-                        subject,
-                        WarmUpFrom::After(checkpoint.sequence),
-                        resume_after,
-                    )
-                    .await?;
-                    outcome("restored");
-                    tracing::info!(partition, tracks, sequence = checkpoint.sequence, from = %checkpoint.node,
-                        age_s, "partition restored from its checkpoint");
-                    return Ok(Some(resume_after));
-                }
-                Err(reason) => {
-                    outcome("refused");
-                    tracing::warn!(partition, reason, "the checkpoint was not restored; warming up instead");
-                }
-            }
+    let restored = match checkpoint {
+        Some(checkpoint) => restore(pipeline, partition, checkpoint, settings.checkpoint_max_age_s).await,
+        None => Restored::Not,
+    };
+    if restored == Restored::Refused {
+        outcome("refused");
+    }
+    // after a checkpoint of sequence S: the records after S up to the floor (every record S
+    // holds is stored, so the consumer starts after both); else the last `warmup_s` of them
+    let (from, up_to, what) = match restored {
+        Restored::At(sequence) => (
+            WarmUpFrom::After(sequence),
+            Some(floor.unwrap_or(0).max(sequence)),
+            "restored",
+        ),
+        Restored::Not | Restored::Refused => (
+            WarmUpFrom::RecentSeconds(settings.warmup_s),
+            floor.filter(|&f| f > 0),
+            "warmed-up",
+        ),
+    };
+    if let Some(up_to) = up_to {
+        warm_up(cluster, pipeline, partition, subject, from, up_to).await?;
+        outcome(what);
+    }
+    Ok(if matches!(restored, Restored::At(_)) {
+        up_to
+    } else {
+        floor
+    })
+}
+
+/// What became of a partition's checkpoint at a takeover.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Restored {
+    /// The tracks are its state, which holds the records up to this stream sequence.
+    At(u64),
+    /// There was none, or it was too old.
+    Not,
+    /// The partition did not take it (another site or release, or it did not decode).
+    Refused,
+}
+
+/// Hands `checkpoint` to the partition unless it is older than `max_age_s`.
+async fn restore(
+    pipeline: &Pipeline,
+    partition: usize,
+    checkpoint: checkpoints::Checkpoint,
+    max_age_s: f64,
+) -> Restored {
+    let age_s = (crate::pipeline::unix_ms() - checkpoint.taken_ms) as f64 / 1000.0;
+    if age_s > max_age_s {
+        tracing::info!(
+            partition,
+            age_s,
+            "the checkpoint is too old to restore; warming up instead"
+        );
+        return Restored::Not;
+    }
+    match pipeline.restore_partition(partition, checkpoint.state).await {
+        Ok(tracks) => {
+            tracing::info!(partition, tracks, sequence = checkpoint.sequence, from = %checkpoint.node,
+                age_s, "partition restored from its checkpoint");
+            Restored::At(checkpoint.sequence)
+        }
+        Err(reason) => {
+            tracing::warn!(partition, reason, "the checkpoint was not restored; warming up instead");
+            Restored::Refused
         }
     }
-    if let Some(floor) = floor.filter(|&f| f > 0) {
-        warm_up(
-            cluster,
-            pipeline,
-            partition,
-            subject,
-            WarmUpFrom::RecentSeconds(settings.warmup_s),
-            floor,
-        )
-        .await?;
-        outcome("warmed-up");
-    }
-    Ok(floor)
 }
 
 /// Where a warm-up starts in the partition's stream.

@@ -88,21 +88,27 @@ fn the_documented_example_file_parses_to_the_defaults_it_documents() {
     assert!(config.webhooks.is_empty(), "the example's webhook is commented out");
 }
 
-/// The example's commented-out `[adapters.generic]` table, uncommented: it parses, validates
-/// and reads Quuppa's `locationTS` in milliseconds.
-#[test]
-fn the_documented_generic_adapter_table_parses_and_validates() {
+/// The commented-out `header` table of `examples/server.toml` and the comment lines after it,
+/// uncommented.
+fn uncommented_example_table(header: &str) -> String {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/server.toml");
     let text = std::fs::read_to_string(path).unwrap();
     let start = text
-        .find("# [adapters.generic]")
-        .expect("an [adapters.generic] example");
-    let table: String = text[start..]
+        .find(&format!("# {header}"))
+        .unwrap_or_else(|| panic!("a commented {header} example"));
+    text[start..]
         .lines()
         .take_while(|line| line.starts_with('#'))
         .map(|line| line.strip_prefix("# ").unwrap_or(line))
         .collect::<Vec<_>>()
-        .join("\n");
+        .join("\n")
+}
+
+/// The example's commented-out `[adapters.generic]` table, uncommented: it parses, validates
+/// and reads Quuppa's `locationTS` in milliseconds.
+#[test]
+fn the_documented_generic_adapter_table_parses_and_validates() {
+    let table = uncommented_example_table("[adapters.generic]");
     let config: ServerConfig = toml::from_str(&table).unwrap_or_else(|e| panic!("{e}\n{table}"));
     config.validate().unwrap();
     let generic = config.adapters.generic.expect("the generic adapter");
@@ -114,15 +120,7 @@ fn the_documented_generic_adapter_table_parses_and_validates() {
 /// values shown are the defaults (but for the servers).
 #[test]
 fn the_documented_cluster_table_parses_with_the_defaults_it_documents() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/server.toml");
-    let text = std::fs::read_to_string(path).unwrap();
-    let start = text.find("# [cluster]").expect("a [cluster] example");
-    let table: String = text[start..]
-        .lines()
-        .take_while(|line| line.starts_with('#'))
-        .map(|line| line.strip_prefix("# ").unwrap_or(line))
-        .collect::<Vec<_>>()
-        .join("\n");
+    let table = uncommented_example_table("[cluster]");
     let config: ServerConfig = toml::from_str(&table).unwrap_or_else(|e| panic!("{e}\n{table}"));
     let keys = table.lines().filter(|l| l.contains(" = ")).count();
     assert_eq!(keys, 10, "every key shown:\n{table}");
