@@ -129,6 +129,10 @@ pub enum LifecycleEvent {
     Recovered,
     /// The track is gone (a tentative track that was never confirmed, or the delete timeout).
     Deleted,
+    /// Fixes left the track's gate and agreed with each other long enough: the track restarted
+    /// where they are (a tag carried or moved farther than its motion model allows; reported
+    /// by the tracker, not by [`Lifecycle`]).
+    Jumped,
 }
 
 /// The lifecycle of one track.

@@ -354,3 +354,59 @@ async fn delete_all_operations_empty_their_collections_and_the_watched_fences() 
     assert_omlox_error(&reply, StatusCode::NOT_FOUND, "deleted fence");
     state.pipeline.shutdown();
 }
+
+/// A provider whose pushed locations move 285 m at once (the tag was carried, or another
+/// system relocated it) is followed after the site's confirmation evidence
+/// (`initiation.confirm_updates` agreeing locations), not after the tracker's rejection rate
+/// has re-initialised it; the jump is a `jumped` lifecycle event.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_pushed_location_that_jumps_285_m_is_followed_after_the_confirmation_evidence() {
+    let state = state("ops-jump");
+    let app = rtls_server::http::router(state.clone());
+    let now = 3000.0;
+    let stamp = |t: f64| rtls_server::omlox::time::format_timestamp(t, "t").unwrap();
+    let location = |x: f64, y: f64, t: f64| {
+        json!({"position": {"type": "Point", "coordinates": [x, y]}, "source": "other-rtls",
+               "provider_type": "uwb", "provider_id": "cart-3", "timestamp_generated": stamp(t), "accuracy": 0.3})
+    };
+    let confirm = state.site.tracker.initiation.confirm_updates.max(2);
+    // 10 pushes at 1 Hz along y = 5 m, then `confirm` + 2 at y = 290 m
+    let pushes: Vec<Value> = (0..10)
+        .map(|k| location(2.0 + f64::from(k) * 0.5, 5.0, now + f64::from(k)))
+        .chain((10..12 + confirm).map(|k| location(2.0 + f64::from(k) * 0.5, 290.0, now + f64::from(k))))
+        .collect();
+    for push in pushes {
+        let body = Value::Array(vec![push]).to_string();
+        let reply = call(&app, Method::PUT, "/v2/providers/locations", Some(WRITE), &body).await;
+        assert_eq!(reply.status, StatusCode::NO_CONTENT, "{}", reply.text());
+    }
+    let live = state.pipeline.live().clone();
+    // the jump is confirmed by the push at 10 + confirm − 1 s
+    let jump_s = now + 10.0 + f64::from(confirm) - 1.0;
+    let followed = eventually(Duration::from_secs(10), || {
+        live.tag("cart-3")
+            .is_some_and(|t| t.time_s >= jump_s && (t.position_m[1] - 290.0).abs() < 2.0)
+    })
+    .await;
+    assert!(followed, "{:?}", live.tag("cart-3"));
+    // the event is stored by the output thread, after the live state
+    let mut events = Value::Null;
+    let mut jumped: Vec<Value> = Vec::new();
+    for _ in 0..100 {
+        events = call_json(&app, "/api/v1/events?type=lifecycle&tag=cart-3").await;
+        jumped = events
+            .as_array()
+            .unwrap_or_else(|| panic!("{events}"))
+            .iter()
+            .filter(|e| e["event"] == "jumped")
+            .cloned()
+            .collect();
+        if !jumped.is_empty() {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert_eq!(jumped.len(), 1, "{events}");
+    assert!((jumped[0]["t"].as_f64().unwrap() - jump_s).abs() < 1e-6, "{events}");
+    state.pipeline.shutdown();
+}

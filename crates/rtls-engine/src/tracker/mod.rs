@@ -153,6 +153,7 @@ mod gnss_state;
 mod heading;
 mod heading_cross;
 mod heading_state;
+mod jump;
 pub(crate) mod models;
 mod modes;
 mod noise;
@@ -176,6 +177,8 @@ mod tests_gnss;
 mod tests_heading;
 #[cfg(test)]
 mod tests_imm;
+#[cfg(test)]
+mod tests_jump;
 #[cfg(test)]
 mod tests_range_bias;
 #[cfg(test)]

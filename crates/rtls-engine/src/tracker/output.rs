@@ -88,6 +88,7 @@ fn lifecycle_name(event: LifecycleEvent) -> &'static str {
         LifecycleEvent::Lost => "lost",
         LifecycleEvent::Recovered => "recovered",
         LifecycleEvent::Deleted => "deleted",
+        LifecycleEvent::Jumped => "jumped",
     }
 }
 

@@ -21,6 +21,7 @@ use super::constraint_model::{Constraints, Hearing};
 use super::gnss_state::GnssTrack;
 use super::heading_cross::HeadingCross;
 use super::heading_state::HeadingChannel;
+use super::jump::JumpHypothesis;
 use super::modes::Manoeuvres;
 use super::noise::NoiseScales;
 use super::output::{Event, UpdateSource};
@@ -139,6 +140,10 @@ pub(crate) struct Track<const N: usize> {
     pub(super) early_closed_s: Option<f64>,
     /// Start time of an epoch re-opened for a straggler: it closes at its deadline, not early.
     pub(super) held_open_epoch_s: Option<f64>,
+    /// Gated-out fixes that agree with each other: where the tag may have jumped to
+    /// ([`super::jump`]).
+    #[serde(default)]
+    pub(super) jump: Option<JumpHypothesis<N>>,
 }
 
 impl<const N: usize> Track<N> {
@@ -170,6 +175,7 @@ impl<const N: usize> Track<N> {
             expected_readers: Vec::new(),
             early_closed_s: None,
             held_open_epoch_s: None,
+            jump: None,
         }
     }
 
@@ -194,4 +200,35 @@ pub(super) fn rejected(tag: &Arc<str>, time_s: f64, kind: &'static str, reason: 
         kind,
         reason,
     }
+}
+
+/// The state a fix starts a track at: `x₀ = [p, 0]`, `P₀ = diag(Σ_fix, σ_v² I)` (`σ_v` the
+/// site's `initial_speed_std_mps`); an axis the fix does not give (a 2-D fingerprint fix in a
+/// 3-D track) at the tag height with a 10 m standard deviation.
+///
+/// # Errors
+/// A covariance that is not finite and positive definite.
+pub(super) fn state_from_fix<const N: usize>(
+    shared: &Shared,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+) -> rtls_estimation::Result<Gaussian<N>> {
+    let k = position.len();
+    let mut mean = rtls_estimation::Vector::<N>::zeros();
+    let mut p0 = rtls_estimation::Matrix::<N>::zeros();
+    let speed_variance = shared.settings.initial_speed_std_mps.powi(2);
+    for i in 0..dimensions::<N>() {
+        p0[(2 * i + 1, 2 * i + 1)] = speed_variance;
+        if i < k {
+            mean[2 * i] = position[i];
+            for j in 0..k {
+                p0[(2 * i, 2 * j)] = covariance[i * k + j];
+            }
+        } else {
+            mean[2 * i] = shared.tag_height_m;
+            p0[(2 * i, 2 * i)] = 100.0;
+        }
+    }
+    Gaussian::new(mean, p0, time_s)
 }

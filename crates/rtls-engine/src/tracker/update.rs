@@ -7,18 +7,19 @@ use nalgebra::{DMatrix, DVector};
 use rtls_estimation::filter::Updated;
 use rtls_estimation::imm::ImmState;
 use rtls_estimation::measurement::{ComponentSelection, MeasurementModel, NoiseCovariance};
-use rtls_estimation::{Gaussian, Matrix, Vector};
+use rtls_estimation::Gaussian;
 
 use super::aided::AidedMotion;
 use super::alarms::position_of;
 use super::anchors::AnchorReading;
+use super::jump::JumpHypothesis;
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::noise::{NoiseClass, Source};
 use super::output::{Event, Output, UpdateSource};
 use super::range_bias::RoundReading;
-use super::track::{dimensions, rejected, Shared, Track, ACCELERATION_HOLD_S};
+use super::track::{dimensions, rejected, state_from_fix, Shared, Track, ACCELERATION_HOLD_S};
 use crate::error::Result;
-use crate::lifecycle::{Lifecycle, TrackStatus};
+use crate::lifecycle::{Lifecycle, LifecycleEvent, TrackStatus};
 use crate::site::FilterKind;
 
 /// A predicted state, and under `motion_model = "imm"` the predicted modes it combines.
@@ -179,6 +180,7 @@ pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.range_bias = Default::default();
     track.rejection_rate = 0.0;
     track.gated_updates = 0;
+    track.jump = None;
 }
 
 /// Under the IMM: reports a `model-switch` when the mode to report changes (see
@@ -232,7 +234,7 @@ pub(super) fn fix_update<const N: usize>(
     };
     let indices: Vec<usize> = (0..k).map(|i| 2 * i).collect();
     let prior = predict(shared, track, state, time_s)?;
-    component_update(
+    let verdict = component_update(
         shared,
         track,
         prior,
@@ -242,7 +244,63 @@ pub(super) fn fix_update<const N: usize>(
         kind,
         UpdateSource::Fix,
         out,
-    )
+    )?;
+    match verdict {
+        Verdict::Taken => {
+            // the track explains its fixes again
+            track.jump = None;
+            Ok(true)
+        }
+        Verdict::OutsideGate if track.state.is_some() => {
+            jump_hypothesis(shared, track, time_s, position, covariance, kind, out)?;
+            Ok(false)
+        }
+        Verdict::OutsideGate | Verdict::NotTaken => Ok(false),
+    }
+}
+
+/// A fix the track gated out goes to its jump hypothesis ([`super::jump`]); once the
+/// hypothesis is confirmed the track restarts at its state, with a `jumped` lifecycle event in
+/// place of the fix's rejection.
+fn jump_hypothesis<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let hypothesis = JumpHypothesis::absorb(track.jump.take(), shared, time_s, position, covariance);
+    let Some(hypothesis) = hypothesis else {
+        return Ok(());
+    };
+    if !hypothesis.is_confirmed(shared) {
+        if let Some(Event::Rejected { reason, .. }) = out.events.last_mut() {
+            reason.push_str(&format!(
+                "; held as a jump hypothesis ({} fixes agree so far)",
+                hypothesis.fixes()
+            ));
+        }
+        track.jump = Some(hypothesis);
+        return Ok(());
+    }
+    // the fix is used: its rejection (the last event, just pushed by the gate) is withdrawn
+    if matches!(out.events.last(), Some(Event::Rejected { time_s: t, .. }) if *t == time_s) {
+        out.events.pop();
+    }
+    let state = hypothesis.into_state();
+    reacquire(track);
+    start_at(shared, track, state, kind, out)?;
+    if let Some(state) = &track.state {
+        out.events.push(Event::Lifecycle {
+            tag: Arc::clone(&track.tag),
+            time_s,
+            event: LifecycleEvent::Jumped,
+            position_m: position_of(state, shared.tag_height_m).0,
+        });
+    }
+    Ok(())
 }
 
 /// (Re)starts a track at a fix: `x₀ = [p, 0]`, `P₀ = diag(Σ_fix, σ_v² I)`; a lost track
@@ -256,24 +314,7 @@ pub(super) fn start_from_fix<const N: usize>(
     kind: &'static str,
     out: &mut Output,
 ) -> Result<()> {
-    let k = position.len();
-    let mut mean = Vector::<N>::zeros();
-    let mut p0 = Matrix::<N>::zeros();
-    let speed_variance = shared.settings.initial_speed_std_mps.powi(2);
-    for i in 0..dimensions::<N>() {
-        p0[(2 * i + 1, 2 * i + 1)] = speed_variance;
-        if i < k {
-            mean[2 * i] = position[i];
-            for j in 0..k {
-                p0[(2 * i, 2 * j)] = covariance[i * k + j];
-            }
-        } else {
-            // an axis the fix does not give (a 2-D fingerprint fix in a 3-D track)
-            mean[2 * i] = shared.tag_height_m;
-            p0[(2 * i, 2 * i)] = 100.0;
-        }
-    }
-    let state = match Gaussian::new(mean, p0, time_s) {
+    let state = match state_from_fix(shared, time_s, position, covariance) {
         Ok(state) => state,
         Err(error) => {
             let reason = format!("cannot start a track from this fix: {error}");
@@ -281,6 +322,19 @@ pub(super) fn start_from_fix<const N: usize>(
             return Ok(());
         }
     };
+    start_at(shared, track, state, kind, out)
+}
+
+/// (Re)starts a track at `state`: under the IMM its modes start in the quiet one; a lost track
+/// recovers, a new one starts its lifecycle.
+fn start_at<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    state: Gaussian<N>,
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let time_s = state.time_s();
     if let Some(manoeuvres) = &shared.manoeuvres {
         match manoeuvres.start(&state) {
             Ok(modes) => {
@@ -318,8 +372,19 @@ pub(super) fn start_from_fix<const N: usize>(
     Ok(())
 }
 
+/// What became of an update.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Verdict {
+    /// The track took it.
+    Taken,
+    /// The track is gated and it fell outside the gate (a `rejected` event says so).
+    OutsideGate,
+    /// It failed or was refused otherwise (with an event).
+    NotTaken,
+}
+
 /// A linear update of state components `indices` with `value` and its row-major covariance;
-/// a failed update is reported, not applied. Returns whether the update was taken.
+/// a failed update is reported, not applied. Returns what became of it.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn component_update<const N: usize>(
     shared: &Shared,
@@ -331,7 +396,7 @@ pub(super) fn component_update<const N: usize>(
     kind: &'static str,
     source: UpdateSource,
     out: &mut Output,
-) -> Result<bool> {
+) -> Result<Verdict> {
     let k = indices.len();
     let class = NoiseClass::of_component_kind(kind, source == UpdateSource::Velocity);
     // R ← c R for errors correlated in time (c = max(1, 2τ_c/Δt)), then λ on top
@@ -376,17 +441,21 @@ pub(super) fn component_update<const N: usize>(
             track
                 .noise
                 .observe_correlation(shared.error_correlation.as_ref(), noise_source, &updated);
-            let taken = accept(shared, track, updated, modes, kind, source, out)?;
-            if taken {
+            let outside = outside_gate(shared, track, &updated);
+            if accept(shared, track, updated, modes, kind, source, out)? {
                 carry_heading_cross(track, &prior.state)?;
+                Ok(Verdict::Taken)
+            } else if outside {
+                Ok(Verdict::OutsideGate)
+            } else {
+                Ok(Verdict::NotTaken)
             }
-            Ok(taken)
         }
         Err(error) => {
             let reason = format!("{} update failed: {error}", source.name());
             out.events
                 .push(rejected(&track.tag, prior.state.time_s(), kind, reason));
-            Ok(false)
+            Ok(Verdict::NotTaken)
         }
     }
 }

@@ -1,0 +1,117 @@
+//! A track's jump hypothesis: fixes that fall outside the track's gate but agree with each
+//! other.
+//!
+//! A tag can move farther than its motion model allows between two fixes: carried in a
+//! vehicle through an area without coverage, moved to another floor, or located by another
+//! system whose positions a provider pushes. A confirmed track gates such fixes out, and its
+//! running rejection rate re-initialises it only after about nine gated-out updates (9 s at
+//! 1 Hz). Instead, the first gated-out fix starts a second hypothesis, a new track at that
+//! fix; each further gated-out fix updates it if it falls inside the hypothesis's own gate,
+//! and starts it again otherwise. Once the hypothesis holds the evidence a new track needs to
+//! be confirmed (`[tracker] initiation`: `M` fixes within `within_s`), and they span at least
+//! [`JUMP_MIN_SPAN_S`], the track jumps: the hypothesis becomes its state. A fix inside the
+//! track's gate drops the hypothesis (the track explains its fixes again).
+//!
+//! ```text
+//! start:         x₀ = [p, 0],  P₀ = diag(Σ_fix, σ_v² I)                       (a new track's)
+//! each fix:      x⁻ = F x,  P⁻ = F P Fᵀ + Q;  ν = z − H x⁻,  S = H P⁻ Hᵀ + R
+//!                νᵀ S⁻¹ ν ≤ γ  →  Kalman update, n ← n + 1;  otherwise start again at z
+//! jump when:     n ≥ max(2, M)  and  t_n − t_1 ≥ JUMP_MIN_SPAN_S  (t_n − t_1 ≤ within_s)
+//! ```
+//!
+//! A burst of outliers that agree with each other (a reflection that persists) must last
+//! [`JUMP_MIN_SPAN_S`] before the track follows it: at 10 Hz that is about as many gated-out
+//! fixes as the rejection rate needs to re-initialise the track, so the hypothesis is never
+//! more credulous than that rule; at 1 Hz it follows a real jump after `M − 1` seconds.
+//!
+//! # References
+//! Y. Bar-Shalom, P. K. Willett, X. Tian, *Tracking and Data Fusion* (2011), §3.3 (M-of-N
+//! track initiation); S. Blackman, R. Popoli, *Design and Analysis of Modern Tracking
+//! Systems* (1999), §6.3 (track splitting on unassociated measurements).
+
+use nalgebra::DVector;
+use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
+use rtls_estimation::Gaussian;
+
+use super::track::{state_from_fix, Shared};
+
+/// The least time a jump hypothesis's fixes must span before the track follows it, s.
+pub(super) const JUMP_MIN_SPAN_S: f64 = 1.0;
+
+/// Fixes that left the track's gate and agree with each other under the motion model.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) struct JumpHypothesis<const N: usize> {
+    /// The hypothesis's filtered state (a new track's, updated by its fixes).
+    state: Gaussian<N>,
+    /// Fixes it holds.
+    fixes: u32,
+    /// Time of its first fix, s.
+    first_s: f64,
+}
+
+impl<const N: usize> JumpHypothesis<N> {
+    /// A hypothesis holding one fix; `None` when the fix cannot start a state.
+    fn start(shared: &Shared, time_s: f64, position: &[f64], covariance: &[f64]) -> Option<Self> {
+        state_from_fix(shared, time_s, position, covariance)
+            .ok()
+            .map(|state| Self {
+                state,
+                fixes: 1,
+                first_s: time_s,
+            })
+    }
+
+    /// Takes a fix the track gated out: the hypothesis updated by it when it falls inside the
+    /// hypothesis's gate within the confirmation window, else a new hypothesis at the fix.
+    pub(super) fn absorb(
+        hypothesis: Option<Self>,
+        shared: &Shared,
+        time_s: f64,
+        position: &[f64],
+        covariance: &[f64],
+    ) -> Option<Self> {
+        let grown = hypothesis
+            .filter(|held| time_s - held.first_s <= shared.lifecycle.confirm_window_s)
+            .and_then(|held| held.updated(shared, time_s, position, covariance));
+        grown.or_else(|| Self::start(shared, time_s, position, covariance))
+    }
+
+    /// The hypothesis after one more fix; `None` when the fix falls outside its gate or the
+    /// update fails.
+    fn updated(&self, shared: &Shared, time_s: f64, position: &[f64], covariance: &[f64]) -> Option<Self> {
+        let k = position.len();
+        let indices: Vec<usize> = (0..k).map(|i| 2 * i).collect();
+        // x⁻ = F x,  P⁻ = F P Fᵀ + Q
+        let prior = shared.kf.predict(&self.state, &shared.motion, time_s).ok()?;
+        // ν = z − H x⁻,  S = H P⁻ Hᵀ + R,  the posterior with its NIS νᵀ S⁻¹ ν
+        let model = NoiseCovariance::full(nalgebra::DMatrix::from_row_slice(k, k, covariance))
+            .and_then(|noise| ComponentSelection::<N>::new(&indices, noise))
+            .ok()?;
+        let updated = shared
+            .kf
+            .update(&prior, &model, &DVector::from_column_slice(position))
+            .ok()?;
+        // νᵀ S⁻¹ ν ≤ γ
+        (updated.nis <= shared.gates[k.clamp(1, 3) - 1]).then(|| Self {
+            state: updated.state,
+            fixes: self.fixes + 1,
+            first_s: self.first_s,
+        })
+    }
+
+    /// Whether the track should jump to the hypothesis: `n ≥ max(2, M)` fixes spanning at
+    /// least [`JUMP_MIN_SPAN_S`].
+    pub(super) fn is_confirmed(&self, shared: &Shared) -> bool {
+        self.fixes >= shared.lifecycle.confirm_updates.max(2) && self.state.time_s() - self.first_s >= JUMP_MIN_SPAN_S
+    }
+
+    /// The hypothesis's state.
+    pub(super) fn into_state(self) -> Gaussian<N> {
+        self.state
+    }
+
+    /// Fixes it holds.
+    pub(super) fn fixes(&self) -> u32 {
+        self.fixes
+    }
+}

@@ -1,0 +1,143 @@
+//! Jump hypotheses ([`super::jump`]): a tag whose fixes move 285 m at once is followed within
+//! the confirmation's evidence, not after the rejection rate's nine fixes; single outliers and
+//! outliers that do not agree with each other never move the track.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+use super::tests::site;
+use super::*;
+use crate::lifecycle::LifecycleEvent;
+use crate::record::Measurement;
+
+/// One fix per second (σ = 0.5 m) of a tag walking east at 1 m/s from (5, 5); `displaced`
+/// gives each fix's offset from the walk.
+fn fixes(seconds: u32, displaced: impl Fn(f64) -> [f64; 2]) -> Vec<Record> {
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let noise = Normal::new(0.0, 0.5).unwrap();
+    (0..seconds)
+        .map(|k| {
+            let t = f64::from(k);
+            let offset = displaced(t);
+            Record {
+                time_s: t,
+                tag: "p1".into(),
+                measurement: Measurement::Fix {
+                    position_m: vec![
+                        5.0 + t + offset[0] + noise.sample(&mut rng),
+                        5.0 + offset[1] + noise.sample(&mut rng),
+                    ],
+                    covariance_m2: vec![0.25, 0.0, 0.0, 0.25],
+                },
+            }
+        })
+        .collect()
+}
+
+fn track(records: Vec<Record>) -> Output {
+    let mut tracker = Tracker::new(&site("fix-then-filter", "kf", "")).unwrap();
+    let mut out = Output::default();
+    for record in records {
+        tracker.push(record, &mut out).unwrap();
+    }
+    tracker.finish(&mut out).unwrap();
+    out
+}
+
+/// The measured (not predicted) updates' positions from `from_s` on.
+fn measured_from(out: &Output, from_s: f64) -> Vec<(f64, [f64; 3])> {
+    out.updates
+        .iter()
+        .filter(|u| !u.predicted && u.time_s >= from_s)
+        .map(|u| (u.time_s, u.position_m))
+        .collect()
+}
+
+fn jumps(out: &Output) -> Vec<f64> {
+    out.events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Lifecycle {
+                event: LifecycleEvent::Jumped,
+                time_s,
+                ..
+            } => Some(*time_s),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_tag_whose_fixes_move_285_m_is_followed_after_the_confirmation_evidence() {
+    // from t = 20 s the fixes are 285 m north of the walk
+    let out = track(fixes(40, |t| if t >= 20.0 { [0.0, 285.0] } else { [0.0, 0.0] }));
+    // initiation: 3 fixes within 5 s, so the track jumps at the third displaced fix, t = 22 s
+    // (the rejection rate alone took nine: t = 28 s)
+    assert_eq!(jumps(&out), vec![22.0]);
+    let after = measured_from(&out, 22.0);
+    assert!(!after.is_empty());
+    for (t, p) in &after {
+        assert!((p[1] - 290.0).abs() < 2.0, "t = {t}: {p:?}");
+    }
+    // the two displaced fixes before it were gated out, and say they are held
+    let held = out
+        .events
+        .iter()
+        .filter(|e| matches!(e, Event::Rejected { reason, .. } if reason.contains("jump hypothesis")))
+        .count();
+    assert_eq!(held, 2);
+    // the fix that confirmed the jump is not reported rejected
+    assert!(!out
+        .events
+        .iter()
+        .any(|e| matches!(e, Event::Rejected { time_s, .. } if *time_s == 22.0)));
+    // the jumped track is consistent again at once: its velocity is the walk's, not 285 m/s
+    let last = out.updates.iter().rev().find(|u| !u.predicted).unwrap();
+    assert!(
+        (last.velocity_mps[0] - 1.0).abs() < 0.5 && last.velocity_mps[1].abs() < 0.5,
+        "{last:?}"
+    );
+}
+
+#[test]
+fn outliers_that_do_not_agree_never_move_the_track() {
+    // a single 50 m outlier at t = 10; at t = 20..22 three outliers scattered 40–80 m apart
+    let out = track(fixes(40, |t| match t as u32 {
+        10 => [50.0, 0.0],
+        20 => [0.0, 60.0],
+        21 => [0.0, -60.0],
+        22 => [70.0, 30.0],
+        _ => [0.0, 0.0],
+    }));
+    assert!(jumps(&out).is_empty(), "{:?}", jumps(&out));
+    for (t, p) in measured_from(&out, 3.0) {
+        assert!(p[1].abs() < 7.0 && (p[0] - 5.0 - t).abs() < 2.0, "t = {t}: {p:?}");
+    }
+}
+
+#[test]
+fn a_burst_of_agreeing_outliers_shorter_than_the_span_does_not_move_a_fast_track() {
+    // 10 Hz fixes; for 0.5 s (6 fixes) they agree on a point 3 m off, a persisting reflection
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let noise = Normal::new(0.0, 0.1).unwrap();
+    let records: Vec<Record> = (0..200)
+        .map(|k| {
+            let t = f64::from(k) * 0.1;
+            let off = if (100..106).contains(&k) { 3.0 } else { 0.0 };
+            Record {
+                time_s: t,
+                tag: "p1".into(),
+                measurement: Measurement::Fix {
+                    position_m: vec![5.0 + t + noise.sample(&mut rng), 5.0 + off + noise.sample(&mut rng)],
+                    covariance_m2: vec![0.01, 0.0, 0.0, 0.01],
+                },
+            }
+        })
+        .collect();
+    let out = track(records);
+    assert!(jumps(&out).is_empty(), "{:?}", jumps(&out));
+    for (t, p) in measured_from(&out, 1.0) {
+        assert!((p[1] - 5.0).abs() < 0.5, "t = {t}: {p:?}");
+    }
+}
