@@ -471,6 +471,11 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
         adaptive.correlation_s,
         CORRELATION_S,
     ));
+    out.push(within(
+        at("adaptive_noise.rssi_correlation_s"),
+        adaptive.rssi_correlation_s,
+        CORRELATION_S,
+    ));
     let range_bias = &t.range_bias;
     for (key, value, bounds) in [
         ("range_bias.prior_std_m", range_bias.prior_std_m, BIAS_PRIOR_STD_M),

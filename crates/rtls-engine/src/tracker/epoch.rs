@@ -7,11 +7,12 @@ use rtls_estimation::Gaussian;
 use super::anchors::AnchorReading;
 use super::direct::apply_deferred;
 use super::gnss::close_due_gnss_epoch;
+use super::noise::NoiseClass;
 use super::output::{epoch_raw_fix, Output};
 use super::range_bias::RoundReading;
 use super::solve::{solve_epoch, EpochFix};
 use super::track::{dimensions, rejected, Shared, Track};
-use super::update::{coupled_update, fix_update};
+use super::update::{coupled_update, fix_update, fix_update_as};
 use crate::error::Result;
 use crate::site::Pipeline;
 
@@ -203,6 +204,12 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
         .collect();
     // a lost track's state is too stale to start the solver from
     let guess = track.state.as_ref().filter(|_| !track.is_lost());
+    // a fix solved from RSSI alone carries shadowing errors, correlated over seconds
+    let class = if readings.iter().all(|r| matches!(r, AnchorReading::Rssi { .. })) {
+        NoiseClass::RssiFix
+    } else {
+        NoiseClass::Fix
+    };
     match solve::<N>(shared, &readings, guess) {
         Ok(fixes) => {
             let single = fixes.len() == 1;
@@ -210,7 +217,7 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
                 out.fixes
                     .push(epoch_raw_fix(&track.tag, time_s, &position, &covariance, method));
                 let confirmed_before = is_confirmed(track);
-                let accepted = fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
+                let accepted = fix_update_as(shared, track, (time_s, &position, &covariance), "epoch", class, out)?;
                 if single && confirmed_before && accepted {
                     learn_offsets(shared, track, &stated, &readings, &position, time_s);
                 }

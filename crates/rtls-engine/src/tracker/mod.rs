@@ -172,6 +172,8 @@ mod tests_checkpoint;
 #[cfg(test)]
 mod tests_constraints;
 #[cfg(test)]
+mod tests_correlation;
+#[cfg(test)]
 mod tests_gnss;
 #[cfg(test)]
 mod tests_heading;

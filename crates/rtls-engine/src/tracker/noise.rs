@@ -7,6 +7,8 @@ use rtls_estimation::adaptive::correlation::{CorrelationEstimate, ErrorCorrelati
 use rtls_estimation::adaptive::{AdaptiveNoise, NoiseScale};
 use rtls_estimation::filter::Updated;
 
+use crate::site::AdaptiveNoiseSettings;
+
 /// Measurement classes that keep separate noise scales: their errors come from different
 /// physics, so one being worse than stated says nothing about the others.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -17,8 +19,11 @@ pub enum NoiseClass {
     Rssi,
     /// Tightly coupled range differences.
     Tdoa,
-    /// Position fixes: epoch fixes of fix-then-filter and `fix` records.
+    /// Position fixes: epoch fixes of fix-then-filter (but those solved from RSSI alone) and
+    /// `fix` records.
     Fix,
+    /// Fix-then-filter epoch fixes solved from RSSI readings alone (path-loss multilateration).
+    RssiFix,
     /// Fingerprint fixes (`rssi_vector` scans located in the radio map).
     Fingerprint,
     /// Velocity and odometry.
@@ -27,7 +32,7 @@ pub enum NoiseClass {
 
 impl NoiseClass {
     /// Number of classes.
-    pub const COUNT: usize = 6;
+    pub const COUNT: usize = 7;
 
     /// Every class, in index order.
     pub const ALL: [Self; Self::COUNT] = [
@@ -35,11 +40,13 @@ impl NoiseClass {
         Self::Rssi,
         Self::Tdoa,
         Self::Fix,
+        Self::RssiFix,
         Self::Fingerprint,
         Self::Velocity,
     ];
 
-    /// The class's name in summaries: `range`, `rssi`, `tdoa`, `fix`, `fingerprint`, `velocity`.
+    /// The class's name in summaries: `range`, `rssi`, `tdoa`, `fix`, `rssi-fix`, `fingerprint`,
+    /// `velocity`.
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
@@ -47,6 +54,7 @@ impl NoiseClass {
             Self::Rssi => "rssi",
             Self::Tdoa => "tdoa",
             Self::Fix => "fix",
+            Self::RssiFix => "rssi-fix",
             Self::Fingerprint => "fingerprint",
             Self::Velocity => "velocity",
         }
@@ -55,6 +63,17 @@ impl NoiseClass {
     /// The class of a component update, by the record kind that produced it (the `kind` the
     /// tracker names in events: `rssi_vector` is a fingerprint; `velocity` / `odometry` a
     /// velocity; every other position update a fix).
+    /// The correlation time of the class's errors, s: `rssi_correlation_s` for fixes made of
+    /// received signal strength (fixes solved from RSSI alone, fingerprint scans),
+    /// `correlation_s` for everything else, single RSSI readings included (see
+    /// [`AdaptiveNoiseSettings`]).
+    pub(super) fn correlation_s(self, settings: &AdaptiveNoiseSettings) -> f64 {
+        match self {
+            Self::RssiFix | Self::Fingerprint => settings.rssi_correlation_s,
+            Self::Range | Self::Rssi | Self::Tdoa | Self::Fix | Self::Velocity => settings.correlation_s,
+        }
+    }
+
     pub(super) fn of_component_kind(kind: &str, is_velocity: bool) -> Self {
         match (kind, is_velocity) {
             (_, true) => Self::Velocity,

@@ -227,6 +227,20 @@ pub(super) fn fix_update<const N: usize>(
     kind: &'static str,
     out: &mut Output,
 ) -> Result<bool> {
+    let class = NoiseClass::of_component_kind(kind, false);
+    fix_update_as(shared, track, (time_s, position, covariance), kind, class, out)
+}
+
+/// [`fix_update`] with the fix's noise class given (an epoch fix solved from RSSI alone is
+/// [`NoiseClass::RssiFix`]).
+pub(super) fn fix_update_as<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    (time_s, position, covariance): (f64, &[f64], &[f64]),
+    kind: &'static str,
+    class: NoiseClass,
+    out: &mut Output,
+) -> Result<bool> {
     let k = position.len();
     let Some(state) = track.state.as_ref().filter(|_| !track.is_lost()) else {
         // a new track, or a lost one whose prior is too stale to update
@@ -242,7 +256,7 @@ pub(super) fn fix_update<const N: usize>(
         position,
         covariance,
         kind,
-        UpdateSource::Fix,
+        (UpdateSource::Fix, class),
         out,
     )?;
     match verdict {
@@ -394,11 +408,10 @@ pub(super) fn component_update<const N: usize>(
     value: &[f64],
     covariance: &[f64],
     kind: &'static str,
-    source: UpdateSource,
+    (source, class): (UpdateSource, NoiseClass),
     out: &mut Output,
 ) -> Result<Verdict> {
     let k = indices.len();
-    let class = NoiseClass::of_component_kind(kind, source == UpdateSource::Velocity);
     // R ← c R for errors correlated in time (c = max(1, 2τ_c/Δt)), then λ on top
     let noise_source = Source {
         class,
@@ -407,7 +420,7 @@ pub(super) fn component_update<const N: usize>(
     let inflation = track.noise.correlation_inflation(
         noise_source,
         prior.state.time_s(),
-        shared.settings.adaptive_noise.correlation_s,
+        class.correlation_s(&shared.settings.adaptive_noise),
         shared.error_correlation.as_ref(),
     );
     let stated: Vec<f64> = covariance.iter().map(|c| inflation * c).collect();
@@ -514,7 +527,7 @@ pub(super) fn velocity_update<const N: usize>(
         velocity,
         covariance,
         kind,
-        UpdateSource::Velocity,
+        (UpdateSource::Velocity, NoiseClass::Velocity),
         out,
     )
     .map(|_taken| ())
@@ -548,7 +561,7 @@ pub(super) fn coupled_update<const N: usize>(
     let inflation = track.noise.correlation_inflation(
         source,
         time_s,
-        shared.settings.adaptive_noise.correlation_s,
+        class.correlation_s(&shared.settings.adaptive_noise),
         shared.error_correlation.as_ref(),
     );
     let scale = inflation * track.noise.scale(class);

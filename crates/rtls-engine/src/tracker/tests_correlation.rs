@@ -1,0 +1,66 @@
+//! Error correlation times per measurement class: fixes made of RSSI (path-loss epoch fixes,
+//! fingerprint scans) take `adaptive_noise.rssi_correlation_s`, everything else
+//! `correlation_s`.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+use super::tests::{range_records, run, site, slant, ANCHORS};
+use super::*;
+use crate::record::Measurement;
+
+/// RSSI readings round robin over the four anchors every 50 ms (2 dB shadowing) of a tag
+/// standing at (8, 6).
+fn rssi_records() -> Vec<Record> {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let shadowing = Normal::new(0.0, 2.0).unwrap();
+    (0..400)
+        .map(|k| {
+            let (id, a) = ANCHORS[k % 4];
+            Record {
+                time_s: k as f64 * 0.05,
+                tag: "w1".into(),
+                measurement: Measurement::Rssi {
+                    anchor: id.into(),
+                    rssi_dbm: -40.0 - 25.0 * slant([8.0, 6.0], a).log10() + shadowing.sample(&mut rng),
+                },
+            }
+        })
+        .collect()
+}
+
+/// The last update's position covariance trace, m², and every update's position.
+fn tracked(
+    pipeline: &str,
+    filter: &str,
+    extra: &str,
+    rssi_correlation_s: f64,
+    records: Vec<Record>,
+) -> (f64, Vec<[f64; 3]>) {
+    let mut site = site(pipeline, filter, extra);
+    site.tracker.adaptive_noise.rssi_correlation_s = rssi_correlation_s;
+    let out = run(&mut Tracker::new(&site).unwrap(), records);
+    let last = out.updates.iter().rev().find(|u| !u.predicted).unwrap();
+    let trace = last.position_covariance_m2[0] + last.position_covariance_m2[4];
+    (trace, out.updates.iter().map(|u| u.position_m).collect())
+}
+
+#[test]
+fn rssi_fixes_take_their_own_correlation_time_and_nothing_else_does() {
+    // path-loss epoch fixes every 0.2 s: with τ = 2 s each variance is inflated by
+    // 2τ/Δt = 20, so the track's covariance is several times larger than with τ = 0
+    let epochs = "epoch_s = 0.19";
+    let (independent, _) = tracked("fix-then-filter", "kf", epochs, 0.0, rssi_records());
+    let (correlated, _) = tracked("fix-then-filter", "kf", epochs, 2.0, rssi_records());
+    assert!(correlated > 3.0 * independent, "{correlated} vs {independent} m²");
+    // single RSSI readings (tightly coupled) and UWB epoch fixes keep correlation_s
+    for (pipeline, filter, records) in [
+        ("tightly-coupled", "ekf", rssi_records()),
+        ("fix-then-filter", "kf", range_records(10.0, 7, |_| [8.0, 6.0])),
+    ] {
+        let a = tracked(pipeline, filter, "", 0.0, records.clone());
+        let b = tracked(pipeline, filter, "", 2.0, records);
+        assert_eq!(a, b, "{pipeline}");
+    }
+}
