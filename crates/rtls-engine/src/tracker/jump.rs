@@ -31,87 +31,76 @@
 
 use nalgebra::DVector;
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
-use rtls_estimation::Gaussian;
 
+use super::jump_state::JumpHypothesis;
 use super::track::{state_from_fix, Shared};
 
 /// The least time a jump hypothesis's fixes must span before the track follows it, s.
 pub(super) const JUMP_MIN_SPAN_S: f64 = 1.0;
 
-/// Fixes that left the track's gate and agree with each other under the motion model.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub(crate) struct JumpHypothesis<const N: usize> {
-    /// The hypothesis's filtered state (a new track's, updated by its fixes).
-    state: Gaussian<N>,
-    /// Fixes it holds.
-    fixes: u32,
-    /// Time of its first fix, s.
-    first_s: f64,
+/// A hypothesis holding one fix; `None` when the fix cannot start a state.
+fn start<const N: usize>(
+    shared: &Shared,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+) -> Option<JumpHypothesis<N>> {
+    state_from_fix(shared, time_s, position, covariance)
+        .ok()
+        .map(|state| JumpHypothesis {
+            state,
+            fixes: 1,
+            first_s: time_s,
+        })
 }
 
-impl<const N: usize> JumpHypothesis<N> {
-    /// A hypothesis holding one fix; `None` when the fix cannot start a state.
-    fn start(shared: &Shared, time_s: f64, position: &[f64], covariance: &[f64]) -> Option<Self> {
-        state_from_fix(shared, time_s, position, covariance)
-            .ok()
-            .map(|state| Self {
-                state,
-                fixes: 1,
-                first_s: time_s,
-            })
-    }
+/// Takes a fix the track gated out: the hypothesis updated by it when it falls inside the
+/// hypothesis's gate within the confirmation window, else a new hypothesis at the fix.
+pub(super) fn absorb<const N: usize>(
+    hypothesis: Option<JumpHypothesis<N>>,
+    shared: &Shared,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+) -> Option<JumpHypothesis<N>> {
+    let grown = hypothesis
+        .filter(|held| time_s - held.first_s <= shared.lifecycle.confirm_window_s)
+        .and_then(|held| updated(&held, shared, time_s, position, covariance));
+    grown.or_else(|| start(shared, time_s, position, covariance))
+}
 
-    /// Takes a fix the track gated out: the hypothesis updated by it when it falls inside the
-    /// hypothesis's gate within the confirmation window, else a new hypothesis at the fix.
-    pub(super) fn absorb(
-        hypothesis: Option<Self>,
-        shared: &Shared,
-        time_s: f64,
-        position: &[f64],
-        covariance: &[f64],
-    ) -> Option<Self> {
-        let grown = hypothesis
-            .filter(|held| time_s - held.first_s <= shared.lifecycle.confirm_window_s)
-            .and_then(|held| held.updated(shared, time_s, position, covariance));
-        grown.or_else(|| Self::start(shared, time_s, position, covariance))
-    }
+/// The hypothesis after one more fix; `None` when the fix falls outside its gate or the
+/// update fails.
+fn updated<const N: usize>(
+    held: &JumpHypothesis<N>,
+    shared: &Shared,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+) -> Option<JumpHypothesis<N>> {
+    let k = position.len();
+    let indices: Vec<usize> = (0..k).map(|i| 2 * i).collect();
+    // x⁻ = F x,  P⁻ = F P Fᵀ + Q
+    let prior = shared.kf.predict(&held.state, &shared.motion, time_s).ok()?;
+    // ν = z − H x⁻,  S = H P⁻ Hᵀ + R,  the posterior with its NIS νᵀ S⁻¹ ν
+    let model = NoiseCovariance::full(nalgebra::DMatrix::from_row_slice(k, k, covariance))
+        .and_then(|noise| ComponentSelection::<N>::new(&indices, noise))
+        .ok()?;
+    let updated = shared
+        .kf
+        .update(&prior, &model, &DVector::from_column_slice(position))
+        .ok()?;
+    // νᵀ S⁻¹ ν ≤ γ
+    (updated.nis <= shared.gates[k.clamp(1, 3) - 1]).then(|| JumpHypothesis {
+        state: updated.state,
+        fixes: held.fixes + 1,
+        first_s: held.first_s,
+    })
+}
 
-    /// The hypothesis after one more fix; `None` when the fix falls outside its gate or the
-    /// update fails.
-    fn updated(&self, shared: &Shared, time_s: f64, position: &[f64], covariance: &[f64]) -> Option<Self> {
-        let k = position.len();
-        let indices: Vec<usize> = (0..k).map(|i| 2 * i).collect();
-        // x⁻ = F x,  P⁻ = F P Fᵀ + Q
-        let prior = shared.kf.predict(&self.state, &shared.motion, time_s).ok()?;
-        // ν = z − H x⁻,  S = H P⁻ Hᵀ + R,  the posterior with its NIS νᵀ S⁻¹ ν
-        let model = NoiseCovariance::full(nalgebra::DMatrix::from_row_slice(k, k, covariance))
-            .and_then(|noise| ComponentSelection::<N>::new(&indices, noise))
-            .ok()?;
-        let updated = shared
-            .kf
-            .update(&prior, &model, &DVector::from_column_slice(position))
-            .ok()?;
-        // νᵀ S⁻¹ ν ≤ γ
-        (updated.nis <= shared.gates[k.clamp(1, 3) - 1]).then(|| Self {
-            state: updated.state,
-            fixes: self.fixes + 1,
-            first_s: self.first_s,
-        })
-    }
-
-    /// Whether the track should jump to the hypothesis: `n ≥ max(2, M)` fixes spanning at
-    /// least [`JUMP_MIN_SPAN_S`].
-    pub(super) fn is_confirmed(&self, shared: &Shared) -> bool {
-        self.fixes >= shared.lifecycle.confirm_updates.max(2) && self.state.time_s() - self.first_s >= JUMP_MIN_SPAN_S
-    }
-
-    /// The hypothesis's state.
-    pub(super) fn into_state(self) -> Gaussian<N> {
-        self.state
-    }
-
-    /// Fixes it holds.
-    pub(super) fn fixes(&self) -> u32 {
-        self.fixes
-    }
+/// Whether the track should jump to the hypothesis: `n ≥ max(2, M)` fixes spanning at
+/// least [`JUMP_MIN_SPAN_S`].
+pub(super) fn is_confirmed<const N: usize>(hypothesis: &JumpHypothesis<N>, shared: &Shared) -> bool {
+    hypothesis.fixes >= shared.lifecycle.confirm_updates.max(2)
+        && hypothesis.state.time_s() - hypothesis.first_s >= JUMP_MIN_SPAN_S
 }

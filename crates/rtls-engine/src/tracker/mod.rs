@@ -154,6 +154,7 @@ mod heading;
 mod heading_cross;
 mod heading_state;
 mod jump;
+mod jump_state;
 pub(crate) mod models;
 mod modes;
 mod noise;

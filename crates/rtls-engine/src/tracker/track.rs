@@ -21,7 +21,7 @@ use super::constraint_model::{Constraints, Hearing};
 use super::gnss_state::GnssTrack;
 use super::heading_cross::HeadingCross;
 use super::heading_state::HeadingChannel;
-use super::jump::JumpHypothesis;
+use super::jump_state::JumpHypothesis;
 use super::modes::Manoeuvres;
 use super::noise::NoiseScales;
 use super::output::{Event, UpdateSource};

@@ -12,7 +12,7 @@ use rtls_estimation::Gaussian;
 use super::aided::AidedMotion;
 use super::alarms::position_of;
 use super::anchors::AnchorReading;
-use super::jump::JumpHypothesis;
+use super::jump;
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::noise::{NoiseClass, Source};
 use super::output::{Event, Output, UpdateSource};
@@ -285,15 +285,15 @@ fn jump_hypothesis<const N: usize>(
     kind: &'static str,
     out: &mut Output,
 ) -> Result<()> {
-    let hypothesis = JumpHypothesis::absorb(track.jump.take(), shared, time_s, position, covariance);
+    let hypothesis = jump::absorb(track.jump.take(), shared, time_s, position, covariance);
     let Some(hypothesis) = hypothesis else {
         return Ok(());
     };
-    if !hypothesis.is_confirmed(shared) {
+    if !jump::is_confirmed(&hypothesis, shared) {
         if let Some(Event::Rejected { reason, .. }) = out.events.last_mut() {
             reason.push_str(&format!(
                 "; held as a jump hypothesis ({} fixes agree so far)",
-                hypothesis.fixes()
+                hypothesis.fixes
             ));
         }
         track.jump = Some(hypothesis);
@@ -303,7 +303,7 @@ fn jump_hypothesis<const N: usize>(
     if matches!(out.events.last(), Some(Event::Rejected { time_s: t, .. }) if *t == time_s) {
         out.events.pop();
     }
-    let state = hypothesis.into_state();
+    let state = hypothesis.state;
     reacquire(track);
     start_at(shared, track, state, kind, out)?;
     if let Some(state) = &track.state {
