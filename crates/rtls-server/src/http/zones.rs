@@ -72,7 +72,7 @@ pub(super) fn zone_by_source<'a>(zones: &'a [Zone], source: &str) -> Option<&'a 
 }
 
 /// A zone by id, or a 404.
-async fn zone(state: &AppState, zone_id: &str) -> ApiResult<Zone> {
+pub(super) async fn zone(state: &AppState, zone_id: &str) -> ApiResult<Zone> {
     let site = site_zone(state);
     if site.id == zone_id {
         return Ok(site);
