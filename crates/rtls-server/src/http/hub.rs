@@ -8,11 +8,11 @@ use axum::extract::{Path, RawQuery, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
-use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::Value;
 
 use super::read_frame::ReadFrame;
+use super::stored::{get_stored, list_stored};
 use super::trackable_sync::refresh_trackables;
 use super::{parse_json, same_as_path, ApiError, ApiResult, AppState};
 use crate::auth::{Access, Principal};
@@ -435,41 +435,6 @@ fn forget_locations(state: &AppState) -> usize {
 }
 
 // ---- stored configuration helpers ----
-
-pub(super) async fn list_stored<T: DeserializeOwned + Send + 'static>(
-    state: &AppState,
-    kind: &'static str,
-) -> ApiResult<Vec<T>> {
-    let rows = state.query(move |store| store.list_config(kind)).await?;
-    rows.into_iter()
-        .map(|(id, json)| {
-            serde_json::from_str(&json).map_err(|e| {
-                ApiError::new(
-                    StatusCode::INTERNAL_SERVER_ERROR,
-                    format!("stored {kind} `{id}` is corrupt: {e}"),
-                )
-            })
-        })
-        .collect()
-}
-
-pub(super) async fn get_stored<T: DeserializeOwned + Send + 'static>(
-    state: &AppState,
-    kind: &'static str,
-    id: &str,
-) -> ApiResult<Option<T>> {
-    let key = id.to_string();
-    let json = state.query(move |store| store.get_config(kind, &key)).await?;
-    json.map(|json| {
-        serde_json::from_str(&json).map_err(|e| {
-            ApiError::new(
-                StatusCode::INTERNAL_SERVER_ERROR,
-                format!("stored {kind} `{id}` is corrupt: {e}"),
-            )
-        })
-    })
-    .transpose()
-}
 
 pub(super) async fn create<T: Serialize>(
     state: &AppState,

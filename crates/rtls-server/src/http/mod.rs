@@ -23,11 +23,13 @@ pub mod rate;
 mod read_frame;
 mod relations;
 mod sensors;
+mod stored;
 pub mod tokens;
 pub mod trackable_sync;
 mod v2;
 mod ws;
 mod zone_frame;
+mod zone_store;
 mod zones;
 
 use std::sync::{Arc, Mutex};

@@ -36,7 +36,7 @@ use rtls_engine::site::FrameSettings;
 use serde_json::{json, Value};
 
 use super::zone_frame::ZoneFrame;
-use super::zones::{is_proximity, site_zone, zone};
+use super::zone_store::{is_proximity, site_zone, zone};
 use super::{query_value, ApiError, ApiResult, AppState};
 use crate::omlox::geojson::{feature_collection, ToFeature};
 use crate::omlox::{Fence, Location, Region, Trackable, TrackableMotion};

@@ -16,9 +16,10 @@ use axum::response::Response;
 use axum::Json;
 
 use super::hub::{
-    implicit_provider, known_provider, known_provider_or_404, list_stored, newest_location, stored_trackable, PROVIDER,
+    implicit_provider, known_provider, known_provider_or_404, newest_location, stored_trackable, PROVIDER,
 };
 use super::read_frame::ReadFrame;
+use super::stored::list_stored;
 use super::{query_value, ApiError, ApiResult, AppState, TRACKABLE_CONFIG};
 use crate::auth::Access;
 use crate::convert::fence_from_zone;
