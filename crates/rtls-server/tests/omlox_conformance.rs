@@ -9,7 +9,7 @@ mod common;
 use std::time::Duration;
 
 use axum::http::{Method, StatusCode};
-use common::{assert_omlox_error, call, eventually, state, walk, FRAME, WRITE};
+use common::{assert_omlox_error, call, eventually, state, FRAME, WRITE};
 use serde_json::json;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -186,34 +186,7 @@ async fn course_is_from_true_north_and_motions_come_in_wgs84_on_request() {
         x_axis_bearing_deg: 0.0,
         ..FRAME
     });
-    let state = common::state_on_site(
-        "conformance-course",
-        site,
-        rtls_server::pipeline::PipelineConfig {
-            partitions: 2,
-            live_clock: false,
-            ..rtls_server::pipeline::PipelineConfig::default()
-        },
-    );
-    let app = rtls_server::http::router(state.clone());
-    let reply = call(
-        &app,
-        Method::POST,
-        "/api/v1/measurements",
-        Some(WRITE),
-        &walk("walker", 3000.0, 6.0),
-    )
-    .await;
-    assert_eq!(reply.status, StatusCode::OK, "{}", reply.text());
-    let moving = eventually(Duration::from_secs(10), || {
-        state
-            .pipeline
-            .live()
-            .tag("walker")
-            .is_some_and(|t| t.location.speed.is_some_and(|v| v > 0.5))
-    })
-    .await;
-    assert!(moving, "the walk is tracked");
+    let (state, app) = common::walked_on_site("conformance-course", site).await;
     let location = call(&app, Method::GET, "/v2/providers/walker/location", Some(WRITE), "")
         .await
         .json();

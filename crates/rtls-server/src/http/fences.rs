@@ -9,13 +9,14 @@
 //! (longitude, latitude in degrees) on a site with a `[frame]`, whose georeference takes it to
 //! site metres: a `Polygon` region (closed ring) or a `Point` with `radius` (m, a 32-gon).
 //! (omlox reads a fence without `crs` as EPSG:4326; here it is local, as everything this API
-//! writes and reads without `crs`.) `properties` may carry `rtls:kind`
+//! writes and reads without `crs`; the reads give regions in WGS-84 or a zone's frame on
+//! request, and as GeoJSON: `read_frame`.) `properties` may carry `rtls:kind`
 //! (`hazard`, `restricted`, `area-of-interest`, default), and `rtls:floor` (a site floor id) or
 //! `rtls:z_range_m`; without either the zone spans every height. The zone's id is the fence's
 //! `foreign_id` when given, else its UUID.
 
 use axum::body::Bytes;
-use axum::extract::{Path, State};
+use axum::extract::{Path, RawQuery, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
@@ -23,6 +24,7 @@ use rtls_engine::site::Site;
 use rtls_engine::zones::{AntiFlap, Shape, Zone as SiteZone, ZoneKind, ZoneMonitor};
 use serde_json::Value;
 
+use super::read_frame::ReadFrame;
 use super::{parse_json, ApiError, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::fence_from_zone;
@@ -52,23 +54,36 @@ pub(super) async fn list(State(state): State<AppState>, headers: HeaderMap) -> A
     Ok(Json(fences(&state).into_iter().map(|f| f.id).collect()))
 }
 
-/// `GET /v2/fences/summary`.
-pub(super) async fn summary(State(state): State<AppState>, headers: HeaderMap) -> ApiResult<Json<Vec<Fence>>> {
+/// `GET /v2/fences/summary`: every fence, its region in the frame `crs` and `zone_id` ask for
+/// (site metres by default), as GeoJSON with `geojson=true` ([`ReadFrame`]).
+pub(super) async fn summary(
+    State(state): State<AppState>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    Ok(Json(fences(&state)))
+    let read = ReadFrame::of(&state, query.as_deref()).await?;
+    let fences = fences(&state)
+        .into_iter()
+        .map(|f| read.fence(f))
+        .collect::<ApiResult<Vec<_>>>()?;
+    Ok(read.answer_all(&fences))
 }
 
-/// `GET /v2/fences/{fence_id}`: by UUID or by the zone's id (`foreign_id`).
+/// `GET /v2/fences/{fence_id}`: by UUID or by the zone's id (`foreign_id`); query as on
+/// [`summary`].
 pub(super) async fn get(
     State(state): State<AppState>,
     Path(fence_id): Path<String>,
+    RawQuery(query): RawQuery,
     headers: HeaderMap,
-) -> ApiResult<Json<Fence>> {
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    find(&fences(&state), &fence_id)
+    let read = ReadFrame::of(&state, query.as_deref()).await?;
+    let fence = find(&fences(&state), &fence_id)
         .cloned()
-        .map(Json)
-        .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))
+        .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))?;
+    Ok(read.answer(&read.fence(fence)?))
 }
 
 /// `POST /v2/fences`: 201 with the fence (a UUID is assigned when `id` is absent or the nil

@@ -4,15 +4,15 @@
 //! `relations.rs`, proximities in `proximity.rs`, sensor data in `sensors.rs`).
 
 use axum::body::Bytes;
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, RawQuery, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
-use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::Value;
 
-use super::location_crs::{in_frame, requested_frame, CrsQuery};
+use super::read_frame::ReadFrame;
+use super::stored::{get_stored, list_stored};
 use super::trackable_sync::refresh_trackables;
 use super::{parse_json, same_as_path, ApiError, ApiResult, AppState};
 use crate::auth::{Access, Principal};
@@ -108,40 +108,37 @@ pub(super) fn server_error(error: ServerError) -> ApiError {
     }
 }
 
-/// `GET /v2/providers/locations`: every tag's latest location.
+/// `GET /v2/providers/locations`: every tag's latest location (`crs`, `zone_id` and `geojson`
+/// as [`ReadFrame`] reads them).
 pub(super) async fn get_locations(
     State(state): State<AppState>,
-    Query(crs): Query<CrsQuery>,
+    RawQuery(query): RawQuery,
     headers: HeaderMap,
-) -> ApiResult<Json<Vec<Location>>> {
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let frame = requested_frame(&state, &crs)?;
-    Ok(Json(
-        state
-            .pipeline
-            .live()
-            .tags()
-            .into_values()
-            .map(|t| in_frame(Location::clone(&t.location), frame))
-            .collect(),
-    ))
+    let read = ReadFrame::of(&state, query.as_deref()).await?;
+    let tags = state.pipeline.live().tags();
+    let locations = read.locations(tags.into_values().map(|t| Location::clone(&t.location)))?;
+    Ok(read.answer_all(&locations))
 }
 
-/// `GET /v2/providers/{provider_id}/location`: a tag's latest location.
+/// `GET /v2/providers/{provider_id}/location`: a tag's latest location (query as on
+/// [`get_locations`]).
 pub(super) async fn get_provider_location(
     State(state): State<AppState>,
     Path(provider_id): Path<String>,
-    Query(crs): Query<CrsQuery>,
+    RawQuery(query): RawQuery,
     headers: HeaderMap,
-) -> ApiResult<Json<Location>> {
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let frame = requested_frame(&state, &crs)?;
-    state
+    let read = ReadFrame::of(&state, query.as_deref()).await?;
+    let location = state
         .pipeline
         .live()
         .tag(&provider_id)
-        .map(|t| Json(in_frame(Location::clone(&t.location), frame)))
-        .ok_or_else(|| ApiError::not_found(format!("provider `{provider_id}` has no location")))
+        .map(|t| Location::clone(&t.location))
+        .ok_or_else(|| ApiError::not_found(format!("provider `{provider_id}` has no location")))?;
+    Ok(read.answer(&read.location(location)?))
 }
 
 // ---- providers (stored; every tracked tag is also listed) ----
@@ -324,19 +321,20 @@ pub(super) async fn delete_trackable(
     Ok(deleted)
 }
 
-/// `GET /v2/trackables/{trackable_id}/location`: the newest location among its providers.
+/// `GET /v2/trackables/{trackable_id}/location`: the newest location among its providers
+/// (query as on [`get_locations`]).
 pub(super) async fn get_trackable_location(
     State(state): State<AppState>,
     Path(trackable_id): Path<String>,
-    Query(crs): Query<CrsQuery>,
+    RawQuery(query): RawQuery,
     headers: HeaderMap,
-) -> ApiResult<Json<Location>> {
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let frame = requested_frame(&state, &crs)?;
+    let read = ReadFrame::of(&state, query.as_deref()).await?;
     let trackable = stored_trackable(&state, &trackable_id).await?;
-    newest_location(&state, &trackable)
-        .map(|location| Json(in_frame(location, frame)))
-        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
+    let location = newest_location(&state, &trackable)
+        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))?;
+    Ok(read.answer(&read.location(location)?))
 }
 
 /// A trackable's location: the newest latest location among its providers, if any has one.
@@ -437,41 +435,6 @@ fn forget_locations(state: &AppState) -> usize {
 }
 
 // ---- stored configuration helpers ----
-
-pub(super) async fn list_stored<T: DeserializeOwned + Send + 'static>(
-    state: &AppState,
-    kind: &'static str,
-) -> ApiResult<Vec<T>> {
-    let rows = state.query(move |store| store.list_config(kind)).await?;
-    rows.into_iter()
-        .map(|(id, json)| {
-            serde_json::from_str(&json).map_err(|e| {
-                ApiError::new(
-                    StatusCode::INTERNAL_SERVER_ERROR,
-                    format!("stored {kind} `{id}` is corrupt: {e}"),
-                )
-            })
-        })
-        .collect()
-}
-
-pub(super) async fn get_stored<T: DeserializeOwned + Send + 'static>(
-    state: &AppState,
-    kind: &'static str,
-    id: &str,
-) -> ApiResult<Option<T>> {
-    let key = id.to_string();
-    let json = state.query(move |store| store.get_config(kind, &key)).await?;
-    json.map(|json| {
-        serde_json::from_str(&json).map_err(|e| {
-            ApiError::new(
-                StatusCode::INTERNAL_SERVER_ERROR,
-                format!("stored {kind} `{id}` is corrupt: {e}"),
-            )
-        })
-    })
-    .transpose()
-}
 
 pub(super) async fn create<T: Serialize>(
     state: &AppState,

@@ -10,15 +10,16 @@
 
 use std::collections::{BTreeSet, HashMap};
 
-use axum::extract::{Path, Query, RawQuery, State};
+use axum::extract::{Path, RawQuery, State};
 use axum::http::HeaderMap;
+use axum::response::Response;
 use axum::Json;
-use rtls_engine::site::FrameSettings;
 
 use super::hub::{
-    implicit_provider, known_provider, known_provider_or_404, list_stored, newest_location, stored_trackable, PROVIDER,
+    implicit_provider, known_provider, known_provider_or_404, newest_location, stored_trackable, PROVIDER,
 };
-use super::location_crs::{in_frame, requested_frame, CrsQuery};
+use super::read_frame::ReadFrame;
+use super::stored::list_stored;
 use super::{query_value, ApiError, ApiResult, AppState, TRACKABLE_CONFIG};
 use crate::auth::Access;
 use crate::convert::fence_from_zone;
@@ -86,13 +87,15 @@ fn fences_of(state: &AppState, tags: &[String], spatial: bool) -> Vec<Fence> {
         .collect()
 }
 
-/// A trackable's motion: its newest location (in `frame`, or site metres) and its shape;
-/// `None` without a location.
-fn motion(state: &AppState, trackable: &Trackable, frame: Option<&FrameSettings>) -> Option<TrackableMotion> {
-    Some(TrackableMotion::of(
-        trackable,
-        in_frame(newest_location(state, trackable)?, frame),
-    ))
+/// The motions of those of `trackables` that have a location, each location in `read`'s frame.
+///
+/// # Errors
+/// A location the frame cannot take ([`ReadFrame::location`]).
+fn motions(state: &AppState, trackables: &[Trackable], read: &ReadFrame) -> ApiResult<Vec<TrackableMotion>> {
+    trackables
+        .iter()
+        .filter_map(|t| Some(read.motion(t, newest_location(state, t)?)))
+        .collect()
 }
 
 /// The stored trackables with one of `tags` among their providers.
@@ -167,25 +170,24 @@ pub(super) async fn trackable_fences(
 
 /// `GET /v2/trackables/{trackable_id}/locations`: the latest location of each of its
 /// providers that has one, in the order of `location_providers`; 404 for an unknown trackable.
+/// `crs`, `zone_id` and `geojson` as [`ReadFrame`] reads them.
 pub(super) async fn trackable_locations(
     State(state): State<AppState>,
     Path(trackable_id): Path<String>,
-    Query(crs): Query<CrsQuery>,
+    RawQuery(query): RawQuery,
     headers: HeaderMap,
-) -> ApiResult<Json<Vec<Location>>> {
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let frame = requested_frame(&state, &crs)?;
+    let read = ReadFrame::of(&state, query.as_deref()).await?;
     let trackable = stored_trackable(&state, &trackable_id).await?;
     let live = state.pipeline.live();
-    Ok(Json(
-        trackable
-            .location_providers
-            .iter()
-            .flatten()
-            .filter_map(|p| live.tag(p))
-            .map(|t| in_frame(Location::clone(&t.location), frame))
-            .collect(),
-    ))
+    let latest = trackable
+        .location_providers
+        .iter()
+        .flatten()
+        .filter_map(|p| live.tag(p));
+    let locations = read.locations(latest.map(|t| Location::clone(&t.location)))?;
+    Ok(read.answer_all(&locations))
 }
 
 /// `GET /v2/trackables/{trackable_id}/providers`: its `location_providers` as objects (the
@@ -205,57 +207,51 @@ pub(super) async fn trackable_providers(
 /// `GET /v2/trackables/{trackable_id}/motion`: its motion — the newest location among its
 /// providers (with our track's `speed`, m/s, and `course`, degrees from north) and its name,
 /// geometry, extrusion and properties; 404 for an unknown trackable or one without a location.
-/// `?crs=EPSG:4326` gives the location in WGS-84 (as on the location reads).
+/// `crs`, `zone_id` and `geojson` as [`ReadFrame`] reads them (the location's frame).
 pub(super) async fn trackable_motion(
     State(state): State<AppState>,
     Path(trackable_id): Path<String>,
-    Query(crs): Query<CrsQuery>,
+    RawQuery(query): RawQuery,
     headers: HeaderMap,
-) -> ApiResult<Json<TrackableMotion>> {
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let frame = requested_frame(&state, &crs)?;
+    let read = ReadFrame::of(&state, query.as_deref()).await?;
     let trackable = stored_trackable(&state, &trackable_id).await?;
-    motion(&state, &trackable, frame)
-        .map(Json)
-        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))
+    let location = newest_location(&state, &trackable)
+        .ok_or_else(|| ApiError::not_found(format!("trackable `{trackable_id}` has no location")))?;
+    Ok(read.answer(&read.motion(&trackable, location)?))
 }
 
 /// `GET /v2/trackables/motions`: the motion of every stored trackable that has a location
-/// (`?crs=` as on [`trackable_motion`]).
+/// (query as on [`trackable_motion`]).
 pub(super) async fn trackable_motions(
     State(state): State<AppState>,
-    Query(crs): Query<CrsQuery>,
+    RawQuery(query): RawQuery,
     headers: HeaderMap,
-) -> ApiResult<Json<Vec<TrackableMotion>>> {
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let frame = requested_frame(&state, &crs)?;
+    let read = ReadFrame::of(&state, query.as_deref()).await?;
     let trackables: Vec<Trackable> = list_stored(&state, TRACKABLE_CONFIG).await?;
-    Ok(Json(
-        trackables.iter().filter_map(|t| motion(&state, t, frame)).collect(),
-    ))
+    Ok(read.answer_all(&motions(&state, &trackables, &read)?))
 }
 
 // ---- fences ----
 
 /// `GET /v2/fences/{fence_id}/locations`: the latest locations of the providers inside the
-/// fence; 404 for an unknown fence.
+/// fence; 404 for an unknown fence. `crs`, `zone_id` and `geojson` as [`ReadFrame`] reads them.
 pub(super) async fn fence_locations(
     State(state): State<AppState>,
     Path(fence_id): Path<String>,
     RawQuery(query): RawQuery,
     headers: HeaderMap,
-) -> ApiResult<Json<Vec<Location>>> {
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let crs = CrsQuery::of(query_value(query.as_deref(), "crs"));
-    let frame = requested_frame(&state, &crs)?;
+    let read = ReadFrame::of(&state, query.as_deref()).await?;
     let (_, tags) = fence_with_tags(&state, &fence_id, spatial_query(query.as_deref())?)?;
     let live = state.pipeline.live();
-    Ok(Json(
-        tags.iter()
-            .filter_map(|t| live.tag(t))
-            .map(|t| in_frame(Location::clone(&t.location), frame))
-            .collect(),
-    ))
+    let inside = tags.iter().filter_map(|t| live.tag(t));
+    let locations = read.locations(inside.map(|t| Location::clone(&t.location)))?;
+    Ok(read.answer_all(&locations))
 }
 
 /// `GET /v2/fences/{fence_id}/providers`: the providers inside the fence; 404 for an unknown
@@ -285,19 +281,16 @@ pub(super) async fn fence_trackables(
 }
 
 /// `GET /v2/fences/{fence_id}/motions`: the motions of the trackables inside the fence; 404
-/// for an unknown fence.
+/// for an unknown fence. `crs`, `zone_id` and `geojson` as [`ReadFrame`] reads them.
 pub(super) async fn fence_motions(
     State(state): State<AppState>,
     Path(fence_id): Path<String>,
     RawQuery(query): RawQuery,
     headers: HeaderMap,
-) -> ApiResult<Json<Vec<TrackableMotion>>> {
+) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let crs = CrsQuery::of(query_value(query.as_deref(), "crs"));
-    let frame = requested_frame(&state, &crs)?;
+    let read = ReadFrame::of(&state, query.as_deref()).await?;
     let (_, tags) = fence_with_tags(&state, &fence_id, spatial_query(query.as_deref())?)?;
     let trackables = trackables_with(&state, &tags).await?;
-    Ok(Json(
-        trackables.iter().filter_map(|t| motion(&state, t, frame)).collect(),
-    ))
+    Ok(read.answer_all(&motions(&state, &trackables, &read)?))
 }

@@ -9,7 +9,8 @@ use axum::http::{HeaderMap, StatusCode};
 use axum::Json;
 use serde_json::Value;
 
-use super::hub::{get_stored, known_provider_or_404, replace, stored_trackable, PROVIDER};
+use super::hub::{known_provider_or_404, replace, stored_trackable, PROVIDER};
+use super::stored::get_stored;
 use super::{parse_json, ApiError, ApiResult, AppState};
 use crate::auth::Access;
 use crate::omlox::LocationProvider;

@@ -360,7 +360,7 @@ fn payload<'a>(
             if !subscription.wgs84 {
                 return Some(Payload::Location(location));
             }
-            serde_json::to_value(super::location_crs::in_frame(Location::clone(location), frame)).ok()?
+            serde_json::to_value(super::read_frame::in_frame(Location::clone(location), frame)).ok()?
         }
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
             let position = json!(location.position);
@@ -428,7 +428,7 @@ fn motions<'a>(
                 for trackable in trackables.of(tag).iter() {
                     if subscription.trackable.as_deref().is_none_or(|t| t == trackable.id) {
                         let location = if subscription.wgs84 {
-                            super::location_crs::in_frame(Location::clone(location), frame)
+                            super::read_frame::in_frame(Location::clone(location), frame)
                         } else {
                             Location::clone(location)
                         };

@@ -20,39 +20,15 @@ use axum::response::Response;
 use axum::Json;
 use serde_json::Value;
 
-use super::hub::{create, delete, delete_all, get_stored, list_stored, replace};
+use super::hub::{create, delete, delete_all, replace};
+use super::stored::{get_stored, list_stored};
 use super::zone_frame::{fence_ring_m, ZoneFrame};
+use super::zone_store::{is_proximity, site_zone, zone, ZONE};
 use super::{parse_json, query_value, same_as_path, ApiError, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::uuid_for;
 use crate::omlox::time::parse_timestamp;
-use crate::omlox::{Fence, Point, Region, SimpleTransform, Zone, ZoneType};
-
-/// The configuration kind zones are stored under.
-const ZONE: &str = "zone";
-
-/// The site as one omlox zone (its local frame).
-pub(super) fn site_zone(state: &AppState) -> Zone {
-    let name = state.site.name.clone().unwrap_or_else(|| "rtls".into());
-    Zone {
-        id: uuid_for("zone", &name),
-        kind: ZoneType::Uwb,
-        foreign_id: Some(name.clone()),
-        position: None,
-        radius: None,
-        ground_control_points: None,
-        incomplete_configuration: Some(true),
-        measurement_timestamp: None,
-        site: None,
-        building: None,
-        floor: None,
-        name: Some(name),
-        description: None,
-        address: None,
-        properties: None,
-        wgs84_height: None,
-    }
-}
+use crate::omlox::{Fence, Point, Region, SimpleTransform, Zone};
 
 /// Every zone: the site's first, then the stored ones by id.
 pub(super) async fn all_zones(state: &AppState) -> ApiResult<Vec<Zone>> {
@@ -69,17 +45,6 @@ pub(super) fn zone_by_source<'a>(zones: &'a [Zone], source: &str) -> Option<&'a 
     zones
         .iter()
         .find(|z| z.id.eq_ignore_ascii_case(source) || z.foreign_id.as_deref() == Some(source))
-}
-
-/// A zone by id, or a 404.
-async fn zone(state: &AppState, zone_id: &str) -> ApiResult<Zone> {
-    let site = site_zone(state);
-    if site.id == zone_id {
-        return Ok(site);
-    }
-    get_stored(state, ZONE, zone_id)
-        .await?
-        .ok_or_else(|| ApiError::not_found(format!("zone `{zone_id}` not found")))
 }
 
 /// A 400 for a change to the site's own zone.
@@ -306,11 +271,6 @@ pub(super) async fn transform(
         source: Some(zone.id),
         crs: Some(if to_wgs84 { "EPSG:4326" } else { "local" }.into()),
     }))
-}
-
-/// Whether a zone type is proximity-based (a fixed reader or beacon, not coordinates).
-pub(super) fn is_proximity(kind: ZoneType) -> bool {
-    matches!(kind, ZoneType::Rfid | ZoneType::Ibeacon)
 }
 
 /// A zone's `position` in site metres `[x, y]`, through the site's georeference.

@@ -7,11 +7,13 @@
 //!   [`TrackableMotion`], [`Proximity`], [`SimpleTransform`], [`CollisionEvent`] and its
 //!   [`Collision`]s.
 //! - [`ws`] — WebSocket messages, topics and error codes.
+//! - [`geojson`] — locations, motions and fences as GeoJSON Features (`?geojson=true`).
 //! - [`collision`] — collisions between trackables judged from their tracks' uncertainty.
 //! - [`time`] — ISO 8601 UTC timestamps ↔ seconds since the Unix epoch.
 //! - [`ingest`] — field-level validation of the `PUT /v2/providers/locations` body.
 
 pub mod collision;
+pub mod geojson;
 pub mod ingest;
 pub mod time;
 pub mod ws;

@@ -152,6 +152,27 @@ pub fn walk(tag: &str, t0_s: f64, seconds: f64) -> String {
     lines
 }
 
+/// A router on `site` (clock from the records, 2 partitions) over which
+/// `walk("walker", 3000.0, 6.0)` was tracked to the last fix the trackers take, 3005.5 s at
+/// x = 7.5 m (the reorder window holds back the one at 3006 s, since no later record comes), so
+/// the walker's location stays put from then on: the state and the router.
+pub async fn walked_on_site(name: &str, site: Site) -> (AppState, axum::Router) {
+    let config = PipelineConfig {
+        partitions: 2,
+        live_clock: false,
+        ..PipelineConfig::default()
+    };
+    let state = state_on_site(name, site, config);
+    let app = rtls_server::http::router(state.clone());
+    let walked = walk("walker", 3000.0, 6.0);
+    let reply = call(&app, Method::POST, "/api/v1/measurements", Some(WRITE), &walked).await;
+    assert_eq!(reply.status, StatusCode::OK, "{}", reply.text());
+    let live = || state.pipeline.live().tag("walker").map(|t| t.time_s);
+    let done = eventually(Duration::from_secs(10), || live().is_some_and(|t| t >= 3005.5)).await;
+    assert!(done, "the walk is tracked to its last fix: {:?}", live());
+    (state, app)
+}
+
 /// Polls `condition` every 20 ms for up to `timeout`.
 pub async fn eventually(timeout: Duration, mut condition: impl FnMut() -> bool) -> bool {
     let deadline = Instant::now() + timeout;
