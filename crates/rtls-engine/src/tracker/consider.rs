@@ -30,7 +30,7 @@ use super::heading_cross::HeadingCross;
 use super::noise::{NoiseClass, Source};
 use super::output::{Output, UpdateSource};
 use super::track::{rejected, Shared, Track};
-use super::update::{accept, Prior};
+use super::update::{accept, Prior, Verdict};
 use crate::error::Result;
 
 /// A speed `s ± σ_s` along `heading_rad` (the channel's `ψ̂`, turned back by an increment's
@@ -104,7 +104,7 @@ pub(super) fn speed_update<const N: usize>(
             track
                 .noise
                 .observe_correlation(shared.error_correlation.as_ref(), noise_source, &updated);
-            let taken = accept(shared, track, updated, None, kind, UpdateSource::Velocity, out)?;
+            let taken = accept(shared, track, updated, None, kind, UpdateSource::Velocity, out)? == Verdict::Taken;
             if taken {
                 track.heading_cross = Some(HeadingCross::new(time_s, result.cross_covariance));
             }

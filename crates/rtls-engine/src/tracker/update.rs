@@ -70,8 +70,8 @@ pub(super) fn predict<const N: usize>(
 }
 
 /// Accepts an update unless the track is confirmed and the NIS is outside the χ² gate; then
-/// advances the lifecycle. Returns whether the update was taken (`false`: gated out, with a
-/// `rejected` event).
+/// advances the lifecycle. Returns [`Verdict::Taken`], or [`Verdict::OutsideGate`] with a
+/// `rejected` event (the last event it pushes).
 pub(super) fn accept<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
@@ -80,7 +80,7 @@ pub(super) fn accept<const N: usize>(
     kind: &'static str,
     source: UpdateSource,
     out: &mut Output,
-) -> Result<bool> {
+) -> Result<Verdict> {
     let time_s = updated.state.time_s();
     let dof = updated.measurement_dim().clamp(1, 3);
     let gated = is_gated(track);
@@ -108,7 +108,7 @@ pub(super) fn accept<const N: usize>(
             reacquire(track);
         }
         out.events.push(rejected(&track.tag, time_s, kind, reason));
-        return Ok(false);
+        return Ok(Verdict::OutsideGate);
     }
     let position_m = position_of(&updated.state, shared.tag_height_m).0;
     if matches!(source, UpdateSource::Fix | UpdateSource::Anchors) {
@@ -143,7 +143,7 @@ pub(super) fn accept<const N: usize>(
         });
     }
     track.unreported = Some(source);
-    Ok(true)
+    Ok(Verdict::Taken)
 }
 
 /// Whether the track's updates are gated (confirmed or coasting; a tentative track takes every
@@ -265,11 +265,23 @@ pub(super) fn fix_update_as<const N: usize>(
             track.jump = None;
             Ok(true)
         }
+        // (a track the gate just re-initialised has no state to jump from)
         Verdict::OutsideGate if track.state.is_some() => {
-            jump_hypothesis(shared, track, time_s, position, covariance, kind, out)?;
+            jump_hypothesis(shared, track, (time_s, position, covariance), kind, out)?;
             Ok(false)
         }
         Verdict::OutsideGate | Verdict::NotTaken => Ok(false),
+    }
+}
+
+/// The `rejected` event the gate pushed for `track`'s measurement at `time_s`: the last event,
+/// if it is that.
+fn gate_rejection<'a, const N: usize>(track: &Track<N>, time_s: f64, out: &'a mut Output) -> Option<&'a mut String> {
+    match out.events.last_mut() {
+        Some(Event::Rejected {
+            tag, time_s: t, reason, ..
+        }) if *tag == track.tag && *t == time_s => Some(reason),
+        _ => None,
     }
 }
 
@@ -279,9 +291,7 @@ pub(super) fn fix_update_as<const N: usize>(
 fn jump_hypothesis<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
-    time_s: f64,
-    position: &[f64],
-    covariance: &[f64],
+    (time_s, position, covariance): (f64, &[f64], &[f64]),
     kind: &'static str,
     out: &mut Output,
 ) -> Result<()> {
@@ -290,7 +300,7 @@ fn jump_hypothesis<const N: usize>(
         return Ok(());
     };
     if !jump::is_confirmed(&hypothesis, shared) {
-        if let Some(Event::Rejected { reason, .. }) = out.events.last_mut() {
+        if let Some(reason) = gate_rejection(track, time_s, out) {
             reason.push_str(&format!(
                 "; held as a jump hypothesis ({} fixes agree so far)",
                 hypothesis.fixes
@@ -299,8 +309,8 @@ fn jump_hypothesis<const N: usize>(
         track.jump = Some(hypothesis);
         return Ok(());
     }
-    // the fix is used: its rejection (the last event, just pushed by the gate) is withdrawn
-    if matches!(out.events.last(), Some(Event::Rejected { time_s: t, .. }) if *t == time_s) {
+    // the fix is used: its rejection is withdrawn
+    if gate_rejection(track, time_s, out).is_some() {
         out.events.pop();
     }
     let state = hypothesis.state;
@@ -454,15 +464,11 @@ pub(super) fn component_update<const N: usize>(
             track
                 .noise
                 .observe_correlation(shared.error_correlation.as_ref(), noise_source, &updated);
-            let outside = outside_gate(shared, track, &updated);
-            if accept(shared, track, updated, modes, kind, source, out)? {
+            let verdict = accept(shared, track, updated, modes, kind, source, out)?;
+            if verdict == Verdict::Taken {
                 carry_heading_cross(track, &prior.state)?;
-                Ok(Verdict::Taken)
-            } else if outside {
-                Ok(Verdict::OutsideGate)
-            } else {
-                Ok(Verdict::NotTaken)
             }
+            Ok(verdict)
         }
         Err(error) => {
             let reason = format!("{} update failed: {error}", source.name());
@@ -699,7 +705,7 @@ pub(super) fn coupled_update<const N: usize>(
                     }
                 }
             }
-            if accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)? {
+            if accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)? == Verdict::Taken {
                 carry_heading_cross(track, &prior.state)?;
             }
             Ok(())
