@@ -20,6 +20,7 @@ use rtls_engine::tracker::{status_name, Event, TrackUpdate};
 use rtls_engine::zones::{Shape, Zone as SiteZone, ZoneEvent, ZoneKind};
 use serde_json::{json, Value};
 
+use crate::omlox::crs::Crs;
 use crate::omlox::time::{format_timestamp, parse_timestamp};
 use crate::omlox::ws::Topic;
 use crate::omlox::{Fence, FenceEvent, FenceEventType, Location, Point, Properties, ProviderType, Region};
@@ -412,9 +413,9 @@ pub fn location_in_site(location: &Location, index: usize, frame: Option<&FrameS
         field: field.into(),
         reason,
     };
-    match location.crs.as_deref() {
-        None | Some("local") => Ok(location.clone()),
-        Some("EPSG:4326") => {
+    match Crs::parse(location.crs.as_deref()).map_err(|reason| err("crs", reason))? {
+        Crs::Local => Ok(location.clone()),
+        Crs::Wgs84 => {
             let frame = frame.ok_or_else(|| {
                 err(
                     "crs",
@@ -441,7 +442,6 @@ pub fn location_in_site(location: &Location, index: usize, frame: Option<&FrameS
             local.crs = Some("local".into());
             Ok(local)
         }
-        Some(other) => Err(err("crs", format!("`{other}` is not one of local, EPSG:4326"))),
     }
 }
 

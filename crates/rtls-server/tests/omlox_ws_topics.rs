@@ -357,10 +357,11 @@ async fn location_updates_come_in_wgs84_when_a_subscription_asks_for_it() {
             json!({"event": "subscribe", "topic": "location_updates", "params": {"provider_id": "miner-9", "crs": "EPSG:4326"}}),
             json!({"event": "subscribe", "topic": "location_updates", "params": {"provider_id": "miner-9"}}),
             json!({"event": "subscribe", "topic": "trackable_motions", "params": {"provider_id": "miner-9", "crs": "EPSG:4326"}}),
+            json!({"event": "subscribe", "topic": "location_updates:geojson", "params": {"provider_id": "miner-9"}}),
         ],
     )
     .await;
-    let (wgs84, local, motions) = (ids[0], ids[1], ids[2]);
+    let (wgs84, local, motions, features) = (ids[0], ids[1], ids[2], ids[3]);
     // another CRS is refused with omlox's subscription-failed error
     socket
         .send(Message::Text(
@@ -384,13 +385,25 @@ async fn location_updates_come_in_wgs84_when_a_subscription_asks_for_it() {
         .is_success());
     // the same updates, once per subscription: match them by their time
     let (mut in_degrees, mut in_metres) = (std::collections::HashMap::new(), std::collections::HashMap::new());
-    let mut motions_in_degrees = std::collections::HashMap::new();
+    let (mut motions_in_degrees, mut as_features) =
+        (std::collections::HashMap::new(), std::collections::HashMap::new());
     let matched = |of: &std::collections::HashMap<String, Value>, metres: &std::collections::HashMap<String, Value>| {
         of.keys().filter(|t| metres.contains_key(*t)).count()
     };
-    while matched(&in_degrees, &in_metres) < 3 || matched(&motions_in_degrees, &in_metres) < 3 {
+    while matched(&in_degrees, &in_metres) < 3
+        || matched(&motions_in_degrees, &in_metres) < 3
+        || matched(&as_features, &in_degrees) < 3
+    {
         let (_, id, payload) = next_message(&mut socket).await;
         for object in payload {
+            if id == features {
+                let stamp = object["properties"]["timestamp_generated"]
+                    .as_str()
+                    .unwrap()
+                    .to_string();
+                as_features.insert(stamp, object);
+                continue;
+            }
             // a motion carries its trackable's location
             let location = if id == motions {
                 object["location"].clone()
@@ -418,6 +431,18 @@ async fn location_updates_come_in_wgs84_when_a_subscription_asks_for_it() {
             "{degrees} against {metres}"
         );
         assert_eq!(degrees["accuracy"], metres["accuracy"]);
+    }
+    // location_updates:geojson: the REST reads' Feature of the location in WGS-84 (RFC 7946)
+    for (stamp, feature) in &as_features {
+        let Some(degrees) = in_degrees.get(stamp) else { continue };
+        assert_eq!(
+            (&feature["type"], &feature["id"], &feature["geometry"]),
+            (&json!("Feature"), &json!("miner-9"), &degrees["position"]),
+            "{feature}"
+        );
+        let mut properties = degrees.as_object().unwrap().clone();
+        properties.remove("position");
+        assert_eq!(feature["properties"], Value::Object(properties), "{feature}");
     }
     running.stop().await;
 }

@@ -12,6 +12,7 @@ use serde_json::{json, Value};
 use super::{metrics, ApiError, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::{fence_from_zone, wgs84_geometry};
+use crate::omlox::crs::Crs;
 use crate::omlox::time::{format_timestamp, parse_timestamp};
 use crate::store::{EventQuery, HistoryQuery, LocationRow};
 
@@ -132,19 +133,17 @@ pub(super) struct GeoParams {
 /// The frame a GeoJSON export is written in: WGS-84 (RFC 7946) by default when the site has a
 /// `[frame] origin`, local metres otherwise or with `crs=local`.
 fn export_frame<'a>(state: &'a AppState, crs: Option<&str>) -> ApiResult<Option<&'a rtls_engine::site::FrameSettings>> {
-    match crs {
-        None => Ok(state.site.frame.as_ref()),
-        Some("local") => Ok(None),
-        Some("EPSG:4326" | "wgs84" | "WGS84") => state
+    if crs.is_none() {
+        return Ok(state.site.frame.as_ref());
+    }
+    match Crs::parse(crs).map_err(|reason| ApiError::field("crs", reason))? {
+        Crs::Local => Ok(None),
+        Crs::Wgs84 => state
             .site
             .frame
             .as_ref()
             .map(Some)
             .ok_or_else(|| ApiError::field("crs", "the site has no [frame] origin, so only crs=local is available")),
-        Some(other) => Err(ApiError::field(
-            "crs",
-            format!("`{other}` is not one of local, EPSG:4326"),
-        )),
     }
 }
 

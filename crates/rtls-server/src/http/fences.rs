@@ -28,6 +28,7 @@ use super::read_frame::ReadFrame;
 use super::{parse_json, ApiError, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::fence_from_zone;
+use crate::omlox::crs::Crs;
 use crate::omlox::{Fence, Region};
 use crate::store::Store;
 
@@ -350,15 +351,9 @@ fn region_in_site(region: &Region, site: &Site) -> ApiResult<Region> {
 
 /// A fence as a site zone with id `zone_id` (see the module documentation).
 fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site) -> ApiResult<SiteZone> {
-    let region = match fence.crs.as_deref() {
-        None | Some("local") => fence.region.clone(),
-        Some("EPSG:4326") => region_in_site(&fence.region, site)?,
-        Some(other) => {
-            return Err(ApiError::field(
-                "crs",
-                format!("`{other}` is not one of local, EPSG:4326"),
-            ))
-        }
+    let region = match Crs::parse(fence.crs.as_deref()).map_err(|reason| ApiError::field("crs", reason))? {
+        Crs::Local => fence.region.clone(),
+        Crs::Wgs84 => region_in_site(&fence.region, site)?,
     };
     let vertices_m: Vec<[f64; 2]> = match &region {
         Region::Polygon { coordinates } => {

@@ -38,6 +38,7 @@ use serde_json::{json, Value};
 use super::zone_frame::ZoneFrame;
 use super::zone_store::{is_proximity, site_zone, zone};
 use super::{query_value, ApiError, ApiResult, AppState};
+use crate::omlox::crs::Crs;
 use crate::omlox::geojson::{feature_collection, ToFeature};
 use crate::omlox::{Fence, Location, Region, Trackable, TrackableMotion};
 
@@ -76,16 +77,9 @@ impl ReadFrame {
     /// frame cannot be computed.
     pub(super) async fn of(state: &AppState, query: Option<&str>) -> ApiResult<Self> {
         let geojson = query_value(query, "geojson").as_deref() == Some("true");
-        let wgs84 = match query_value(query, "crs").as_deref() {
+        let wgs84 = match query_value(query, "crs") {
             None => None,
-            Some("local") => Some(false),
-            Some("EPSG:4326") => Some(true),
-            Some(other) => {
-                return Err(ApiError::field(
-                    "crs",
-                    format!("`{other}` is not one of local, EPSG:4326"),
-                ))
-            }
+            Some(crs) => Some(Crs::parse(Some(&crs)).map_err(|reason| ApiError::field("crs", reason))? == Crs::Wgs84),
         };
         let zone = match query_value(query, "zone_id") {
             Some(zone_id) => Some(zone(state, &zone_id).await?),

@@ -44,6 +44,8 @@ use super::positions::PositionColumns;
 use super::{metrics, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::{fence_from_zone, wgs84_geometry};
+use crate::omlox::crs::Crs;
+use crate::omlox::geojson::ToFeature;
 use crate::omlox::ws::{Topic, WsErrorCode, WsEvent, WsMessage};
 use crate::omlox::{CollisionEvent, Location, Proximity, TrackableMotion};
 use crate::pipeline::trackables::TrackableIndex;
@@ -198,24 +200,27 @@ fn handle(
                 .params
                 .as_ref()
                 .and_then(|p| p.get("trackable_id").and_then(Value::as_str).map(String::from));
-            let wgs84 = match request
+            let crs = request
                 .params
                 .as_ref()
                 .and_then(|p| p.get("crs"))
-                .and_then(Value::as_str)
-            {
-                None | Some("local") => false,
-                Some("EPSG:4326") if georeferenced && carries_locations(topic) => true,
-                Some("EPSG:4326") if carries_locations(topic) => {
+                .and_then(Value::as_str);
+            let wgs84 = match Crs::parse(crs) {
+                Ok(Crs::Local) => false,
+                Ok(Crs::Wgs84) if georeferenced && carries_locations(topic) => true,
+                Ok(Crs::Wgs84) if carries_locations(topic) => {
                     return WsMessage::error(
                         WsErrorCode::SubscriptionFailed,
                         "crs EPSG:4326: the site has no [frame] origin, so locations are only in crs local",
                     )
                 }
-                Some(other) => {
+                Ok(Crs::Wgs84) | Err(_) => {
                     return WsMessage::error(
                         WsErrorCode::SubscriptionFailed,
-                        &format!("crs `{other}`: only local, or EPSG:4326 on location_updates and trackable_motions"),
+                        &format!(
+                            "crs `{}`: only local, or EPSG:4326 on location_updates and trackable_motions",
+                            crs.unwrap_or_default()
+                        ),
                     )
                 }
             };
@@ -363,8 +368,8 @@ fn payload<'a>(
             serde_json::to_value(super::read_frame::in_frame(Location::clone(location), frame)).ok()?
         }
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
-            let position = json!(location.position);
-            json!({ "type": "Feature", "geometry": wgs84_geometry(frame, &position), "properties": **location })
+            // the Feature of the REST reads' geojson=true, in WGS-84 when the site has a frame
+            super::read_frame::in_frame(Location::clone(location), frame).to_feature()
         }
         (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => {
             return Some(Payload::Shared(event));

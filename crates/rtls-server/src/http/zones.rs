@@ -27,6 +27,7 @@ use super::zone_store::{is_proximity, site_zone, zone, ZONE};
 use super::{parse_json, query_value, same_as_path, ApiError, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::uuid_for;
+use crate::omlox::crs::Crs;
 use crate::omlox::time::parse_timestamp;
 use crate::omlox::{Fence, Point, Region, SimpleTransform, Zone};
 
@@ -236,16 +237,8 @@ pub(super) async fn transform(
     state.authorize(&headers, Access::Read)?;
     let request: SimpleTransform = parse_json(&body)?;
     let zone = zone(&state, &zone_id).await?;
-    let to_wgs84 = match request.crs.as_deref() {
-        None | Some("local") => true,
-        Some(crs) if crs.eq_ignore_ascii_case("EPSG:4326") => false,
-        Some(crs) => {
-            return Err(ApiError::field(
-                "crs",
-                format!("`{crs}`: a transform takes \"local\" or \"EPSG:4326\""),
-            ))
-        }
-    };
+    // the transform goes from the position's CRS to the other one
+    let to_wgs84 = Crs::parse(request.crs.as_deref()).map_err(|reason| ApiError::field("crs", reason))? == Crs::Local;
     let coordinates = &request.position.coordinates;
     if !(2..=3).contains(&coordinates.len()) || coordinates.iter().any(|c| !c.is_finite()) {
         return Err(ApiError::field(

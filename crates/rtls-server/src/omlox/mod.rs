@@ -9,10 +9,12 @@
 //! - [`ws`] — WebSocket messages, topics and error codes.
 //! - [`geojson`] — locations, motions and fences as GeoJSON Features (`?geojson=true`).
 //! - [`collision`] — collisions between trackables judged from their tracks' uncertainty.
+//! - [`crs`] — the `crs` values the hub takes: `local` and `EPSG:4326`.
 //! - [`time`] — ISO 8601 UTC timestamps ↔ seconds since the Unix epoch.
 //! - [`ingest`] — field-level validation of the `PUT /v2/providers/locations` body.
 
 pub mod collision;
+pub mod crs;
 pub mod geojson;
 pub mod ingest;
 pub mod time;
