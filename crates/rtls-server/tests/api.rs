@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use axum::body::Body;
 use axum::http::{Method, Request, StatusCode};
-use common::{call, eventually, state, walk, READ, WRITE};
+use common::{call, eventually, pushed_location, state, walk, READ, WRITE};
 use serde_json::{json, Value};
 use tower::ServiceExt;
 
@@ -264,11 +264,7 @@ async fn omlox_location_ingest_and_trackables_name_the_bad_field() {
     let state = state("api-omlox");
     let app = rtls_server::http::router(state.clone());
     let now = 3000.0;
-    let stamp = |t: f64| rtls_server::omlox::time::format_timestamp(t, "t").unwrap();
-    let location = |tag: &str, x: f64, t: f64| {
-        json!({"position": {"type": "Point", "coordinates": [x, 5.0]}, "source": "other-rtls",
-               "provider_type": "uwb", "provider_id": tag, "timestamp_generated": stamp(t), "accuracy": 0.3})
-    };
+    let location = |tag: &str, x: f64, t: f64| pushed_location(tag, [x, 5.0], t);
     let bad = json!([location("forklift-9", 1.0, now), {"position": {"type": "Point", "coordinates": [1.0]},
         "source": "s", "provider_type": "uwb", "provider_id": "forklift-9"}]);
     let reply = call(

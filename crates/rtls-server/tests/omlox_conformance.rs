@@ -9,7 +9,7 @@ mod common;
 use std::time::Duration;
 
 use axum::http::{Method, StatusCode};
-use common::{assert_omlox_error, call, eventually, state, FRAME, WRITE};
+use common::{assert_omlox_error, call, eventually, post_created, state, FRAME, WRITE};
 use serde_json::json;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -88,15 +88,7 @@ async fn boolean_parameters_bodies_and_properties_are_checked_and_extra_fields_i
     let rules = json!([{"expression": "type = 'uwb' AND accuracy < 5", "priority": 9}]);
     let trackable = json!({"id": "6b1b3e1c-3b0e-4f3a-9a53-1c1d7d3f2a10", "type": "omlox",
                            "locating_rules": rules, "unmodelled": true});
-    let reply = call(
-        &app,
-        Method::POST,
-        "/v2/trackables",
-        Some(WRITE),
-        &trackable.to_string(),
-    )
-    .await;
-    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    post_created(&app, "/v2/trackables", &trackable).await;
     let reply = call(
         &app,
         Method::GET,
@@ -197,16 +189,10 @@ async fn course_is_from_true_north_and_motions_come_in_wgs84_on_request() {
     // a trackable's motion in WGS-84 on request, as the location reads
     let trackable = json!({"id": "00000000-0000-0000-0000-000000000000", "type": "omlox",
                            "location_providers": ["walker"]});
-    let created = call(
-        &app,
-        Method::POST,
-        "/v2/trackables",
-        Some(WRITE),
-        &trackable.to_string(),
-    )
-    .await;
-    assert_eq!(created.status, StatusCode::CREATED, "{}", created.text());
-    let id = created.json()["id"].as_str().unwrap().to_string();
+    let id = post_created(&app, "/v2/trackables", &trackable).await["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
     let motion = |crs: &'static str| {
         let (app, id) = (app.clone(), id.clone());
         async move {

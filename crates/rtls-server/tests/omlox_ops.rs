@@ -8,7 +8,10 @@ mod common;
 use std::time::Duration;
 
 use axum::http::{Method, StatusCode};
-use common::{assert_omlox_error, call, call_json, eventually, state, walk, READ, WRITE};
+use common::{
+    assert_omlox_error, call, call_json, eventually, eventually_some, post_created, pushed_location, state, walk, READ,
+    WRITE,
+};
 use serde_json::{json, Value};
 
 fn ids(array: &Value, key: &str) -> Vec<String> {
@@ -40,19 +43,15 @@ async fn fences_trackables_and_providers_link_through_the_live_tracks() {
 
     let trackable = json!({"type": "omlox", "name": "Loader 7", "location_providers": ["miner-7", "ghost-1"],
                            "properties": {"colour": "red"}, "extrusion": 2.5});
-    let reply = call(
-        &app,
-        Method::POST,
-        "/v2/trackables",
-        Some(WRITE),
-        &trackable.to_string(),
-    )
-    .await;
-    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
-    let loader = reply.json()["id"].as_str().unwrap().to_string();
+    let loader = post_created(&app, "/v2/trackables", &trackable).await["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
     let idle = json!({"type": "virtual", "name": "Idle", "location_providers": ["miner-8"]});
-    let reply = call(&app, Method::POST, "/v2/trackables", Some(WRITE), &idle.to_string()).await;
-    let idle = reply.json()["id"].as_str().unwrap().to_string();
+    let idle = post_created(&app, "/v2/trackables", &idle).await["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
 
     // a provider's and a trackable's fences: by the trackers' entries and by geometry alone
     for query in ["", "?spatial_query=true", "?spatial_query=false"] {
@@ -364,11 +363,7 @@ async fn a_pushed_location_that_jumps_285_m_is_followed_after_the_confirmation_e
     let state = state("ops-jump");
     let app = rtls_server::http::router(state.clone());
     let now = 3000.0;
-    let stamp = |t: f64| rtls_server::omlox::time::format_timestamp(t, "t").unwrap();
-    let location = |x: f64, y: f64, t: f64| {
-        json!({"position": {"type": "Point", "coordinates": [x, y]}, "source": "other-rtls",
-               "provider_type": "uwb", "provider_id": "cart-3", "timestamp_generated": stamp(t), "accuracy": 0.3})
-    };
+    let location = |x: f64, y: f64, t: f64| pushed_location("cart-3", [x, y], t);
     let confirm = state.site.tracker.initiation.confirm_updates.max(2);
     // 10 pushes at 1 Hz along y = 5 m, then `confirm` + 2 at y = 290 m
     let pushes: Vec<Value> = (0..10)
@@ -390,22 +385,21 @@ async fn a_pushed_location_that_jumps_285_m_is_followed_after_the_confirmation_e
     .await;
     assert!(followed, "{:?}", live.tag("cart-3"));
     // the event is stored by the output thread, after the live state
-    let mut events = Value::Null;
-    let mut jumped: Vec<Value> = Vec::new();
-    for _ in 0..100 {
-        events = call_json(&app, "/api/v1/events?type=lifecycle&tag=cart-3").await;
-        jumped = events
+    let events = eventually_some(Duration::from_secs(10), || async {
+        let events = call_json(&app, "/api/v1/events?type=lifecycle&tag=cart-3").await;
+        events
             .as_array()
-            .unwrap_or_else(|| panic!("{events}"))
-            .iter()
-            .filter(|e| e["event"] == "jumped")
-            .cloned()
-            .collect();
-        if !jumped.is_empty() {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+            .is_some_and(|all| all.iter().any(|e| e["event"] == "jumped"))
+            .then_some(events)
+    })
+    .await
+    .expect("a jumped event is stored");
+    let jumped: Vec<&Value> = events
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["event"] == "jumped")
+        .collect();
     assert_eq!(jumped.len(), 1, "{events}");
     assert!((jumped[0]["t"].as_f64().unwrap() - jump_s).abs() < 1e-6, "{events}");
     state.pipeline.shutdown();

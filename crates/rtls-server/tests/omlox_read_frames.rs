@@ -6,7 +6,7 @@
 mod common;
 
 use axum::http::{Method, StatusCode};
-use common::{assert_omlox_error, call, Reply, FRAME, WRITE};
+use common::{assert_omlox_error, call, post_created, Reply, FRAME, WRITE};
 use rtls_server::convert::uuid_for;
 use serde_json::{json, Value};
 
@@ -50,12 +50,6 @@ async fn get_json(app: &axum::Router, uri: &str) -> Value {
     reply.json()
 }
 
-async fn post(app: &axum::Router, path: &str, body: &Value) -> Value {
-    let reply = call(app, Method::POST, path, Some(WRITE), &body.to_string()).await;
-    assert_eq!(reply.status, StatusCode::CREATED, "POST {path}: {}", reply.text());
-    reply.json()
-}
-
 /// A georeferenced site (`georeferenced`) or not, a walker tracked to its last fix
 /// ([`common::walked_on_site`]), a trackable
 /// on it, a fence around where it stops, and a stored zone with ground control points: the
@@ -65,14 +59,14 @@ async fn scene(name: &str, georeferenced: bool) -> (axum::Router, String, String
     site.frame = georeferenced.then_some(FRAME);
     let (_, app) = common::walked_on_site(name, site).await;
     let trackable = json!({"type": "omlox", "name": "walker", "location_providers": ["walker"]});
-    let trackable = post(&app, "/v2/trackables", &trackable).await["id"]
+    let trackable = post_created(&app, "/v2/trackables", &trackable).await["id"]
         .as_str()
         .unwrap()
         .to_string();
     // the walk stops at (7.5, 10)
     let square = [[6.0, 8.0], [10.0, 8.0], [10.0, 12.0], [6.0, 12.0], [6.0, 8.0]];
     let fence = json!({"crs": "local", "name": "stop", "region": {"type": "Polygon", "coordinates": [square]}});
-    let fence = post(&app, "/v2/fences", &fence).await["id"]
+    let fence = post_created(&app, "/v2/fences", &fence).await["id"]
         .as_str()
         .unwrap()
         .to_string();
@@ -81,7 +75,10 @@ async fn scene(name: &str, georeferenced: bool) -> (axum::Router, String, String
         .flat_map(|uv| [lon_lat(site_of(uv)), uv])
         .collect();
     let zone = json!({"type": "uwb", "name": "turned", "ground_control_points": points});
-    let zone = post(&app, "/v2/zones", &zone).await["id"].as_str().unwrap().to_string();
+    let zone = post_created(&app, "/v2/zones", &zone).await["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
     (app, trackable, fence, zone)
 }
 
@@ -248,12 +245,12 @@ async fn unknown_or_frameless_zones_and_other_crs_are_refused() {
     let (app, trackable, _, _) = scene("read-frames-refusals", true).await;
     let proximity =
         json!({"type": "rfid", "position": {"type": "Point", "coordinates": [8.5417, 47.3769]}, "radius": 2.0});
-    let proximity = post(&app, "/v2/zones", &proximity).await["id"]
+    let proximity = post_created(&app, "/v2/zones", &proximity).await["id"]
         .as_str()
         .unwrap()
         .to_string();
     let incomplete = json!({"type": "uwb", "incomplete_configuration": true});
-    let incomplete = post(&app, "/v2/zones", &incomplete).await["id"]
+    let incomplete = post_created(&app, "/v2/zones", &incomplete).await["id"]
         .as_str()
         .unwrap()
         .to_string();
@@ -304,7 +301,7 @@ async fn unknown_or_frameless_zones_and_other_crs_are_refused() {
         [8.0, 47.001],
         [0.0, 10.0],
     ];
-    let zone = post(
+    let zone = post_created(
         &plain,
         "/v2/zones",
         &json!({"type": "uwb", "ground_control_points": points}),

@@ -281,6 +281,40 @@ impl Reply {
     }
 }
 
+/// `POST path` of `body` with the write token through the router: asserts 201 Created and
+/// gives the created object.
+pub async fn post_created(app: &axum::Router, path: &str, body: &Value) -> Value {
+    let reply = call(app, Method::POST, path, Some(WRITE), &body.to_string()).await;
+    assert_eq!(reply.status, StatusCode::CREATED, "POST {path}: {}", reply.text());
+    reply.json()
+}
+
+/// An omlox Location as another system pushes it: `provider`'s position `[x, y]` (site
+/// metres) at `t` (Unix s), source `other-rtls`, accuracy 0.3 m.
+pub fn pushed_location(provider: &str, [x, y]: [f64; 2], t: f64) -> Value {
+    let stamp = rtls_server::omlox::time::format_timestamp(t, "t").unwrap();
+    serde_json::json!({"position": {"type": "Point", "coordinates": [x, y]}, "source": "other-rtls",
+                       "provider_type": "uwb", "provider_id": provider, "timestamp_generated": stamp,
+                       "accuracy": 0.3})
+}
+
+/// Polls the async `condition` every 100 ms until it gives `Some` or `timeout` passes.
+pub async fn eventually_some<T, F>(timeout: Duration, mut condition: impl FnMut() -> F) -> Option<T>
+where
+    F: std::future::Future<Output = Option<T>>,
+{
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(found) = condition().await {
+            return Some(found);
+        }
+        if Instant::now() >= deadline {
+            return None;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
 /// One request through the router, without a port (`tower::ServiceExt::oneshot`).
 pub async fn call(app: &axum::Router, method: Method, uri: &str, token: Option<&str>, body: &str) -> Reply {
     let mut request = Request::builder().method(method).uri(uri);
