@@ -165,11 +165,20 @@ impl ReadFrame {
     /// # Errors
     /// As [`Self::position`].
     pub(super) fn location(&self, mut location: Location) -> ApiResult<Location> {
+        self.project(&mut location)?;
+        Ok(location)
+    }
+
+    /// Takes `location` (site metres) to this frame in place; unchanged on an error.
+    ///
+    /// # Errors
+    /// As [`Self::position`].
+    fn project(&self, location: &mut Location) -> ApiResult<()> {
         if self.projection != Projection::Site {
             location.position.coordinates = self.position(&location.position.coordinates)?;
             location.crs = Some(self.crs().into());
         }
-        Ok(location)
+        Ok(())
     }
 
     /// Locations (site metres) in this frame.
@@ -252,13 +261,14 @@ impl ReadFrame {
 /// `params.crs = "EPSG:4326"`, through the same projection as the REST reads. A position the
 /// frame cannot take is left as it is, in `crs: "local"`.
 #[must_use]
-pub(super) fn in_frame(location: Location, frame: Option<&FrameSettings>) -> Location {
-    let Some(frame) = frame else {
-        return location;
-    };
-    let wgs84 = ReadFrame {
-        projection: Projection::Wgs84(ZoneFrame::Site(*frame)),
-        geojson: false,
-    };
-    wgs84.location(location.clone()).unwrap_or(location)
+pub(super) fn in_frame(mut location: Location, frame: Option<&FrameSettings>) -> Location {
+    if let Some(frame) = frame {
+        let wgs84 = ReadFrame {
+            projection: Projection::Wgs84(ZoneFrame::Site(*frame)),
+            geojson: false,
+        };
+        // (a position the frame cannot take stays as it is)
+        let _ = wgs84.project(&mut location);
+    }
+    location
 }
