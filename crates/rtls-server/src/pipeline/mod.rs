@@ -248,7 +248,9 @@ pub const CHECKPOINT: &str = "tracked_record_id";
 impl Pipeline {
     /// Starts the threads: `ingest_store` takes the ingest log (and replays it from the
     /// checkpoint), `output_store` the history and events. Two connections, so that appends
-    /// of records never wait behind history writes.
+    /// of records do not wait behind history writes (on PostgreSQL; SQLite has one writer
+    /// per file, so there they wait for the lock, never for a write-ahead-log checkpoint:
+    /// [`Store::defer_wal_checkpoints`]).
     ///
     /// # Errors
     /// [`PipelineError::Site`] when the site cannot be tracked, [`PipelineError::Store`] when
@@ -263,6 +265,7 @@ impl Pipeline {
         let partitions = config.partitions.max(1);
         let tracker = || Tracker::new(site).map_err(|e| PipelineError::Site(e.to_string()));
         let validator = tracker()?;
+        ingest_store.defer_wal_checkpoints()?;
         let checkpoint = ingest_store.checkpoint(CHECKPOINT)?.unwrap_or(0);
         let progress = Arc::new(Progress::new(partitions, checkpoint));
         let live = Arc::new(LiveState::new(site, partitions));

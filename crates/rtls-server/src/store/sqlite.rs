@@ -5,7 +5,6 @@
 //! [`SqliteSync::Full`], one fsync) per batch.
 
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 use rusqlite::{params, Connection, OptionalExtension, ToSql, TransactionBehavior};
 
@@ -14,9 +13,15 @@ use super::{EventQuery, EventRow, HistoryQuery, LocationRow, NewRecord, Pruned, 
 
 #[path = "sqlite_blocks.rs"]
 mod blocks;
+#[path = "sqlite_lock.rs"]
+mod lock;
 
-/// How long a statement waits for another connection's lock before failing (ms).
-const BUSY_TIMEOUT_MS: u64 = 5_000;
+use lock::wait_for_lock;
+
+/// The write-ahead log's size (pages) at which the ingest log's connection checkpoints it
+/// ([`Store::defer_wal_checkpoints`]): ten times SQLite's default, so the other connections,
+/// at the default, checkpoint first whenever they write.
+const DEFERRED_WAL_CHECKPOINT_PAGES: i64 = 10_000;
 
 /// How many prepared statements a connection keeps (the event query alone has 8 shapes).
 const STATEMENT_CACHE_CAPACITY: usize = 64;
@@ -91,8 +96,9 @@ fn limit_from(limit: usize) -> i64 {
 
 impl SqliteStore {
     /// Opens (creating if missing) the database file at `path`, switches it to the WAL
-    /// journal, sets `synchronous` per `sync`, a busy timeout of 5 s and `foreign_keys=ON`,
-    /// and applies the schema migrations this build knows.
+    /// journal, sets `synchronous` per `sync`, a busy handler that waits up to 5 s for another
+    /// connection's lock ([`wait_for_lock`]) and `foreign_keys=ON`, and applies the schema
+    /// migrations this build knows.
     ///
     /// # Errors
     /// [`StoreError::Database`] when the file cannot be opened, or it does not take the WAL
@@ -120,8 +126,8 @@ impl SqliteStore {
     /// Sets the pragmas and applies the migrations.
     fn configure(mut connection: Connection, path: Option<PathBuf>, sync: SqliteSync) -> Result<Self, StoreError> {
         connection
-            .busy_timeout(Duration::from_millis(BUSY_TIMEOUT_MS))
-            .map_err(database("set busy_timeout"))?;
+            .busy_handler(Some(wait_for_lock))
+            .map_err(database("set busy_handler"))?;
         let journal_mode: String = connection
             .query_row("PRAGMA journal_mode = WAL", [], |row| row.get(0))
             .map_err(database("set journal_mode=WAL"))?;
@@ -265,6 +271,12 @@ fn events_sql(by_tag: bool, by_kinds: bool, alarms_only: bool, newest_first: boo
 impl Store for SqliteStore {
     fn backend(&self) -> &'static str {
         "sqlite"
+    }
+
+    fn defer_wal_checkpoints(&mut self) -> Result<(), StoreError> {
+        self.connection
+            .pragma_update(None, "wal_autocheckpoint", DEFERRED_WAL_CHECKPOINT_PAGES)
+            .map_err(database("set wal_autocheckpoint"))
     }
 
     fn append_records(&mut self, records: &[NewRecord]) -> Result<Vec<i64>, StoreError> {
