@@ -1,5 +1,6 @@
 use super::*;
 use crate::omlox::Point;
+use crate::omlox::{Location, ProviderType};
 
 fn location(provider_id: &str, kind: ProviderType, accuracy: Option<f64>) -> Location {
     Location {
