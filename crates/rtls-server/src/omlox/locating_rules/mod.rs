@@ -57,7 +57,7 @@ use std::fmt;
 
 pub use expr::{Expr, Literal, Op, ParseError, Property, Subject};
 
-use crate::omlox::{LocatingRule, Location};
+use crate::omlox::{LocatingRule, Location, Trackable};
 
 mod expr;
 
@@ -117,12 +117,13 @@ impl RuleSet {
         Ok(Self { rules: parsed })
     }
 
-    /// The rules that parse (a stored rule set written before rules were checked); the others
-    /// are logged and left out.
+    /// A stored trackable's rules: those that parse (a rule set stored before rules were
+    /// checked may hold others, which are logged and left out).
     #[must_use]
-    pub fn lenient(trackable_id: &str, rules: &[LocatingRule]) -> Self {
+    pub fn of_stored(trackable: &Trackable) -> Self {
+        let trackable_id = &trackable.id;
         let mut kept = Vec::new();
-        for (index, rule) in rules.iter().enumerate() {
+        for (index, rule) in trackable.locating_rules.iter().flatten().enumerate() {
             match Self::compile(std::slice::from_ref(rule)) {
                 Ok(one) => kept.extend(one.rules),
                 Err(e) => {

@@ -1,6 +1,6 @@
 use super::*;
 use crate::omlox::Point;
-use crate::omlox::{Location, ProviderType};
+use crate::omlox::{Location, ProviderType, Trackable};
 
 fn location(provider_id: &str, kind: ProviderType, accuracy: Option<f64>) -> Location {
     Location {
@@ -165,7 +165,11 @@ fn a_rule_set_names_the_rule_that_does_not_parse() {
     assert_eq!(error.error.position, 11);
     assert!(error.to_string().contains("`accuracy <`"), "{error}");
     // kept leniently (a rule set stored before rules were checked), the bad rule is left out
-    let lenient = RuleSet::lenient("t", &rules);
+    let stored = Trackable {
+        locating_rules: Some(rules.to_vec()),
+        ..crate::pipeline::trackables::implicit_trackable("t")
+    };
+    let lenient = RuleSet::of_stored(&stored);
     assert_eq!(lenient.rules.len(), 1);
 }
 
