@@ -51,7 +51,7 @@
 //! ties going to the most recent location, then the best (smallest) accuracy, then the
 //! earlier candidate. A candidate matching no rule is never taken: with rules, a trackable
 //! whose providers all fail them has no location. An empty rule set selects as the hub does
-//! without rules (see `crate::pipeline::trackable_location`).
+//! without rules (see [`crate::pipeline::trackable_location`]).
 
 use std::fmt;
 
