@@ -18,7 +18,9 @@ use super::{parse_json, same_as_path, ApiError, ApiResult, AppState};
 use crate::auth::{Access, Principal};
 use crate::convert::{location_in_site, record_from_location};
 use crate::omlox::ingest::parse_locations;
+use crate::omlox::locating_rules::RuleSet;
 use crate::omlox::{Location, LocationProvider, Trackable};
+use crate::pipeline::trackable_location::trackable_location;
 use crate::pipeline::unix_s;
 use crate::ServerError;
 
@@ -271,6 +273,7 @@ pub(super) async fn create_trackable(
     super::assign_id_if_unset(&mut value);
     let trackable: Trackable = parse_json(value.to_string().as_bytes())?;
     check_uuid(&trackable.id)?;
+    check_rules(&trackable)?;
     let created = create(&state, &who, TRACKABLE, trackable.id.clone(), &trackable).await?;
     refresh_trackables(&state).await;
     Ok(created)
@@ -304,6 +307,7 @@ pub(super) async fn put_trackable(
     let trackable: Trackable = parse_json(&body)?;
     same_as_path("id", &trackable.id, &trackable_id)?;
     check_uuid(&trackable.id)?;
+    check_rules(&trackable)?;
     replace(&state, &who, TRACKABLE, trackable_id, &trackable).await?;
     refresh_trackables(&state).await;
     Ok(Json(trackable))
@@ -321,8 +325,8 @@ pub(super) async fn delete_trackable(
     Ok(deleted)
 }
 
-/// `GET /v2/trackables/{trackable_id}/location`: the newest location among its providers
-/// (query as on [`get_locations`]).
+/// `GET /v2/trackables/{trackable_id}/location`: its location ([`newest_location`]; query as
+/// on [`get_locations`]).
 pub(super) async fn get_trackable_location(
     State(state): State<AppState>,
     Path(trackable_id): Path<String>,
@@ -337,16 +341,19 @@ pub(super) async fn get_trackable_location(
     Ok(read.answer(&read.location(location)?))
 }
 
-/// A trackable's location: the newest latest location among its providers, if any has one.
+/// A trackable's location: the newest of its providers' latest locations it takes — all of
+/// them without `locating_rules`, the one they select with them
+/// ([`crate::pipeline::trackable_location`]).
 pub(super) fn newest_location(state: &AppState, trackable: &Trackable) -> Option<Location> {
-    let live = state.pipeline.live();
-    trackable
-        .location_providers
-        .iter()
-        .flatten()
-        .filter_map(|provider| live.tag(provider))
-        .max_by(|a, b| a.time_s.total_cmp(&b.time_s))
-        .map(|t| Location::clone(&t.location))
+    trackable_location(trackable, state.pipeline.live()).map(|location| Location::clone(&location))
+}
+
+/// A trackable's `locating_rules` must parse: a 400 naming the rule
+/// (`locating_rules[i].expression`) and the position of its fault.
+fn check_rules(trackable: &Trackable) -> ApiResult<()> {
+    RuleSet::compile(trackable.locating_rules.as_deref().unwrap_or_default())
+        .map(|_| ())
+        .map_err(|e| ApiError::field(format!("locating_rules[{}].expression", e.index), e.to_string()))
 }
 
 /// A stored trackable, or a 404 naming it.

@@ -6,7 +6,9 @@
 //! of the zone monitors (an entry event was sent and no exit since; this follows the zones'
 //! anti-flap settings). With `?spatial_query=true` it is the geometry alone: the tag's latest
 //! location lies in the fence's region (and height range). A provider is a tag (its id is the
-//! tag's); a trackable is inside a fence when one of its `location_providers` is.
+//! tag's); a trackable is inside a fence when one of the providers whose locations it takes is
+//! ([`crate::pipeline::trackable_location`]: every one of its `location_providers` without
+//! `locating_rules`, the one they select with them).
 
 use std::collections::{BTreeSet, HashMap};
 
@@ -23,7 +25,9 @@ use super::stored::list_stored;
 use super::{query_value, ApiError, ApiResult, AppState, TRACKABLE_CONFIG};
 use crate::auth::Access;
 use crate::convert::fence_from_zone;
+use crate::omlox::locating_rules::RuleSet;
 use crate::omlox::{Fence, Location, LocationProvider, Trackable, TrackableMotion};
+use crate::pipeline::trackable_location::taken;
 
 /// `spatial_query` of a query string: `true` / `false` (default `false`).
 fn spatial_query(query: Option<&str>) -> ApiResult<bool> {
@@ -107,6 +111,23 @@ async fn trackables_with(state: &AppState, tags: &BTreeSet<String>) -> ApiResult
         .collect())
 }
 
+/// The providers whose latest locations `trackable` takes ([`taken`]).
+fn taken_providers(state: &AppState, trackable: &Trackable) -> Vec<String> {
+    taken(trackable, &RuleSet::of_stored(trackable), state.pipeline.live())
+        .into_iter()
+        .map(|latest| latest.provider)
+        .collect()
+}
+
+/// The stored trackables that take the location of one of `tags` (inside a fence).
+async fn trackables_taking(state: &AppState, tags: &BTreeSet<String>) -> ApiResult<Vec<Trackable>> {
+    Ok(trackables_with(state, tags)
+        .await?
+        .into_iter()
+        .filter(|t| taken_providers(state, t).iter().any(|p| tags.contains(p)))
+        .collect())
+}
+
 /// Providers by id: the stored one, else the implicit one of the tag.
 async fn providers_by_id(state: &AppState, ids: impl IntoIterator<Item = String>) -> ApiResult<Vec<LocationProvider>> {
     let mut stored: HashMap<String, LocationProvider> = list_stored::<LocationProvider>(state, PROVIDER)
@@ -153,8 +174,8 @@ pub(super) async fn provider_trackables(
 
 // ---- trackables ----
 
-/// `GET /v2/trackables/{trackable_id}/fences`: the fences one of its providers is inside;
-/// 404 for an unknown trackable.
+/// `GET /v2/trackables/{trackable_id}/fences`: the fences one of the providers whose locations
+/// it takes is inside; 404 for an unknown trackable.
 pub(super) async fn trackable_fences(
     State(state): State<AppState>,
     Path(trackable_id): Path<String>,
@@ -164,7 +185,7 @@ pub(super) async fn trackable_fences(
     state.authorize(&headers, Access::Read)?;
     let spatial = spatial_query(query.as_deref())?;
     let trackable = stored_trackable(&state, &trackable_id).await?;
-    let providers = trackable.location_providers.unwrap_or_default();
+    let providers = taken_providers(&state, &trackable);
     Ok(Json(fences_of(&state, &providers, spatial)))
 }
 
@@ -204,9 +225,10 @@ pub(super) async fn trackable_providers(
     ))
 }
 
-/// `GET /v2/trackables/{trackable_id}/motion`: its motion — the newest location among its
-/// providers (with our track's `speed`, m/s, and `course`, degrees from north) and its name,
-/// geometry, extrusion and properties; 404 for an unknown trackable or one without a location.
+/// `GET /v2/trackables/{trackable_id}/motion`: its motion — its location ([`newest_location`]:
+/// the newest of its providers', or the one its `locating_rules` select; with our track's
+/// `speed`, m/s, and `course`, degrees from north) and its name, geometry, extrusion and
+/// properties; 404 for an unknown trackable or one without a location.
 /// `crs`, `zone_id` and `geojson` as [`ReadFrame`] reads them (the location's frame).
 pub(super) async fn trackable_motion(
     State(state): State<AppState>,
@@ -267,8 +289,8 @@ pub(super) async fn fence_providers(
     Ok(Json(providers_by_id(&state, tags).await?))
 }
 
-/// `GET /v2/fences/{fence_id}/trackables`: the stored trackables with a provider inside the
-/// fence; 404 for an unknown fence.
+/// `GET /v2/fences/{fence_id}/trackables`: the stored trackables one of whose taken providers
+/// (module documentation) is inside the fence; 404 for an unknown fence.
 pub(super) async fn fence_trackables(
     State(state): State<AppState>,
     Path(fence_id): Path<String>,
@@ -277,7 +299,7 @@ pub(super) async fn fence_trackables(
 ) -> ApiResult<Json<Vec<Trackable>>> {
     state.authorize(&headers, Access::Read)?;
     let (_, tags) = fence_with_tags(&state, &fence_id, spatial_query(query.as_deref())?)?;
-    Ok(Json(trackables_with(&state, &tags).await?))
+    Ok(Json(trackables_taking(&state, &tags).await?))
 }
 
 /// `GET /v2/fences/{fence_id}/motions`: the motions of the trackables inside the fence; 404
@@ -291,6 +313,6 @@ pub(super) async fn fence_motions(
     state.authorize(&headers, Access::Read)?;
     let read = ReadFrame::of(&state, query.as_deref()).await?;
     let (_, tags) = fence_with_tags(&state, &fence_id, spatial_query(query.as_deref())?)?;
-    let trackables = trackables_with(&state, &tags).await?;
+    let trackables = trackables_taking(&state, &tags).await?;
     Ok(read.answer_all(&motions(&state, &trackables, &read)?))
 }

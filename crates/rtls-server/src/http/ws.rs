@@ -48,8 +48,9 @@ use crate::omlox::crs::Crs;
 use crate::omlox::geojson::ToFeature;
 use crate::omlox::ws::{Topic, WsErrorCode, WsEvent, WsMessage};
 use crate::omlox::{CollisionEvent, Location, Proximity, TrackableMotion};
+use crate::pipeline::trackable_location::moved_by;
 use crate::pipeline::trackables::TrackableIndex;
-use crate::pipeline::HubMessage;
+use crate::pipeline::{HubMessage, LiveState};
 
 /// Query of the upgrade request.
 #[derive(Debug, Deserialize)]
@@ -147,7 +148,12 @@ async fn serve(mut socket: WebSocket, state: AppState) {
                     }
                 }
                 let trackables = state.pipeline.live().trackables();
-                let context = Context { fences: &fences, frame: state.site.frame.as_ref(), trackables: &trackables };
+                let context = Context {
+                    fences: &fences,
+                    frame: state.site.frame.as_ref(),
+                    trackables: &trackables,
+                    live: state.pipeline.live(),
+                };
                 if deliver(&mut socket, &batch, &subscriptions, &context).await.is_err() {
                     break;
                 }
@@ -259,6 +265,8 @@ struct Context<'a> {
     frame: Option<&'a rtls_engine::site::FrameSettings>,
     /// The stored trackables by provider (for `trackable_motions`).
     trackables: &'a TrackableIndex,
+    /// The providers' latest locations (a trackable with `locating_rules` chooses among them).
+    live: &'a LiveState,
 }
 
 /// Sends hub messages to every matching subscription: one WebSocket message per subscription
@@ -275,7 +283,7 @@ async fn deliver(
                 .into_iter()
                 .map(Payload::Built)
                 .collect(),
-            Topic::TrackableMotions => motions(batch, subscription, context.trackables, context.frame)
+            Topic::TrackableMotions => motions(batch, subscription, context)
                 .map(|motion| Payload::Motion(Box::new(motion)))
                 .collect(),
             _ => batch
@@ -419,21 +427,22 @@ fn compact_positions(batch: &[Arc<HubMessage>], subscription: &Subscription) -> 
 }
 
 /// The batch's track updates as the motions of the trackables they move
-/// ([`TrackableIndex::of`]), filtered by tag and trackable.
+/// ([`moved_by`]: every trackable of the tag without `locating_rules`, with them only those
+/// whose location the update now is), filtered by tag and trackable.
 fn motions<'a>(
     batch: &'a [Arc<HubMessage>],
     subscription: &'a Subscription,
-    trackables: &'a TrackableIndex,
-    frame: Option<&'a rtls_engine::site::FrameSettings>,
+    context: &'a Context<'_>,
 ) -> impl Iterator<Item = TrackableMotion> + 'a {
     batch.iter().flat_map(move |message| {
         let mut out = Vec::new();
-        if let HubMessage::Location { tag, location, .. } = message.as_ref() {
+        if let HubMessage::Location { tag, time_s, location } = message.as_ref() {
             if wanted(subscription, tag) {
-                for trackable in trackables.of(tag).iter() {
-                    if subscription.trackable.as_deref().is_none_or(|t| t == trackable.id) {
+                for moved in moved_by(context.trackables, context.live, tag, *time_s, location) {
+                    let trackable = &moved.trackable;
+                    if moved.moves && subscription.trackable.as_deref().is_none_or(|t| t == trackable.id) {
                         let location = if subscription.wgs84 {
-                            super::read_frame::in_frame(Location::clone(location), frame)
+                            super::read_frame::in_frame(Location::clone(location), context.frame)
                         } else {
                             Location::clone(location)
                         };

@@ -12,11 +12,14 @@
 //! - [`crs`] — the `crs` values the hub takes: `local` and `EPSG:4326`.
 //! - [`time`] — ISO 8601 UTC timestamps ↔ seconds since the Unix epoch.
 //! - [`ingest`] — field-level validation of the `PUT /v2/providers/locations` body.
+//! - [`locating_rules`] — a trackable's `locating_rules`: their expression language and which
+//!   of its providers' locations they select.
 
 pub mod collision;
 pub mod crs;
 pub mod geojson;
 pub mod ingest;
+pub mod locating_rules;
 pub mod time;
 pub mod ws;
 
@@ -251,7 +254,8 @@ pub enum TrackableType {
 }
 
 /// A tracked object (`#/components/schemas/Trackable`). Fields the schema does not name are
-/// ignored, as the spec allows; `locating_rules` is kept as given (not evaluated).
+/// ignored, as the spec allows; `locating_rules` is kept as given, and evaluated
+/// ([`locating_rules`]): its expressions must parse when the trackable is written.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Trackable {
     /// UUID.
@@ -305,7 +309,7 @@ pub struct Trackable {
     #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub properties: Option<Properties>,
     /// The rule set choosing among the providers' locations (`#/components/schemas/RuleSet`),
-    /// kept and returned as given (not evaluated).
+    /// kept and returned as given, evaluated as [`locating_rules`] says.
     #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub locating_rules: Option<Vec<LocatingRule>>,
 }

@@ -22,6 +22,7 @@ use tokio::sync::broadcast::error::RecvError;
 
 use super::live::{HubMessage, LiveState};
 use super::trackable_fences::TrackableFences;
+use super::trackable_location::{moved_by, Taking};
 use crate::convert::uuid_for;
 use crate::omlox::collision::{Body, CollisionDetector, CollisionSettings, Side, Transition};
 use crate::omlox::time::format_timestamp;
@@ -81,7 +82,7 @@ impl CollisionWorker {
     }
 
     /// Judges one update; `false` when the hub is gone.
-    fn on_location(&mut self, tag: &str, time_s: f64, location: &Location) -> bool {
+    fn on_location(&mut self, tag: &str, time_s: f64, location: &Arc<Location>) -> bool {
         let lost = location
             .properties
             .as_ref()
@@ -90,15 +91,23 @@ impl CollisionWorker {
             == Some("lost");
         let index = self.live.trackables();
         let mut transitions = Vec::new();
-        for trackable in index.of(tag).iter() {
-            if lost {
-                transitions.extend(self.detector.remove(&trackable.id, time_s));
-            } else {
+        let mut fence_events = Vec::new();
+        // one judgement of which trackables this update moves (locating_rules)
+        for moved in moved_by(&index, &self.live, tag, time_s, location) {
+            let trackable = &moved.trackable;
+            fence_events.extend(self.fences.on_taking(&trackable.id, moved.taking.clone(), time_s));
+            if moved.moves && !lost {
                 transitions.extend(self.detector.update(body(trackable, tag, time_s, location)));
+            } else if moved.moves || moved.taking == Taking::Nothing {
+                // lost, or no provider's location matches its rules: it is nowhere to judge
+                transitions.extend(self.detector.remove(&trackable.id, time_s));
             }
         }
-        if transitions.is_empty() {
+        if transitions.is_empty() && fence_events.is_empty() {
             return true;
+        }
+        if !self.publish_fence_events(tag, fence_events) {
+            return false;
         }
         let Some(hub) = self.hub.upgrade() else {
             return false;
@@ -134,14 +143,21 @@ impl CollisionWorker {
         let Ok(event) = serde_json::from_value::<FenceEvent>(event.clone()) else {
             return true;
         };
+        // which providers each trackable takes is known from the track updates, which a
+        // partition publishes before the fence events of the same step
         let derived = self.fences.on_provider_event(&event);
-        if derived.is_empty() {
+        self.publish_fence_events(tag, derived)
+    }
+
+    /// Publishes trackable-level fence events on the hub; `false` when the hub is gone.
+    fn publish_fence_events(&self, tag: &str, events: Vec<FenceEvent>) -> bool {
+        if events.is_empty() {
             return true;
         }
         let Some(hub) = self.hub.upgrade() else {
             return false;
         };
-        for trackable_event in derived {
+        for trackable_event in events {
             if let Ok(event) = serde_json::to_value(trackable_event) {
                 // no subscriber is not an error
                 let _ = hub.send(Arc::new(HubMessage::FenceEvent {

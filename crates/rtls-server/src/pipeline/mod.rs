@@ -35,6 +35,7 @@ mod quarantine;
 pub mod readers;
 mod submit;
 mod trackable_fences;
+pub mod trackable_location;
 pub mod trackables;
 
 use std::sync::atomic::{AtomicI64, Ordering};

@@ -13,12 +13,16 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 use std::sync::Arc;
 
+use crate::omlox::locating_rules::RuleSet;
 use crate::omlox::{Trackable, TrackableType};
 
-/// The stored trackables by provider id; built whenever the stored trackables change.
+/// The stored trackables by provider id, and their parsed `locating_rules`; built whenever the
+/// stored trackables change.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TrackableIndex {
     by_provider: HashMap<String, Vec<Arc<Trackable>>>,
+    /// The rules of the trackables that have some, by trackable id.
+    rules: HashMap<String, Arc<RuleSet>>,
 }
 
 impl TrackableIndex {
@@ -26,7 +30,12 @@ impl TrackableIndex {
     #[must_use]
     pub fn new(trackables: Vec<Trackable>) -> Self {
         let mut by_provider: HashMap<String, Vec<Arc<Trackable>>> = HashMap::new();
+        let mut rules = HashMap::new();
         for trackable in trackables {
+            let parsed = RuleSet::of_stored(&trackable);
+            if !parsed.is_empty() {
+                rules.insert(trackable.id.clone(), Arc::new(parsed));
+            }
             let trackable = Arc::new(trackable);
             for provider in trackable.location_providers.iter().flatten() {
                 by_provider
@@ -39,7 +48,14 @@ impl TrackableIndex {
             list.sort_by(|a, b| a.id.cmp(&b.id));
             list.dedup_by(|a, b| a.id == b.id);
         }
-        Self { by_provider }
+        Self { by_provider, rules }
+    }
+
+    /// The parsed rules of the stored trackable `trackable_id`; `None` when it has none (or
+    /// is not stored: an implicit trackable has none).
+    #[must_use]
+    pub fn rules(&self, trackable_id: &str) -> Option<&RuleSet> {
+        self.rules.get(trackable_id).map(Arc::as_ref)
     }
 
     /// The trackables `provider_id`'s updates move: the stored ones listing it, in id order,
