@@ -12,7 +12,8 @@
 //!   its terms; [`auth`] — write and read tokens; [`config`] — the configuration file;
 //!   [`serve`] — starting and stopping it all; [`feed`] — a live feed of records from any
 //!   [`feed::RecordSource`] (the binary's `--demo` mine) through the ingest path;
-//!   [`webhooks`] — alarms POSTed to HTTP(S) endpoints (signed, retried, in order).
+//!   [`webhooks`] — alarms POSTed to HTTP(S) endpoints (signed, retried, in order);
+//!   [`log_limit`] — warnings that may repeat, logged at most every 10 s.
 //!
 //! ## Layer
 //! It owns the service (ingest, pipeline, APIs, storage, auth, live feeds) and may import
@@ -33,6 +34,7 @@ mod error;
 pub mod feed;
 pub mod http;
 pub mod limits;
+pub mod log_limit;
 pub mod metrics;
 pub mod mqtt;
 pub mod omlox;
