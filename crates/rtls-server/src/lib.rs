@@ -13,6 +13,7 @@
 //!   [`serve`] — starting and stopping it all; [`feed`] — a live feed of records from any
 //!   [`feed::RecordSource`] (the binary's `--demo` mine) through the ingest path;
 //!   [`webhooks`] — alarms POSTed to HTTP(S) endpoints (signed, retried, in order);
+//!   [`udp`] — best-effort UDP ingest of measurement lines or vendor messages;
 //!   [`log_limit`] — warnings that may repeat, logged at most every 10 s.
 //!
 //! ## Layer
@@ -44,6 +45,7 @@ pub mod serve;
 pub mod sink;
 pub mod store;
 pub mod tls;
+pub mod udp;
 pub mod webhooks;
 
 pub use error::{Result, ServerError};

@@ -60,6 +60,11 @@
 //! max_attempts = 8               # then the delivery is given up (counted `failed`)
 //! initial_backoff_s = 1.0        # first retry after this, doubling each retry …
 //! max_backoff_s = 60.0           # … up to this; each wait is 75–100 % of it (jitter)
+//!
+//! [udp]                          # optional: best-effort UDP ingest, one payload per datagram (docs/SERVER.md, UDP ingest)
+//! listen = "127.0.0.1:9000"      # our measurement JSON lines (the body of POST /api/v1/measurements)
+//! [udp.adapters]                 # a vendor's messages through its adapter, one port per vendor
+//! quuppa = "127.0.0.1:9001"      # also pozyx, sewio, generic (which needs [adapters.generic])
 //! ```
 
 use std::net::SocketAddr;
@@ -68,8 +73,10 @@ use std::path::PathBuf;
 use serde::Deserialize;
 
 pub mod cluster;
+mod udp;
 mod webhooks;
 
+pub use udp::{UdpAdapters, UdpSection};
 pub(crate) use webhooks::validate_webhooks;
 pub use webhooks::WebhookSection;
 
@@ -135,6 +142,8 @@ pub struct ServerConfig {
     pub cluster: cluster::ClusterSection,
     /// `[adapters]`: settings of the vendor adapters ([`crate::adapters`]).
     pub adapters: AdaptersSection,
+    /// `[udp]`: best-effort UDP ingest listeners ([`crate::udp`]); none by default.
+    pub udp: UdpSection,
 }
 
 /// `[adapters]`: settings of the vendor adapters.
@@ -482,6 +491,7 @@ impl ServerConfig {
             ));
         }
         validate_webhooks(&self.webhooks)?;
+        self.udp.validate(self.adapters.generic.is_some())?;
         Ok(())
     }
 }

@@ -262,3 +262,20 @@ fn a_bad_webhook_is_refused_naming_its_index_and_key() {
         "127.0.0.1:9000"
     );
 }
+
+/// The example's commented-out `[udp]` table, uncommented: it parses and validates, a listener
+/// for measurement lines and one for Quuppa's messages.
+#[test]
+fn the_documented_udp_table_parses_and_validates() {
+    let table = uncommented_example_table("[udp]");
+    let config: ServerConfig = toml::from_str(&table).unwrap_or_else(|e| panic!("{e}\n{table}"));
+    config.validate().unwrap();
+    let listeners = config.udp.listeners();
+    assert_eq!(
+        listeners,
+        vec![
+            (None, "0.0.0.0:9000".parse().unwrap()),
+            (Some(crate::adapters::Vendor::Quuppa), "0.0.0.0:9001".parse().unwrap())
+        ]
+    );
+}

@@ -1,6 +1,7 @@
 //! `rtls serve`: opens the store, starts the pipeline, the HTTP/WebSocket server, the MQTT
-//! broker (or the bridge to an external one), retention, the webhooks, and a live [`Feed`] if
-//! one is given (`rtls serve --demo`'s simulated mine); stops them in order on shutdown.
+//! broker (or the bridge to an external one), the UDP listeners, retention, the webhooks, and
+//! a live [`Feed`] if one is given (`rtls serve --demo`'s simulated mine); stops them in order
+//! on shutdown.
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -42,7 +43,7 @@ pub enum ServeError {
     /// A listener could not be bound or served.
     #[error("{what} {address}: {reason}")]
     Listen {
-        /// `HTTP` or `MQTT`.
+        /// `HTTP`, `MQTT` or `UDP`.
         what: &'static str,
         /// The address.
         address: String,
@@ -65,12 +66,15 @@ pub enum ServeError {
 pub const DRAIN_DEADLINE: Duration = Duration::from_secs(10);
 
 /// Where the running server listens (ports resolved, for `:0`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Bound {
     /// HTTP and WebSocket.
     pub http: SocketAddr,
     /// The embedded MQTT broker, if it runs.
     pub mqtt: Option<SocketAddr>,
+    /// The UDP listeners (`[udp]`): `None` for measurement lines, else the vendor whose
+    /// messages it reads, with the bound address.
+    pub udp: Vec<(Option<crate::adapters::Vendor>, SocketAddr)>,
     /// Whether both speak TLS (HTTPS / WSS, MQTTS).
     pub tls: bool,
 }
@@ -296,6 +300,15 @@ pub async fn serve(
         }
         MqttMode::Off => {}
     }
+    let mut udp_addrs = Vec::new();
+    let udp_listeners = crate::udp::bind_all(&config.udp, &metrics)
+        .await
+        .map_err(|(address, e)| listen_error("UDP", address, &e))?;
+    for listener in udp_listeners {
+        let address = listener.local_addr().map_err(|e| listen_error("UDP", http_addr, &e))?;
+        udp_addrs.push((listener.vendor(), address));
+        tasks.push(listener.start(pipeline.clone(), stop_rx.clone()));
+    }
     if let Some(cluster) = cluster {
         // trackables changed through another node reach this one's live topics
         tasks.push(tokio::spawn(crate::http::trackable_sync::refresh_trackables_every(
@@ -327,10 +340,11 @@ pub async fn serve(
     let bound = Bound {
         http: http_addr,
         mqtt: mqtt_addr,
+        udp: udp_addrs,
         tls: certificates.is_some(),
     };
-    tracing::info!(http = %http_addr, mqtt = ?mqtt_addr, "listening");
-    on_bound(bound);
+    tracing::info!(http = %http_addr, mqtt = ?mqtt_addr, udp = ?bound.udp, "listening");
+    on_bound(bound.clone());
     // the feed stops first, while the broker can still acknowledge its last payload
     let (feed_stop_tx, feed_stop_rx) = watch::channel(false);
     let feed_task = feed.map(|start| start(pipeline.clone(), bound, feed_stop_rx));
