@@ -14,7 +14,8 @@
 //!   [`feed::RecordSource`] (the binary's `--demo` mine) through the ingest path;
 //!   [`webhooks`] — alarms POSTed to HTTP(S) endpoints (signed, retried, in order);
 //!   [`udp`] — best-effort UDP ingest of measurement lines or vendor messages;
-//!   [`log_limit`] — warnings that may repeat, logged at most every 10 s.
+//!   [`nats_forward`] — positions and events published to NATS; [`log_limit`] — warnings
+//!   that may repeat, logged at most every 10 s.
 //!
 //! ## Layer
 //! It owns the service (ingest, pipeline, APIs, storage, auth, live feeds) and may import
@@ -38,6 +39,7 @@ pub mod limits;
 pub mod log_limit;
 pub mod metrics;
 pub mod mqtt;
+pub mod nats_forward;
 pub mod omlox;
 pub mod pipeline;
 pub mod pushed;

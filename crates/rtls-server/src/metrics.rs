@@ -75,6 +75,10 @@ pub struct Metrics {
     /// (`accepted`, `refused` — malformed or refused at ingest, `dropped` — overload or
     /// shutdown; [`crate::udp`]).
     pub udp_datagrams: Family<Labels, Counter>,
+    /// Messages forwarded to NATS, by `forward` and `outcome` (`published` — handed to the
+    /// client, `dropped` — queue full, missed hub messages, a publish error, or left at
+    /// shutdown; [`crate::nats_forward`]).
+    pub nats_forward: Family<Labels, Counter>,
     /// Rows packed into compressed blocks by the compaction pass, by `kind` (`states`,
     /// `records`).
     pub store_compacted: Family<Labels, Counter>,
@@ -143,6 +147,7 @@ impl Metrics {
             http_requests_limited: Counter::default(),
             webhook_deliveries: Family::default(),
             udp_datagrams: Family::default(),
+            nats_forward: Family::default(),
             store_compacted: Family::default(),
             store_compaction_failures: Counter::default(),
             collision_updates_missed: Counter::default(),
@@ -281,6 +286,11 @@ impl Metrics {
             "udp_datagrams",
             "UDP datagrams by listener and outcome (accepted, refused, dropped); UDP is best-effort",
             m.udp_datagrams.clone(),
+        );
+        registry.register(
+            "nats_forward",
+            "Messages forwarded to NATS by forward and outcome (published, dropped)",
+            m.nats_forward.clone(),
         );
         registry.register(
             "collision_updates_missed",

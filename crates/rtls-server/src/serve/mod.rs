@@ -1,7 +1,7 @@
 //! `rtls serve`: opens the store, starts the pipeline, the HTTP/WebSocket server, the MQTT
-//! broker (or the bridge to an external one), the UDP listeners, retention, the webhooks, and
-//! a live [`Feed`] if one is given (`rtls serve --demo`'s simulated mine); stops them in order
-//! on shutdown.
+//! broker (or the bridge to an external one), the UDP listeners, retention, the webhooks, the
+//! NATS forwards, and a live [`Feed`] if one is given (`rtls serve --demo`'s simulated mine);
+//! stops them in order on shutdown.
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -19,6 +19,7 @@ use crate::http::QueryStore;
 use crate::http::{router, AppState};
 use crate::metrics::Metrics;
 use crate::mqtt::{BrokerConfig, EmbeddedBroker, ExternalBroker};
+use crate::nats_forward::{Forwarder, NatsForward};
 use crate::pipeline::{Pipeline, PipelineConfig, TimeWindow};
 use crate::sink::MeasurementSink;
 use crate::store::{self, SqliteSync};
@@ -132,6 +133,7 @@ pub async fn serve(
     let open = move || store::open(&db, sync);
     // before anything starts: a missing secret variable is a configuration error
     let webhooks = Webhook::from_config(&config.webhooks).map_err(|e| ServeError::Config(e.to_string()))?;
+    let forwards = NatsForward::from_config(&config.nats_forward).map_err(|e| ServeError::Config(e.to_string()))?;
     let metrics = Arc::new(Metrics::new());
     // a cluster's node: the ingest log is the cluster's stream, outputs go to the peers too
     let cluster = if config.cluster.enabled() {
@@ -171,8 +173,9 @@ pub async fn serve(
     let pipeline_site = site.clone();
     let pipeline_metrics = Arc::clone(&metrics);
     let want_hub = !webhooks.is_empty();
+    let want_forwards = !forwards.is_empty();
     let issued_tokens = tokens.clone();
-    let (pipeline, query_store, hub) = tokio::task::spawn_blocking(move || -> Result<_, ServeError> {
+    let (pipeline, query_store, hub, forwards_hub) = tokio::task::spawn_blocking(move || -> Result<_, ServeError> {
         let (ingest_store, output_store, mut query_store) = (open()?, open()?, open()?);
         query_store.put_config("site", "current", &site_text)?;
         for trackable in &trackables {
@@ -198,6 +201,7 @@ pub async fn serve(
         // the webhooks' subscription, as soon as the hub exists (the trackers' replay of the
         // ingest log has just started: alarms it raised in these microseconds are not sent)
         let hub = want_hub.then(|| pipeline.subscribe_local());
+        let forwards_hub = want_forwards.then(|| pipeline.subscribe_local());
         // the tokens issued through the API before this start (their hashes)
         let issued = query_store.list_config(crate::http::tokens::TOKEN_CONFIG)?;
         for (id, json) in issued {
@@ -213,13 +217,21 @@ pub async fn serve(
             );
             pipeline.live().set_zones(zones);
         }
-        Ok((pipeline, query_store, hub))
+        Ok((pipeline, query_store, hub, forwards_hub))
     })
     .await
     .map_err(|e| ServeError::Config(format!("opening the database: {e}")))??;
     tracing::info!(backend = query_store.backend(), db = %crate::config::redact_password(&config.server.db), "database open");
     let dispatcher = match hub {
         Some(hub) => Some(Dispatcher::start(webhooks, hub, &metrics).map_err(ServeError::Config)?),
+        None => None,
+    };
+    let forwarder = match forwards_hub {
+        Some(hub) => Some(
+            Forwarder::start(forwards, hub, &metrics)
+                .await
+                .map_err(ServeError::Config)?,
+        ),
         None => None,
     };
     let queries = Arc::new(Mutex::new(QueryStore::new(query_store)));
@@ -392,6 +404,10 @@ pub async fn serve(
         // after the pipeline: the trackers' last alarms are queued too
         tracing::info!("delivering the webhooks' queued events (2 s at most)");
         dispatcher.shutdown().await;
+    }
+    if let Some(forwarder) = forwarder {
+        tracing::info!("publishing the NATS forwards' queued messages (2 s at most)");
+        forwarder.shutdown().await;
     }
     if drained.is_err() {
         let error = ServeError::Drain(DRAIN_DEADLINE);
