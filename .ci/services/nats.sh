@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The NATS server for the cluster test of `rtls serve --cluster` (crates/rtls-cli/tests/cluster.rs).
+# The NATS server for the cluster test of `rtls serve --cluster` (crates/rtls-cli/tests/cluster.rs)
+# and the NATS forwarding test (crates/rtls-server/tests/nats_forward.rs).
 #
 # - installs Debian's nats-server when it is missing (needs root, as on the project's machines);
 # - stops the system service the package may have started (the test starts its own three

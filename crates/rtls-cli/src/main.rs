@@ -107,3 +107,31 @@ fn main() -> std::process::ExitCode {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    /// Every `--flag` of every command and subcommand, with the command's path.
+    fn flags(command: &clap::Command, path: &str, out: &mut Vec<(String, String)>) {
+        for arg in command.get_arguments() {
+            if let Some(long) = arg.get_long().filter(|l| !matches!(*l, "help" | "version")) {
+                out.push((path.to_string(), format!("--{long}")));
+            }
+        }
+        for sub in command.get_subcommands() {
+            flags(sub, &format!("{path} {}", sub.get_name()), out);
+        }
+    }
+
+    /// The README's command table names every flag the `rtls` binary takes.
+    #[test]
+    fn every_flag_is_in_the_readme() {
+        let readme = include_str!("../../../README.md");
+        let mut all = Vec::new();
+        flags(&super::Cli::command(), "rtls", &mut all);
+        assert!(all.iter().any(|(_, f)| f == "--udp-adapter"), "{all:?}");
+        let missing: Vec<_> = all.iter().filter(|(_, flag)| !readme.contains(flag.as_str())).collect();
+        assert!(missing.is_empty(), "flags not in README.md: {missing:?}");
+    }
+}

@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use clap::Args;
 use rtls_engine::site::Site;
+use rtls_server::adapters::Vendor;
 use rtls_server::auth::Tokens;
 use rtls_server::config::{MqttMode, ServerConfig};
 use rtls_server::http::plans::FloorPlans;
@@ -44,6 +45,14 @@ pub struct ServeArgs {
     /// No MQTT at all.
     #[arg(long)]
     no_mqtt: bool,
+    /// UDP ingest of our measurement JSON lines, one payload per datagram (best-effort: no
+    /// acknowledgement; MQTT QoS 1 or HTTP where every record must arrive).
+    #[arg(long)]
+    udp_listen: Option<SocketAddr>,
+    /// UDP ingest of a vendor's messages through its adapter, one message per datagram:
+    /// `VENDOR=ADDR` (`quuppa=0.0.0.0:9001`; pozyx, quuppa, sewio, generic); repeatable.
+    #[arg(long, value_parser = parse_udp_adapter)]
+    udp_adapter: Vec<(Vendor, SocketAddr)>,
     /// Days of history kept.
     #[arg(long)]
     retention_days: Option<f64>,
@@ -178,6 +187,10 @@ fn announce(bound: Bound) {
     let line = serde_json::json!({
         "http": bound.http.to_string(),
         "mqtt": bound.mqtt.map(|a| a.to_string()),
+        "udp": bound.udp.iter().map(|(vendor, address)| serde_json::json!({
+            "adapter": vendor.map(Vendor::name),
+            "address": address.to_string(),
+        })).collect::<Vec<_>>(),
         "tls": bound.tls,
     });
     println!("{line}");
@@ -209,6 +222,12 @@ fn apply_overrides(config: &mut ServerConfig, args: &ServeArgs) {
     if args.no_mqtt {
         config.mqtt.mode = MqttMode::Off;
     }
+    if let Some(listen) = args.udp_listen {
+        config.udp.listen = Some(listen);
+    }
+    for (vendor, address) in &args.udp_adapter {
+        config.udp.adapters.set(*vendor, *address);
+    }
     if let Some(days) = args.retention_days {
         config.server.retention_days = days;
     }
@@ -230,6 +249,19 @@ fn apply_overrides(config: &mut ServerConfig, args: &ServeArgs) {
     }
 }
 
+/// `VENDOR=ADDR` of `--udp-adapter`.
+fn parse_udp_adapter(text: &str) -> Result<(Vendor, SocketAddr), String> {
+    let (vendor, address) = text
+        .split_once('=')
+        .ok_or_else(|| format!("`{text}` is not VENDOR=ADDR (e.g. quuppa=0.0.0.0:9001)"))?;
+    let known = || Vendor::ALL.map(Vendor::name).join(", ");
+    let vendor = Vendor::from_name(vendor).ok_or_else(|| format!("unknown adapter `{vendor}` (known: {})", known()))?;
+    let address = address
+        .parse()
+        .map_err(|e| format!("`{address}` is not a listen address like 0.0.0.0:9001: {e}"))?;
+    Ok((vendor, address))
+}
+
 /// Resolves on Ctrl-C or SIGTERM.
 async fn shutdown_signal() {
     let ctrl_c = async {
@@ -249,5 +281,22 @@ async fn shutdown_signal() {
     tokio::select! {
         () = ctrl_c => {}
         () = terminate => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_udp_adapter_is_a_vendor_and_an_address() {
+        assert_eq!(
+            parse_udp_adapter("quuppa=127.0.0.1:9001"),
+            Ok((Vendor::Quuppa, "127.0.0.1:9001".parse().unwrap()))
+        );
+        let error = parse_udp_adapter("zebra=127.0.0.1:9001").unwrap_err();
+        assert!(error.contains("pozyx, quuppa, sewio, generic"), "{error}");
+        assert!(parse_udp_adapter("quuppa").unwrap_err().contains("VENDOR=ADDR"));
+        assert!(parse_udp_adapter("quuppa=localhost").unwrap_err().contains("localhost"));
     }
 }

@@ -12,7 +12,10 @@
 //!   its terms; [`auth`] — write and read tokens; [`config`] — the configuration file;
 //!   [`serve`] — starting and stopping it all; [`feed`] — a live feed of records from any
 //!   [`feed::RecordSource`] (the binary's `--demo` mine) through the ingest path;
-//!   [`webhooks`] — alarms POSTed to HTTP(S) endpoints (signed, retried, in order).
+//!   [`webhooks`] — alarms POSTed to HTTP(S) endpoints (signed, retried, in order);
+//!   [`udp`] — best-effort UDP ingest of measurement lines or vendor messages;
+//!   [`nats_forward`] — positions and events published to NATS; [`log_limit`] — warnings
+//!   that may repeat, logged at most every 10 s.
 //!
 //! ## Layer
 //! It owns the service (ingest, pipeline, APIs, storage, auth, live feeds) and may import
@@ -33,8 +36,10 @@ mod error;
 pub mod feed;
 pub mod http;
 pub mod limits;
+pub mod log_limit;
 pub mod metrics;
 pub mod mqtt;
+pub mod nats_forward;
 pub mod omlox;
 pub mod pipeline;
 pub mod pushed;
@@ -42,6 +47,7 @@ pub mod serve;
 pub mod sink;
 pub mod store;
 pub mod tls;
+pub mod udp;
 pub mod webhooks;
 
 pub use error::{Result, ServerError};

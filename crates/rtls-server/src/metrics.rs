@@ -71,6 +71,14 @@ pub struct Metrics {
     /// `failed` — given up or refused, `dropped` — queue full, missed hub messages, or left at
     /// shutdown).
     pub webhook_deliveries: Family<Labels, Counter>,
+    /// UDP datagrams, by `listener` (`udp:ADDR`, `udp:adapters/{vendor}`) and `outcome`
+    /// (`accepted`, `refused` — malformed or refused at ingest, `dropped` — overload or
+    /// shutdown; [`crate::udp`]).
+    pub udp_datagrams: Family<Labels, Counter>,
+    /// Messages forwarded to NATS, by `forward` and `outcome` (`published` — handed to the
+    /// client, `dropped` — queue full, missed hub messages, a publish error, or left at
+    /// shutdown; [`crate::nats_forward`]).
+    pub nats_forward: Family<Labels, Counter>,
     /// Rows packed into compressed blocks by the compaction pass, by `kind` (`states`,
     /// `records`).
     pub store_compacted: Family<Labels, Counter>,
@@ -138,6 +146,8 @@ impl Metrics {
             http_connections_refused: Family::default(),
             http_requests_limited: Counter::default(),
             webhook_deliveries: Family::default(),
+            udp_datagrams: Family::default(),
+            nats_forward: Family::default(),
             store_compacted: Family::default(),
             store_compaction_failures: Counter::default(),
             collision_updates_missed: Counter::default(),
@@ -271,6 +281,16 @@ impl Metrics {
             "webhook_deliveries",
             "Webhook deliveries by webhook and outcome (delivered, retried, failed, dropped)",
             m.webhook_deliveries.clone(),
+        );
+        registry.register(
+            "udp_datagrams",
+            "UDP datagrams by listener and outcome (accepted, refused, dropped); UDP is best-effort",
+            m.udp_datagrams.clone(),
+        );
+        registry.register(
+            "nats_forward",
+            "Messages forwarded to NATS by forward and outcome (published, dropped)",
+            m.nats_forward.clone(),
         );
         registry.register(
             "collision_updates_missed",

@@ -57,7 +57,7 @@ async fn run(mqtt: MqttMode) -> (Bound, f64, Vec<f64>) {
         ..common::options(config)
     })
     .await;
-    let bound = running.bound;
+    let bound = running.bound.clone();
     let client = reqwest::Client::new();
     let deadline = std::time::Instant::now() + Duration::from_secs(20);
     let mut last_x = 0.0;

@@ -60,6 +60,18 @@
 //! max_attempts = 8               # then the delivery is given up (counted `failed`)
 //! initial_backoff_s = 1.0        # first retry after this, doubling each retry …
 //! max_backoff_s = 60.0           # … up to this; each wait is 75–100 % of it (jitter)
+//!
+//! [udp]                          # optional: best-effort UDP ingest, one payload per datagram (docs/SERVER.md, UDP ingest)
+//! listen = "127.0.0.1:9000"      # our measurement JSON lines (the body of POST /api/v1/measurements)
+//! [udp.adapters]                 # a vendor's messages through its adapter, one port per vendor
+//! quuppa = "127.0.0.1:9001"      # also pozyx, sewio, generic (which needs [adapters.generic])
+//!
+//! [[nats_forward]]               # zero or more: positions and events published to NATS (docs/SERVER.md)
+//! url = "nats://127.0.0.1:4222"  # nats:// or tls://; user:password@ for a user; several: comma-separated
+//! name = "bus"                   # the `forward` label of metrics and logs; default: the URL's host[:port]
+//! subject_prefix = "rtls"        # subjects {prefix}.positions.{tag}, {prefix}.events.{type}
+//! topics = ["positions", "alarms", "events"]   # the default: every topic
+//! token_env = "RTLS_NATS_TOKEN"  # optional: the server's token from this environment variable
 //! ```
 
 use std::net::SocketAddr;
@@ -68,8 +80,13 @@ use std::path::PathBuf;
 use serde::Deserialize;
 
 pub mod cluster;
+mod nats_forward;
+mod udp;
 mod webhooks;
 
+pub(crate) use nats_forward::validate_nats_forwards;
+pub use nats_forward::{ForwardTopic, NatsForwardSection};
+pub use udp::{UdpAdapters, UdpSection};
 pub(crate) use webhooks::validate_webhooks;
 pub use webhooks::WebhookSection;
 
@@ -135,6 +152,11 @@ pub struct ServerConfig {
     pub cluster: cluster::ClusterSection,
     /// `[adapters]`: settings of the vendor adapters ([`crate::adapters`]).
     pub adapters: AdaptersSection,
+    /// `[udp]`: best-effort UDP ingest listeners ([`crate::udp`]); none by default.
+    pub udp: UdpSection,
+    /// `[[nats_forward]]`: NATS servers positions and events are published to
+    /// ([`crate::nats_forward`]).
+    pub nats_forward: Vec<NatsForwardSection>,
 }
 
 /// `[adapters]`: settings of the vendor adapters.
@@ -482,6 +504,8 @@ impl ServerConfig {
             ));
         }
         validate_webhooks(&self.webhooks)?;
+        self.udp.validate(self.adapters.generic.is_some())?;
+        validate_nats_forwards(&self.nats_forward)?;
         Ok(())
     }
 }

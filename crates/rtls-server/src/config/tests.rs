@@ -262,3 +262,46 @@ fn a_bad_webhook_is_refused_naming_its_index_and_key() {
         "127.0.0.1:9000"
     );
 }
+
+/// The example's commented-out `[udp]` table, uncommented: it parses and validates, a listener
+/// for measurement lines and one for Quuppa's messages.
+#[test]
+fn the_documented_udp_table_parses_and_validates() {
+    let table = uncommented_example_table("[udp]");
+    let config: ServerConfig = toml::from_str(&table).unwrap_or_else(|e| panic!("{e}\n{table}"));
+    config.validate().unwrap();
+    let listeners = config.udp.listeners();
+    assert_eq!(
+        listeners,
+        vec![
+            (None, "0.0.0.0:9000".parse().unwrap()),
+            (Some(crate::adapters::Vendor::Quuppa), "0.0.0.0:9001".parse().unwrap())
+        ]
+    );
+}
+
+/// The example's commented-out `[[nats_forward]]` table, uncommented: every key it shows is
+/// known, and the values it shows are the defaults (but for url, name and the token's variable).
+#[test]
+fn the_documented_nats_forward_table_parses_with_the_defaults_it_documents() {
+    let table = uncommented_example_table("[[nats_forward]]");
+    let mut config: ServerConfig = toml::from_str(&table).unwrap_or_else(|e| panic!("{e}\n{table}"));
+    let keys = table.lines().filter(|l| l.contains(" = ")).count();
+    assert_eq!(keys, 5, "every key shown:\n{table}");
+    assert_eq!(config.nats_forward.len(), 1);
+    let forward = &mut config.nats_forward[0];
+    assert_eq!(forward.token_env.as_deref(), Some("RTLS_NATS_TOKEN"));
+    // the variable is not set here
+    forward.token_env = None;
+    validate_nats_forwards(&config.nats_forward).unwrap();
+    let defaults = NatsForwardSection::default();
+    let forward = &config.nats_forward[0];
+    assert_eq!(
+        (&forward.url, forward.name.as_deref()),
+        (&"nats://127.0.0.1:4222".to_string(), Some("bus"))
+    );
+    assert_eq!(
+        (&forward.subject_prefix, &forward.topics),
+        (&defaults.subject_prefix, &defaults.topics)
+    );
+}

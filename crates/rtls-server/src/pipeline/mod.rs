@@ -359,8 +359,7 @@ impl Pipeline {
                 site_fingerprint: partition_state::site_fingerprint(&site_arc),
                 track_step: config.track_step,
                 pending_events: Vec::new(),
-                last_unused_log: None,
-                unused_since_log: 0,
+                unused_log: crate::log_limit::LogLimiter::default(),
             };
             threads.push(spawn(
                 format!("rtls-partition-{index}"),

@@ -62,14 +62,9 @@ pub(super) struct PartitionWorker {
     pub track_step: super::TrackStep,
     /// Events of the partition's own (quarantined records) waiting for the next batch.
     pub pending_events: Vec<EventRow>,
-    /// When an unused record was last logged.
-    pub last_unused_log: Option<Instant>,
-    /// Unused records since that line.
-    pub unused_since_log: u64,
+    /// How often an unused record is logged ([`crate::log_limit::LOG_PERIOD`]).
+    pub unused_log: crate::log_limit::LogLimiter,
 }
-
-/// At most one log line about unused records per partition this often.
-const UNUSED_LOG_PERIOD: Duration = Duration::from_secs(10);
 
 impl PartitionWorker {
     pub fn run(mut self) {
@@ -190,26 +185,23 @@ impl PartitionWorker {
 
     /// A record the tracker did not use (`rejected`, `late`): counted by event and
     /// measurement kind in `rtls_records_unused_total{event, kind}`, and logged — at most once
-    /// every [`UNUSED_LOG_PERIOD`] per partition, with how many went unlogged since.
+    /// every [`crate::log_limit::LOG_PERIOD`] per partition, with how many went unlogged since.
     fn note_unused(&mut self, event: &str, parsed: &Value) {
         let kind = parsed["kind"].as_str().unwrap_or("unknown");
         self.metrics
             .records_unused
             .get_or_create(&vec![("event".into(), event.into()), ("kind".into(), kind.into())])
             .inc();
-        self.unused_since_log += 1;
-        if self.last_unused_log.is_none_or(|at| at.elapsed() >= UNUSED_LOG_PERIOD) {
+        if let Some(records) = self.unused_log.occurred() {
             tracing::warn!(
                 partition = self.index,
                 event,
                 kind,
                 tag = parsed["tag"].as_str().unwrap_or(""),
                 reason = parsed["reason"].as_str().unwrap_or(""),
-                records = self.unused_since_log,
+                records,
                 "record not used (the count is since the last such line; every one is an event)"
             );
-            self.last_unused_log = Some(Instant::now());
-            self.unused_since_log = 0;
         }
     }
 

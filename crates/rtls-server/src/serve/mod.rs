@@ -1,6 +1,7 @@
 //! `rtls serve`: opens the store, starts the pipeline, the HTTP/WebSocket server, the MQTT
-//! broker (or the bridge to an external one), retention, the webhooks, and a live [`Feed`] if
-//! one is given (`rtls serve --demo`'s simulated mine); stops them in order on shutdown.
+//! broker (or the bridge to an external one), the UDP listeners, retention, the webhooks, the
+//! NATS forwards, and a live [`Feed`] if one is given (`rtls serve --demo`'s simulated mine);
+//! stops them in order on shutdown.
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -18,14 +19,15 @@ use crate::http::QueryStore;
 use crate::http::{router, AppState};
 use crate::metrics::Metrics;
 use crate::mqtt::{BrokerConfig, EmbeddedBroker, ExternalBroker};
-use crate::pipeline::{unix_ms, Pipeline, PipelineConfig, TimeWindow};
+use crate::nats_forward::{Forwarder, NatsForward};
+use crate::pipeline::{Pipeline, PipelineConfig, TimeWindow};
 use crate::sink::MeasurementSink;
 use crate::store::{self, SqliteSync};
 use crate::tls::{self, CertificateStore, TlsFiles};
 use crate::webhooks::{Dispatcher, Webhook};
 
-/// How often retention runs.
-const RETENTION_PERIOD: Duration = Duration::from_secs(3600);
+mod maintenance;
+use maintenance::{compaction, retention};
 
 /// A failure to start or run the server.
 #[derive(Debug, thiserror::Error)]
@@ -42,7 +44,7 @@ pub enum ServeError {
     /// A listener could not be bound or served.
     #[error("{what} {address}: {reason}")]
     Listen {
-        /// `HTTP` or `MQTT`.
+        /// `HTTP`, `MQTT` or `UDP`.
         what: &'static str,
         /// The address.
         address: String,
@@ -65,12 +67,15 @@ pub enum ServeError {
 pub const DRAIN_DEADLINE: Duration = Duration::from_secs(10);
 
 /// Where the running server listens (ports resolved, for `:0`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Bound {
     /// HTTP and WebSocket.
     pub http: SocketAddr,
     /// The embedded MQTT broker, if it runs.
     pub mqtt: Option<SocketAddr>,
+    /// The UDP listeners (`[udp]`): `None` for measurement lines, else the vendor whose
+    /// messages it reads, with the bound address.
+    pub udp: Vec<(Option<crate::adapters::Vendor>, SocketAddr)>,
     /// Whether both speak TLS (HTTPS / WSS, MQTTS).
     pub tls: bool,
 }
@@ -128,6 +133,7 @@ pub async fn serve(
     let open = move || store::open(&db, sync);
     // before anything starts: a missing secret variable is a configuration error
     let webhooks = Webhook::from_config(&config.webhooks).map_err(|e| ServeError::Config(e.to_string()))?;
+    let forwards = NatsForward::from_config(&config.nats_forward).map_err(|e| ServeError::Config(e.to_string()))?;
     let metrics = Arc::new(Metrics::new());
     // a cluster's node: the ingest log is the cluster's stream, outputs go to the peers too
     let cluster = if config.cluster.enabled() {
@@ -167,8 +173,9 @@ pub async fn serve(
     let pipeline_site = site.clone();
     let pipeline_metrics = Arc::clone(&metrics);
     let want_hub = !webhooks.is_empty();
+    let want_forwards = !forwards.is_empty();
     let issued_tokens = tokens.clone();
-    let (pipeline, query_store, hub) = tokio::task::spawn_blocking(move || -> Result<_, ServeError> {
+    let (pipeline, query_store, hub, forwards_hub) = tokio::task::spawn_blocking(move || -> Result<_, ServeError> {
         let (ingest_store, output_store, mut query_store) = (open()?, open()?, open()?);
         query_store.put_config("site", "current", &site_text)?;
         for trackable in &trackables {
@@ -194,6 +201,7 @@ pub async fn serve(
         // the webhooks' subscription, as soon as the hub exists (the trackers' replay of the
         // ingest log has just started: alarms it raised in these microseconds are not sent)
         let hub = want_hub.then(|| pipeline.subscribe_local());
+        let forwards_hub = want_forwards.then(|| pipeline.subscribe_local());
         // the tokens issued through the API before this start (their hashes)
         let issued = query_store.list_config(crate::http::tokens::TOKEN_CONFIG)?;
         for (id, json) in issued {
@@ -209,13 +217,21 @@ pub async fn serve(
             );
             pipeline.live().set_zones(zones);
         }
-        Ok((pipeline, query_store, hub))
+        Ok((pipeline, query_store, hub, forwards_hub))
     })
     .await
     .map_err(|e| ServeError::Config(format!("opening the database: {e}")))??;
     tracing::info!(backend = query_store.backend(), db = %crate::config::redact_password(&config.server.db), "database open");
     let dispatcher = match hub {
         Some(hub) => Some(Dispatcher::start(webhooks, hub, &metrics).map_err(ServeError::Config)?),
+        None => None,
+    };
+    let forwarder = match forwards_hub {
+        Some(hub) => Some(
+            Forwarder::start(forwards, hub, &metrics)
+                .await
+                .map_err(ServeError::Config)?,
+        ),
         None => None,
     };
     let queries = Arc::new(Mutex::new(QueryStore::new(query_store)));
@@ -296,6 +312,15 @@ pub async fn serve(
         }
         MqttMode::Off => {}
     }
+    let mut udp_addrs = Vec::new();
+    let udp_listeners = crate::udp::bind_all(&config.udp, &metrics)
+        .await
+        .map_err(|(address, e)| listen_error("UDP", address, &e))?;
+    for listener in udp_listeners {
+        let address = listener.local_addr().map_err(|e| listen_error("UDP", http_addr, &e))?;
+        udp_addrs.push((listener.vendor(), address));
+        tasks.push(listener.start(pipeline.clone(), stop_rx.clone()));
+    }
     if let Some(cluster) = cluster {
         // trackables changed through another node reach this one's live topics
         tasks.push(tokio::spawn(crate::http::trackable_sync::refresh_trackables_every(
@@ -327,10 +352,11 @@ pub async fn serve(
     let bound = Bound {
         http: http_addr,
         mqtt: mqtt_addr,
+        udp: udp_addrs,
         tls: certificates.is_some(),
     };
-    tracing::info!(http = %http_addr, mqtt = ?mqtt_addr, "listening");
-    on_bound(bound);
+    tracing::info!(http = %http_addr, mqtt = ?mqtt_addr, udp = ?bound.udp, "listening");
+    on_bound(bound.clone());
     // the feed stops first, while the broker can still acknowledge its last payload
     let (feed_stop_tx, feed_stop_rx) = watch::channel(false);
     let feed_task = feed.map(|start| start(pipeline.clone(), bound, feed_stop_rx));
@@ -379,6 +405,10 @@ pub async fn serve(
         tracing::info!("delivering the webhooks' queued events (2 s at most)");
         dispatcher.shutdown().await;
     }
+    if let Some(forwarder) = forwarder {
+        tracing::info!("publishing the NATS forwards' queued messages (2 s at most)");
+        forwarder.shutdown().await;
+    }
     if drained.is_err() {
         let error = ServeError::Drain(DRAIN_DEADLINE);
         tracing::error!(error = %error, "shutdown");
@@ -420,131 +450,6 @@ fn listen_error(what: &'static str, address: SocketAddr, error: &std::io::Error)
         what,
         address: address.to_string(),
         reason: error.to_string(),
-    }
-}
-
-/// Track states and tracked records packed per compaction transaction (the query connection
-/// is free between two).
-const COMPACTION_CHUNK_ROWS: usize = 100_000;
-
-/// Packs track states and tracked raw records older than `compact_after_s` into compressed
-/// blocks, every `compact_after_s` (store/history_blocks.rs, store/log_blocks.rs).
-async fn compaction(
-    queries: Arc<Mutex<QueryStore>>,
-    metrics: Arc<Metrics>,
-    compact_after_s: f64,
-    stopped: impl Future<Output = ()>,
-) {
-    let counter = |kind: &str| {
-        metrics
-            .store_compacted
-            .get_or_create(&vec![("kind".to_owned(), kind.to_owned())])
-            .clone()
-    };
-    let (states_packed, records_packed) = (counter("states"), counter("records"));
-    tokio::pin!(stopped);
-    let period = Duration::from_secs_f64(compact_after_s);
-    loop {
-        tokio::select! {
-            () = &mut stopped => return,
-            () = tokio::time::sleep(period) => {}
-        }
-        let before_ms = unix_ms() - (compact_after_s * 1000.0) as i64;
-        let (mut states, mut records) = (0u64, 0u64);
-        let started = Instant::now();
-        loop {
-            let store = Arc::clone(&queries);
-            let packing = tokio::task::spawn_blocking(move || match store.lock() {
-                Ok(mut store) => store.compact(before_ms, COMPACTION_CHUNK_ROWS),
-                Err(_) => Err("the query store's lock is poisoned".to_owned()),
-            });
-            // a shutdown does not wait for the rest of the pass (each chunk is a transaction
-            // of its own: what is packed is committed, the rest waits for the next start)
-            let chunk = tokio::select! {
-                biased;
-                () = &mut stopped => return,
-                chunk = packing => chunk,
-            };
-            match chunk {
-                Ok(Ok((0, 0))) => break,
-                Ok(Ok((packed_states, packed_records))) => {
-                    states += packed_states;
-                    records += packed_records;
-                    states_packed.inc_by(packed_states);
-                    records_packed.inc_by(packed_records);
-                }
-                Ok(Err(e)) => {
-                    metrics.store_compaction_failures.inc();
-                    tracing::error!(error = %e, "compaction failed; the rows stay as they are");
-                    break;
-                }
-                Err(e) => {
-                    metrics.store_compaction_failures.inc();
-                    tracing::error!(error = %e, "compaction task failed");
-                    break;
-                }
-            }
-        }
-        if states + records > 0 {
-            let elapsed_ms = started.elapsed().as_millis() as u64;
-            tracing::info!(
-                states,
-                records,
-                elapsed_ms,
-                compact_after_s,
-                "compacted history and ingest log into blocks"
-            );
-        }
-    }
-}
-
-/// Deletes what is older than the retention period, and raw records older than theirs, hourly.
-async fn retention(
-    queries: Arc<Mutex<QueryStore>>,
-    retention_days: f64,
-    raw_retention_days: f64,
-    stopped: impl Future<Output = ()>,
-) {
-    tokio::pin!(stopped);
-    loop {
-        let cutoff_ms = unix_ms() - (retention_days * 86_400_000.0) as i64;
-        let raw_cutoff_ms = unix_ms() - (raw_retention_days * 86_400_000.0) as i64;
-        let store = Arc::clone(&queries);
-        let pruned = tokio::task::spawn_blocking(move || match store.lock() {
-            Ok(mut store) => {
-                match store.prune_ingest_log(raw_cutoff_ms) {
-                    Ok(records) if records > 0 => {
-                        tracing::info!(
-                            records,
-                            raw_retention_days,
-                            "raw-record retention pruned the ingest log"
-                        );
-                    }
-                    Ok(_) => {}
-                    Err(e) => tracing::error!(error = %e, "raw-record retention failed"),
-                }
-                Ok(store.prune(cutoff_ms))
-            }
-            Err(_) => Err(()),
-        })
-        .await;
-        match pruned {
-            Ok(Ok(Ok(p))) if p.records + p.locations + p.events > 0 => {
-                tracing::info!(
-                    records = p.records,
-                    locations = p.locations,
-                    events = p.events,
-                    retention_days,
-                    "retention pruned"
-                );
-            }
-            Ok(Ok(Err(e))) => tracing::error!(error = %e, "retention failed"),
-            _ => {}
-        }
-        tokio::select! {
-            () = &mut stopped => return,
-            () = tokio::time::sleep(RETENTION_PERIOD) => {}
-        }
     }
 }
 
