@@ -526,7 +526,7 @@ fn motions_and_collision_events_match_schema() {
         ]
     );
     for transition in &transitions {
-        let event = crate::pipeline::collisions::collision_event(transition).unwrap();
+        let event = crate::pipeline::collision_news::collision_event(transition).unwrap();
         let value = serde_json::to_value(&event).unwrap();
         assert_valid("CollisionEvent", &value, |_| {});
         assert_eq!(value["start_time"], "2019-09-02T22:02:24.100Z");
@@ -534,10 +534,10 @@ fn motions_and_collision_events_match_schema() {
         // the same transition has the same event id (a replay repeats it)
         assert_eq!(
             event.id,
-            crate::pipeline::collisions::collision_event(transition).unwrap().id
+            crate::pipeline::collision_news::collision_event(transition).unwrap().id
         );
     }
-    let end = serde_json::to_value(crate::pipeline::collisions::collision_event(&transitions[2]).unwrap()).unwrap();
+    let end = serde_json::to_value(crate::pipeline::collision_news::collision_event(&transitions[2]).unwrap()).unwrap();
     assert_eq!(end["end_time"], "2019-09-02T22:02:24.300Z");
     assert!(end.get("collision_area").is_none() && end.get("collision_time").is_none());
 }

@@ -386,14 +386,14 @@ fn payload<'a>(
             let geometry = event["fence_id"].as_str().and_then(|id| fences.get(id)).cloned();
             json!({ "type": "Feature", "geometry": geometry, "properties": event })
         }
-        (HubMessage::Collision { tags, event }, Topic::CollisionEvents)
-            if tags.iter().any(|tag| wanted(subscription, tag))
+        (HubMessage::Collision(news), Topic::CollisionEvents)
+            if news.tags().iter().any(|tag| wanted(subscription, tag))
                 && subscription
                     .trackable
                     .as_deref()
-                    .is_none_or(|t| event.collisions.iter().any(|c| c.id == t)) =>
+                    .is_none_or(|t| news.trackables().contains(&t)) =>
         {
-            return Some(Payload::Collision(event));
+            return news.event().map(|event| Payload::Collision(event));
         }
         (HubMessage::Proximity(proximity), Topic::ProximityUpdates) if wanted(subscription, &proximity.provider_id) => {
             return Some(Payload::Proximity(proximity));

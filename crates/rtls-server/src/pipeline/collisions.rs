@@ -1,6 +1,7 @@
 //! The collision thread: reads every track update from the hub, moves the trackables its tag
 //! belongs to ([`super::trackables`]) in one [`CollisionDetector`], and publishes the
-//! collisions it finds as omlox `CollisionEvent`s on the hub (`collision_events`). It also
+//! collisions it finds on the hub as [`CollisionNews`] (each an omlox `CollisionEvent` for
+//! `collision_events`, built when a subscriber first asks for it). It also
 //! turns the providers' fence events into the trackables' ([`super::trackable_fences`]),
 //! published on the hub as `fence_events`.
 //!
@@ -20,16 +21,12 @@ use std::sync::Arc;
 use tokio::sync::broadcast;
 use tokio::sync::broadcast::error::RecvError;
 
+use super::collision_news::CollisionNews;
 use super::live::{HubMessage, LiveState};
 use super::trackable_fences::TrackableFences;
 use super::trackable_location::{moved_by, Taking};
-use crate::convert::uuid_for;
-use crate::omlox::collision::{Body, CollisionDetector, CollisionSettings, Side, Transition};
-use crate::omlox::time::format_timestamp;
-use crate::omlox::{Collision, CollisionEvent, CollisionType, FenceEvent, Location, Point, Polygon, Trackable};
-
-/// Vertices of the polygon that draws a trackable's judged disc in a `Collision`.
-const DISC_VERTICES: usize = 16;
+use crate::omlox::collision::{Body, CollisionDetector, CollisionSettings};
+use crate::omlox::{FenceEvent, Location, Trackable};
 
 pub(super) struct CollisionWorker {
     pub live: Arc<LiveState>,
@@ -112,21 +109,12 @@ impl CollisionWorker {
         let Some(hub) = self.hub.upgrade() else {
             return false;
         };
-        for transition in &transitions {
-            match collision_event(transition) {
-                Ok(event) => {
-                    let tags = [
-                        transition.trigger.provider_id.clone(),
-                        transition.other.provider_id.clone(),
-                    ];
-                    // no subscriber is not an error
-                    let _ = hub.send(Arc::new(HubMessage::Collision {
-                        tags,
-                        event: Arc::new(event),
-                    }));
-                }
-                Err(e) => tracing::warn!(error = %e, "collision event not representable"),
-            }
+        for transition in transitions {
+            // the omlox event is built only if a subscriber wants it (CollisionNews::event)
+            // no subscriber is not an error
+            let _ = hub.send(Arc::new(HubMessage::Collision(Arc::new(CollisionNews::new(
+                transition,
+            )))));
         }
         true
     }
@@ -187,61 +175,6 @@ fn body(trackable: &Trackable, tag: &str, time_s: f64, location: &Location) -> B
             .tolerance_timeout
             .filter(|ms| *ms >= 0.0)
             .map(|ms| ms / 1000.0),
-    }
-}
-
-/// The omlox event of a transition: a name-based id (the same transition, replayed, has the
-/// same id), timestamps from the records' clock.
-///
-/// # Errors
-/// [`crate::ServerError::Unrepresentable`] when a time cannot be written as a timestamp.
-pub(crate) fn collision_event(transition: &Transition) -> crate::Result<CollisionEvent> {
-    let kind = transition.kind;
-    let name = format!(
-        "{}|{}|{:?}|{}",
-        transition.trigger.id, transition.other.id, kind, transition.time_s
-    );
-    let time = format_timestamp(transition.time_s, "collision_time")?;
-    Ok(CollisionEvent {
-        id: uuid_for("collision-event", &name),
-        collision_type: kind,
-        start_time: Some(format_timestamp(transition.start_s, "start_time")?),
-        end_time: (kind == CollisionType::CollisionEnd).then(|| time.clone()),
-        collision_time: (kind == CollisionType::Colliding).then_some(time),
-        collisions: vec![collision(&transition.trigger), collision(&transition.other)],
-        collision_area: transition.area_m.map(|[x, y]| Point {
-            coordinates: vec![x, y],
-        }),
-        center_distance: Some(transition.distance_m),
-    })
-}
-
-/// One side as an omlox `Collision`: its position and its judged disc as a polygon.
-fn collision(side: &Side) -> Collision {
-    let centre = [
-        side.coordinates.first().copied().unwrap_or(0.0),
-        side.coordinates.get(1).copied().unwrap_or(0.0),
-    ];
-    let ring: Vec<Vec<f64>> = (0..=DISC_VERTICES)
-        .map(|i| {
-            // the last vertex repeats the first: a closed ring
-            let angle = std::f64::consts::TAU * (i % DISC_VERTICES) as f64 / DISC_VERTICES as f64;
-            vec![
-                centre[0] + side.extent_m * angle.cos(),
-                centre[1] + side.extent_m * angle.sin(),
-            ]
-        })
-        .collect();
-    Collision {
-        id: side.id.clone(),
-        object_type: "trackable".into(),
-        position: Some(Point {
-            coordinates: side.coordinates.clone(),
-        }),
-        geometry: (side.extent_m > 0.0).then(|| Polygon {
-            coordinates: vec![ring],
-        }),
-        floor: Some(side.floor),
     }
 }
 

@@ -168,7 +168,7 @@ impl Fanout {
                 proximity: Box::new(Proximity::clone(proximity)),
             }),
             // every node judges collisions from the track updates it applies
-            HubMessage::Collision { .. } => {}
+            HubMessage::Collision(_) => {}
         }
         let message = Arc::new(message);
         if let Some((local_hub, _)) = &self.local {
@@ -379,15 +379,24 @@ mod tests {
         }))
         .expect("proximity");
         owner.hub(HubMessage::Proximity(Arc::new(proximity.clone())));
-        let event: crate::omlox::CollisionEvent = serde_json::from_value(serde_json::json!({
-            "id": "e", "collision_type": "collision_start",
-            "collisions": [{"id": "a", "object_type": "trackable"}, {"id": "b", "object_type": "trackable"}]
-        }))
-        .expect("collision event");
-        owner.hub(HubMessage::Collision {
-            tags: ["a".into(), "b".into()],
-            event: Arc::new(event),
-        });
+        let side = |id: &str| crate::omlox::collision::Side {
+            id: id.into(),
+            provider_id: id.into(),
+            coordinates: vec![0.0, 0.0],
+            floor: 0.0,
+            extent_m: 1.0,
+        };
+        owner.hub(HubMessage::Collision(Arc::new(
+            crate::pipeline::collision_news::CollisionNews::new(crate::omlox::collision::Transition {
+                kind: crate::omlox::CollisionType::CollisionStart,
+                trigger: side("a"),
+                other: side("b"),
+                start_s: 1.0,
+                time_s: 1.0,
+                distance_m: 0.5,
+                area_m: Some([0.25, 0.0]),
+            }),
+        )));
         let sent: Vec<PeerMessage> = std::iter::from_fn(|| rx.try_recv().ok()).collect();
         assert_eq!(sent.len(), 1, "{sent:?}");
         let text = serde_json::to_string(&sent[0]).expect("serialise");

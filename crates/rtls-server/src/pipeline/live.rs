@@ -8,9 +8,10 @@ use rtls_engine::site::Site;
 use rtls_engine::zones::Zone;
 use serde_json::Value;
 
+use super::collision_news::CollisionNews;
 use super::trackables::TrackableIndex;
 use crate::omlox::ws::Topic;
-use crate::omlox::{CollisionEvent, Location, Proximity, Trackable};
+use crate::omlox::{Location, Proximity, Trackable};
 
 /// A message for WebSocket subscribers, already in omlox JSON.
 #[derive(Debug, Clone, PartialEq)]
@@ -32,13 +33,9 @@ pub enum HubMessage {
         /// The `FenceEvent` object.
         event: Value,
     },
-    /// Two trackables started or stopped colliding, or still collide (`collision_events`).
-    Collision {
-        /// The tags whose updates placed the two trackables, in the event's order.
-        tags: [String; 2],
-        /// The `CollisionEvent`.
-        event: Arc<CollisionEvent>,
-    },
+    /// Two trackables started or stopped colliding, or still collide (`collision_events`);
+    /// the omlox `CollisionEvent` is built when a subscriber first asks for it.
+    Collision(Arc<CollisionNews>),
     /// A proximity a provider pushed (`PUT /v2/providers/proximities`), as received
     /// (`proximity_updates`).
     Proximity(Arc<Proximity>),

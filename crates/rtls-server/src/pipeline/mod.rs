@@ -24,6 +24,7 @@
 
 mod admission;
 mod cluster_side;
+pub mod collision_news;
 pub(crate) mod collisions;
 mod fanout;
 mod ingest_log;
