@@ -50,7 +50,7 @@ use crate::omlox::ws::{Topic, WsErrorCode, WsEvent, WsMessage};
 use crate::omlox::{CollisionEvent, Location, Proximity, TrackableMotion};
 use crate::pipeline::trackable_location::moved_by;
 use crate::pipeline::trackables::TrackableIndex;
-use crate::pipeline::{HubMessage, LiveState};
+use crate::pipeline::{CollisionListener, HubMessage, LiveState};
 
 /// Query of the upgrade request.
 #[derive(Debug, Deserialize)]
@@ -86,6 +86,8 @@ struct Subscription {
     /// `params.crs = "EPSG:4326"` on `location_updates`: positions in WGS-84 through the
     /// site's `[frame]`.
     wgs84: bool,
+    /// On `collision_events`: the collision thread publishes while this is held.
+    _collisions: Option<CollisionListener>,
 }
 
 async fn serve(mut socket: WebSocket, state: AppState) {
@@ -123,7 +125,7 @@ async fn serve(mut socket: WebSocket, state: AppState) {
                     Message::Close(_) => break,
                     _ => continue,
                 };
-                let reply = handle(&text, &mut subscriptions, &mut next_id, state.site.frame.is_some());
+                let reply = handle(&text, &mut subscriptions, &mut next_id, state.site.frame.is_some(), state.pipeline.live());
                 if send(&mut socket, &reply).await.is_err() {
                     break;
                 }
@@ -175,6 +177,7 @@ fn handle(
     subscriptions: &mut HashMap<u64, Subscription>,
     next_id: &mut u64,
     georeferenced: bool,
+    live: &LiveState,
 ) -> WsMessage {
     // read the event and the topic first, so an unknown one gets its own omlox error code
     let value: Value = match serde_json::from_str(text) {
@@ -239,6 +242,7 @@ fn handle(
                     tag,
                     trackable,
                     wgs84,
+                    _collisions: (topic == Topic::CollisionEvents).then(|| live.listen_for_collisions()),
                 },
             );
             WsMessage::subscribed(topic, id)

@@ -100,6 +100,9 @@ impl CollisionWorker {
                 transitions.extend(self.detector.remove(&trackable.id, time_s));
             }
         }
+        if !self.live.collisions_listened() {
+            transitions.clear();
+        }
         if transitions.is_empty() && fence_events.is_empty() {
             return true;
         }
@@ -208,5 +211,51 @@ mod tests {
         // five messages into a ring of two: three missed, then the hub is gone and it ends
         worker.run();
         assert_eq!(missed.get(), 3);
+    }
+
+    /// Two tags 0.3 m apart, each updated twice, judged by a worker; the collisions it published.
+    fn collisions_published(listening: bool) -> usize {
+        let site = rtls_engine::site::Site::from_toml_str(
+            "[[readers]]\nid = \"R1\"\nposition_m = [0.0, 0.0]\ntechnology = \"uwb\"\n",
+            "site.toml",
+        )
+        .expect("site");
+        let live = Arc::new(LiveState::new(&site, 1));
+        let listener = listening.then(|| live.listen_for_collisions());
+        assert_eq!(live.collisions_listened(), listening);
+        let (hub, mut published) = broadcast::channel(64);
+        let mut worker = CollisionWorker::new(
+            Arc::clone(&live),
+            &hub,
+            CollisionSettings::default(),
+            prometheus_client::metrics::counter::Counter::default(),
+        );
+        let location = |tag: &str, x: f64| -> Arc<Location> {
+            Arc::new(
+                serde_json::from_value(serde_json::json!({
+                    "position": {"type": "Point", "coordinates": [x, 0.0]},
+                    "source": "test", "provider_type": "uwb", "provider_id": tag, "accuracy": 0.1
+                }))
+                .expect("location"),
+            )
+        };
+        for (k, (tag, x)) in [("a", 0.0), ("b", 0.3), ("a", 0.0), ("b", 0.3)].into_iter().enumerate() {
+            assert!(
+                worker.on_location(tag, k as f64 * 0.1, &location(tag, x)),
+                "the hub is there"
+            );
+        }
+        drop(listener);
+        assert!(!live.collisions_listened(), "the subscription closed with its listener");
+        std::iter::from_fn(|| published.try_recv().ok())
+            .filter(|m| matches!(m.as_ref(), HubMessage::Collision(_)))
+            .count()
+    }
+
+    #[test]
+    fn collisions_are_published_only_while_someone_listens() {
+        // a start at b's first update, colliding at each of the next two
+        assert_eq!(collisions_published(true), 3);
+        assert_eq!(collisions_published(false), 0);
     }
 }

@@ -1,7 +1,7 @@
 //! The live state the APIs read: each tag's latest location and each zone's head count.
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, RwLock};
 
 use rtls_engine::site::Site;
@@ -83,6 +83,19 @@ pub struct LiveState {
     pushed: RwLock<HashMap<String, VecDeque<Arc<crate::pushed::PushedLocation>>>>,
     /// The stored omlox trackables by provider, for the topics about trackables.
     trackables: RwLock<Arc<TrackableIndex>>,
+    /// How many `collision_events` subscriptions are open ([`CollisionListener`]).
+    collision_listeners: Arc<AtomicUsize>,
+}
+
+/// An open `collision_events` subscription: while one is held, the collision thread publishes
+/// what it finds on the hub ([`LiveState::collisions_listened`]); dropping it closes it.
+#[derive(Debug)]
+pub struct CollisionListener(Arc<AtomicUsize>);
+
+impl Drop for CollisionListener {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::AcqRel);
+    }
 }
 
 impl std::fmt::Debug for LiveState {
@@ -125,7 +138,23 @@ impl LiveState {
             zone_edits: std::sync::OnceLock::new(),
             trackables: RwLock::default(),
             pushed: RwLock::default(),
+            collision_listeners: Arc::default(),
         }
+    }
+
+    /// Opens a `collision_events` subscription (held by the WebSocket's subscription).
+    #[must_use]
+    pub fn listen_for_collisions(&self) -> CollisionListener {
+        self.collision_listeners.fetch_add(1, Ordering::AcqRel);
+        CollisionListener(Arc::clone(&self.collision_listeners))
+    }
+
+    /// Whether a `collision_events` subscription is open. The collision thread judges every
+    /// update either way (its pairs' starts and ends stay right), but publishes only then: a
+    /// trackable colliding with n others is n messages per update, which nobody else reads.
+    #[must_use]
+    pub fn collisions_listened(&self) -> bool {
+        self.collision_listeners.load(Ordering::Acquire) > 0
     }
 
     /// Notes a location a provider pushed (its track's outputs keep what it said).

@@ -52,7 +52,7 @@ use tokio::sync::{broadcast, mpsc, oneshot};
 pub use admission::TimeWindow;
 pub use cluster_side::{ClusterHooks, ReplicatedLog};
 pub use fanout::PeerMessage;
-pub use live::{HubMessage, LastSeen, LiveState, TagState};
+pub use live::{CollisionListener, HubMessage, LastSeen, LiveState, TagState};
 pub use partition_state::site_fingerprint;
 pub use quarantine::QUARANTINE;
 pub use readers::{ReaderHealth, ReaderMonitor};
