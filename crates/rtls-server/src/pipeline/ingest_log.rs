@@ -1,9 +1,17 @@
-//! The ingest-log thread: appends payloads to the store with group commit, acknowledges them,
-//! and dispatches their records to the tag partitions in id order.
+//! The ingest-log thread: appends payloads to the store with group commit, dispatches their
+//! records to the tag partitions in id order, and acknowledges them.
+//!
+//! The records go to the partitions once inserted, while their commit waits for the disk
+//! ([`crate::store::Store::append_records_then_commit`]): a track update does not wait for the
+//! fsync, the acknowledgement does. A partition whose queue is full then gets its batch after
+//! the commit (the transaction holds SQLite's write lock, which the output thread needs to
+//! drain the partitions). Should the commit fail, the records were tracked but are neither
+//! stored nor acknowledged: the sender sends them again, and the tracker takes the repeats as
+//! late or revised records.
 
 use std::collections::HashSet;
 use std::sync::atomic::Ordering;
-use std::sync::mpsc::SyncSender;
+use std::sync::mpsc::{SyncSender, TrySendError};
 use std::sync::Arc;
 
 use rtls_engine::record::{parse_json_line, Record};
@@ -66,11 +74,36 @@ impl IngestLogWorker {
                 }
             }
             let rows: Vec<_> = batches.iter_mut().flat_map(|b| std::mem::take(&mut b.rows)).collect();
+            let counts: Vec<usize> = batches.iter().map(|b| b.records.len()).collect();
+            let mut records: Option<Vec<Record>> = Some(
+                batches
+                    .iter_mut()
+                    .flat_map(|b| std::mem::take(&mut b.records))
+                    .collect(),
+            );
+            // the records go to their partitions once inserted, while the commit waits for the
+            // disk: a record's update does not wait for the fsync, its acknowledgement does
+            let mut held_back = Vec::new();
+            let (partitions, progress) = (&self.partitions, &self.progress);
+            let mut dispatch_inserted = |ids: &[i64]| {
+                if let Some(inserted) = records.take_if(|records| records.len() == ids.len()) {
+                    let batches = partition_batches(inserted.into_iter().zip(ids.iter().copied()), partitions.len());
+                    held_back = send_without_waiting(partitions, progress, batches);
+                }
+            };
             let stored = if rows.is_empty() {
                 Ok(Vec::new())
             } else {
-                self.store.append_records(&rows)
+                self.store.append_records_then_commit(&rows, &mut dispatch_inserted)
             };
+            // partitions whose queues were full get theirs now (the write lock is released);
+            // after a failed commit too, as the others have theirs (the records are tracked
+            // though not stored, and the sender, unacknowledged, sends them again)
+            for (index, batch) in held_back {
+                if self.partitions[index].send(PartitionInput::Records(batch)).is_err() {
+                    tracing::error!(partition = index, "partition stopped; records not tracked");
+                }
+            }
             let ids = match stored {
                 Ok(ids) if ids.len() == rows.len() => ids,
                 Ok(ids) => {
@@ -86,17 +119,16 @@ impl IngestLogWorker {
             };
             self.metrics.ingest_records.inc_by(rows.len() as u64);
             self.metrics.ingest_commits.inc();
-            // acknowledge first (the records are durable), then track them
-            let mut ids = ids.into_iter();
-            let mut records = Vec::with_capacity(rows.len());
+            // acknowledge: the records are durable
             let mut then = Vec::new();
-            for batch in batches {
-                let count = batch.records.len();
-                records.extend(batch.records.into_iter().zip(ids.by_ref()).map(|(r, id)| (id, r)));
+            for (batch, count) in batches.into_iter().zip(counts) {
                 let _ = batch.reply.send(Ok(count));
                 then.extend(batch.then);
             }
-            self.dispatch(records);
+            debug_assert!(
+                records.is_none() || ids.is_empty(),
+                "every inserted record was dispatched"
+            );
             // after the records committed with them (a checkpoint holds them)
             for (index, input) in then {
                 if let Some(partition) = self.partitions.get(index) {
@@ -120,14 +152,8 @@ impl IngestLogWorker {
     /// Sends records to their partitions, in id order; blocks while a partition is full
     /// (back-pressure reaches `submit` through the bounded ingest queue).
     fn dispatch(&self, records: Vec<(i64, Record)>) {
-        let count = self.partitions.len();
-        let mut per_partition: Vec<PartitionBatch> = vec![Vec::new(); count];
-        for (id, record) in records {
-            per_partition[partition_of(&record.tag, count)].push((id, record));
-        }
-        for (index, batch) in per_partition.into_iter().enumerate() {
-            let Some(&(last_id, _)) = batch.last() else { continue };
-            self.progress.dispatched[index].fetch_max(last_id, Ordering::AcqRel);
+        let batches = partition_batches(records.into_iter().map(|(id, r)| (r, id)), self.partitions.len());
+        for (index, batch) in send_without_waiting(&self.partitions, &self.progress, batches) {
             if self.partitions[index].send(PartitionInput::Records(batch)).is_err() {
                 tracing::error!(partition = index, "partition stopped; records not tracked");
             }
@@ -180,4 +206,45 @@ impl IngestLogWorker {
             );
         }
     }
+}
+
+/// Records (with their ingest-log ids, increasing) split by partition, each in id order;
+/// partitions without records are left out.
+fn partition_batches(records: impl Iterator<Item = (Record, i64)>, count: usize) -> Vec<(usize, PartitionBatch)> {
+    let mut per_partition: Vec<PartitionBatch> = vec![Vec::new(); count];
+    for (record, id) in records {
+        per_partition[partition_of(&record.tag, count)].push((id, record));
+    }
+    per_partition
+        .into_iter()
+        .enumerate()
+        .filter(|(_, batch)| !batch.is_empty())
+        .collect()
+}
+
+/// Marks every batch dispatched, then sends each whose partition has room; returns the
+/// others, to be sent by the caller (blocking). All are marked first, so the output
+/// checkpoint ([`Progress::watermark`]) never passes a record still to be sent.
+fn send_without_waiting(
+    partitions: &[SyncSender<PartitionInput>],
+    progress: &Progress,
+    batches: Vec<(usize, PartitionBatch)>,
+) -> Vec<(usize, PartitionBatch)> {
+    for (index, batch) in &batches {
+        if let Some(&(last_id, _)) = batch.last() {
+            progress.dispatched[*index].fetch_max(last_id, Ordering::AcqRel);
+        }
+    }
+    let mut full = Vec::new();
+    for (index, batch) in batches {
+        match partitions[index].try_send(PartitionInput::Records(batch)) {
+            Ok(()) => {}
+            Err(TrySendError::Full(PartitionInput::Records(batch))) => full.push((index, batch)),
+            Err(TrySendError::Full(_)) => unreachable!("a batch of records comes back as one"),
+            Err(TrySendError::Disconnected(_)) => {
+                tracing::error!(partition = index, "partition stopped; records not tracked");
+            }
+        }
+    }
+    full
 }

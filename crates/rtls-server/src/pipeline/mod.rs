@@ -2,8 +2,9 @@
 //! worker threads, one [`Tracker`] per tag partition, so no async task ever runs filter work.
 //!
 //! ```text
-//!  transports ──submit()──▶ [bounded queue] ──▶ ingest-log thread ──append+commit──▶ store
-//!  (HTTP, MQTT)   ◀──── ack after commit ─────────┘      │ dispatch by tag hash (bounded)
+//!  transports ──submit()──▶ [bounded queue] ──▶ ingest-log thread ──append, commit──▶ store
+//!  (HTTP, MQTT)   ◀──── ack after commit ─────────┘      │ dispatch by tag hash (bounded),
+//!                                                        │ once appended, during the commit
 //!                                                        ▼
 //!                                  partition threads (Tracker each)
 //!                                    │ live state, hub broadcast, MQTT publications

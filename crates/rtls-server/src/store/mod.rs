@@ -178,7 +178,23 @@ pub trait Store: Send {
     ///
     /// # Errors
     /// [`StoreError::Database`]; then none of the records is stored.
-    fn append_records(&mut self, records: &[NewRecord]) -> Result<Vec<i64>, StoreError>;
+    fn append_records(&mut self, records: &[NewRecord]) -> Result<Vec<i64>, StoreError> {
+        self.append_records_then_commit(records, &mut |_| {})
+    }
+    /// Appends records as [`Store::append_records`] does, calling `inserted` with their ids
+    /// (in order) once they are inserted and before the commit that makes them durable, so
+    /// the caller can work on them while the commit waits for the disk. `inserted` must not
+    /// block: the transaction holds the database's write lock meanwhile (SQLite). When this
+    /// then fails, the records are not stored although `inserted` saw them, and their ids may
+    /// be handed out again (SQLite rolls its id sequence back).
+    ///
+    /// # Errors
+    /// [`StoreError::Database`]; then none of the records is stored.
+    fn append_records_then_commit(
+        &mut self,
+        records: &[NewRecord],
+        inserted: &mut dyn FnMut(&[i64]),
+    ) -> Result<Vec<i64>, StoreError>;
     /// Up to `limit` records with id > `after_id`, in id order (replay after a restart).
     ///
     /// # Errors

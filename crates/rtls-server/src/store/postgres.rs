@@ -187,6 +187,41 @@ impl PostgresStore {
         self.client.query(&statement, parameters).map_err(database(operation))
     }
 
+    /// Inserts records into the ingest log (in the caller's transaction); their ids, in order.
+    fn insert_records(&mut self, records: &[NewRecord]) -> Result<Vec<i64>, StoreError> {
+        const OPERATION: &str = "append records";
+        let received_ms: Vec<i64> = records.iter().map(|record| record.received_ms).collect();
+        let sources: Vec<&str> = records.iter().map(|record| record.source.as_str()).collect();
+        let times_s: Vec<f64> = records.iter().map(|record| record.time_s).collect();
+        let tags: Vec<&str> = records.iter().map(|record| record.tag.as_str()).collect();
+        let jsons: Vec<&str> = records.iter().map(|record| record.json.as_str()).collect();
+        // Rows are inserted in array order (ORDER BY ordinal), so the sequence hands out
+        // increasing ids in that order; RETURNING's order is unspecified, hence the sort.
+        let rows = self.query(
+            "INSERT INTO records (received_ms, source, time_s, tag, json) \
+             SELECT received_ms, source, time_s, tag, json \
+             FROM UNNEST($1::BIGINT[], $2::TEXT[], $3::DOUBLE PRECISION[], $4::TEXT[], $5::TEXT[]) \
+                  WITH ORDINALITY AS batch (received_ms, source, time_s, tag, json, ordinal) \
+             ORDER BY ordinal RETURNING id",
+            &[&received_ms, &sources, &times_s, &tags, &jsons],
+            OPERATION,
+        )?;
+        let mut ids = rows
+            .iter()
+            .map(|row| row.try_get::<_, i64>(0))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(database(OPERATION))?;
+        ids.sort_unstable();
+        if ids.len() != records.len() {
+            return Err(StoreError::Database {
+                backend: "postgres",
+                operation: OPERATION,
+                reason: format!("the insert returned {} ids for {} records", ids.len(), records.len()),
+            });
+        }
+        Ok(ids)
+    }
+
     /// Runs a cached statement; returns the number of rows it changed.
     fn execute(
         &mut self,
@@ -334,40 +369,27 @@ impl Store for PostgresStore {
         "postgres"
     }
 
-    fn append_records(&mut self, records: &[NewRecord]) -> Result<Vec<i64>, StoreError> {
+    fn append_records_then_commit(
+        &mut self,
+        records: &[NewRecord],
+        inserted: &mut dyn FnMut(&[i64]),
+    ) -> Result<Vec<i64>, StoreError> {
         const OPERATION: &str = "append records";
         if records.is_empty() {
+            inserted(&[]);
             return Ok(Vec::new());
         }
-        let received_ms: Vec<i64> = records.iter().map(|record| record.received_ms).collect();
-        let sources: Vec<&str> = records.iter().map(|record| record.source.as_str()).collect();
-        let times_s: Vec<f64> = records.iter().map(|record| record.time_s).collect();
-        let tags: Vec<&str> = records.iter().map(|record| record.tag.as_str()).collect();
-        let jsons: Vec<&str> = records.iter().map(|record| record.json.as_str()).collect();
-        // Rows are inserted in array order (ORDER BY ordinal), so the sequence hands out
-        // increasing ids in that order; RETURNING's order is unspecified, hence the sort.
-        let rows = self.query(
-            "INSERT INTO records (received_ms, source, time_s, tag, json) \
-             SELECT received_ms, source, time_s, tag, json \
-             FROM UNNEST($1::BIGINT[], $2::TEXT[], $3::DOUBLE PRECISION[], $4::TEXT[], $5::TEXT[]) \
-                  WITH ORDINALITY AS batch (received_ms, source, time_s, tag, json, ordinal) \
-             ORDER BY ordinal RETURNING id",
-            &[&received_ms, &sources, &times_s, &tags, &jsons],
-            OPERATION,
-        )?;
-        let mut ids = rows
-            .iter()
-            .map(|row| row.try_get::<_, i64>(0))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(database(OPERATION))?;
-        ids.sort_unstable();
-        if ids.len() != records.len() {
-            return Err(StoreError::Database {
-                backend: "postgres",
-                operation: OPERATION,
-                reason: format!("the insert returned {} ids for {} records", ids.len(), records.len()),
-            });
-        }
+        self.client.batch_execute("BEGIN").map_err(database(OPERATION))?;
+        let ids = match self.insert_records(records) {
+            Ok(ids) => ids,
+            Err(error) => {
+                // the transaction is aborted; a failing ROLLBACK leaves the same error to report
+                let _ = self.client.batch_execute("ROLLBACK");
+                return Err(error);
+            }
+        };
+        inserted(&ids);
+        self.client.batch_execute("COMMIT").map_err(database(OPERATION))?;
         Ok(ids)
     }
 

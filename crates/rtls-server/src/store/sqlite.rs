@@ -279,7 +279,11 @@ impl Store for SqliteStore {
             .map_err(database("set wal_autocheckpoint"))
     }
 
-    fn append_records(&mut self, records: &[NewRecord]) -> Result<Vec<i64>, StoreError> {
+    fn append_records_then_commit(
+        &mut self,
+        records: &[NewRecord],
+        inserted: &mut dyn FnMut(&[i64]),
+    ) -> Result<Vec<i64>, StoreError> {
         let fail = database("append records");
         if records.is_empty() {
             return Ok(Vec::new());
@@ -308,6 +312,7 @@ impl Store for SqliteStore {
                 ids.push(id);
             }
         }
+        inserted(&ids);
         transaction.commit().map_err(fail)?;
         Ok(ids)
     }

@@ -45,6 +45,7 @@ conformance!(
     ids_increase_and_records_page,
     large_batch_keeps_its_order,
     failed_batch_stores_nothing,
+    inserted_records_are_handed_over_once_before_the_commit,
     ids_are_not_reused_after_pruning,
     history_bounds_limit_and_tags,
     event_filters,
@@ -143,6 +144,25 @@ fn poisoned_record(backend: &str) -> NewRecord {
         _ => poisoned.json = "{\"t\":2,\0}".to_owned(),
     }
     poisoned
+}
+
+fn inserted_records_are_handed_over_once_before_the_commit(store: &mut dyn Store) {
+    let batch: Vec<NewRecord> = (0..4)
+        .map(|i| record(1_000 + i, i as f64, "tag-1", &format!("a{i}")))
+        .collect();
+    let mut handed_over = Vec::new();
+    let ids = store
+        .append_records_then_commit(&batch, &mut |ids| handed_over.push(ids.to_vec()))
+        .unwrap();
+    assert_eq!(handed_over, vec![ids.clone()], "once, with the ids returned");
+    assert!(strictly_increasing(&ids), "ids {ids:?}");
+    assert_eq!(store.record_count().unwrap(), 4);
+    // a batch whose insert fails is not handed over
+    let mut called = false;
+    let bad = [record(2_000, 5.0, "tag-1", "good"), poisoned_record(store.backend())];
+    assert!(store.append_records_then_commit(&bad, &mut |_| called = true).is_err());
+    assert!(!called);
+    assert_eq!(store.record_count().unwrap(), 4);
 }
 
 fn failed_batch_stores_nothing(store: &mut dyn Store) {

@@ -63,6 +63,21 @@ fn sqlite_file_keeps_everything_across_close_and_reopen() {
 }
 
 #[test]
+fn sqlite_hands_inserted_records_over_before_other_connections_see_them() {
+    let file = TempDb::new("handover");
+    let mut writer = file.open();
+    let mut reader = file.open();
+    let mut count_meanwhile = None;
+    writer
+        .append_records_then_commit(&[record(1_000, 1.0, "tag-1", "a")], &mut |_| {
+            count_meanwhile = Some(reader.record_count().expect("count"));
+        })
+        .expect("append");
+    assert_eq!(count_meanwhile, Some(0), "not committed yet while handed over");
+    assert_eq!(reader.record_count().expect("count"), 1);
+}
+
+#[test]
 fn sqlite_file_uses_the_wal_journal() {
     let file = TempDb::new("wal");
     let mut store = file.open();
