@@ -295,8 +295,12 @@ async fn the_carts_motions_and_fence_events_follow_the_provider_its_rules_take()
             }
         }
     }
-    // the tag's good fixes move the cart; from its first 5 m fix (3008 s) only the beacon does
-    let (good, degraded): (Vec<_>, Vec<_>) = motions.iter().partition(|(_, t)| *t < 3008.0);
+    // the tag's good fixes move the cart; from its first 5 m fix (3008 s) only the beacon does.
+    // The tag and the beacon are tracked on different partitions, which publish concurrently:
+    // until the tag's first fix has reached the hub the beacon is the only candidate, so the
+    // cart may take it for that first instant (3000.5 s)
+    let settled = motions.iter().skip_while(|(p, _)| p == BLE);
+    let (good, degraded): (Vec<_>, Vec<_>) = settled.partition(|(_, t)| *t < 3008.0);
     assert!(good.len() >= 6, "{motions:?}");
     assert!(good.iter().all(|(p, _)| p == UWB), "{motions:?}");
     assert!(degraded.len() >= 5, "{motions:?}");
