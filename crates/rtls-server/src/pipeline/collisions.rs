@@ -33,6 +33,8 @@ pub(super) struct CollisionWorker {
     pub hub: broadcast::WeakSender<Arc<HubMessage>>,
     pub rx: broadcast::Receiver<Arc<HubMessage>>,
     pub detector: CollisionDetector,
+    /// How the detector judges (to start afresh).
+    pub settings: CollisionSettings,
     /// Hub messages missed by falling behind (`rtls_collision_updates_missed_total`).
     pub missed: prometheus_client::metrics::counter::Counter,
     /// The trackables inside each fence.
@@ -52,6 +54,7 @@ impl CollisionWorker {
             rx: hub.subscribe(),
             hub: hub.downgrade(),
             detector: CollisionDetector::new(settings),
+            settings,
             fences: TrackableFences::default(),
         }
     }
@@ -87,21 +90,28 @@ impl CollisionWorker {
             .and_then(|s| s.as_str())
             == Some("lost");
         let index = self.live.trackables();
+        // collisions are judged only while a collision_events subscription is open: otherwise
+        // nobody reads them, and the detector forgets what it knew, so a subscriber who comes
+        // later is told of each collision as it starts (at the pair's next update)
+        let listened = self.live.collisions_listened();
+        if !listened && !self.detector.is_empty() {
+            self.detector = CollisionDetector::new(self.settings);
+        }
         let mut transitions = Vec::new();
         let mut fence_events = Vec::new();
         // one judgement of which trackables this update moves (locating_rules)
         for moved in moved_by(&index, &self.live, tag, time_s, location) {
             let trackable = &moved.trackable;
             fence_events.extend(self.fences.on_taking(&trackable.id, moved.taking.clone(), time_s));
+            if !listened {
+                continue;
+            }
             if moved.moves && !lost {
                 transitions.extend(self.detector.update(body(trackable, tag, time_s, location)));
             } else if moved.moves || moved.taking == Taking::Nothing {
                 // lost, or no provider's location matches its rules: it is nowhere to judge
                 transitions.extend(self.detector.remove(&trackable.id, time_s));
             }
-        }
-        if !self.live.collisions_listened() {
-            transitions.clear();
         }
         if transitions.is_empty() && fence_events.is_empty() {
             return true;
@@ -213,32 +223,47 @@ mod tests {
         assert_eq!(missed.get(), 3);
     }
 
-    /// Two tags 0.3 m apart, each updated twice, judged by a worker; the collisions it published.
-    fn collisions_published(listening: bool) -> usize {
+    type Hub = broadcast::Sender<Arc<HubMessage>>;
+
+    /// A worker on a fresh hub: the live state, the hub, a receiver of what it publishes.
+    fn worker() -> (
+        Arc<LiveState>,
+        Hub,
+        broadcast::Receiver<Arc<HubMessage>>,
+        CollisionWorker,
+    ) {
         let site = rtls_engine::site::Site::from_toml_str(
             "[[readers]]\nid = \"R1\"\nposition_m = [0.0, 0.0]\ntechnology = \"uwb\"\n",
             "site.toml",
         )
         .expect("site");
         let live = Arc::new(LiveState::new(&site, 1));
-        let listener = listening.then(|| live.listen_for_collisions());
-        assert_eq!(live.collisions_listened(), listening);
-        let (hub, mut published) = broadcast::channel(64);
-        let mut worker = CollisionWorker::new(
+        let (hub, published) = broadcast::channel(64);
+        let worker = CollisionWorker::new(
             Arc::clone(&live),
             &hub,
             CollisionSettings::default(),
             prometheus_client::metrics::counter::Counter::default(),
         );
-        let location = |tag: &str, x: f64| -> Arc<Location> {
-            Arc::new(
-                serde_json::from_value(serde_json::json!({
-                    "position": {"type": "Point", "coordinates": [x, 0.0]},
-                    "source": "test", "provider_type": "uwb", "provider_id": tag, "accuracy": 0.1
-                }))
-                .expect("location"),
-            )
-        };
+        (live, hub, published, worker)
+    }
+
+    /// `tag`'s location at (x, 0) m, σ 0.1 m.
+    fn location(tag: &str, x: f64) -> Arc<Location> {
+        Arc::new(
+            serde_json::from_value(serde_json::json!({
+                "position": {"type": "Point", "coordinates": [x, 0.0]},
+                "source": "test", "provider_type": "uwb", "provider_id": tag, "accuracy": 0.1
+            }))
+            .expect("location"),
+        )
+    }
+
+    /// Two tags 0.3 m apart, each updated twice, judged by a worker; the collisions it published.
+    fn collisions_published(listening: bool) -> usize {
+        let (live, _hub, mut published, mut worker) = worker();
+        let listener = listening.then(|| live.listen_for_collisions());
+        assert_eq!(live.collisions_listened(), listening);
         for (k, (tag, x)) in [("a", 0.0), ("b", 0.3), ("a", 0.0), ("b", 0.3)].into_iter().enumerate() {
             assert!(
                 worker.on_location(tag, k as f64 * 0.1, &location(tag, x)),
@@ -250,6 +275,26 @@ mod tests {
         std::iter::from_fn(|| published.try_recv().ok())
             .filter(|m| matches!(m.as_ref(), HubMessage::Collision(_)))
             .count()
+    }
+
+    #[test]
+    fn a_listener_who_comes_later_is_told_of_the_collision_as_it_starts() {
+        let (live, hub, mut published, mut worker) = worker();
+        // judged while nobody listens: nothing kept, nothing published
+        assert!(worker.on_location("a", 0.0, &location("a", 0.0)));
+        assert!(worker.on_location("b", 0.1, &location("b", 0.3)));
+        assert!(worker.detector.is_empty());
+        let _listener = live.listen_for_collisions();
+        assert!(worker.on_location("a", 0.2, &location("a", 0.0)));
+        assert!(worker.on_location("b", 0.3, &location("b", 0.3)));
+        drop(hub);
+        let kinds: Vec<_> = std::iter::from_fn(|| published.try_recv().ok())
+            .filter_map(|m| match m.as_ref() {
+                HubMessage::Collision(news) => Some(news.transition.kind),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(kinds, [crate::omlox::CollisionType::CollisionStart]);
     }
 
     #[test]
