@@ -57,6 +57,20 @@ output_interval_s = 0.5
 dimensions = 2
 "#;
 
+/// A WebSocket `message`: only what the latency needs.
+#[derive(serde::Deserialize)]
+struct Frame<'a> {
+    #[serde(borrow, default)]
+    payload: Vec<Stamp<'a>>,
+}
+
+/// A payload's time stamp (a `Location`'s `timestamp_generated`).
+#[derive(serde::Deserialize)]
+struct Stamp<'a> {
+    #[serde(borrow, default)]
+    timestamp_generated: Option<std::borrow::Cow<'a, str>>,
+}
+
 struct Args {
     tags: usize,
     rate_hz: f64,
@@ -178,9 +192,11 @@ async fn main() {
             while let Some(Ok(message)) = socket.next().await {
                 let Message::Text(text) = message else { continue };
                 let received = unix_s();
-                let value: serde_json::Value = serde_json::from_str(&text).unwrap();
-                for location in value["payload"].as_array().into_iter().flatten() {
-                    let Some(stamp) = location["timestamp_generated"].as_str() else {
+                // only the time stamps are read (a typed, borrowing parse: the client's own cost
+                // is kept out of the latency it measures, as far as it can be)
+                let frame: Frame<'_> = serde_json::from_str(&text).unwrap();
+                for location in &frame.payload {
+                    let Some(stamp) = location.timestamp_generated.as_deref() else {
                         continue;
                     };
                     let t = rtls_server::omlox::time::parse_timestamp(stamp, "t").unwrap();
