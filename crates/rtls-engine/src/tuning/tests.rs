@@ -262,3 +262,86 @@ fn an_empty_grid_or_no_usable_record_is_an_error() {
     assert!(tune(&site, None, &records, None, &empty).is_err());
     assert!(tune(&site, None, &[], None, &TuningSettings::default()).is_err());
 }
+
+/// BLE beacons with a log-distance law; the walker of [`recording`] tracked fix-then-filter from
+/// RSSI readings (round robin every 50 ms, 4 dB shadowing), epochs of 0.19 s.
+fn rssi_recording(seconds: f64) -> (Site, Vec<Record>, Vec<TruthSample>) {
+    let reader = |id: &str, x: f64, y: f64| {
+        format!(
+            "{{ id = \"{id}\", position_m = [{x}, {y}, 2.0], technology = \"ble\", radio = {{ path_loss = \
+             {{ reference_power_dbm = -59.0, exponent = 2.0, shadowing_std_db = 4.0, reference_distance_m = 1.0 }} }} }}"
+        )
+    };
+    let anchors = [("A", 0.0, 0.0), ("B", 20.0, 0.0), ("C", 0.0, 20.0), ("D", 20.0, 20.0)];
+    let readers: Vec<String> = anchors.iter().map(|(id, x, y)| reader(id, *x, *y)).collect();
+    let text = format!(
+        "readers = [\n{}\n]\n[tracker]\npipeline = \"fix-then-filter\"\nmotion_model = \"cv\"\nfilter = \"kf\"\n\
+         acceleration_noise_std_mps2 = 0.5\ngate_probability = 0.999\nepoch_s = 0.19\n\
+         initiation = {{ confirm_updates = 3, within_s = 5.0 }}\ncoast_timeout_s = 5.0\ndelete_timeout_s = 60.0\n\
+         reorder_window_s = 0.0\ntag_height_m = 1.0\n",
+        readers.join(",\n")
+    );
+    let site = Site::from_toml_str(&text, "site.toml").unwrap();
+    let shadowing = Normal::new(0.0, 4.0).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let position = |t: f64| [10.0 + 5.0 * (t / 5.0).cos(), 10.0 + 5.0 * (t / 5.0).sin(), 1.0];
+    let steps = (seconds * 20.0) as usize;
+    let records = (0..steps)
+        .map(|k| {
+            let t = k as f64 * 0.05;
+            let (id, x, y) = anchors[k % 4];
+            let p = position(t);
+            let d = ((p[0] - x).powi(2) + (p[1] - y).powi(2) + (p[2] - 2.0f64).powi(2)).sqrt();
+            Record {
+                time_s: t,
+                tag: "w".into(),
+                measurement: Measurement::Rssi {
+                    anchor: id.into(),
+                    rssi_dbm: -59.0 - 20.0 * d.log10() + shadowing.sample(&mut rng),
+                },
+            }
+        })
+        .collect();
+    let truth = (0..(steps / 2))
+        .map(|k| {
+            let t = k as f64 * 0.1;
+            TruthSample {
+                time_s: t,
+                tag: "w".into(),
+                position_m: position(t),
+                has_z: true,
+                line: 0,
+            }
+        })
+        .collect();
+    (site, records, truth)
+}
+
+#[test]
+fn rssi_fixes_have_their_correlation_time_tried_too() {
+    let (site, records, truth) = rssi_recording(60.0);
+    let settings = TuningSettings {
+        acceleration_grid_mps2: vec![0.5],
+        ..TuningSettings::default()
+    };
+    let tuned = tune(&site, None, &records, Some(&truth), &settings).unwrap();
+    let tried: Vec<f64> = tuned.model.tried.iter().map(|(s, _)| s.rssi_correlation_s).collect();
+    let own = site.tracker.adaptive_noise.rssi_correlation_s;
+    // the site's own value first (with the innovation correlation on and off), then the others
+    assert_eq!(
+        tried,
+        [
+            own,
+            own,
+            RSSI_CORRELATION_CANDIDATES_S[0],
+            RSSI_CORRELATION_CANDIDATES_S[1]
+        ]
+    );
+    let rmse = |i: usize| tuned.model.tried[i].1.rmse_m.unwrap();
+    let best = (0..tried.len()).map(rmse).fold(f64::INFINITY, f64::min);
+    assert_eq!(rmse(tuned.model.chosen), best, "{:#?}", tuned.model);
+    // the ranges' recording (tightly coupled) has no RSSI fixes: not tried there
+    let (site, records, truth) = recording(20.0);
+    let tuned = tune(&site, None, &records, Some(&truth), &settings).unwrap();
+    assert!(tuned.model.tried.iter().all(|(s, _)| s.rssi_correlation_s == own));
+}
