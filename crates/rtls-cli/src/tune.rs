@@ -162,9 +162,6 @@ fn tuned_site_text(
     if model.heading_error_correlation_s != own.heading_error_correlation_s {
         sub_table(tracker, "heading").insert("heading_error_correlation_s", value(model.heading_error_correlation_s));
     }
-    if model.rssi_correlation_s != own.rssi_correlation_s {
-        sub_table(tracker, "adaptive_noise").insert("rssi_correlation_s", value(model.rssi_correlation_s));
-    }
     let factor_of = |class: NoiseClass| {
         tuning
             .noise_std_factors
@@ -172,11 +169,7 @@ fn tuned_site_text(
             .find(|(c, _)| *c == class)
             .map_or(1.0, |(_, f)| *f)
     };
-    // RSSI readings are the `rssi` class tightly coupled and, solved into fixes (fix-then-filter),
-    // the `rssi-fix` class, whose fixes' σ grows with the shadowing's: either scales it (a class
-    // not seen has factor 1, and a recording is tracked by one pipeline)
-    let range_factor = factor_of(NoiseClass::Range);
-    let rssi_factor = factor_of(NoiseClass::Rssi).max(factor_of(NoiseClass::RssiFix));
+    let (range_factor, rssi_factor) = (factor_of(NoiseClass::Range), factor_of(NoiseClass::Rssi));
     for_each_reader(&mut document, |id, reader| {
         let radio = sub_table(reader, "radio");
         if calibrated {
@@ -315,16 +308,15 @@ fn text_report(tuning: &Tuning, records: usize, out: &Path) -> String {
     if tuning.model.tried.len() > 1 {
         let _ = writeln!(
             text,
-            "error correlation (at the chosen σ_a): correlation_from_innovations, heading_error_correlation_s, rssi_correlation_s"
+            "error correlation (at the chosen σ_a): correlation_from_innovations, heading_error_correlation_s"
         );
         for (i, (settings, run)) in tuning.model.tried.iter().enumerate() {
             let _ = writeln!(
                 text,
-                "{} {:>5} {:>6} s {:>5} s  log-likelihood {:>10.1}  RMSE {:>8}  in 95 % {:>7}{}",
+                "{} {:>5} {:>6} s  log-likelihood {:>10.1}  RMSE {:>8}  in 95 % {:>7}{}",
                 if i == tuning.model.chosen { "*" } else { " " },
                 settings.correlation_from_innovations,
                 settings.heading_error_correlation_s,
-                settings.rssi_correlation_s,
                 run.log_likelihood,
                 run.rmse_m.map_or("-".into(), |r| format!("{r:.3} m")),
                 run.inside_95.map_or("-".into(), |r| format!("{:.1}%", 100.0 * r)),
@@ -408,11 +400,9 @@ fn json_report(tuning: &Tuning, records: usize) -> serde_json::Value {
         "error_correlation": {
             "correlation_from_innovations": tuning.model.settings().correlation_from_innovations,
             "heading_error_correlation_s": tuning.model.settings().heading_error_correlation_s,
-            "rssi_correlation_s": tuning.model.settings().rssi_correlation_s,
             "tried": tuning.model.tried.iter().map(|(s, c)| serde_json::json!({
                 "correlation_from_innovations": s.correlation_from_innovations,
                 "heading_error_correlation_s": s.heading_error_correlation_s,
-                "rssi_correlation_s": s.rssi_correlation_s,
                 "log_likelihood": c.log_likelihood,
                 "rmse_m": c.rmse_m,
                 "inside_95": c.inside_95,

@@ -27,12 +27,9 @@
 //!   speeds (odometry) taken with the heading's variance as fresh noise (the IMM, or
 //!   `heading.consider_heading_error = false`), `heading.heading_error_correlation_s` at 0 and
 //!   [`HEADING_CORRELATION_CANDIDATE_S`]; the combination with the smallest RMSE (with truth)
-//!   or the largest innovation likelihood (without) is kept ([`ModelChoice`]). Then, when the
-//!   site's pipeline is fix-then-filter and the recording has RSSI readings or scans (whose
-//!   fixes are the `rssi-fix` and `fingerprint` classes),
-//!   `adaptive_noise.rssi_correlation_s` at [`RSSI_CORRELATION_CANDIDATES_S`] besides its own
-//!   value, by the same score. Whether a site's errors persist is a property of its radios
-//!   and its odometer, so it is fitted like the noise, not assumed.
+//!   or the largest innovation likelihood (without) is kept ([`ModelChoice`]). Whether a site's
+//!   errors persist is a property of its radios and its odometer, so it is fitted like the
+//!   noise, not assumed.
 //! - The covariance: if fewer or more than 95 % of the truths lie inside the chosen tracks'
 //!   95 % ellipses, `σ_a` and every calibrated reader's standard deviation are multiplied by
 //!   `k = √(ε₉₅ / χ²_d(0.95))` (the NEES's 95th percentile over its gate). Scaling every
@@ -175,8 +172,6 @@ pub struct ModelSettings {
     pub correlation_from_innovations: bool,
     /// `[tracker.heading] heading_error_correlation_s`, s.
     pub heading_error_correlation_s: f64,
-    /// `[tracker.adaptive_noise] rssi_correlation_s`, s.
-    pub rssi_correlation_s: f64,
 }
 
 impl ModelSettings {
@@ -184,14 +179,12 @@ impl ModelSettings {
         Self {
             correlation_from_innovations: site.tracker.adaptive_noise.correlation_from_innovations,
             heading_error_correlation_s: site.tracker.heading.heading_error_correlation_s,
-            rssi_correlation_s: site.tracker.adaptive_noise.rssi_correlation_s,
         }
     }
 
     fn apply(self, site: &mut Site) {
         site.tracker.adaptive_noise.correlation_from_innovations = self.correlation_from_innovations;
         site.tracker.heading.heading_error_correlation_s = self.heading_error_correlation_s;
-        site.tracker.adaptive_noise.rssi_correlation_s = self.rssi_correlation_s;
     }
 }
 
@@ -215,11 +208,6 @@ impl ModelChoice {
 
 /// The heading-error correlation time tried when the recording has speeds, s.
 pub const HEADING_CORRELATION_CANDIDATE_S: f64 = 10.0;
-
-/// The RSSI error correlation times tried besides the site's own when the recording has RSSI
-/// readings or scans tracked fix-then-filter, s: shadowing that decorrelates within a step
-/// (0.5 s) and over several metres of walking (5 s); the default, 2 s, lies between.
-pub const RSSI_CORRELATION_CANDIDATES_S: [f64; 2] = [0.5, 5.0];
 
 /// How [`tune`] rescaled the noises so that the tracks' 95 % ellipses hold the truth 95 % of the
 /// time on the tuning recording.
@@ -381,7 +369,6 @@ fn choose_model(
             let candidate = ModelSettings {
                 correlation_from_innovations,
                 heading_error_correlation_s,
-                rssi_correlation_s: own.rssi_correlation_s,
             };
             if candidate == own {
                 continue;
@@ -392,29 +379,7 @@ fn choose_model(
         }
     }
     let runs: Vec<Candidate> = tried.iter().map(|(_, c)| c.clone()).collect();
-    let mut best = choose(&runs).unwrap_or(0);
-    // then the RSSI fixes' correlation time, at the best of the above
-    let has_rssi_fixes = site.tracker.pipeline == crate::site::Pipeline::FixThenFilter
-        && records
-            .iter()
-            .any(|r| matches!(r.measurement, Measurement::Rssi { .. } | Measurement::RssiVector { .. }));
-    if has_rssi_fixes {
-        let base = tried[best].0;
-        for rssi_correlation_s in RSSI_CORRELATION_CANDIDATES_S {
-            if rssi_correlation_s == base.rssi_correlation_s {
-                continue;
-            }
-            let candidate = ModelSettings {
-                rssi_correlation_s,
-                ..base
-            };
-            let mut trial = site.clone();
-            candidate.apply(&mut trial);
-            tried.push((candidate, run_candidate(&trial, radio_map, records, truth, settings)?));
-        }
-        let runs: Vec<Candidate> = tried.iter().map(|(_, c)| c.clone()).collect();
-        best = choose(&runs).unwrap_or(best);
-    }
+    let best = choose(&runs).unwrap_or(0);
     tried[best].0.apply(site);
     Ok(ModelChoice { tried, chosen: best })
 }
