@@ -169,7 +169,11 @@ fn tuned_site_text(
             .find(|(c, _)| *c == class)
             .map_or(1.0, |(_, f)| *f)
     };
-    let (range_factor, rssi_factor) = (factor_of(NoiseClass::Range), factor_of(NoiseClass::Rssi));
+    // RSSI readings are the `rssi` class tightly coupled and, solved into fixes (fix-then-filter),
+    // the `rssi-fix` class, whose fixes' σ grows with the shadowing's: either scales it (a class
+    // not seen has factor 1, and a recording is tracked by one pipeline)
+    let range_factor = factor_of(NoiseClass::Range);
+    let rssi_factor = factor_of(NoiseClass::Rssi).max(factor_of(NoiseClass::RssiFix));
     for_each_reader(&mut document, |id, reader| {
         let radio = sub_table(reader, "radio");
         if calibrated {
