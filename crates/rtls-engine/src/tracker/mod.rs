@@ -145,6 +145,7 @@ mod constraint_model;
 mod constraints;
 mod construct;
 mod core;
+mod coupled;
 mod direct;
 mod divergence;
 mod epoch;
@@ -158,12 +159,14 @@ mod jump_state;
 pub(crate) mod models;
 mod modes;
 mod noise;
+mod outcome;
 mod output;
 mod range_bias;
 mod report;
 mod rewind;
 mod schedule;
 mod solve;
+mod step;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
