@@ -178,6 +178,8 @@ mod tests_constraints;
 #[cfg(test)]
 mod tests_correlation;
 #[cfg(test)]
+mod tests_fixed_path;
+#[cfg(test)]
 mod tests_gnss;
 #[cfg(test)]
 mod tests_heading;

@@ -202,6 +202,13 @@ fn start_at<const N: usize>(
     Ok(())
 }
 
+#[cfg(test)]
+thread_local! {
+    /// Tests: every component update takes the general kernel, the fixed one's reference
+    /// (`tests_fixed_path`).
+    pub(super) static GENERAL_KERNEL_ONLY: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
 /// A linear update of state components `indices` with `value` and its row-major covariance;
 /// a failed update is reported, not applied. Returns what became of it.
 ///
@@ -222,7 +229,10 @@ pub(super) fn component_update<const N: usize>(
 ) -> Result<Verdict> {
     let k = indices.len();
     let imm = shared.manoeuvres.is_some() && prior.modes.is_some();
-    if !imm && value.len() == k && covariance.len() == k * k {
+    let fixed = !imm && value.len() == k && covariance.len() == k * k;
+    #[cfg(test)]
+    let fixed = fixed && !GENERAL_KERNEL_ONLY.with(std::cell::Cell::get);
+    if fixed {
         let measurement = (indices, value, covariance);
         match k {
             1 => return fixed_component_update::<N, 1>(shared, track, prior, measurement, kind, (source, class), out),
