@@ -252,6 +252,9 @@ pub struct Tracker {
     output_interval_s: f64,
     rewind_horizon_s: f64,
     now_s: f64,
+    /// [`Tracker::push`]'s buffer of the records the re-ordering window releases (empty
+    /// between calls).
+    released: Vec<Emitted>,
 }
 
 impl Tracker {
@@ -325,10 +328,16 @@ impl Tracker {
             });
             return Ok(());
         }
-        for emitted in self.reorderer.push(record)? {
-            self.emitted(emitted, out)?;
-        }
-        Ok(())
+        // (the buffer is the tracker's, so a record that passes straight through allocates
+        // nothing)
+        let mut released = std::mem::take(&mut self.released);
+        let result = self
+            .reorderer
+            .push_into(record, &mut released)
+            .and_then(|()| released.drain(..).try_for_each(|emitted| self.emitted(emitted, out)));
+        released.clear();
+        self.released = released;
+        result
     }
 
     fn emitted(&mut self, emitted: Emitted, out: &mut Output) -> Result<()> {
