@@ -40,10 +40,10 @@ impl<const N: usize, const M: usize> FixedSelection<N, M> {
     /// checked and symmetrised as [`NoiseCovariance::full`](super::NoiseCovariance::full) does.
     ///
     /// # Errors
-    /// First the noise's, as [`NoiseCovariance::full`](super::NoiseCovariance::full); then
-    /// [`EstimationError::InvalidParameter`] naming `indices` if `M` is 0, an index is not
-    /// below `N` or an index repeats (the errors and order of `NoiseCovariance::full` followed
-    /// by `ComponentSelection::new`).
+    /// First the noise's, as [`NoiseCovariance::full`](super::NoiseCovariance::full) (an empty
+    /// `R` when `M` is 0); then [`EstimationError::InvalidParameter`] naming `indices` if an
+    /// index is not below `N` or an index repeats (the errors and order of
+    /// `NoiseCovariance::full` followed by `ComponentSelection::new`).
     pub fn new(indices: [usize; M], noise: SMatrix<f64, M, M>) -> Result<Self> {
         let noise = checked_covariance(noise)?;
         if indices.iter().any(|&i| i >= N) {
