@@ -169,6 +169,17 @@ impl Reorderer {
     /// # Examples
     /// See [`Reorderer`].
     pub fn push(&mut self, record: Record) -> Result<Vec<Emitted>> {
+        let mut released = Vec::new();
+        self.push_into(record, &mut released)?;
+        Ok(released)
+    }
+
+    /// [`Reorderer::push`], appending the released records to `released` (a caller's buffer,
+    /// so a record that passes straight through allocates nothing).
+    ///
+    /// # Errors
+    /// As [`Reorderer::push`].
+    pub(crate) fn push_into(&mut self, record: Record, released: &mut Vec<Emitted>) -> Result<()> {
         let time_s = record.time_s;
         if !time_s.is_finite() {
             return Err(EngineError::InvalidParameter {
@@ -177,16 +188,27 @@ impl Reorderer {
             });
         }
         if let Some(last_s) = self.last_released_s.filter(|&last_s| time_s < last_s) {
-            return Ok(vec![Emitted::Late {
+            released.push(Emitted::Late {
                 record,
                 lateness_s: last_s - time_s,
-            }]);
+            });
+            return Ok(());
+        }
+        let newest_s = self.newest_s.map_or(time_s, |n| n.max(time_s));
+        if self.held.is_empty() && time_s <= newest_s - self.window_s {
+            // nothing held and the record is due at once (no window, or a record that old):
+            // it alone is released, as it would be through the map
+            self.arrivals += 1;
+            self.newest_s = Some(newest_s);
+            self.last_released_s = Some(time_s);
+            released.push(Emitted::InOrder(record));
+            return Ok(());
         }
         self.held.insert((TimeKey(time_s), self.arrivals), record);
         self.arrivals += 1;
-        let newest_s = self.newest_s.map_or(time_s, |n| n.max(time_s));
         self.newest_s = Some(newest_s);
-        Ok(self.release_up_to(newest_s - self.window_s))
+        self.release_into(newest_s - self.window_s, released);
+        Ok(())
     }
 
     /// Releases the held records at or before `clock_s − window_s`, in time order: a live
@@ -223,6 +245,11 @@ impl Reorderer {
 
     fn release_up_to(&mut self, cutoff_s: f64) -> Vec<Emitted> {
         let mut released = Vec::new();
+        self.release_into(cutoff_s, &mut released);
+        released
+    }
+
+    fn release_into(&mut self, cutoff_s: f64, released: &mut Vec<Emitted>) {
         while let Some(entry) = self.held.first_entry() {
             if entry.key().0 .0 > cutoff_s {
                 break;
@@ -231,7 +258,6 @@ impl Reorderer {
             self.last_released_s = Some(record.time_s);
             released.push(Emitted::InOrder(record));
         }
-        released
     }
 }
 

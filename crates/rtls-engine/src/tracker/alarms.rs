@@ -27,8 +27,9 @@ fn normal_cdf(z: f64) -> Result<f64> {
     Ok(if z >= 0.0 { 0.5 + half_mass } else { 0.5 - half_mass })
 }
 
-/// The position `[x, y, z]` and its covariance on the tracked axes of a CV state.
-pub(crate) fn position_of<const N: usize>(state: &Gaussian<N>, tag_height_m: f64) -> ([f64; 3], Vec<f64>) {
+/// The position `[x, y, z]` and its covariance on the tracked axes of a CV state: the `D × D`
+/// block, row-major, in the first `D²` entries (the rest zero), so nothing is allocated.
+pub(crate) fn position_of<const N: usize>(state: &Gaussian<N>, tag_height_m: f64) -> ([f64; 3], [f64; 9]) {
     let x = state.mean();
     let p = state.covariance();
     let d = N / 2;
@@ -37,10 +38,10 @@ pub(crate) fn position_of<const N: usize>(state: &Gaussian<N>, tag_height_m: f64
     } else {
         [x[0], x[2], tag_height_m]
     };
-    let mut covariance = Vec::with_capacity(d * d);
+    let mut covariance = [0.0; 9];
     for i in 0..d {
         for j in 0..d {
-            covariance.push(p[(2 * i, 2 * j)]);
+            covariance[i * d + j] = p[(2 * i, 2 * j)];
         }
     }
     (position, covariance)
@@ -115,7 +116,7 @@ pub(crate) fn predict_entries<const N: usize>(
                 continue;
             }
             let distance_m = zone.signed_distance_m(point);
-            let sigma_m = normal_std_m(zone, point, &covariance, dimensions);
+            let sigma_m = normal_std_m(zone, point, &covariance[..dimensions * dimensions], dimensions);
             // P_in = Φ(−d/σ_n); a certain position is inside exactly when d ≤ 0
             let probability = if sigma_m > 0.0 {
                 normal_cdf(-distance_m / sigma_m)?

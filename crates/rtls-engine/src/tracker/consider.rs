@@ -29,8 +29,8 @@ use rtls_estimation::measurement::MeasurementJacobian;
 use super::heading_cross::HeadingCross;
 use super::noise::{NoiseClass, Source};
 use super::output::{Output, UpdateSource};
+use super::step::{accept, Prior, Verdict};
 use super::track::{rejected, Shared, Track};
-use super::update::{accept, Prior, Verdict};
 use crate::error::Result;
 
 /// A speed `s ± σ_s` along `heading_rad` (the channel's `ψ̂`, turned back by an increment's

@@ -42,9 +42,10 @@ use super::epoch::solve;
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::output::epoch_raw_fix;
 use super::output::Output;
+use super::step::{predict, reacquire};
 use super::track::rejected;
 use super::track::{dimensions, Shared, Track};
-use super::update::{fix_update, predict, reacquire};
+use super::update::fix_update;
 use crate::error::Result;
 use crate::site::FilterKind;
 

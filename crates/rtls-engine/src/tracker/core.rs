@@ -13,7 +13,7 @@ use super::gnss::{close_due_gnss_epoch, pseudorange};
 use super::output::{Event, Output, UpdateSource};
 use super::range_bias::RangeOffset;
 use super::report::{clear_alarms, coast, report, track_update};
-use super::update::predict;
+use super::step::predict;
 use crate::error::{EngineError, Result};
 use crate::lifecycle::{LifecycleEvent, TrackStatus};
 use crate::record::Measurement;

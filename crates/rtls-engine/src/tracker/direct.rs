@@ -83,8 +83,20 @@ pub(super) fn apply_direct<const N: usize>(
                 return Ok(());
             }
             // the tracked axes: the leading D × D block
-            let covariance: Vec<f64> = (0..d * d).map(|i| covariance_m2[(i / d) * k + i % d]).collect();
-            fix_update(shared, track, time_s, &position_m[..d], &covariance, "fix", out).map(|_updated| ())
+            let mut covariance = [0.0; 9];
+            for (i, c) in covariance.iter_mut().enumerate().take(d * d) {
+                *c = covariance_m2[(i / d) * k + i % d];
+            }
+            fix_update(
+                shared,
+                track,
+                time_s,
+                &position_m[..d],
+                &covariance[..d * d],
+                "fix",
+                out,
+            )
+            .map(|_updated| ())
         }
         Measurement::RssiVector { readings } => match &shared.radio_map {
             None => {

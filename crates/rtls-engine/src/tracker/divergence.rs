@@ -51,7 +51,10 @@ pub(super) fn divergence<const N: usize>(
             "position covariance trace {trace:.3e} m² beyond {MAX_POSITION_VARIANCE_M2:.0e} m²"
         ));
     }
-    let position: Vec<f64> = (0..d).map(|i| mean[2 * i]).collect();
+    let mut position = [0.0; 3];
+    for (i, x) in position.iter_mut().enumerate().take(d) {
+        *x = mean[2 * i];
+    }
     match bounds.distance_m(&position, d) {
         Some(distance) if distance > MAX_DISTANCE_FROM_SITE_M => Some(format!(
             "position {distance:.3e} m outside the readers' box, beyond {MAX_DISTANCE_FROM_SITE_M:.0} m"

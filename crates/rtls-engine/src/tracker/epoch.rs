@@ -5,6 +5,7 @@ use nalgebra::SVector;
 use rtls_estimation::Gaussian;
 
 use super::anchors::AnchorReading;
+use super::coupled::coupled_update;
 use super::direct::apply_deferred;
 use super::gnss::close_due_gnss_epoch;
 use super::noise::NoiseClass;
@@ -12,7 +13,7 @@ use super::output::{epoch_raw_fix, Output};
 use super::range_bias::RoundReading;
 use super::solve::{solve_epoch, EpochFix};
 use super::track::{dimensions, rejected, Shared, Track};
-use super::update::{coupled_update, fix_update, fix_update_as};
+use super::update::{fix_update, fix_update_as};
 use crate::error::Result;
 use crate::site::Pipeline;
 

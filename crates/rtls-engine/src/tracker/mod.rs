@@ -145,6 +145,7 @@ mod constraint_model;
 mod constraints;
 mod construct;
 mod core;
+mod coupled;
 mod direct;
 mod divergence;
 mod epoch;
@@ -158,12 +159,14 @@ mod jump_state;
 pub(crate) mod models;
 mod modes;
 mod noise;
+mod outcome;
 mod output;
 mod range_bias;
 mod report;
 mod rewind;
 mod schedule;
 mod solve;
+mod step;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
@@ -174,6 +177,8 @@ mod tests_checkpoint;
 mod tests_constraints;
 #[cfg(test)]
 mod tests_correlation;
+#[cfg(test)]
+mod tests_fixed_path;
 #[cfg(test)]
 mod tests_gnss;
 #[cfg(test)]
@@ -247,6 +252,9 @@ pub struct Tracker {
     output_interval_s: f64,
     rewind_horizon_s: f64,
     now_s: f64,
+    /// [`Tracker::push`]'s buffer of the records the re-ordering window releases (empty
+    /// between calls).
+    released: Vec<Emitted>,
 }
 
 impl Tracker {
@@ -320,10 +328,16 @@ impl Tracker {
             });
             return Ok(());
         }
-        for emitted in self.reorderer.push(record)? {
-            self.emitted(emitted, out)?;
-        }
-        Ok(())
+        // (the buffer is the tracker's, so a record that passes straight through allocates
+        // nothing)
+        let mut released = std::mem::take(&mut self.released);
+        let result = self
+            .reorderer
+            .push_into(record, &mut released)
+            .and_then(|()| released.drain(..).try_for_each(|emitted| self.emitted(emitted, out)));
+        released.clear();
+        self.released = released;
+        result
     }
 
     fn emitted(&mut self, emitted: Emitted, out: &mut Output) -> Result<()> {

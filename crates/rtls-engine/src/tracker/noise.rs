@@ -2,11 +2,10 @@
 //! measurement class, applied to the stated noise before an update and re-estimated from the
 //! update's innovation afterwards ([`rtls_estimation::adaptive`]).
 
-use nalgebra::DMatrix;
 use rtls_estimation::adaptive::correlation::{CorrelationEstimate, ErrorCorrelation};
 use rtls_estimation::adaptive::{AdaptiveNoise, NoiseScale};
-use rtls_estimation::filter::Updated;
 
+use super::outcome::UpdateOutcome;
 use crate::site::AdaptiveNoiseSettings;
 
 /// Measurement classes that keep separate noise scales: their errors come from different
@@ -173,7 +172,7 @@ impl NoiseScales {
         &mut self,
         measured: Option<&ErrorCorrelation>,
         source: Source,
-        updated: &Updated<N>,
+        updated: &impl UpdateOutcome<N>,
     ) {
         let Some(strategy) = measured else {
             return;
@@ -185,9 +184,9 @@ impl NoiseScales {
         let m = updated.measurement_dim().min(2);
         for (i, u) in normalised.iter_mut().enumerate().take(m) {
             // uᵢ = νᵢ / √Sᵢᵢ
-            *u = updated.innovation[i] / updated.innovation_covariance[(i, i)].sqrt();
+            *u = updated.innovation(i) / updated.innovation_variance(i).sqrt();
         }
-        if let Ok(next) = strategy.observe(&history.correlation, updated.state.time_s(), &normalised[..m]) {
+        if let Ok(next) = strategy.observe(&history.correlation, updated.state().time_s(), &normalised[..m]) {
             history.correlation = next;
         }
     }
@@ -205,7 +204,7 @@ impl NoiseScales {
         &mut self,
         adaptive: Option<&AdaptiveNoise>,
         class: NoiseClass,
-        updated: &Updated<N>,
+        updated: &impl UpdateOutcome<N>,
         stated_noise: &[f64],
         gate: f64,
     ) {
@@ -216,20 +215,12 @@ impl NoiseScales {
         if stated_noise.len() != m * m {
             return;
         }
-        let noise = DMatrix::from_row_slice(m, m, stated_noise);
         let index = class as usize;
-        let time_s = updated.state.time_s();
+        let time_s = updated.state().time_s();
         // Δt since the class's previous update (NaN before the first: the running mean rules)
         let elapsed_s = time_s - self.last_update_s[index];
         let slot = &mut self.scales[index];
-        if let Ok(next) = adaptive.observe(
-            slot,
-            elapsed_s,
-            &updated.innovation,
-            &updated.innovation_covariance,
-            &noise,
-            gate,
-        ) {
+        if let Ok(next) = updated.observe_noise(adaptive, slot, elapsed_s, stated_noise, gate) {
             *slot = next;
             self.last_update_s[index] = time_s;
         }
@@ -300,10 +291,16 @@ impl Innovations {
     }
 
     /// Records one update of `class` computed with noise scale `scale`.
-    pub(super) fn record<const N: usize>(&mut self, class: NoiseClass, updated: &Updated<N>, gate: f64, scale: f64) {
+    pub(super) fn record<const N: usize>(
+        &mut self,
+        class: NoiseClass,
+        updated: &impl UpdateOutcome<N>,
+        gate: f64,
+        scale: f64,
+    ) {
         self.0[class as usize].add(
-            updated.nis,
-            updated.log_det_innovation_covariance,
+            updated.nis(),
+            updated.log_det_innovation_covariance(),
             updated.measurement_dim(),
             gate,
             scale,

@@ -6,8 +6,8 @@ use rtls_estimation::Gaussian;
 
 use super::alarms::{position_of, predict_entries};
 use super::output::{Event, Output, TrackUpdate, UpdateSource};
+use super::step::predict;
 use super::track::{dimensions, Shared, Track};
-use super::update::predict;
 use crate::error::Result;
 use crate::lifecycle::TrackStatus;
 use crate::zones::{ZoneEvent, ZoneMonitor};
@@ -21,13 +21,11 @@ pub(super) fn track_update<const N: usize>(
     source: UpdateSource,
 ) -> TrackUpdate {
     let d = dimensions::<N>();
-    let (position_m, covariance) = position_of(state, shared.tag_height_m);
+    let (position_m, position_covariance_m2) = position_of(state, shared.tag_height_m);
     let mut velocity_mps = [0.0; 3];
     for (axis, v) in velocity_mps.iter_mut().enumerate().take(d) {
         *v = state.mean()[2 * axis + 1];
     }
-    let mut position_covariance_m2 = [0.0; 9];
-    position_covariance_m2[..d * d].copy_from_slice(&covariance);
     TrackUpdate {
         time_s: state.time_s(),
         tag: Arc::clone(&track.tag),

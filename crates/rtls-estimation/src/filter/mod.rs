@@ -13,6 +13,7 @@
 mod consider;
 mod cv_axes;
 mod ekf;
+mod fixed_update;
 mod gaussian_filter;
 mod kf;
 mod predict;
@@ -22,6 +23,7 @@ mod update;
 pub use consider::{carry_cross_covariance, consider_update, ConsiderUpdated};
 pub use cv_axes::{CvAxis, DecoupledCvFilter, DecoupledCvState};
 pub use ekf::ExtendedKalmanFilter;
+pub use fixed_update::FixedUpdated;
 pub use gaussian_filter::GaussianFilter;
 pub use kf::KalmanFilter;
 pub use ukf::{SigmaPointParameters, UnscentedKalmanFilter};

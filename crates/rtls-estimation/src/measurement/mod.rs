@@ -9,6 +9,7 @@ use nalgebra::{Const, DMatrix, DVector, Dyn, OMatrix};
 use crate::error::Result;
 use crate::gaussian::Vector;
 
+mod fixed_selection;
 mod noise_covariance;
 mod path_loss;
 mod position;
@@ -18,6 +19,7 @@ mod speed_heading;
 mod stacked;
 mod tdoa;
 
+pub use fixed_selection::FixedSelection;
 pub use noise_covariance::NoiseCovariance;
 pub use path_loss::{BreakpointForm, BreakpointPathLoss, LogDistancePathLoss, PathLoss};
 pub use position::ComponentSelection;

@@ -1,6 +1,7 @@
 //! A validated measurement noise covariance `R`.
 
-use nalgebra::DMatrix;
+use nalgebra::allocator::Allocator;
+use nalgebra::{DMatrix, DefaultAllocator, Dim, OMatrix};
 
 use crate::error::{EstimationError, Result};
 
@@ -129,45 +130,7 @@ impl NoiseCovariance {
     /// # Ok::<(), rtls_estimation::EstimationError>(())
     /// ```
     pub fn full(matrix: DMatrix<f64>) -> Result<Self> {
-        if matrix.iter().any(|v| !v.is_finite()) {
-            return Err(EstimationError::NonFinite {
-                what: "measurement noise covariance",
-            });
-        }
-        if matrix.is_empty() {
-            return Err(EstimationError::InvalidParameter {
-                name: "covariance",
-                reason: "the matrix is empty: a measurement needs at least one component",
-            });
-        }
-        if !matrix.is_square() {
-            return Err(EstimationError::InvalidParameter {
-                name: "covariance",
-                reason: "the matrix is not square",
-            });
-        }
-        // Symmetry relative to the largest entry.
-        let tolerance = SYMMETRY_TOLERANCE * matrix.amax();
-        let m = matrix.nrows();
-        for i in 0..m {
-            for j in (i + 1)..m {
-                if (matrix[(i, j)] - matrix[(j, i)]).abs() > tolerance {
-                    return Err(EstimationError::InvalidParameter {
-                        name: "covariance",
-                        reason: "the matrix is not symmetric",
-                    });
-                }
-            }
-        }
-        let mut matrix = matrix;
-        crate::math::symmetrize(&mut matrix);
-        if matrix.clone().cholesky().is_none() {
-            return Err(EstimationError::InvalidParameter {
-                name: "covariance",
-                reason: "the matrix is not positive definite (cholesky factorisation failed)",
-            });
-        }
-        Ok(Self(matrix))
+        checked_covariance(matrix).map(Self)
     }
 
     /// The block-diagonal covariance `blockdiag(A, B)` of two independent measurements
@@ -232,6 +195,57 @@ impl NoiseCovariance {
         let m = self.dim();
         (0..m).all(|i| (0..m).all(|j| i == j || self.0[(i, j)] == 0.0))
     }
+}
+
+/// The checks of [`NoiseCovariance::full`] on a matrix of any size type (a fixed-size `R` of
+/// [`FixedSelection`](super::FixedSelection) too): finite, non-empty, square, symmetric to
+/// [`SYMMETRY_TOLERANCE`] relative to its largest entry, positive definite; returns `(R + Rᵀ)/2`.
+///
+/// # Errors
+/// As [`NoiseCovariance::full`].
+pub(crate) fn checked_covariance<D: Dim>(matrix: OMatrix<f64, D, D>) -> Result<OMatrix<f64, D, D>>
+where
+    DefaultAllocator: Allocator<D, D>,
+{
+    if matrix.iter().any(|v| !v.is_finite()) {
+        return Err(EstimationError::NonFinite {
+            what: "measurement noise covariance",
+        });
+    }
+    if matrix.is_empty() {
+        return Err(EstimationError::InvalidParameter {
+            name: "covariance",
+            reason: "the matrix is empty: a measurement needs at least one component",
+        });
+    }
+    if !matrix.is_square() {
+        return Err(EstimationError::InvalidParameter {
+            name: "covariance",
+            reason: "the matrix is not square",
+        });
+    }
+    // Symmetry relative to the largest entry.
+    let tolerance = SYMMETRY_TOLERANCE * matrix.amax();
+    let m = matrix.nrows();
+    for i in 0..m {
+        for j in (i + 1)..m {
+            if (matrix[(i, j)] - matrix[(j, i)]).abs() > tolerance {
+                return Err(EstimationError::InvalidParameter {
+                    name: "covariance",
+                    reason: "the matrix is not symmetric",
+                });
+            }
+        }
+    }
+    let mut matrix = matrix;
+    crate::math::symmetrize(&mut matrix);
+    if matrix.clone().cholesky().is_none() {
+        return Err(EstimationError::InvalidParameter {
+            name: "covariance",
+            reason: "the matrix is not positive definite (cholesky factorisation failed)",
+        });
+    }
+    Ok(matrix)
 }
 
 #[cfg(test)]

@@ -1,0 +1,200 @@
+//! Tightly coupled updates: one range / RSSI / TDOA reading straight into the EKF or UKF
+//! (seed 003's one-observation update), with the reader's learnt range offset and the range
+//! self-calibration.
+
+use nalgebra::DVector;
+use rtls_estimation::filter::Updated;
+use rtls_estimation::measurement::MeasurementModel;
+
+use super::anchors::AnchorReading;
+use super::models::{AnchorLaw, AnchorMeasurement};
+use super::noise::{NoiseClass, Source};
+use super::output::{Output, UpdateSource};
+use super::range_bias::RoundReading;
+use super::step::{accept, carry_heading_cross, is_gated, outside_gate, predict, Verdict};
+use super::track::{dimensions, rejected, Shared, Track};
+use crate::error::Result;
+use crate::site::FilterKind;
+
+/// Tightly coupled: one range / RSSI / TDOA straight into the EKF or UKF (seed 003's
+/// one-observation update).
+pub(super) fn coupled_update<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    time_s: f64,
+    reading: AnchorReading,
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let Some(state) = track.state.as_ref() else {
+        return Ok(());
+    };
+    let class = match reading {
+        AnchorReading::Range { .. } => NoiseClass::Range,
+        AnchorReading::Rssi { .. } => NoiseClass::Rssi,
+        AnchorReading::Tdoa { .. } => NoiseClass::Tdoa,
+    };
+    let anchor = match reading {
+        AnchorReading::Range { anchor, .. }
+        | AnchorReading::Rssi { anchor, .. }
+        | AnchorReading::Tdoa { anchor, .. } => anchor,
+    };
+    // R ← c R for errors correlated in time (c = max(1, 2τ_c/Δt) per reader), then λ R
+    let source = Source { class, anchor };
+    let inflation = track.noise.correlation_inflation(
+        source,
+        time_s,
+        class.correlation_s(&shared.settings.adaptive_noise),
+        shared.error_correlation.as_ref(),
+    );
+    let scale = inflation * track.noise.scale(class);
+    // the anchor's learnt range offset: z' = r − b⁻, R' = λ c R + P_b⁻
+    let bias_prior = match (&shared.range_bias, reading) {
+        (Some(model), AnchorReading::Range { anchor, .. }) => Some(track.range_bias.offset(model, anchor, time_s)),
+        _ => None,
+    };
+    let (model, z, stated_variance) = match reading {
+        AnchorReading::Range {
+            position_m,
+            range_m,
+            variance_m2,
+            ..
+        } => {
+            let (offset_m, offset_variance_m2) = bias_prior.unwrap_or((0.0, 0.0));
+            (
+                AnchorMeasurement::new(
+                    position_m,
+                    shared.tag_height_m,
+                    AnchorLaw::Range,
+                    scale * variance_m2 + offset_variance_m2,
+                ),
+                range_m - offset_m,
+                variance_m2,
+            )
+        }
+        AnchorReading::Rssi {
+            anchor,
+            rssi_dbm,
+            law: [p0, d0, n, _],
+            variance_db2,
+        } => {
+            let law = AnchorLaw::LogDistance {
+                reference_power_dbm: p0,
+                reference_distance_m: d0,
+                exponent: n,
+            };
+            (
+                AnchorMeasurement::new(
+                    shared.anchors.get(anchor).position_m,
+                    shared.tag_height_m,
+                    law,
+                    scale * variance_db2,
+                ),
+                rssi_dbm,
+                variance_db2,
+            )
+        }
+        AnchorReading::Tdoa {
+            anchor,
+            reference,
+            range_difference_m,
+            variance_m2,
+        } => {
+            let law = AnchorLaw::RangeDifference {
+                reference_m: shared.anchors.get(reference).position_m,
+            };
+            (
+                AnchorMeasurement::new(
+                    shared.anchors.get(anchor).position_m,
+                    shared.tag_height_m,
+                    law,
+                    scale * variance_m2,
+                ),
+                range_difference_m,
+                variance_m2,
+            )
+        }
+    };
+    let prior = predict(shared, track, state, time_s)?;
+    let measured = z;
+    let z = DVector::from_element(1, z);
+    let result = match shared.settings.filter {
+        FilterKind::Ukf => shared.ukf.update(&prior.state, &model, &z),
+        FilterKind::Ekf | FilterKind::Kf => shared.ekf.update(&prior.state, &model, &z),
+    }
+    .and_then(|updated| match (&shared.manoeuvres, &prior.modes) {
+        // every mode updated by an EKF step in its own layout
+        (Some(manoeuvres), Some(modes)) => {
+            let posterior = manoeuvres.update_anchor(modes, &model, measured)?;
+            let state = manoeuvres.combined(&posterior)?;
+            Ok((Updated { state, ..updated }, Some(posterior)))
+        }
+        _ => Ok((updated, None)),
+    });
+    match result {
+        Ok((updated, modes)) => {
+            out.innovations
+                .record(class, &updated, shared.gates[0], scale / inflation);
+            track.noise.observe(
+                shared.adaptive.as_ref(),
+                class,
+                &updated,
+                &[inflation * stated_variance],
+                shared.gates[0],
+            );
+            track
+                .noise
+                .observe_correlation(shared.error_correlation.as_ref(), source, &updated);
+            if let (Some(bias_model), Some((_, offset_variance_m2)), AnchorReading::Range { variance_m2, .. }) =
+                (&shared.range_bias, bias_prior, reading)
+            {
+                // learn only from a confirmed track whose prediction is at least as sure as the
+                // reading and as the offsets' prior along it (H P⁻ Hᵀ ≤ min(λ c σ², σ_b²)): a
+                // start-up track's large errors are not linear in the position, and the
+                // projection would not remove them
+                let reading_variance_m2 = scale * variance_m2;
+                let predicted_variance_m2 =
+                    updated.innovation_covariance[(0, 0)] - reading_variance_m2 - offset_variance_m2;
+                let prior_variance_m2 = bias_model.prior_std() * bias_model.prior_std();
+                let correlation_s = shared.settings.adaptive_noise.correlation_s;
+                if outside_gate(shared, track, &updated) {
+                    // the prediction this round is measured against is in doubt
+                    track.range_bias.discard_round();
+                } else if is_gated(track)
+                    && predicted_variance_m2 <= reading_variance_m2.min(prior_variance_m2)
+                    && track.range_bias.wants(time_s, correlation_s)
+                {
+                    // the reading's part in its round: ν, λ σ² (one look) and ∂h/∂p at the
+                    // prediction
+                    if let Ok(jacobian) = MeasurementModel::jacobian(&model, prior.state.mean()) {
+                        let mut gradient = [0.0; 3];
+                        for (axis, g) in gradient.iter_mut().enumerate().take(dimensions::<N>()) {
+                            *g = jacobian[(0, 2 * axis)];
+                        }
+                        let reading = RoundReading {
+                            innovation_m: updated.innovation[0],
+                            noise_variance_m2: reading_variance_m2 / inflation,
+                            gradient,
+                        };
+                        track
+                            .range_bias
+                            .observe(bias_model, anchor, reading, time_s, dimensions::<N>(), correlation_s);
+                    }
+                }
+            }
+            if accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)? == Verdict::Taken {
+                carry_heading_cross(track, &prior.state)?;
+            }
+            Ok(())
+        }
+        Err(error) => {
+            out.events.push(rejected(
+                &track.tag,
+                time_s,
+                kind,
+                format!("filter update failed: {error}"),
+            ));
+            Ok(())
+        }
+    }
+}
