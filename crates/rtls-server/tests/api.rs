@@ -664,7 +664,7 @@ async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_a
     let state = state("api-fence-edit");
     let app = rtls_server::http::router(state.clone());
     // a zone around the walk (y = 10 m, x from 2 m), with no restart
-    let fence = r#"{"name": "Staging", "region": {"type": "Polygon",
+    let fence = r#"{"name": "Staging", "crs": "local", "region": {"type": "Polygon",
         "coordinates": [[[0, 5], [12, 5], [12, 15], [0, 15], [0, 5]]]},
         "properties": {"rtls:kind": "restricted"}}"#;
     let created = call(&app, Method::POST, "/v2/fences", Some(WRITE), fence).await;
@@ -706,10 +706,11 @@ async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_a
         Method::PUT,
         &format!("/v2/fences/{id}"),
         Some(WRITE),
-        r#"{"name": "Staging area", "region": {"type": "Point", "coordinates": [8, 10]}, "radius": 6}"#,
+        r#"{"name": "Staging area", "crs": "local", "region": {"type": "Point", "coordinates": [8, 10]}, "radius": 6}"#,
     )
     .await;
-    assert_eq!(renamed.status, StatusCode::OK);
+    assert_eq!(renamed.status, StatusCode::NO_CONTENT, "{}", renamed.text());
+    let renamed = call(&app, Method::GET, &format!("/v2/fences/{id}"), Some(READ), "").await;
     assert_eq!(renamed.json()["name"], "Staging area");
     assert_eq!(state.pipeline.live().head_counts()[&id], 1);
 
@@ -719,7 +720,7 @@ async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_a
         Method::POST,
         "/v2/fences",
         Some(WRITE),
-        r#"{"region": {"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [0, 0]]]}}"#,
+        r#"{"crs": "local", "region": {"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [0, 0]]]}}"#,
     )
     .await;
     assert_eq!(
@@ -731,7 +732,7 @@ async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_a
         Method::POST,
         "/v2/fences",
         Some(WRITE),
-        r#"{"region": {"type": "Point", "coordinates": [0, 0]}, "radius": 2, "properties": {"rtls:kind": "lava"}}"#,
+        r#"{"crs": "local", "region": {"type": "Point", "coordinates": [0, 0]}, "radius": 2, "properties": {"rtls:kind": "lava"}}"#,
     )
     .await;
     assert_eq!(bad_kind.json()["field"], "properties.rtls:kind");

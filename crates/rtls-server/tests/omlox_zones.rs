@@ -245,15 +245,17 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     assert_eq!(reply.status, StatusCode::OK, "{}", reply.text());
     let fence = reply.json();
     let fence_id = fence["id"].as_str().unwrap().to_string();
+    // in the fence reads' default: EPSG:4326 on this georeferenced site
     assert_eq!(
         (&fence["name"], &fence["crs"]),
-        (&json!("Bay 3 (north)"), &json!("local"))
+        (&json!("Bay 3 (north)"), &json!("EPSG:4326"))
     );
-    let ring = fence["region"]["coordinates"][0].as_array().unwrap();
-    assert_eq!(ring.len(), 5, "{fence}");
-    let [x, y] = [0, 1].map(|k| ring[2][k].as_f64().unwrap());
-    assert!((x - 26.0).abs() < 1e-3 && (y - 16.0).abs() < 1e-3, "{fence}");
     assert_eq!(call_json(&app, &format!("/v2/fences/{fence_id}")).await, fence);
+    let local = call_json(&app, &format!("/v2/fences/{fence_id}?crs=local")).await;
+    let ring = local["region"]["coordinates"][0].as_array().unwrap();
+    assert_eq!(ring.len(), 5, "{local}");
+    let [x, y] = [0, 1].map(|k| ring[2][k].as_f64().unwrap());
+    assert!((x - 26.0).abs() < 1e-3 && (y - 16.0).abs() < 1e-3, "{local}");
     let live = state.pipeline.live();
     assert!(live.zones().iter().any(|z| z.id == fence_id), "the trackers watch it");
     assert!(live

@@ -157,7 +157,8 @@ pub(super) async fn delete_all_zones(State(state): State<AppState>, headers: Hea
 }
 
 /// `GET /v2/zones/{zone_id}/createfence`: makes a fence of the zone's area and watches it like
-/// any fence (stored, applied live to the trackers); 200 with the fence.
+/// any fence (stored, applied live to the trackers); 200 with the fence, in the fence reads'
+/// default frame (EPSG:4326 where the site has a `[frame]`).
 ///
 /// The fence's id is derived from the zone's ([`uuid_for`]`("zone-fence", zone id)`), so
 /// calling it again replaces that fence with the zone's current geometry instead of adding
