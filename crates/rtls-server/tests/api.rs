@@ -366,12 +366,27 @@ async fn omlox_location_ingest_and_trackables_name_the_bad_field() {
     .await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
     let again = json!({"id": id, "type": "omlox"}).to_string();
+    // omlox: POST "Creates a new trackable with a randomly generated id": an id in use is
+    // replaced by a new one, and the trackable that had it stays
     let reply = call(&app, Method::POST, "/v2/trackables", Some(WRITE), &again).await;
-    assert_eq!(
-        (reply.status, reply.json()["field"].as_str()),
-        (StatusCode::BAD_REQUEST, Some("id")),
-        "a second create is refused"
+    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    let renewed = uuid::Uuid::parse_str(reply.json()["id"].as_str().unwrap()).unwrap();
+    assert_ne!(
+        renewed.to_string(),
+        id,
+        "a second create under a taken id gets a new one"
     );
+    let first = call(&app, Method::GET, &format!("/v2/trackables/{id}"), Some(READ), "").await;
+    assert_eq!(first.status, StatusCode::OK, "{}", first.text());
+    let reply = call(
+        &app,
+        Method::DELETE,
+        &format!("/v2/trackables/{renewed}"),
+        Some(WRITE),
+        "",
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::NO_CONTENT);
     let reply = call(
         &app,
         Method::GET,
@@ -725,7 +740,22 @@ async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_a
     .await;
     assert_eq!(
         (bad.status, bad.json()["field"].as_str()),
-        (StatusCode::BAD_REQUEST, Some("region"))
+        (StatusCode::BAD_REQUEST, Some("region.coordinates[0]")),
+        "a ring of two corners"
+    );
+    let crossed = call(
+        &app,
+        Method::POST,
+        "/v2/fences",
+        Some(WRITE),
+        r#"{"crs": "local", "region": {"type": "Polygon", "coordinates": [[[0, 0], [2, 2], [2, 0], [0, 2], [0, 0]]]}}"#,
+    )
+    .await;
+    assert_eq!(crossed.json()["field"], "region", "{}", crossed.text());
+    assert!(
+        crossed.json()["message"].as_str().unwrap().starts_with("zone `"),
+        "the zone's words, without the site file's position: {}",
+        crossed.text()
     );
     let bad_kind = call(
         &app,

@@ -100,12 +100,18 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
         call_json(&app, "/v2/zones/summary?foreign_id=bay-3").await,
         json!([zone])
     );
-    let again = json!({"id": id, "type": "uwb", "incomplete_configuration": true}).to_string();
-    let reply = call(&app, Method::POST, "/v2/zones", Some(WRITE), &again).await;
-    assert_eq!(
-        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "id in use").as_deref(),
-        Some("id")
-    );
+    // omlox POST /zones: "The provided id will be replaced by a generated uuid" — here when it
+    // is in use (the site's own zone's too); the zone that had it stays
+    for taken in [id.as_str(), site_zone.as_str()] {
+        let again = json!({"id": taken, "type": "uwb", "incomplete_configuration": true}).to_string();
+        let reply = call(&app, Method::POST, "/v2/zones", Some(WRITE), &again).await;
+        assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+        let renewed = reply.json()["id"].as_str().unwrap().to_string();
+        assert!(renewed != taken && uuid::Uuid::parse_str(&renewed).is_ok(), "{renewed}");
+        let reply = call(&app, Method::DELETE, &format!("/v2/zones/{renewed}"), Some(WRITE), "").await;
+        assert_eq!(reply.status, StatusCode::NO_CONTENT);
+    }
+    assert_eq!(call_json(&app, &format!("/v2/zones/{id}")).await, zone);
 
     // replace: 204 and read back; unknown 404, the site's own 400, a mismatched id 400
     let mut renamed = zone.clone();
@@ -128,13 +134,17 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     let reply = call(&app, Method::PUT, &format!("/v2/zones/{unknown}"), Some(WRITE), &body).await;
     assert_omlox_error(&reply, StatusCode::NOT_FOUND, "unknown zone");
     let reply = call(&app, Method::PUT, &format!("/v2/zones/{site_zone}"), Some(WRITE), &body).await;
-    assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "the site's zone");
+    assert_eq!(
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "the site's zone").as_deref(),
+        Some("zone_id")
+    );
+    let mismatched = json!({"id": unknown, "type": "uwb", "incomplete_configuration": true});
     let reply = call(
         &app,
         Method::PUT,
         &format!("/v2/zones/{id}"),
         Some(WRITE),
-        &again.replace(&id, unknown),
+        &mismatched.to_string(),
     )
     .await;
     assert_eq!(

@@ -394,6 +394,16 @@ fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site) -> ApiResult<Sit
             if vertices.len() > 1 && vertices.first() == vertices.last() {
                 vertices.pop();
             }
+            if vertices.len() < 3 {
+                // RFC 7946 §3.1.6: "A linear ring is a closed LineString with four or more positions."
+                return Err(ApiError::field(
+                    "region.coordinates[0]",
+                    format!(
+                        "a ring needs three corners (four positions, the first repeated last), got {} corners",
+                        vertices.len()
+                    ),
+                ));
+            }
             vertices
         }
         Region::Point { coordinates } => {
@@ -472,6 +482,10 @@ fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site) -> ApiResult<Sit
             z_range_m,
         },
     };
-    zone.validate().map_err(|e| ApiError::field("region", e.to_string()))?;
+    zone.validate().map_err(|e| match e {
+        // the zone's own words, without the site file's position it would have there
+        rtls_engine::EngineError::Parse { reason, .. } => ApiError::field("region", reason),
+        other => ApiError::field("region", other.to_string()),
+    })?;
     Ok(zone)
 }
