@@ -239,7 +239,7 @@ fn the_demo_on_screen_counts_its_tags_acknowledges_an_alarm_everywhere_and_repla
             "Promise.all([{}, {}]).then(([fences, occupants]) => {{ const f = fences.find(f => f.name === 'West half'); \
              if (!f) return null; const row = document.querySelector(`tr[data-zone-id='${{f.foreign_id}}'] .head-count`); \
              return {{ id: f.foreign_id, api: (occupants[f.foreign_id] || []).length, screen: row ? Number(row.textContent) : -1 }}; }})",
-            api_js("/v2/fences/summary", READ),
+            api_js("/v2/fences/summary?crs=local", READ),
             api_js("/api/v1/zones/occupants", READ)
         ),
         |v| v["api"].as_u64().is_some_and(|n| n >= 5) && v["screen"] == v["api"],
@@ -271,7 +271,7 @@ fn the_demo_on_screen_counts_its_tags_acknowledges_an_alarm_everywhere_and_repla
         &tab,
         &format!(
             "Promise.all([{}, {}, {}]).then(([fences, occupants, site]) => {{ const f = fences.find(f => f.foreign_id === '{id}');              const xs = f.region.coordinates[0].map(p => p[0]);              const row = document.querySelector(`tr[data-zone-id='{id}'] .head-count`);              return {{ east: Math.max(...xs), mine_east: site.bounds_m.max[0], api: (occupants['{id}'] || []).length,                        screen: row ? Number(row.textContent) : -1 }}; }})",
-            api_js("/v2/fences/summary", READ),
+            api_js("/v2/fences/summary?crs=local", READ),
             api_js("/api/v1/zones/occupants", READ),
             api_js("/api/v1/site", READ)
         ),

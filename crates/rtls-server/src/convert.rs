@@ -469,7 +469,9 @@ pub fn record_from_location(
             format!("`{crs}`: the location is to be taken to the site frame first"),
         ));
     }
-    let accuracy = location.accuracy.unwrap_or(default_accuracy_m);
+    // none, or 0 (an exact position, or none stated: the vendor adapters read 0 so too), is the
+    // server's default; the filter needs a variance > 0 to weigh a fix
+    let accuracy = location.accuracy.filter(|a| *a != 0.0).unwrap_or(default_accuracy_m);
     if !(accuracy.is_finite() && accuracy > 0.0) {
         return Err(err(
             "accuracy",

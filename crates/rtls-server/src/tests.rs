@@ -381,7 +381,6 @@ fn ingest_errors_name_index_and_field() {
             json!({"timestamp_generated": "yesterday"}),
             "[1].timestamp_generated: `yesterday` is not an ISO 8601",
         ),
-        (json!({"colour": "red"}), "[1].colour: unknown field"),
         (json!({"trackables": ["a", 3]}), "[1].trackables[1]: expected a string"),
         (
             json!({"position": {"type": "Polygon", "coordinates": [1.0, 2.0]}}),
@@ -397,6 +396,13 @@ fn ingest_errors_name_index_and_field() {
         let message = parse_locations(&body).unwrap_err().to_string();
         assert!(message.starts_with(expected), "{message} vs {expected}");
     }
+    // a member the schema does not name is ignored (the spec's Location does not close its
+    // object), beside the position's too
+    let mut extra = good("t2");
+    extra["colour"] = json!("red");
+    extra["position"]["crs_hint"] = json!("site");
+    let parsed = parse_locations(&json!([good("t1"), extra]).to_string()).unwrap();
+    assert_eq!(parsed[1].provider_id, "t2");
     let mut missing = good("t2");
     missing.as_object_mut().unwrap().remove("source");
     let message = parse_locations(&json!([good("t1"), good("t3"), missing]).to_string())
@@ -484,6 +490,15 @@ fn ingested_location_becomes_a_fix_record() {
             position_m: vec![1.0, 2.0],
             covariance_m2: vec![4.0, 0.0, 0.0, 4.0]
         }
+    );
+    // an accuracy of 0 m is a valid Location's: the default, as when none is given
+    untimed.accuracy = Some(0.0);
+    let record = record_from_location(&untimed, 0, 2.0, 99.0).unwrap();
+    assert!(matches!(record.measurement, Measurement::Fix { ref covariance_m2, .. } if covariance_m2[0] == 4.0));
+    untimed.accuracy = Some(-1.0);
+    assert!(
+        record_from_location(&untimed, 0, 2.0, 99.0).is_err(),
+        "a negative accuracy is none"
     );
 }
 

@@ -366,12 +366,27 @@ async fn omlox_location_ingest_and_trackables_name_the_bad_field() {
     .await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
     let again = json!({"id": id, "type": "omlox"}).to_string();
+    // omlox: POST "Creates a new trackable with a randomly generated id": an id in use is
+    // replaced by a new one, and the trackable that had it stays
     let reply = call(&app, Method::POST, "/v2/trackables", Some(WRITE), &again).await;
-    assert_eq!(
-        (reply.status, reply.json()["field"].as_str()),
-        (StatusCode::BAD_REQUEST, Some("id")),
-        "a second create is refused"
+    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    let renewed = uuid::Uuid::parse_str(reply.json()["id"].as_str().unwrap()).unwrap();
+    assert_ne!(
+        renewed.to_string(),
+        id,
+        "a second create under a taken id gets a new one"
     );
+    let first = call(&app, Method::GET, &format!("/v2/trackables/{id}"), Some(READ), "").await;
+    assert_eq!(first.status, StatusCode::OK, "{}", first.text());
+    let reply = call(
+        &app,
+        Method::DELETE,
+        &format!("/v2/trackables/{renewed}"),
+        Some(WRITE),
+        "",
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::NO_CONTENT);
     let reply = call(
         &app,
         Method::GET,
@@ -664,7 +679,7 @@ async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_a
     let state = state("api-fence-edit");
     let app = rtls_server::http::router(state.clone());
     // a zone around the walk (y = 10 m, x from 2 m), with no restart
-    let fence = r#"{"name": "Staging", "region": {"type": "Polygon",
+    let fence = r#"{"name": "Staging", "crs": "local", "region": {"type": "Polygon",
         "coordinates": [[[0, 5], [12, 5], [12, 15], [0, 15], [0, 5]]]},
         "properties": {"rtls:kind": "restricted"}}"#;
     let created = call(&app, Method::POST, "/v2/fences", Some(WRITE), fence).await;
@@ -706,10 +721,11 @@ async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_a
         Method::PUT,
         &format!("/v2/fences/{id}"),
         Some(WRITE),
-        r#"{"name": "Staging area", "region": {"type": "Point", "coordinates": [8, 10]}, "radius": 6}"#,
+        r#"{"name": "Staging area", "crs": "local", "region": {"type": "Point", "coordinates": [8, 10]}, "radius": 6}"#,
     )
     .await;
-    assert_eq!(renamed.status, StatusCode::OK);
+    assert_eq!(renamed.status, StatusCode::NO_CONTENT, "{}", renamed.text());
+    let renamed = call(&app, Method::GET, &format!("/v2/fences/{id}"), Some(READ), "").await;
     assert_eq!(renamed.json()["name"], "Staging area");
     assert_eq!(state.pipeline.live().head_counts()[&id], 1);
 
@@ -719,19 +735,34 @@ async fn a_fence_drawn_live_is_watched_by_the_running_trackers_renamed_deleted_a
         Method::POST,
         "/v2/fences",
         Some(WRITE),
-        r#"{"region": {"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [0, 0]]]}}"#,
+        r#"{"crs": "local", "region": {"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [0, 0]]]}}"#,
     )
     .await;
     assert_eq!(
         (bad.status, bad.json()["field"].as_str()),
-        (StatusCode::BAD_REQUEST, Some("region"))
+        (StatusCode::BAD_REQUEST, Some("region.coordinates[0]")),
+        "a ring of two corners"
+    );
+    let crossed = call(
+        &app,
+        Method::POST,
+        "/v2/fences",
+        Some(WRITE),
+        r#"{"crs": "local", "region": {"type": "Polygon", "coordinates": [[[0, 0], [2, 2], [2, 0], [0, 2], [0, 0]]]}}"#,
+    )
+    .await;
+    assert_eq!(crossed.json()["field"], "region", "{}", crossed.text());
+    assert!(
+        crossed.json()["message"].as_str().unwrap().starts_with("zone `"),
+        "the zone's words, without the site file's position: {}",
+        crossed.text()
     );
     let bad_kind = call(
         &app,
         Method::POST,
         "/v2/fences",
         Some(WRITE),
-        r#"{"region": {"type": "Point", "coordinates": [0, 0]}, "radius": 2, "properties": {"rtls:kind": "lava"}}"#,
+        r#"{"crs": "local", "region": {"type": "Point", "coordinates": [0, 0]}, "radius": 2, "properties": {"rtls:kind": "lava"}}"#,
     )
     .await;
     assert_eq!(bad_kind.json()["field"], "properties.rtls:kind");

@@ -162,11 +162,28 @@ async fn a_location_pushed_in_wgs84_is_tracked_in_site_metres() {
     );
     let reply = call(&geo_app, Method::POST, "/v2/fences", Some(WRITE), &fence.to_string()).await;
     assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    // answered in the CRS it was written in, and stored in site metres
     let created = reply.json();
+    assert_eq!(created["crs"], "EPSG:4326", "{created}");
     let vertices = created["region"]["coordinates"][0].as_array().unwrap().clone();
+    for (vertex, [lon, lat]) in vertices.iter().zip(&ring) {
+        let (vx, vy) = (vertex[0].as_f64().unwrap(), vertex[1].as_f64().unwrap());
+        assert!((vx - lon).abs() < 1e-9 && (vy - lat).abs() < 1e-9, "{created}");
+    }
+    let id = created["id"].as_str().unwrap();
+    let local = call(
+        &geo_app,
+        Method::GET,
+        &format!("/v2/fences/{id}?crs=local"),
+        Some(WRITE),
+        "",
+    )
+    .await;
+    let local = local.json();
+    let vertices = local["region"]["coordinates"][0].as_array().unwrap().clone();
     for (vertex, [x, y]) in vertices.iter().zip(square) {
         let (vx, vy) = (vertex[0].as_f64().unwrap(), vertex[1].as_f64().unwrap());
-        assert!((vx - x).abs() < 1e-6 && (vy - y).abs() < 1e-6, "{created}");
+        assert!((vx - x).abs() < 1e-6 && (vy - y).abs() < 1e-6, "{local}");
     }
 }
 

@@ -326,3 +326,97 @@ async fn unknown_or_frameless_zones_and_other_crs_are_refused() {
         (&json!("local"), &local["position"])
     );
 }
+
+/// The first vertex of a fence's (Polygon) region.
+fn first_vertex(fence: &Value) -> [f64; 2] {
+    xy(&json!({"coordinates": fence["region"]["coordinates"][0][0]}))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn fences_are_read_in_wgs84_by_default_or_in_the_site_zone_without_a_frame() {
+    let (app, trackable, fence, _) = scene("read-frames-fence-default", true).await;
+    let site_zone = uuid_for("zone", "test floor");
+    // omlox getAllFences: "Returned fence objects use EPSG:4326 ("GPS") as the projection for
+    // the region coordinates, unless another projection is requested"
+    let summary = get_json(&app, "/v2/fences/summary").await;
+    assert_eq!(summary, get_json(&app, "/v2/fences/summary?crs=EPSG:4326").await);
+    let lane = get_json(&app, "/v2/fences/forklift-lane").await;
+    assert_eq!(lane["crs"], "EPSG:4326");
+    assert!(lane.get("zone_id").is_none(), "{lane}");
+    for (k, vertex) in LANE.iter().enumerate() {
+        let got = xy(&json!({"coordinates": lane["region"]["coordinates"][0][k]}));
+        assert_near(got, lon_lat(*vertex), 1e-9, "a fence vertex in WGS-84 by default");
+    }
+    // the fences a provider or trackable is inside, in the same frame
+    for uri in [
+        "/v2/providers/walker/fences?spatial_query=true".to_string(),
+        format!("/v2/trackables/{trackable}/fences?spatial_query=true"),
+    ] {
+        let inside = get_json(&app, &uri).await;
+        let stop = inside.as_array().unwrap().iter().find(|f| f["id"] == fence.as_str());
+        let stop = stop.unwrap_or_else(|| panic!("{uri}: the walker stops in `stop`: {inside}"));
+        assert_eq!(stop["crs"], "EPSG:4326", "{uri}");
+        assert_near(first_vertex(stop), lon_lat([6.0, 8.0]), 1e-9, &uri);
+    }
+    // local on request: site metres, named by the site's own zone
+    let local = get_json(&app, "/v2/fences/forklift-lane?crs=local").await;
+    assert_eq!((&local["crs"], &local["zone_id"]), (&json!("local"), &json!(site_zone)));
+    assert_near(first_vertex(&local), LANE[0], 1e-12, "a fence vertex in site metres");
+
+    // a site without a [frame] has no WGS-84 to give: local, with the zone the spec requires
+    let (plain, _, fence, _) = scene("read-frames-fence-default-plain", false).await;
+    for uri in [format!("/v2/fences/{fence}"), "/v2/fences/forklift-lane".to_string()] {
+        let got = get_json(&plain, &uri).await;
+        assert_eq!(
+            (&got["crs"], &got["zone_id"]),
+            (&json!("local"), &json!(site_zone)),
+            "{uri}"
+        );
+    }
+    let stop = get_json(&plain, &format!("/v2/fences/{fence}")).await;
+    assert_near(first_vertex(&stop), [6.0, 8.0], 1e-12, "a fence in site metres");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fence_written_without_crs_is_in_wgs84() {
+    let (app, _, _, _) = scene("read-frames-fence-write", true).await;
+    let square = [[2.0, 2.0], [4.0, 2.0], [4.0, 4.0], [2.0, 4.0], [2.0, 2.0]];
+    let degrees: Vec<[f64; 2]> = square.iter().map(|p| lon_lat(*p)).collect();
+    // omlox Fence: "If crs is not present, 'EPSG:4326' ("GPS") MUST be assumed as the default."
+    let fence = json!({"name": "gps", "region": {"type": "Polygon", "coordinates": [degrees]}});
+    let created = post_created(&app, "/v2/fences", &fence).await;
+    assert_eq!(
+        created["crs"], "EPSG:4326",
+        "answered in the CRS it was written in: {created}"
+    );
+    assert_near(first_vertex(&created), degrees[0], 1e-9, "the created fence");
+    let id = created["id"].as_str().unwrap().to_string();
+    let local = get_json(&app, &format!("/v2/fences/{id}?crs=local")).await;
+    for (k, vertex) in square.iter().enumerate() {
+        let got = xy(&json!({"coordinates": local["region"]["coordinates"][0][k]}));
+        assert_near(got, *vertex, 1e-6, "a vertex written in degrees, in site metres");
+    }
+    // replaced in site metres (204, as the spec documents), read back in degrees
+    let moved = json!({"name": "gps", "crs": "local", "region": {"type": "Polygon", "coordinates": [square.map(|[x, y]| [x + 1.0, y])]}});
+    let reply = call(
+        &app,
+        Method::PUT,
+        &format!("/v2/fences/{id}"),
+        Some(WRITE),
+        &moved.to_string(),
+    )
+    .await;
+    assert_eq!(reply.status, StatusCode::NO_CONTENT, "{}", reply.text());
+    let replaced = get_json(&app, &format!("/v2/fences/{id}")).await;
+    assert_eq!(replaced["crs"], "EPSG:4326");
+    assert_near(first_vertex(&replaced), lon_lat([3.0, 2.0]), 1e-9, "the replaced fence");
+
+    // without a [frame] there is nothing to place degrees by: refused, naming crs
+    let (plain, _, _, _) = scene("read-frames-fence-write-plain", false).await;
+    let reply = call(&plain, Method::POST, "/v2/fences", Some(WRITE), &fence.to_string()).await;
+    assert_eq!(
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "a fence without crs").as_deref(),
+        Some("crs")
+    );
+    assert!(reply.text().contains("EPSG:4326"), "{}", reply.text());
+}

@@ -100,12 +100,18 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
         call_json(&app, "/v2/zones/summary?foreign_id=bay-3").await,
         json!([zone])
     );
-    let again = json!({"id": id, "type": "uwb", "incomplete_configuration": true}).to_string();
-    let reply = call(&app, Method::POST, "/v2/zones", Some(WRITE), &again).await;
-    assert_eq!(
-        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "id in use").as_deref(),
-        Some("id")
-    );
+    // omlox POST /zones: "The provided id will be replaced by a generated uuid" — here when it
+    // is in use (the site's own zone's too); the zone that had it stays
+    for taken in [id.as_str(), site_zone.as_str()] {
+        let again = json!({"id": taken, "type": "uwb", "incomplete_configuration": true}).to_string();
+        let reply = call(&app, Method::POST, "/v2/zones", Some(WRITE), &again).await;
+        assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+        let renewed = reply.json()["id"].as_str().unwrap().to_string();
+        assert!(renewed != taken && uuid::Uuid::parse_str(&renewed).is_ok(), "{renewed}");
+        let reply = call(&app, Method::DELETE, &format!("/v2/zones/{renewed}"), Some(WRITE), "").await;
+        assert_eq!(reply.status, StatusCode::NO_CONTENT);
+    }
+    assert_eq!(call_json(&app, &format!("/v2/zones/{id}")).await, zone);
 
     // replace: 204 and read back; unknown 404, the site's own 400, a mismatched id 400
     let mut renamed = zone.clone();
@@ -128,13 +134,17 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     let reply = call(&app, Method::PUT, &format!("/v2/zones/{unknown}"), Some(WRITE), &body).await;
     assert_omlox_error(&reply, StatusCode::NOT_FOUND, "unknown zone");
     let reply = call(&app, Method::PUT, &format!("/v2/zones/{site_zone}"), Some(WRITE), &body).await;
-    assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "the site's zone");
+    assert_eq!(
+        assert_omlox_error(&reply, StatusCode::BAD_REQUEST, "the site's zone").as_deref(),
+        Some("zone_id")
+    );
+    let mismatched = json!({"id": unknown, "type": "uwb", "incomplete_configuration": true});
     let reply = call(
         &app,
         Method::PUT,
         &format!("/v2/zones/{id}"),
         Some(WRITE),
-        &again.replace(&id, unknown),
+        &mismatched.to_string(),
     )
     .await;
     assert_eq!(
@@ -245,15 +255,17 @@ async fn zones_are_created_replaced_transformed_made_into_fences_and_deleted() {
     assert_eq!(reply.status, StatusCode::OK, "{}", reply.text());
     let fence = reply.json();
     let fence_id = fence["id"].as_str().unwrap().to_string();
+    // in the fence reads' default: EPSG:4326 on this georeferenced site
     assert_eq!(
         (&fence["name"], &fence["crs"]),
-        (&json!("Bay 3 (north)"), &json!("local"))
+        (&json!("Bay 3 (north)"), &json!("EPSG:4326"))
     );
-    let ring = fence["region"]["coordinates"][0].as_array().unwrap();
-    assert_eq!(ring.len(), 5, "{fence}");
-    let [x, y] = [0, 1].map(|k| ring[2][k].as_f64().unwrap());
-    assert!((x - 26.0).abs() < 1e-3 && (y - 16.0).abs() < 1e-3, "{fence}");
     assert_eq!(call_json(&app, &format!("/v2/fences/{fence_id}")).await, fence);
+    let local = call_json(&app, &format!("/v2/fences/{fence_id}?crs=local")).await;
+    let ring = local["region"]["coordinates"][0].as_array().unwrap();
+    assert_eq!(ring.len(), 5, "{local}");
+    let [x, y] = [0, 1].map(|k| ring[2][k].as_f64().unwrap());
+    assert!((x - 26.0).abs() < 1e-3 && (y - 16.0).abs() < 1e-3, "{local}");
     let live = state.pipeline.live();
     assert!(live.zones().iter().any(|z| z.id == fence_id), "the trackers watch it");
     assert!(live

@@ -219,17 +219,20 @@ $("zone-editor").addEventListener("submit", async (e) => {
   const properties = { "rtls:kind": $("zone-kind").value };
   const name = $("zone-name").value.trim() || "New zone";
   const region = { type: "Polygon", coordinates: [ring] };
+  // the map draws in site metres; a fence without crs would be EPSG:4326 (omlox's default)
+  const crs = "local";
   try {
     if (editing) {
       // the zone keeps its id and height: its floor or its height range
       const old = editing.properties;
       if (old["rtls:floor"]) properties["rtls:floor"] = old["rtls:floor"];
       else if (old["rtls:z_range_m"]) properties["rtls:z_range_m"] = old["rtls:z_range_m"];
-      const fence = await api(`/v2/fences/${encodeURIComponent(old.id)}`, { method: "PUT", write: true, body: { name, region, properties } });
-      $("zone-hint").textContent = `saved: ${fence.name}`;
+      // 204: omlox answers a replaced fence with no body
+      await api(`/v2/fences/${encodeURIComponent(old.id)}`, { method: "PUT", write: true, body: { name, crs, region, properties } });
+      $("zone-hint").textContent = `saved: ${name}`;
     } else {
       if (map.floor) properties["rtls:floor"] = map.floor.id;
-      const fence = await api("/v2/fences", { method: "POST", write: true, body: { name, region, properties } });
+      const fence = await api("/v2/fences", { method: "POST", write: true, body: { name, crs, region, properties } });
       $("zone-hint").textContent = `saved: ${fence.name}`;
     }
   } catch (error) {

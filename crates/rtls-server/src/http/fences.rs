@@ -5,12 +5,14 @@
 //! predictive hazard alarms follow within a clock tick; tags inside an unchanged zone stay
 //! inside). Deleting `zones/current` (`DELETE /api/v1/zones/edits`) returns to the site file.
 //!
-//! A fence is written in the site's local metres (`crs` absent or `local`), or in `EPSG:4326`
-//! (longitude, latitude in degrees) on a site with a `[frame]`, whose georeference takes it to
-//! site metres: a `Polygon` region (closed ring) or a `Point` with `radius` (m, a 32-gon).
-//! (omlox reads a fence without `crs` as EPSG:4326; here it is local, as everything this API
-//! writes and reads without `crs`; the reads give regions in WGS-84 or a zone's frame on
-//! request, and as GeoJSON: `read_frame`.) `properties` may carry `rtls:kind`
+//! A fence is written in `EPSG:4326` (longitude, latitude in degrees; omlox's default, so also
+//! a fence without `crs`) on a site with a `[frame]`, whose georeference takes it to site
+//! metres, or in the site's local metres (`crs: "local"`): a `Polygon` region (closed ring) or
+//! a `Point` with `radius` (m, a 32-gon). On a site without a `[frame]` a fence without `crs`
+//! is refused (400 naming `crs`): its coordinates are degrees there is nothing to place by.
+//! The reads give regions in EPSG:4326 by default where the site has a `[frame]`, else in
+//! `local` with the site's zone as `zone_id`; in another frame on request, and as GeoJSON
+//! (`read_frame`). A create answers in the CRS it was written in. `properties` may carry `rtls:kind`
 //! (`hazard`, `restricted`, `area-of-interest`, default), and `rtls:floor` (a site floor id) or
 //! `rtls:z_range_m`; without either the zone spans every height. The zone's id is the fence's
 //! `foreign_id` when given, else its UUID.
@@ -56,14 +58,17 @@ pub(super) async fn list(State(state): State<AppState>, headers: HeaderMap) -> A
 }
 
 /// `GET /v2/fences/summary`: every fence, its region in the frame `crs` and `zone_id` ask for
-/// (site metres by default), as GeoJSON with `geojson=true` ([`ReadFrame`]).
+/// — by default EPSG:4326 ("Returned fence objects use EPSG:4326 ("GPS") as the projection
+/// for the region coordinates, unless another projection is requested") where the site has a
+/// `[frame]`, else `local` with the site's zone as `zone_id` —, as GeoJSON with
+/// `geojson=true` ([`ReadFrame::of_fences`]).
 pub(super) async fn summary(
     State(state): State<AppState>,
     RawQuery(query): RawQuery,
     headers: HeaderMap,
 ) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let read = ReadFrame::of(&state, query.as_deref()).await?;
+    let read = ReadFrame::of_fences(&state, query.as_deref()).await?;
     let fences = fences(&state)
         .into_iter()
         .map(|f| read.fence(f))
@@ -71,8 +76,8 @@ pub(super) async fn summary(
     Ok(read.answer_all(&fences))
 }
 
-/// `GET /v2/fences/{fence_id}`: by UUID or by the zone's id (`foreign_id`); query as on
-/// [`summary`].
+/// `GET /v2/fences/{fence_id}`: by UUID or by the zone's id (`foreign_id`); query and default
+/// frame as on [`summary`].
 pub(super) async fn get(
     State(state): State<AppState>,
     Path(fence_id): Path<String>,
@@ -80,16 +85,15 @@ pub(super) async fn get(
     headers: HeaderMap,
 ) -> ApiResult<Response> {
     state.authorize(&headers, Access::Read)?;
-    let read = ReadFrame::of(&state, query.as_deref()).await?;
+    let read = ReadFrame::of_fences(&state, query.as_deref()).await?;
     let fence = find(&fences(&state), &fence_id)
         .cloned()
         .ok_or_else(|| ApiError::not_found(format!("fence `{fence_id}` not found")))?;
     Ok(read.answer(&read.fence(fence)?))
 }
 
-/// `POST /v2/fences`: 201 with the fence (a UUID is assigned when `id` is absent or the nil
-/// UUID); 400
-/// naming the field of a bad fence or an id in use.
+/// `POST /v2/fences`: 201 with the fence in the CRS it was written in (a UUID is assigned when
+/// `id` is absent or the nil UUID); 400 naming the field of a bad fence or an id in use.
 pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, body: Bytes) -> ApiResult<Response> {
     let who = state.authorize(&headers, Access::Operate)?;
     let mut value: Value = parse_json(&body)?;
@@ -97,6 +101,7 @@ pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, bo
     let fence: Fence = parse_json(value.to_string().as_bytes())?;
     uuid::Uuid::parse_str(&fence.id)
         .map_err(|e| ApiError::field("id", format!("`{}` is not a UUID ({e})", fence.id)))?;
+    let answer = ReadFrame::written_in(&state, fence.crs.as_deref());
     let site = std::sync::Arc::clone(&state.site);
     let live = std::sync::Arc::clone(state.pipeline.live());
     let created = state
@@ -110,17 +115,17 @@ pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, bo
         })
         .await??;
     state.audit(&who, "fence-created", &created.id).await;
-    Ok((StatusCode::CREATED, Json(created)).into_response())
+    Ok((StatusCode::CREATED, Json(answer.fence(created)?)).into_response())
 }
 
 /// `PUT /v2/fences/{fence_id}`: replaces a fence's geometry, name and properties (its zone id
-/// stays); 200 with the fence.
+/// stays); 204, the status the spec documents (as for trackables and zones).
 pub(super) async fn replace(
     State(state): State<AppState>,
     Path(fence_id): Path<String>,
     headers: HeaderMap,
     body: Bytes,
-) -> ApiResult<Json<Fence>> {
+) -> ApiResult<StatusCode> {
     let who = state.authorize(&headers, Access::Operate)?;
     let mut value: Value = parse_json(&body)?;
     if let Value::Object(object) = &mut value {
@@ -147,7 +152,7 @@ pub(super) async fn replace(
         })
         .await??;
     state.audit(&who, "fence-replaced", &replaced.id).await;
-    Ok(Json(replaced))
+    Ok(StatusCode::NO_CONTENT)
 }
 
 /// `DELETE /v2/fences/{fence_id}`: 204; its occupants leave it without an exit event.
@@ -228,7 +233,8 @@ fn put_fence(
 }
 
 /// Creates `fence`, or replaces the fence with its id (its zone id stays), and hands the set
-/// to the running trackers; the fence as watched.
+/// to the running trackers; the fence as watched, in the fence reads' default frame
+/// ([`ReadFrame::fence_default`]).
 ///
 /// # Errors
 /// 400 naming the field of a bad fence; 503 when the store fails.
@@ -247,7 +253,7 @@ pub(super) async fn upsert(state: &AppState, who: &crate::auth::Principal, fence
         })
         .await??;
     state.audit(who, "fence-upserted", &stored.id).await;
-    Ok(stored)
+    ReadFrame::fence_default(state).fence(stored)
 }
 
 /// `DELETE /api/v1/zones/edits`: forgets the edited zone set; the site file's zones are
@@ -309,15 +315,22 @@ pub fn stored_zones(store: &mut dyn Store) -> Result<Option<Vec<SiteZone>>, Stri
 
 /// A region given in EPSG:4326 (`[longitude, latitude(, height)]`, degrees) in site metres,
 /// through the site's `[frame]` georeference; a Point's radius is metres in either CRS.
+/// `stated` is whether the fence named its `crs` (else EPSG:4326 is omlox's default).
 ///
 /// # Errors
 /// A 400 naming `crs` on a site without a frame, or the position that is no longitude and
 /// latitude.
-fn region_in_site(region: &Region, site: &Site) -> ApiResult<Region> {
+fn region_in_site(region: &Region, site: &Site, stated: bool) -> ApiResult<Region> {
     let frame = site.frame.as_ref().ok_or_else(|| {
+        let reason =
+            "the site has no [frame] origin to place EPSG:4326 coordinates: send site metres with crs \"local\"";
         ApiError::field(
             "crs",
-            "the site has no [frame] origin to place EPSG:4326 coordinates: send site metres with crs \"local\"",
+            if stated {
+                reason.to_string()
+            } else {
+                format!("a fence without crs is in EPSG:4326 (omlox's default), and {reason}")
+            },
         )
     })?;
     let to_site = |position: &[f64], field: String| -> ApiResult<Vec<f64>> {
@@ -351,9 +364,14 @@ fn region_in_site(region: &Region, site: &Site) -> ApiResult<Region> {
 
 /// A fence as a site zone with id `zone_id` (see the module documentation).
 fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site) -> ApiResult<SiteZone> {
-    let region = match Crs::parse(fence.crs.as_deref()).map_err(|reason| ApiError::field("crs", reason))? {
+    // omlox: "If crs is not present, 'EPSG:4326' ("GPS") MUST be assumed as the default."
+    let crs = match fence.crs.as_deref() {
+        None => Crs::Wgs84,
+        stated => Crs::parse(stated).map_err(|reason| ApiError::field("crs", reason))?,
+    };
+    let region = match crs {
         Crs::Local => fence.region.clone(),
-        Crs::Wgs84 => region_in_site(&fence.region, site)?,
+        Crs::Wgs84 => region_in_site(&fence.region, site, fence.crs.is_some())?,
     };
     let vertices_m: Vec<[f64; 2]> = match &region {
         Region::Polygon { coordinates } => {
@@ -376,6 +394,16 @@ fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site) -> ApiResult<Sit
             if vertices.len() > 1 && vertices.first() == vertices.last() {
                 vertices.pop();
             }
+            if vertices.len() < 3 {
+                // RFC 7946 §3.1.6: "A linear ring is a closed LineString with four or more positions."
+                return Err(ApiError::field(
+                    "region.coordinates[0]",
+                    format!(
+                        "a ring needs three corners (four positions, the first repeated last), got {} corners",
+                        vertices.len()
+                    ),
+                ));
+            }
             vertices
         }
         Region::Point { coordinates } => {
@@ -394,6 +422,27 @@ fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site) -> ApiResult<Sit
                 .collect()
         }
     };
+    if let Some(frame) = &site.frame {
+        // fences are read in EPSG:4326 by default: every corner needs a place on the globe
+        let placed = |&[x, y]: &[f64; 2]| {
+            frame
+                .wgs84_of([x, y, 0.0])
+                .is_some_and(|p| p.iter().all(|v| v.is_finite()))
+        };
+        if let Some(i) = vertices_m.iter().position(|v| !placed(v)) {
+            let field = match &fence.region {
+                Region::Point { .. } => "region.coordinates".to_string(),
+                Region::Polygon { .. } => format!("region.coordinates[0][{i}]"),
+            };
+            return Err(ApiError::field(
+                field,
+                format!(
+                    "{:?} m (site metres) is no place on the globe through the site's [frame]",
+                    vertices_m[i]
+                ),
+            ));
+        }
+    }
     let property = |key: &str| fence.properties.as_ref().and_then(|p| p.get(key)).cloned();
     let kind: ZoneKind = match property("rtls:kind") {
         None => ZoneKind::AreaOfInterest,
@@ -433,6 +482,10 @@ fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site) -> ApiResult<Sit
             z_range_m,
         },
     };
-    zone.validate().map_err(|e| ApiError::field("region", e.to_string()))?;
+    zone.validate().map_err(|e| match e {
+        // the zone's own words, without the site file's position it would have there
+        rtls_engine::EngineError::Parse { reason, .. } => ApiError::field("region", reason),
+        other => ApiError::field("region", other.to_string()),
+    })?;
     Ok(zone)
 }

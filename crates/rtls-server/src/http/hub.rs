@@ -22,6 +22,7 @@ use crate::omlox::locating_rules::RuleSet;
 use crate::omlox::{Location, LocationProvider, Trackable};
 use crate::pipeline::trackable_location::trackable_location;
 use crate::pipeline::unix_s;
+use crate::sink::IngestError;
 use crate::ServerError;
 
 /// Stored configuration kinds.
@@ -88,8 +89,36 @@ pub(super) async fn ingest_locations(state: &AppState, locations: &[Location]) -
             time_s: record.time_s,
         });
     }
-    state.pipeline.submit_records("omlox locations", records).await?;
+    state
+        .pipeline
+        .submit_records(LOCATIONS, records)
+        .await
+        .map_err(|e| naming_the_timestamp(e, &locations))?;
     Ok(StatusCode::NO_CONTENT)
+}
+
+/// How the ingest names omlox locations in its refusals (`{LOCATIONS}:{i + 1}: field …`).
+const LOCATIONS: &str = "omlox locations";
+
+/// An ingest refusal as an omlox Error: one of a location's time (outside the server's record
+/// window) names the timestamp it came from, `[i].timestamp_generated` (else
+/// `[i].timestamp_sent`); any other as it is.
+fn naming_the_timestamp(error: IngestError, locations: &[Location]) -> ApiError {
+    if let IngestError::Invalid(message) = &error {
+        let refusal = message
+            .strip_prefix(LOCATIONS)
+            .and_then(|rest| rest.strip_prefix(':'))
+            .and_then(|rest| rest.split_once(": field `t`: "))
+            .and_then(|(line, reason)| Some((line.parse::<usize>().ok()?.checked_sub(1)?, reason)));
+        if let Some((index, reason)) = refusal {
+            let field = match locations.get(index) {
+                Some(location) if location.timestamp_generated.is_none() => "timestamp_sent",
+                _ => "timestamp_generated",
+            };
+            return ApiError::field(format!("[{index}].{field}"), reason);
+        }
+    }
+    error.into()
 }
 
 /// The body as text, or a 400 naming the first bad byte.
@@ -185,7 +214,9 @@ pub(super) fn implicit_provider(tag: &str) -> LocationProvider {
     }
 }
 
-/// `POST /v2/providers`: 201 with the stored provider.
+/// `POST /v2/providers`: 201 with the stored provider; 400 naming `id` when a provider has
+/// it (the id is the device's, "e.g. a MAC address of a UWB tag": a second provider under it
+/// would be the same device).
 pub(super) async fn create_provider(
     State(state): State<AppState>,
     headers: HeaderMap,
@@ -196,7 +227,7 @@ pub(super) async fn create_provider(
     if provider.id.trim().is_empty() {
         return Err(ApiError::field("id", "must not be empty"));
     }
-    create(&state, &who, PROVIDER, provider.id.clone(), &provider).await
+    create(&state, &who, PROVIDER, provider.id.clone(), &provider, IdInUse::Refuse).await
 }
 
 /// `GET /v2/providers/{provider_id}`.
@@ -261,8 +292,8 @@ pub(super) async fn trackable_summary(
     Ok(Json(list_stored(&state, TRACKABLE).await?))
 }
 
-/// `POST /v2/trackables`: a UUID is generated when `id` is absent or the nil UUID; 201
-/// with the trackable.
+/// `POST /v2/trackables`: a UUID is generated when `id` is absent, the nil UUID or in use
+/// (omlox: "Creates a new trackable with a randomly generated id"); 201 with the trackable.
 pub(super) async fn create_trackable(
     State(state): State<AppState>,
     headers: HeaderMap,
@@ -274,7 +305,15 @@ pub(super) async fn create_trackable(
     let trackable: Trackable = parse_json(value.to_string().as_bytes())?;
     check_uuid(&trackable.id)?;
     check_rules(&trackable)?;
-    let created = create(&state, &who, TRACKABLE, trackable.id.clone(), &trackable).await?;
+    let created = create(
+        &state,
+        &who,
+        TRACKABLE,
+        trackable.id.clone(),
+        &trackable,
+        IdInUse::Generate,
+    )
+    .await?;
     refresh_trackables(&state).await;
     Ok(created)
 }
@@ -443,30 +482,49 @@ fn forget_locations(state: &AppState) -> usize {
 
 // ---- stored configuration helpers ----
 
+/// What a create does when the object's id is in use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum IdInUse {
+    /// A 400 naming `id` (providers: the id is the device's own, e.g. its MAC address).
+    Refuse,
+    /// A new object under a generated UUIDv4: omlox's POST /trackables "Creates a new
+    /// trackable with a randomly generated id", POST /zones "The provided id will be replaced
+    /// by a generated uuid" — here only when the given one is taken.
+    Generate,
+}
+
+/// Stores `object` (whose `id` is `id`) as a new `kind`; 201 with it as stored.
+///
+/// # Errors
+/// A 400 naming `id` when it is in use and `in_use` is [`IdInUse::Refuse`]; 503 when the store
+/// fails.
 pub(super) async fn create<T: Serialize>(
     state: &AppState,
     who: &Principal,
     kind: &'static str,
     id: String,
     object: &T,
+    in_use: IdInUse,
 ) -> ApiResult<Response> {
-    let json =
-        serde_json::to_string(object).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
-    let body: Value = serde_json::from_str(&json).unwrap_or(Value::Null);
+    let mut body =
+        serde_json::to_value(object).map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
     // one call under the query connection's lock: no other request can create it in between
-    let key = id.clone();
-    let created = state
-        .query(move |store| match store.get_config(kind, &key)? {
-            Some(_) => Ok(false),
-            None => store.put_config(kind, &key, &json),
+    let stored = state
+        .query(move |store| {
+            let mut key = id;
+            while store.get_config(kind, &key)?.is_some() {
+                if in_use == IdInUse::Refuse {
+                    return Ok(Err(key));
+                }
+                key = uuid::Uuid::new_v4().to_string();
+            }
+            body["id"] = Value::String(key.clone());
+            store.put_config(kind, &key, &body.to_string())?;
+            Ok(Ok((key, body)))
         })
         .await?;
-    if !created {
-        return Err(ApiError::field(
-            "id",
-            format!("a {kind} `{id}` exists; use PUT to replace it"),
-        ));
-    }
+    let (id, body) =
+        stored.map_err(|id| ApiError::field("id", format!("a {kind} `{id}` exists; use PUT to replace it")))?;
     state.audit(who, &format!("{kind}-created"), &id).await;
     Ok((StatusCode::CREATED, Json(body)).into_response())
 }

@@ -350,7 +350,7 @@ pub(super) fn same_as_path(field: &str, in_body: &str, in_path: &str) -> ApiResu
 /// A 400 with `field` (e.g. `location_providers[1]`) and serde's message.
 pub fn parse_json<T: DeserializeOwned>(body: &[u8]) -> ApiResult<T> {
     let mut deserializer = serde_json::Deserializer::from_slice(body);
-    serde_path_to_error::deserialize(&mut deserializer).map_err(|error| {
+    let value = serde_path_to_error::deserialize(&mut deserializer).map_err(|error| {
         let path = error.path().to_string();
         let message = error.into_inner().to_string();
         if path == "." {
@@ -358,7 +358,12 @@ pub fn parse_json<T: DeserializeOwned>(body: &[u8]) -> ApiResult<T> {
         } else {
             ApiError::field(path, message)
         }
-    })
+    })?;
+    // one JSON value and nothing after it but whitespace (`5garbage` is not JSON)
+    deserializer
+        .end()
+        .map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, format!("request body: {e}")))?;
+    Ok(value)
 }
 
 /// The largest request body accepted (bytes).

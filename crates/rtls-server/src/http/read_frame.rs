@@ -4,10 +4,15 @@
 //! `/v2/trackables/{id}/motion`, `/v2/trackables/motions`, `/v2/fences/summary`,
 //! `/v2/fences/{id}`, `/v2/fences/{id}/locations` and `/v2/fences/{id}/motions`.
 //!
-//! - `crs`: `local` (the default, omlox's for locations) is the site's metres; `EPSG:4326` is
-//!   WGS-84 (longitude and latitude in degrees, height in m above the ellipsoid) through the
-//!   site's `[frame]` georeference; any other CRS is a 400 naming `crs`, as is `EPSG:4326` on a
-//!   site without a frame.
+//! - `crs`: `local` is the site's metres; `EPSG:4326` is WGS-84 (longitude and latitude in
+//!   degrees, height in m above the ellipsoid) through the site's `[frame]` georeference; any
+//!   other CRS is a 400 naming `crs`, as is `EPSG:4326` on a site without a frame. Without
+//!   `crs` and `zone_id` a location or motion is in `local` (omlox's default for a Location)
+//!   and a fence in `EPSG:4326` (omlox's for a Fence: "If crs is not present, 'EPSG:4326' MUST
+//!   be assumed as the default", and getAllFences' "Returned fence objects use EPSG:4326") when
+//!   the site has a `[frame]`; on a site without one a fence is `local`, with `zone_id` the
+//!   site's own zone (omlox: `zone_id` "MUST be present in case crs projection is set to
+//!   'local'"), since there is no WGS-84 to give. Every fence in `local` names that zone.
 //! - `zone_id` ("the zone id to be used to project coordinates"): local coordinates in that
 //!   zone's frame. The site's own zone is the site's metres; a stored zone's frame is the
 //!   least-squares affine map of its ground control points (`zone_frame`, the map
@@ -61,21 +66,73 @@ enum Projection {
     },
 }
 
+/// The frame a read without `crs` and `zone_id` answers in (module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Fallback {
+    /// The site's metres: omlox's `local`, a Location's default.
+    Local,
+    /// WGS-84 when the site has a `[frame]`, else its metres: a Fence's default, and GeoJSON's.
+    Wgs84WhenGeoreferenced,
+}
+
 /// The frame and form a read answers in, from its query (see the module documentation).
 #[derive(Debug, Clone, PartialEq)]
 pub(super) struct ReadFrame {
     projection: Projection,
     geojson: bool,
+    /// The site's own zone, named by a fence in its metres (`crs: "local"` needs a `zone_id`).
+    site_zone_id: String,
 }
 
 impl ReadFrame {
-    /// The frame `query` (a raw query string) asks for.
+    /// The frame `query` (a raw query string) asks for on a read of locations or motions:
+    /// without `crs` and `zone_id`, `local` (site metres), unless `geojson=true`.
     ///
     /// # Errors
     /// 400 naming `crs` for a CRS other than `local` and `EPSG:4326`, or `EPSG:4326` on a site
     /// without a `[frame]`; 404 for an unknown `zone_id`; 400 naming `zone_id` for a zone whose
     /// frame cannot be computed.
     pub(super) async fn of(state: &AppState, query: Option<&str>) -> ApiResult<Self> {
+        Self::with_default(state, query, Fallback::Local).await
+    }
+
+    /// The frame `query` asks for on a read of fences: without `crs` and `zone_id`, EPSG:4326
+    /// when the site has a `[frame]`, else `local` with the site's zone as `zone_id`.
+    ///
+    /// # Errors
+    /// As [`Self::of`].
+    pub(super) async fn of_fences(state: &AppState, query: Option<&str>) -> ApiResult<Self> {
+        Self::with_default(state, query, Fallback::Wgs84WhenGeoreferenced).await
+    }
+
+    /// The default frame of a fence read without a query (as [`Self::of_fences`]).
+    pub(super) fn fence_default(state: &AppState) -> Self {
+        Self {
+            projection: state
+                .site
+                .frame
+                .map_or(Projection::Site, |f| Projection::Wgs84(ZoneFrame::Site(f))),
+            geojson: false,
+            site_zone_id: site_zone(state).id,
+        }
+    }
+
+    /// The frame a fence written in `crs` is answered in: the one it was written in (`local`
+    /// as site metres, anything else as WGS-84 where the site has a `[frame]`).
+    pub(super) fn written_in(state: &AppState, crs: Option<&str>) -> Self {
+        let local = Self {
+            projection: Projection::Site,
+            geojson: false,
+            site_zone_id: site_zone(state).id,
+        };
+        match Crs::parse(crs) {
+            Ok(Crs::Local) if crs.is_some() => local,
+            _ => Self::fence_default(state),
+        }
+    }
+
+    /// The frame `query` asks for, `default` without `crs` and `zone_id`.
+    async fn with_default(state: &AppState, query: Option<&str>, default: Fallback) -> ApiResult<Self> {
         let geojson = query_value(query, "geojson").as_deref() == Some("true");
         let wgs84 = match query_value(query, "crs") {
             None => None,
@@ -120,11 +177,17 @@ impl ReadFrame {
                     zone: fitted,
                 }
             }
-            // RFC 7946: GeoJSON is WGS-84 when the site can give it
-            (None, None) if geojson => site_frame.map_or(Projection::Site, Projection::Wgs84),
+            // RFC 7946: GeoJSON is WGS-84 when the site can give it; omlox: so is a fence
+            (None, None) if geojson || default == Fallback::Wgs84WhenGeoreferenced => {
+                site_frame.map_or(Projection::Site, Projection::Wgs84)
+            }
             (_, None) => Projection::Site,
         };
-        Ok(Self { projection, geojson })
+        Ok(Self {
+            projection,
+            geojson,
+            site_zone_id: site_zone(state).id,
+        })
     }
 
     /// The omlox `crs` of the coordinates this frame gives.
@@ -197,13 +260,15 @@ impl ReadFrame {
         Ok(TrackableMotion::of(trackable, self.location(location)?))
     }
 
-    /// A fence (site metres) in this frame: its region's positions, `crs`, and `zone_id` in a
-    /// zone's frame.
+    /// A fence (site metres) in this frame: its region's positions, `crs`, and `zone_id` in
+    /// `local` (the site's zone in site metres, the zone's in a zone's frame; none in WGS-84).
     ///
     /// # Errors
     /// As [`Self::position`].
     pub(super) fn fence(&self, mut fence: Fence) -> ApiResult<Fence> {
         if self.projection == Projection::Site {
+            fence.crs = Some("local".into());
+            fence.zone_id = Some(self.site_zone_id.clone());
             return Ok(fence);
         }
         fence.region = match fence.region {
@@ -218,9 +283,10 @@ impl ReadFrame {
             },
         };
         fence.crs = Some(self.crs().into());
-        if let Projection::Zone { id, .. } = &self.projection {
-            fence.zone_id = Some(id.clone());
-        }
+        fence.zone_id = match &self.projection {
+            Projection::Zone { id, .. } => Some(id.clone()),
+            _ => None,
+        };
         Ok(fence)
     }
 
@@ -266,6 +332,7 @@ pub(super) fn in_frame(mut location: Location, frame: Option<&FrameSettings>) ->
         let wgs84 = ReadFrame {
             projection: Projection::Wgs84(ZoneFrame::Site(*frame)),
             geojson: false,
+            site_zone_id: String::new(),
         };
         // (a position the frame cannot take stays as it is)
         let _ = wgs84.project(&mut location);

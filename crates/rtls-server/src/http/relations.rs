@@ -66,9 +66,12 @@ fn fence_with_tags(state: &AppState, fence_id: &str, spatial: bool) -> ApiResult
     Ok((fence, tags))
 }
 
-/// The fences one of `tags` is inside, in the fence list's order; only those tags' states are
-/// read.
-fn fences_of(state: &AppState, tags: &[String], spatial: bool) -> Vec<Fence> {
+/// The fences one of `tags` is inside, in the fence list's order and the fence reads' default
+/// frame; only those tags' states are read.
+///
+/// # Errors
+/// A region the frame cannot take ([`ReadFrame::fence`]).
+fn fences_of(state: &AppState, tags: &[String], spatial: bool) -> ApiResult<Vec<Fence>> {
     let live = state.pipeline.live();
     // a tag whose latest location was deleted is inside nothing until its next update
     let located: Vec<(&String, [f64; 3])> = tags
@@ -76,8 +79,9 @@ fn fences_of(state: &AppState, tags: &[String], spatial: bool) -> Vec<Fence> {
         .filter_map(|tag| live.tag(tag).map(|s| (tag, s.position_m)))
         .collect();
     if located.is_empty() {
-        return Vec::new();
+        return Ok(Vec::new());
     }
+    let read = ReadFrame::fence_default(state);
     let occupants = (!spatial).then(|| live.occupants());
     live.zones()
         .iter()
@@ -87,7 +91,7 @@ fn fences_of(state: &AppState, tags: &[String], spatial: bool) -> Vec<Fence> {
                 .get(&zone.id)
                 .is_some_and(|inside| located.iter().any(|(tag, _)| inside.contains(*tag))),
         })
-        .map(fence_from_zone)
+        .map(|zone| read.fence(fence_from_zone(zone)))
         .collect()
 }
 
@@ -143,8 +147,9 @@ async fn providers_by_id(state: &AppState, ids: impl IntoIterator<Item = String>
 
 // ---- providers ----
 
-/// `GET /v2/providers/{provider_id}/fences`: the fences the provider is inside; 404 for an
-/// unknown provider (neither stored nor tracked).
+/// `GET /v2/providers/{provider_id}/fences`: the fences the provider is inside, in the fence
+/// reads' default frame ([`ReadFrame::fence_default`]: EPSG:4326 where the site has a
+/// `[frame]`); 404 for an unknown provider (neither stored nor tracked).
 pub(super) async fn provider_fences(
     State(state): State<AppState>,
     Path(provider_id): Path<String>,
@@ -154,7 +159,7 @@ pub(super) async fn provider_fences(
     state.authorize(&headers, Access::Read)?;
     let spatial = spatial_query(query.as_deref())?;
     known_provider_or_404(&state, &provider_id).await?;
-    Ok(Json(fences_of(&state, &[provider_id], spatial)))
+    fences_of(&state, &[provider_id], spatial).map(Json)
 }
 
 /// `GET /v2/providers/{provider_id}/trackables`: the stored trackables the provider is
@@ -175,7 +180,8 @@ pub(super) async fn provider_trackables(
 // ---- trackables ----
 
 /// `GET /v2/trackables/{trackable_id}/fences`: the fences one of the providers whose locations
-/// it takes is inside; 404 for an unknown trackable.
+/// it takes is inside, in the fence reads' default frame (as [`provider_fences`]); 404 for an
+/// unknown trackable.
 pub(super) async fn trackable_fences(
     State(state): State<AppState>,
     Path(trackable_id): Path<String>,
@@ -186,7 +192,7 @@ pub(super) async fn trackable_fences(
     let spatial = spatial_query(query.as_deref())?;
     let trackable = stored_trackable(&state, &trackable_id).await?;
     let providers = taken_providers(&state, &trackable);
-    Ok(Json(fences_of(&state, &providers, spatial)))
+    fences_of(&state, &providers, spatial).map(Json)
 }
 
 /// `GET /v2/trackables/{trackable_id}/locations`: the latest location of each of its

@@ -20,7 +20,7 @@ use axum::response::Response;
 use axum::Json;
 use serde_json::Value;
 
-use super::hub::{create, delete, delete_all, replace};
+use super::hub::{create, delete, delete_all, replace, IdInUse};
 use super::stored::{get_stored, list_stored};
 use super::zone_frame::{fence_ring_m, ZoneFrame};
 use super::zone_store::{is_proximity, site_zone, zone, ZONE};
@@ -48,10 +48,10 @@ pub(super) fn zone_by_source<'a>(zones: &'a [Zone], source: &str) -> Option<&'a 
         .find(|z| z.id.eq_ignore_ascii_case(source) || z.foreign_id.as_deref() == Some(source))
 }
 
-/// A 400 for a change to the site's own zone.
+/// A 400 naming `zone_id` for a change to the site's own zone.
 fn site_zone_is_read_only(zone_id: &str) -> ApiError {
-    ApiError::new(
-        StatusCode::BAD_REQUEST,
+    ApiError::field(
+        "zone_id",
         format!("zone `{zone_id}` is the site's own (from the site file) and cannot be changed here"),
     )
 }
@@ -95,19 +95,21 @@ pub(super) async fn get(
     zone(&state, &zone_id).await.map(Json)
 }
 
-/// `POST /v2/zones`: 201 with the stored zone. A UUID is assigned when `id` is absent or
-/// the nil UUID (as for trackables and fences); 400 naming the field of an invalid zone or of
-/// an id in use.
+/// `POST /v2/zones`: 201 with the stored zone. A UUID is assigned when `id` is absent, the
+/// nil UUID (as for trackables and fences) or in use (omlox: "The provided id will be replaced
+/// by a generated uuid" — here only then); 400 naming the field of an invalid zone.
 pub(super) async fn create_zone(State(state): State<AppState>, headers: HeaderMap, body: Bytes) -> ApiResult<Response> {
     let who = state.authorize(&headers, Access::Write)?;
     let mut value: Value = parse_json(&body)?;
     super::assign_id_if_unset(&mut value);
     let zone: Zone = parse_json(value.to_string().as_bytes())?;
     validate(&zone)?;
+    let mut zone = zone;
     if zone.id.eq_ignore_ascii_case(&site_zone(&state).id) {
-        return Err(ApiError::field("id", "the site's own zone has this id"));
+        // the site's own zone has this id: a new one, as for any id in use
+        zone.id = uuid::Uuid::new_v4().to_string();
     }
-    create(&state, &who, ZONE, zone.id.clone(), &zone).await
+    create(&state, &who, ZONE, zone.id.clone(), &zone, IdInUse::Generate).await
 }
 
 /// `PUT /v2/zones/{zone_id}`: replaces a stored zone (a body without `id` takes the path's);
@@ -157,7 +159,8 @@ pub(super) async fn delete_all_zones(State(state): State<AppState>, headers: Hea
 }
 
 /// `GET /v2/zones/{zone_id}/createfence`: makes a fence of the zone's area and watches it like
-/// any fence (stored, applied live to the trackers); 200 with the fence.
+/// any fence (stored, applied live to the trackers); 200 with the fence, in the fence reads'
+/// default frame (EPSG:4326 where the site has a `[frame]`).
 ///
 /// The fence's id is derived from the zone's ([`uuid_for`]`("zone-fence", zone id)`), so
 /// calling it again replaces that fence with the zone's current geometry instead of adding
@@ -308,7 +311,9 @@ fn validate(zone: &Zone) -> ApiResult<()> {
             ));
         }
     }
-    if let Some(radius) = zone.radius {
+    // omlox Zone.radius: "The radius MUST be ignored for non-proximity based position
+    // providers" (kept as given, unchecked, on those)
+    if let Some(radius) = zone.radius.filter(|_| is_proximity(zone.kind)) {
         if !(radius.is_finite() && radius > 0.0) {
             return Err(ApiError::field("radius", "must be > 0 m"));
         }

@@ -116,9 +116,11 @@ fn rings<'de, D: serde::Deserializer<'de>>(deserializer: D) -> std::result::Resu
     Ok(rings)
 }
 
-/// A fence's region: a Point (with the fence's `radius`) or a Polygon.
+/// A fence's region: a Point (with the fence's `radius`) or a Polygon. Members other than
+/// `type` and `coordinates` are ignored (RFC 7946 §6.1's foreign members; the spec's Point and
+/// Polygon schemas do not close their objects).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "type", deny_unknown_fields)]
+#[serde(tag = "type")]
 pub enum Region {
     /// A circle around a point (radius in [`Fence::radius`], m).
     Point {
@@ -188,7 +190,6 @@ impl ProviderType {
 /// Coordinates in the `crs` (absent = `local`, metres), `accuracy` m (horizontal), `speed` m/s,
 /// `course` degrees clockwise from north, timestamps ISO 8601 UTC.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Location {
     /// The position.
     pub position: Point,
@@ -200,46 +201,46 @@ pub struct Location {
     /// The location provider's id (e.g. a tag's MAC address).
     pub provider_id: String,
     /// When the location was computed (ISO 8601 UTC).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub timestamp_generated: Option<String>,
     /// When the location was sent (ISO 8601 UTC).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub timestamp_sent: Option<String>,
     /// `local` or an EPSG id such as `EPSG:4326`; absent means `local`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub crs: Option<String>,
     /// Whether a Wi-Fi client is associated.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub associated: Option<bool>,
     /// Horizontal accuracy, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub accuracy: Option<f64>,
     /// Logical floor (0 = ground; fractional for mezzanines).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub floor: Option<f64>,
     /// True heading, degrees (negative = unavailable).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub true_heading: Option<f64>,
     /// Magnetic heading, degrees (negative = unavailable).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub magnetic_heading: Option<f64>,
     /// Heading accuracy, degrees.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub heading_accuracy: Option<f64>,
     /// `floor` (default) or `wgs84`: what the z coordinate is relative to.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub elevation_ref: Option<String>,
     /// Speed, m/s.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub speed: Option<f64>,
     /// Course, degrees clockwise from north (0 = north, 90 = east).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub course: Option<f64>,
     /// Ids of the trackables the provider is assigned to.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub trackables: Option<Vec<String>>,
     /// Application properties.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub properties: Option<Properties>,
 }
 
@@ -420,7 +421,6 @@ pub enum ZoneType {
 /// An omlox zone (`#/components/schemas/Zone`): the area and local frame of one positioning
 /// system — not a geofence (that is a [`Fence`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Zone {
     /// UUID.
     pub id: String,
@@ -428,86 +428,87 @@ pub struct Zone {
     #[serde(rename = "type")]
     pub kind: ZoneType,
     /// Foreign id (e.g. our site name).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub foreign_id: Option<String>,
     /// Position in EPSG:4326.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub position: Option<Point>,
     /// Proximity radius, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub radius: Option<f64>,
     /// Pairs of `[longitude, latitude]`, `[x, y]` mapping the local frame to WGS84.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub ground_control_points: Option<Vec<Vec<f64>>>,
     /// `true` while the configuration (e.g. ground control points) is incomplete.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub incomplete_configuration: Option<bool>,
     /// When the geographic coordinates were measured (ISO 8601).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub measurement_timestamp: Option<String>,
     /// Site.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub site: Option<String>,
     /// Building.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub building: Option<String>,
     /// Floor (0 = ground).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub floor: Option<f64>,
     /// Name.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
     /// What the zone is for.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub description: Option<String>,
     /// Address.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub address: Option<String>,
     /// Application properties.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub properties: Option<Properties>,
     /// WGS84 height, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub wgs84_height: Option<f64>,
 }
 
 /// A geofence (`#/components/schemas/Fence`). Without `crs` the spec assumes EPSG:4326, so
 /// fences in site coordinates must carry `crs: "local"`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Fence {
     /// UUID.
     pub id: String,
     /// The region.
     pub region: Region,
     /// Radius around a Point region, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub radius: Option<f64>,
     /// Extrusion (height) of the region, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub extrusion: Option<f64>,
     /// Floor (0 = ground).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub floor: Option<f64>,
     /// Foreign id (our zone id).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub foreign_id: Option<String>,
     /// Name.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
     /// Location expiry, ms (-1 = infinite).
     #[serde(
         default,
+        deserialize_with = "not_null",
         serialize_with = "integral_if_whole",
         skip_serializing_if = "Option::is_none"
     )]
     pub timeout: Option<f64>,
     /// Exit distance tolerance, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub exit_tolerance: Option<f64>,
     /// Tolerance timeout, ms.
     #[serde(
         default,
+        deserialize_with = "not_null",
         serialize_with = "integral_if_whole",
         skip_serializing_if = "Option::is_none"
     )]
@@ -515,21 +516,22 @@ pub struct Fence {
     /// Exit delay, ms.
     #[serde(
         default,
+        deserialize_with = "not_null",
         serialize_with = "integral_if_whole",
         skip_serializing_if = "Option::is_none"
     )]
     pub exit_delay: Option<f64>,
     /// `local` or an EPSG id; absent means EPSG:4326.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub crs: Option<String>,
     /// The omlox zone whose local frame a `local` fence uses.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub zone_id: Option<String>,
     /// `floor` or `wgs84`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub elevation_ref: Option<String>,
     /// Application properties.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub properties: Option<Properties>,
 }
 
@@ -691,7 +693,6 @@ pub struct CollisionEvent {
 /// # Units
 /// `accuracy` m (the estimated distance to the emitter), timestamps ISO 8601 UTC.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Proximity {
     /// The proximity system's zone id or foreign id.
     pub source: String,
@@ -700,22 +701,21 @@ pub struct Proximity {
     /// The provider's id (e.g. an RFID tag's UID).
     pub provider_id: String,
     /// When the proximity was detected (ISO 8601 UTC).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub timestamp_generated: Option<String>,
     /// When it was sent (ISO 8601 UTC).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub timestamp_sent: Option<String>,
     /// Estimated distance to the emitter, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub accuracy: Option<f64>,
     /// Application properties.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "not_null", skip_serializing_if = "Option::is_none")]
     pub properties: Option<Properties>,
 }
 
 /// A position to transform with a zone (`#/components/schemas/SimpleTransform`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct SimpleTransform {
     /// The position: `[x, y(, z)]` m (`local`) or `[longitude, latitude(, height)]` (`EPSG:4326`).
     pub position: Point,
