@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 pub const LOG_PERIOD: Duration = Duration::from_secs(10);
 
 /// Decides whether an occurrence is logged: the first one, then the first after each
-/// [`LogLimiter::period`]; counts the others.
+/// its period (`LogLimiter::new`); counts the others.
 #[derive(Debug, Clone)]
 pub struct LogLimiter {
     period: Duration,

@@ -97,7 +97,7 @@ fn limit_from(limit: usize) -> i64 {
 impl SqliteStore {
     /// Opens (creating if missing) the database file at `path`, switches it to the WAL
     /// journal, sets `synchronous` per `sync`, a busy handler that waits up to 5 s for another
-    /// connection's lock ([`wait_for_lock`]) and `foreign_keys=ON`, and applies the schema
+    /// connection's lock (`sqlite_lock.rs`) and `foreign_keys=ON`, and applies the schema
     /// migrations this build knows.
     ///
     /// # Errors
