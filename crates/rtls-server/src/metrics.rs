@@ -10,6 +10,19 @@ use prometheus_client::registry::Registry;
 /// Labels of a family: `(name, value)` pairs.
 pub type Labels = Vec<(String, String)>;
 
+/// The counter of `family` labelled `{owner_label}="{owner}", outcome="{outcome}"` (registered
+/// at 0, so a scrape shows every outcome of a webhook, NATS forward or UDP listener from its
+/// start).
+#[must_use]
+pub fn outcome_counter(family: &Family<Labels, Counter>, owner_label: &str, owner: &str, outcome: &str) -> Counter {
+    family
+        .get_or_create(&vec![
+            (owner_label.to_string(), owner.to_string()),
+            ("outcome".into(), outcome.to_string()),
+        ])
+        .clone()
+}
+
 /// The server's metrics; every field is registered under `rtls_…`.
 #[derive(Debug)]
 pub struct Metrics {

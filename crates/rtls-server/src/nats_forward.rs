@@ -40,7 +40,7 @@ use tokio::task::JoinHandle;
 
 use crate::config::{ConfigError, ForwardTopic, NatsForwardSection};
 use crate::log_limit::LogLimiter;
-use crate::metrics::Metrics;
+use crate::metrics::{outcome_counter, Metrics};
 use crate::omlox::ws::Topic;
 use crate::pipeline::HubMessage;
 
@@ -150,15 +150,7 @@ struct Counters {
 impl Counters {
     /// Registers (at 0) the forward's two series.
     fn new(metrics: &Metrics, forward: &str) -> Self {
-        let counter = |outcome: &str| {
-            metrics
-                .nats_forward
-                .get_or_create(&vec![
-                    ("forward".into(), forward.to_string()),
-                    ("outcome".into(), outcome.to_string()),
-                ])
-                .clone()
-        };
+        let counter = |outcome: &str| outcome_counter(&metrics.nats_forward, "forward", forward, outcome);
         Self {
             published: counter("published"),
             dropped: counter("dropped"),

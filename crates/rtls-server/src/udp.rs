@@ -42,7 +42,7 @@ use tokio::task::JoinHandle;
 
 use crate::adapters::Vendor;
 use crate::log_limit::LogLimiter;
-use crate::metrics::Metrics;
+use crate::metrics::{outcome_counter, Metrics};
 use crate::pipeline::Pipeline;
 use crate::sink::IngestError;
 
@@ -66,15 +66,7 @@ struct Counters {
 impl Counters {
     /// Registers (at 0) the listener's three series.
     fn new(metrics: &Metrics, listener: &str) -> Self {
-        let counter = |outcome: &str| {
-            metrics
-                .udp_datagrams
-                .get_or_create(&vec![
-                    ("listener".into(), listener.to_string()),
-                    ("outcome".into(), outcome.to_string()),
-                ])
-                .clone()
-        };
+        let counter = |outcome: &str| outcome_counter(&metrics.udp_datagrams, "listener", listener, outcome);
         Self {
             accepted: counter("accepted"),
             refused: counter("refused"),

@@ -52,7 +52,7 @@ use tokio::task::JoinHandle;
 pub use delivery::{backoff, signature};
 
 use crate::config::{ConfigError, WebhookSection};
-use crate::metrics::Metrics;
+use crate::metrics::{outcome_counter, Metrics};
 use crate::omlox::ws::Topic;
 use crate::pipeline::HubMessage;
 
@@ -167,15 +167,7 @@ struct Counters {
 impl Counters {
     /// Registers (at 0) the webhook's four series.
     fn new(metrics: &Metrics, webhook: &str) -> Self {
-        let counter = |outcome: &str| {
-            metrics
-                .webhook_deliveries
-                .get_or_create(&vec![
-                    ("webhook".into(), webhook.to_string()),
-                    ("outcome".into(), outcome.to_string()),
-                ])
-                .clone()
-        };
+        let counter = |outcome: &str| outcome_counter(&metrics.webhook_deliveries, "webhook", webhook, outcome);
         Self {
             delivered: counter("delivered"),
             retried: counter("retried"),
