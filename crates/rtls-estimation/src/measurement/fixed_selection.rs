@@ -5,7 +5,8 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::noise_covariance::checked_covariance;
-use crate::error::{EstimationError, Result};
+use super::position::check_indices;
+use crate::error::Result;
 use crate::gaussian::Vector;
 
 /// `z = H x + v` with row `r` of `H` the unit row selecting state index `indices[r]`, and
@@ -41,23 +42,12 @@ impl<const N: usize, const M: usize> FixedSelection<N, M> {
     ///
     /// # Errors
     /// First the noise's, as [`NoiseCovariance::full`](super::NoiseCovariance::full) (an empty
-    /// `R` when `M` is 0); then [`EstimationError::InvalidParameter`] naming `indices` if an
+    /// `R` when `M` is 0); then [`EstimationError::InvalidParameter`](crate::EstimationError::InvalidParameter) naming `indices` if an
     /// index is not below `N` or an index repeats (the errors and order of
     /// `NoiseCovariance::full` followed by `ComponentSelection::new`).
     pub fn new(indices: [usize; M], noise: SMatrix<f64, M, M>) -> Result<Self> {
         let noise = checked_covariance(noise)?;
-        if indices.iter().any(|&i| i >= N) {
-            return Err(EstimationError::InvalidParameter {
-                name: "indices",
-                reason: "every index must be below the state dimension N",
-            });
-        }
-        if indices.iter().enumerate().any(|(k, i)| indices[..k].contains(i)) {
-            return Err(EstimationError::InvalidParameter {
-                name: "indices",
-                reason: "an index appears more than once",
-            });
-        }
+        check_indices::<N>(&indices)?;
         Ok(Self { indices, noise })
     }
 

@@ -61,18 +61,7 @@ impl<const N: usize> ComponentSelection<N> {
                 reason: "select at least one state component",
             });
         }
-        if indices.iter().any(|&i| i >= N) {
-            return Err(EstimationError::InvalidParameter {
-                name: "indices",
-                reason: "every index must be below the state dimension N",
-            });
-        }
-        if indices.iter().enumerate().any(|(k, i)| indices[..k].contains(i)) {
-            return Err(EstimationError::InvalidParameter {
-                name: "indices",
-                reason: "an index appears more than once",
-            });
-        }
+        check_indices::<N>(indices)?;
         if noise.dim() != indices.len() {
             return Err(EstimationError::DimensionMismatch {
                 what: "measurement noise covariance",
@@ -203,6 +192,26 @@ impl<const N: usize> LinearMeasurementModel<N> for ComponentSelection<N> {
     fn matrix(&self) -> &MeasurementJacobian<N> {
         &self.h
     }
+}
+
+/// State indices a measurement selects: each below `N`, none repeated.
+///
+/// # Errors
+/// [`EstimationError::InvalidParameter`] naming `indices`.
+pub(crate) fn check_indices<const N: usize>(indices: &[usize]) -> Result<()> {
+    if indices.iter().any(|&i| i >= N) {
+        return Err(EstimationError::InvalidParameter {
+            name: "indices",
+            reason: "every index must be below the state dimension N",
+        });
+    }
+    if indices.iter().enumerate().any(|(k, i)| indices[..k].contains(i)) {
+        return Err(EstimationError::InvalidParameter {
+            name: "indices",
+            reason: "an index appears more than once",
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]
