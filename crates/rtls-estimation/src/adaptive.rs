@@ -64,6 +64,7 @@
 //! IEEE Trans. Automatic Control 21(4), 1976; A. H. Mohamed & K. P. Schwarz, "Adaptive Kalman
 //! filtering for INS/GPS", Journal of Geodesy 73, 1999 (innovation-based adaptive estimation).
 
+pub mod corrections;
 pub mod correlation;
 
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};

@@ -53,6 +53,7 @@ fn accepted_keys() -> BTreeSet<String> {
         ("tracker.adaptive_noise", fields_of::<AdaptiveNoiseSettings>("")),
         ("tracker.heading", fields_of::<HeadingSettings>("")),
         ("tracker.range_bias", fields_of::<RangeBiasSettings>("")),
+        ("tracker.consistency", fields_of::<ConsistencySettings>("")),
         ("tracker.gnss", fields_of::<GnssSettings>("")),
         ("tracker.map", fields_of::<MapSettings>("")),
         ("anonymous", fields_of::<AnonymousTrackerSettings>("")),

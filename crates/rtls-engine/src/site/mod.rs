@@ -12,6 +12,7 @@
 //! - Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking and
 //!   Navigation*, Wiley 2001: gates (§2.6), M-of-N track initiation and deletion.
 
+mod consistency;
 mod keys;
 mod limits;
 mod load;
@@ -20,6 +21,7 @@ pub mod platform;
 mod ranges;
 mod readers;
 
+pub use consistency::ConsistencySettings;
 pub use limits::{read_text_file, MAX_RADIO_MAP_BYTES, MAX_RADIO_MAP_ROWS, MAX_SITE_BYTES, MAX_ZONE_VERTICES};
 pub use options::{
     AdaptiveNoiseSettings, AlarmSettings, Corridor, FloorPlan, FrameSettings, GeodeticOrigin, GnssSettings,
@@ -336,6 +338,10 @@ pub struct TrackerSettings {
     /// Self-calibration of ranges: each anchor's offset estimated by each track (on by default).
     #[serde(default)]
     pub range_bias: RangeBiasSettings,
+    /// The test of each track's consistency from its corrections, and the covariance inflation
+    /// when it fails (on by default).
+    #[serde(default)]
+    pub consistency: ConsistencySettings,
     /// The heading channel (yaw rates, odometry without heading, IMU samples).
     #[serde(default)]
     pub heading: HeadingSettings,

@@ -123,6 +123,9 @@ const CORRELATION_S: Bounds = Bounds::closed(0.0, 3600.0, "s");
 const BIAS_PRIOR_STD_M: Bounds = Bounds::closed(1e-4, 100.0, "m");
 const BIAS_RANDOM_WALK: Bounds = Bounds::closed(0.0, 10.0, "m/√s");
 const BIAS_MAX_M: Bounds = Bounds::closed(1e-3, 1000.0, "m");
+const CONSISTENCY_WINDOW_S: Bounds = Bounds::closed(0.1, 3600.0, "s");
+const CONSISTENCY_PROBABILITY: Bounds = Bounds::closed(0.5, 0.999_999, "");
+const MAX_INFLATION: Bounds = Bounds::closed(1.0, 1e6, "(multiple of the covariance)");
 const RATE_STD_RADPS: Bounds = Bounds::closed(1e-7, 10.0, "rad/s");
 const RATE_RANDOM_WALK: Bounds = Bounds::closed(1e-9, 1.0, "rad/s/√s");
 const ANGLE_RANDOM_WALK: Bounds = Bounds::closed(1e-7, 10.0, "rad/√s");
@@ -485,6 +488,13 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
             BIAS_RANDOM_WALK,
         ),
         ("range_bias.max_abs_m", range_bias.max_abs_m, BIAS_MAX_M),
+        ("consistency.window_s", t.consistency.window_s, CONSISTENCY_WINDOW_S),
+        (
+            "consistency.probability",
+            t.consistency.probability,
+            CONSISTENCY_PROBABILITY,
+        ),
+        ("consistency.max_inflation", t.consistency.max_inflation, MAX_INFLATION),
     ] {
         out.push(within(at(key), value, bounds));
     }

@@ -29,7 +29,7 @@ use rtls_estimation::measurement::MeasurementJacobian;
 use super::heading_cross::HeadingCross;
 use super::noise::{NoiseClass, Source};
 use super::output::{Output, UpdateSource};
-use super::step::{accept, Prior, Verdict};
+use super::step::{accept, apply_fading, Prior, Verdict};
 use super::track::{rejected, Shared, Track};
 use crate::error::Result;
 
@@ -107,6 +107,7 @@ pub(super) fn speed_update<const N: usize>(
             let taken = accept(shared, track, updated, None, kind, UpdateSource::Velocity, out)? == Verdict::Taken;
             if taken {
                 track.heading_cross = Some(HeadingCross::new(time_s, result.cross_covariance));
+                apply_fading(track)?;
             }
             Ok(taken)
         }

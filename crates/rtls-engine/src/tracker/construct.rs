@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use rtls_estimation::adaptive::corrections::CorrectionTest;
 use rtls_estimation::adaptive::correlation::ErrorCorrelation;
 use rtls_estimation::adaptive::AdaptiveNoise;
 use rtls_estimation::aided::HeadingModel;
@@ -122,6 +123,15 @@ impl Tracker {
                     settings.range_bias.prior_std_m,
                     settings.range_bias.random_walk_m_per_sqrt_s,
                     settings.range_bias.max_abs_m,
+                )?)
+            } else {
+                None
+            },
+            consistency: if settings.consistency.enabled {
+                Some(CorrectionTest::new(
+                    settings.consistency.window_s,
+                    settings.consistency.probability,
+                    settings.consistency.max_inflation,
                 )?)
             } else {
                 None

@@ -49,6 +49,11 @@ impl<const N: usize> HeadingCross<N> {
         Ok(Self { time_s, cross })
     }
 
+    /// `X ← c X` (the state's covariance scaled by `c²`).
+    pub(super) fn scale(&mut self, c: f64) {
+        self.cross *= c;
+    }
+
     /// After the heading channel predicted over `dt_s` (with a held yaw rate or not):
     /// `X ← X Φᵀ`.
     pub(super) fn after_heading_prediction(&mut self, dt_s: f64, rate_held: bool) {

@@ -174,6 +174,8 @@ mod tests_anonymous;
 #[cfg(test)]
 mod tests_checkpoint;
 #[cfg(test)]
+mod tests_consistency;
+#[cfg(test)]
 mod tests_constraints;
 #[cfg(test)]
 mod tests_correlation;

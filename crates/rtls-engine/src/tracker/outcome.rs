@@ -25,6 +25,33 @@ pub(super) trait UpdateOutcome<const N: usize> {
     fn innovation(&self, i: usize) -> f64;
     /// `Sᵢᵢ`.
     fn innovation_variance(&self, i: usize) -> f64;
+    /// `K[i, j]`.
+    fn gain(&self, i: usize, j: usize) -> f64;
+    /// `S[i, j]`.
+    fn innovation_covariance(&self, i: usize, j: usize) -> f64;
+    /// The update's position correction `Δp = (K ν)_p` and its covariance `(K S Kᵀ)_pp` in the
+    /// CV layout `[x, v_x, y, v_y, z, v_z]` (positions at the even indices), for the first
+    /// `dimensions` axes; the rest 0.
+    fn position_correction(&self, dimensions: usize) -> ([f64; 3], [[f64; 3]; 3]) {
+        let m = self.measurement_dim();
+        let (mut correction, mut covariance) = ([0.0; 3], [[0.0; 3]; 3]);
+        for a in 0..dimensions {
+            // Δp_a = Σ_j K[2a, j] ν_j
+            correction[a] = (0..m).map(|j| self.gain(2 * a, j) * self.innovation(j)).sum();
+            for (b, entry) in covariance[a].iter_mut().enumerate().take(dimensions) {
+                // (K S Kᵀ)[2a, 2b] = Σ_j Σ_l K[2a, j] S[j, l] K[2b, l]
+                *entry = (0..m)
+                    .map(|j| {
+                        let ks: f64 = (0..m)
+                            .map(|l| self.innovation_covariance(j, l) * self.gain(2 * b, l))
+                            .sum();
+                        self.gain(2 * a, j) * ks
+                    })
+                    .sum();
+            }
+        }
+        (correction, covariance)
+    }
     /// [`AdaptiveNoise::observe`] on this update's `ν` and `S` with the stated noise `R`
     /// (row-major `m × m`; its length is checked by the caller).
     fn observe_noise(
@@ -64,6 +91,14 @@ impl<const N: usize> UpdateOutcome<N> for Updated<N> {
 
     fn innovation_variance(&self, i: usize) -> f64 {
         self.innovation_covariance[(i, i)]
+    }
+
+    fn gain(&self, i: usize, j: usize) -> f64 {
+        self.gain[(i, j)]
+    }
+
+    fn innovation_covariance(&self, i: usize, j: usize) -> f64 {
+        self.innovation_covariance[(i, j)]
     }
 
     fn observe_noise(
@@ -114,6 +149,14 @@ impl<const N: usize, const M: usize> UpdateOutcome<N> for FixedUpdated<N, M> {
 
     fn innovation_variance(&self, i: usize) -> f64 {
         self.innovation_covariance[(i, i)]
+    }
+
+    fn gain(&self, i: usize, j: usize) -> f64 {
+        self.gain[(i, j)]
+    }
+
+    fn innovation_covariance(&self, i: usize, j: usize) -> f64 {
+        self.innovation_covariance[(i, j)]
     }
 
     fn observe_noise(

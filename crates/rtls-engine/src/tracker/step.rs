@@ -116,6 +116,22 @@ pub(super) fn accept<const N: usize, U: UpdateOutcome<N>>(
     if shared.constraints.is_some() {
         track.hearing.updated(time_s);
     }
+    if let (Some(test), None) = (&shared.consistency, &shared.manoeuvres) {
+        // the update's pull Δp = (K ν)_p and its expected spread (K S Kᵀ)_pp join the window; a
+        // window pulled one way by more than the covariance admits inflates it
+        let (correction_m, reduction_m2) = updated.position_correction(dimensions::<N>());
+        track.fading = test
+            .observe(
+                &mut track.corrections,
+                time_s,
+                correction_m,
+                reduction_m2,
+                dimensions::<N>(),
+            )
+            .ok()
+            .flatten()
+            .unwrap_or(1.0);
+    }
     track.state = Some(updated.into_state());
     track.lost_state = None;
     if let Some(modes) = modes {
@@ -172,6 +188,8 @@ pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.epoch.clear();
     track.noise = Default::default();
     track.range_bias = Default::default();
+    track.corrections = Default::default();
+    track.fading = 1.0;
     track.rejection_rate = 0.0;
     track.gated_updates = 0;
     track.jump = None;
@@ -227,6 +245,28 @@ pub(super) fn carry_heading_cross<const N: usize>(track: &mut Track<N>, prior: &
     // (nothing to carry, and nothing copied, on a track without speeds)
     if let (Some(cross), Some(posterior)) = (&track.heading_cross, &track.state) {
         track.heading_cross = Some(cross.after_position_update(prior, posterior)?);
+    }
+    apply_fading(track)
+}
+
+/// Applies the inflation `λ` the consistency test of the update just taken asked for
+/// ([`rtls_estimation::adaptive::corrections`]): `P ← λ P` and, so the joint covariance of the
+/// state's and the heading channel's errors stays positive semi-definite
+/// (`diag(√λ I, I) [[P, X], [Xᵀ, P_h]] diag(√λ I, I)`), `X ← √λ X`. Called once the update's
+/// cross-covariance is carried.
+///
+/// # Errors
+/// A covariance that is no longer finite (λ is bounded, so only on an already huge one).
+pub(super) fn apply_fading<const N: usize>(track: &mut Track<N>) -> Result<()> {
+    let lambda = std::mem::replace(&mut track.fading, 1.0);
+    if lambda <= 1.0 {
+        return Ok(());
+    }
+    if let Some(state) = track.state.as_mut() {
+        *state = Gaussian::new(*state.mean(), state.covariance() * lambda, state.time_s())?;
+    }
+    if let Some(cross) = track.heading_cross.as_mut() {
+        cross.scale(lambda.sqrt());
     }
     Ok(())
 }

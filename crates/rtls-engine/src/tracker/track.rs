@@ -5,6 +5,7 @@
 
 use std::sync::Arc;
 
+use rtls_estimation::adaptive::corrections::{CorrectionTest, CorrectionWindow};
 use rtls_estimation::adaptive::correlation::ErrorCorrelation;
 use rtls_estimation::adaptive::AdaptiveNoise;
 use rtls_estimation::aided::HeadingModel;
@@ -75,6 +76,9 @@ pub(crate) struct Shared {
     /// Anchors' range offsets as each track learns them (`[tracker.range_bias]`); `None` when
     /// disabled.
     pub(crate) range_bias: Option<BiasModel>,
+    /// The test of each track's consistency from its corrections (`[tracker.consistency]`);
+    /// `None` when disabled.
+    pub(crate) consistency: Option<CorrectionTest>,
     /// The site frame as ENU about `[frame] origin`; `None` without an origin (pseudoranges
     /// are then refused).
     pub(crate) frame: Option<rtls_positioning::gnss::LocalFrame>,
@@ -150,6 +154,18 @@ pub(crate) struct Track<const N: usize> {
     /// ([`super::jump`]).
     #[serde(default)]
     pub(super) jump: Option<JumpHypothesis<N>>,
+    /// The position corrections of the open consistency window ([`CorrectionTest`]).
+    #[serde(default)]
+    pub(super) corrections: CorrectionWindow,
+    /// The covariance inflation the last update's consistency test asked for, applied by
+    /// [`super::step::apply_fading`] once the update's cross-covariances are carried; 1 when
+    /// none.
+    #[serde(default = "no_fading")]
+    pub(super) fading: f64,
+}
+
+fn no_fading() -> f64 {
+    1.0
 }
 
 impl<const N: usize> Track<N> {
@@ -182,6 +198,8 @@ impl<const N: usize> Track<N> {
             early_closed_s: None,
             held_open_epoch_s: None,
             jump: None,
+            corrections: CorrectionWindow::default(),
+            fading: 1.0,
         }
     }
 
