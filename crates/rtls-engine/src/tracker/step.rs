@@ -116,9 +116,12 @@ pub(super) fn accept<const N: usize, U: UpdateOutcome<N>>(
     if shared.constraints.is_some() {
         track.hearing.updated(time_s);
     }
-    if let (Some(test), None) = (&shared.consistency, &shared.manoeuvres) {
-        // the update's pull Δp = (K ν)_p and its expected spread (K S Kᵀ)_pp join the window; a
-        // window pulled one way by more than the covariance admits inflates it
+    if let (Some(test), None, UpdateSource::Anchors) = (&shared.consistency, &shared.manoeuvres, source) {
+        // a reading's pull Δp = (K ν)_p and its expected spread (K S Kᵀ)_pp join the window; a
+        // window pulled one way by more than the covariance admits inflates it. Fixes do not
+        // take part: a positioning stage's errors persist unseen by the tracker (a fingerprint
+        // snapped to its reference points; seed 002's L-WKNN fixes made its KF 1.08 → 1.76 m
+        // with them in)
         let (correction_m, reduction_m2) = updated.position_correction(dimensions::<N>());
         track.fading = test
             .observe(
