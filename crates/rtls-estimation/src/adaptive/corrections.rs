@@ -30,8 +30,10 @@
 //! the test with probability `1 − probability` and are then widened by a factor of a few for
 //! one window; the next updates take the excess away again.
 //!
-//! The window then starts afresh. A window whose covariance `C` is not positive definite (no
-//! update informed some axis) is not tested.
+//! The window then starts afresh. Only the directions the window's updates informed are
+//! tested: the eigen-directions of `C` whose spread is at least 1 % of the largest (`T` is
+//! `gᵀ C⁻¹ g` on them and `d` their number); along a barely informed direction the
+//! linearisation's small errors would otherwise pass for a large statistic.
 //!
 //! # Example
 //! ```
@@ -169,40 +171,48 @@ impl CorrectionTest {
         Ok(inflation)
     }
 
-    /// `λ = min(T/d, λ_max)` when `T = gᵀ C⁻¹ g` exceeds the `χ²(d)` threshold.
+    /// `λ = min(T/k, λ_max)` when `T` exceeds the `χ²(k)` threshold (see [`statistic`]).
     fn verdict(&self, window: &CorrectionWindow, dimensions: usize) -> Option<f64> {
-        let statistic = quadratic_form(&window.covariance_m2, &window.sum_m, dimensions)?;
-        (statistic > self.thresholds[dimensions - 1])
-            .then(|| (statistic / dimensions as f64).min(self.max_inflation))
+        let (statistic, tested) = statistic(&window.covariance_m2, &window.sum_m, dimensions)?;
+        (statistic > self.thresholds[tested - 1])
+            .then(|| (statistic / tested as f64).min(self.max_inflation))
             .filter(|&lambda| lambda > 1.0)
     }
 }
 
-/// `gᵀ C⁻¹ g` by a Cholesky factorisation `C = L Lᵀ` (`|L⁻¹ g|²`); `None` when `C` is not
-/// positive definite.
-fn quadratic_form(c: &[[f64; 3]; 3], g: &[f64; 3], d: usize) -> Option<f64> {
-    let mut l = [[0.0; 3]; 3];
+/// Directions whose expected spread is below this share of the largest are not tested.
+const UNINFORMED_SHARE: f64 = 0.01;
+
+/// `T = Σᵢ (uᵢᵀ g)² / μᵢ` over the eigenpairs `(μᵢ, uᵢ)` of `C` with `μᵢ ≥ 0.01 μ_max`, and
+/// their number `k` (the degrees of freedom); `None` when no direction is informed.
+///
+/// On the informed directions this is `gᵀ C⁻¹ g`. A direction the window's readings barely
+/// informed (two anchors seen from near their common line, a lone reader) has a tiny expected
+/// spread, and the linearisation's small errors along it would pass for a large statistic: it
+/// is left out of the test rather than divided by.
+fn statistic(c: &[[f64; 3]; 3], g: &[f64; 3], d: usize) -> Option<(f64, usize)> {
+    let mut matrix = nalgebra::Matrix3::<f64>::zeros();
     for i in 0..d {
-        for j in 0..=i {
-            // Lᵢⱼ = (Cᵢⱼ − Σₖ<ⱼ Lᵢₖ Lⱼₖ) / Lⱼⱼ,   Lⱼⱼ = √(Cⱼⱼ − Σₖ<ⱼ Lⱼₖ²)
-            let s = c[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            if i == j {
-                // a pivot below 1e-12 of the diagonal: an axis no update informed
-                if s <= 1e-12 * c[i][i].abs() || s <= 0.0 {
-                    return None;
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
+        for j in 0..d {
+            matrix[(i, j)] = 0.5 * (c[i][j] + c[j][i]);
         }
     }
-    // y = L⁻¹ g (forward substitution);  T = |y|²
-    let mut y = [0.0; 3];
-    for i in 0..d {
-        y[i] = (g[i] - (0..i).map(|k| l[i][k] * y[k]).sum::<f64>()) / l[i][i];
+    let eigen = matrix.symmetric_eigen();
+    let largest = eigen.eigenvalues.max();
+    if !(largest > 0.0 && largest.is_finite()) {
+        return None;
     }
-    Some(y[..d].iter().map(|v| v * v).sum())
+    let g = nalgebra::Vector3::new(g[0], g[1], g[2]);
+    let (mut statistic, mut tested) = (0.0, 0);
+    for (i, &mu) in eigen.eigenvalues.iter().enumerate() {
+        if mu >= UNINFORMED_SHARE * largest {
+            // (uᵢᵀ g)² / μᵢ
+            let projection = eigen.eigenvectors.column(i).dot(&g);
+            statistic += projection * projection / mu;
+            tested += 1;
+        }
+    }
+    (tested > 0).then_some((statistic, tested))
 }
 
 #[cfg(test)]
@@ -227,15 +237,19 @@ mod tests {
     }
 
     #[test]
-    fn the_statistic_is_the_mahalanobis_distance() {
+    fn the_statistic_is_the_mahalanobis_distance_over_the_informed_directions() {
         // C = [[4, 2], [2, 3]], g = [1, 2]: C⁻¹ = [[3, −2], [−2, 4]] / 8, gᵀ C⁻¹ g = (3 − 8 + 16)/8
         let c = [[4.0, 2.0, 0.0], [2.0, 3.0, 0.0], [0.0, 0.0, 0.0]];
-        let t = quadratic_form(&c, &[1.0, 2.0, 0.0], 2).unwrap();
-        assert!((t - 11.0 / 8.0).abs() < 1e-12, "{t}");
-        assert!(
-            quadratic_form(&c, &[1.0, 2.0, 0.0], 3).is_none(),
-            "a zero axis is not tested"
-        );
+        let (t, k) = statistic(&c, &[1.0, 2.0, 0.0], 2).unwrap();
+        assert!((t - 11.0 / 8.0).abs() < 1e-12 && k == 2, "{t} {k}");
+        // a zero third axis is left out: the same statistic on 2 degrees of freedom
+        let (t, k) = statistic(&c, &[1.0, 2.0, 5.0], 3).unwrap();
+        assert!((t - 11.0 / 8.0).abs() < 1e-12 && k == 2, "{t} {k}");
+        // an axis with 1e-4 of the other's spread is not divided by: only x is tested
+        let c = [[1.0, 0.0, 0.0], [0.0, 1e-4, 0.0], [0.0; 3]];
+        let (t, k) = statistic(&c, &[1.0, 0.05, 0.0], 2).unwrap();
+        assert!((t - 1.0).abs() < 1e-12 && k == 1, "{t} {k}");
+        assert!(statistic(&[[0.0; 3]; 3], &[1.0, 0.0, 0.0], 2).is_none());
     }
 
     /// Windows of independent corrections whose covariance is what the filter says fail the
