@@ -183,7 +183,8 @@ pub trait Store: Send {
     }
     /// Appends records as [`Store::append_records`] does, calling `inserted` with their ids
     /// (in order) once they are inserted and before the commit that makes them durable, so
-    /// the caller can work on them while the commit waits for the disk. `inserted` must not
+    /// the caller can work on them while the commit waits for the disk (a cluster's nodes,
+    /// which share the store and take their ids from it). `inserted` must not
     /// block: the transaction holds the database's write lock meanwhile (SQLite). When this
     /// then fails, the records are not stored although `inserted` saw them, and their ids may
     /// be handed out again (SQLite rolls its id sequence back).
@@ -195,6 +196,25 @@ pub trait Store: Send {
         records: &[NewRecord],
         inserted: &mut dyn FnMut(&[i64]),
     ) -> Result<Vec<i64>, StoreError>;
+    /// The highest ingest-log id given out so far (0 for a log that never held a record): no
+    /// record in the log, in a packed block or not, has a higher id, nor did the back end's
+    /// own id sequence give one out. The ingest log counts on from it
+    /// ([`Store::append_records_with_ids`]).
+    ///
+    /// # Errors
+    /// [`StoreError::Database`].
+    fn last_record_id(&mut self) -> Result<i64, StoreError>;
+    /// Appends records under ids the caller chose, in one transaction; when this returns `Ok`
+    /// they are durable. The ids must increase and be above every id the log holds
+    /// ([`Store::last_record_id`]): the log's single writer (the ingest-log thread of a
+    /// one-node server) counts them in memory, so it can hand records to the trackers before
+    /// they are stored. Ids [`Store::append_records`] gives out later are above them.
+    ///
+    /// # Errors
+    /// [`StoreError::Database`] when the ids and records differ in number, the ids do not
+    /// increase, one is in the log already, or the database fails; then none of the records
+    /// is stored.
+    fn append_records_with_ids(&mut self, ids: &[i64], records: &[NewRecord]) -> Result<(), StoreError>;
     /// Up to `limit` records with id > `after_id`, in id order (replay after a restart).
     ///
     /// # Errors
@@ -283,6 +303,28 @@ pub trait Store: Send {
     /// # Errors
     /// [`StoreError::Database`]; then nothing is changed.
     fn compact_ingest_log(&mut self, before_ms: i64, through_id: i64, max_rows: usize) -> Result<u64, StoreError>;
+}
+
+/// Checks the ids given to [`Store::append_records_with_ids`]: one per record, increasing.
+///
+/// # Errors
+/// [`StoreError::Database`] naming `backend` and what is wrong.
+fn check_given_ids(backend: &'static str, ids: &[i64], records: &[NewRecord]) -> Result<(), StoreError> {
+    let refused = |reason: String| StoreError::Database {
+        backend,
+        operation: "append records",
+        reason,
+    };
+    if ids.len() != records.len() {
+        return Err(refused(format!("{} ids for {} records", ids.len(), records.len())));
+    }
+    match ids.windows(2).find(|pair| pair[0] >= pair[1]) {
+        Some(pair) => Err(refused(format!(
+            "the ids do not increase: {} then {}",
+            pair[0], pair[1]
+        ))),
+        None => Ok(()),
+    }
 }
 
 mod history_blocks;

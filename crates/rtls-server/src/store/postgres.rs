@@ -25,9 +25,10 @@ const MIGRATION_LOCK_KEY: i64 = 0x7274_6c73;
 
 /// A [`Store`] in a PostgreSQL database.
 ///
-/// Ids come from sequences: they increase and are never reused. With one writer (the
-/// server's storage thread) they are also committed in increasing order, which
-/// [`Store::records_after`] relies on.
+/// Ids come from sequences, or for the ingest log of a one-node server from the server
+/// ([`Store::append_records_with_ids`], which moves the sequence past them): they increase and
+/// are never reused. With one writer (the server's ingest-log thread) they are also committed
+/// in increasing order, which [`Store::records_after`] relies on.
 pub struct PostgresStore {
     client: Client,
     /// Statements prepared on this connection, by SQL text.
@@ -391,6 +392,62 @@ impl Store for PostgresStore {
         inserted(&ids);
         self.client.batch_execute("COMMIT").map_err(database(OPERATION))?;
         Ok(ids)
+    }
+
+    fn last_record_id(&mut self) -> Result<i64, StoreError> {
+        const OPERATION: &str = "read the last record id";
+        // the sequence's last value (NULL before its first use) covers ids whose rows are
+        // pruned; the rows and blocks cover ids given explicitly
+        let rows = self.query(
+            "SELECT greatest(\
+                 coalesce(pg_sequence_last_value(pg_get_serial_sequence('records', 'id')::regclass), 0), \
+                 coalesce((SELECT max(id) FROM records), 0), \
+                 coalesce((SELECT max(last_id) FROM record_blocks), 0))::BIGINT",
+            &[],
+            OPERATION,
+        )?;
+        rows.first()
+            .map_or(Ok(0), |row| row.try_get::<_, i64>(0))
+            .map_err(database(OPERATION))
+    }
+
+    fn append_records_with_ids(&mut self, ids: &[i64], records: &[NewRecord]) -> Result<(), StoreError> {
+        const OPERATION: &str = "append records";
+        super::check_given_ids("postgres", ids, records)?;
+        let Some(&last_id) = ids.last() else {
+            return Ok(());
+        };
+        let received_ms: Vec<i64> = records.iter().map(|record| record.received_ms).collect();
+        let sources: Vec<&str> = records.iter().map(|record| record.source.as_str()).collect();
+        let times_s: Vec<f64> = records.iter().map(|record| record.time_s).collect();
+        let tags: Vec<&str> = records.iter().map(|record| record.tag.as_str()).collect();
+        let jsons: Vec<&str> = records.iter().map(|record| record.json.as_str()).collect();
+        self.client.batch_execute("BEGIN").map_err(database(OPERATION))?;
+        let inserted = self
+            .execute(
+                "INSERT INTO records (id, received_ms, source, time_s, tag, json) \
+                 SELECT * FROM UNNEST($1::BIGINT[], $2::BIGINT[], $3::TEXT[], $4::DOUBLE PRECISION[], \
+                                      $5::TEXT[], $6::TEXT[])",
+                &[&ids, &received_ms, &sources, &times_s, &tags, &jsons],
+                OPERATION,
+            )
+            // the sequence moves past the given ids, so the ids it gives out later (a cluster
+            // on this database) do not collide with them; a sequence is not transactional, so
+            // after a failed commit it stays moved: a gap
+            .and_then(|_| {
+                self.query(
+                    "SELECT setval(pg_get_serial_sequence('records', 'id'), \
+                         greatest(nextval(pg_get_serial_sequence('records', 'id')), $1::BIGINT))",
+                    &[&last_id],
+                    OPERATION,
+                )
+            });
+        if let Err(error) = inserted {
+            // the transaction is aborted; a failing ROLLBACK leaves the same error to report
+            let _ = self.client.batch_execute("ROLLBACK");
+            return Err(error);
+        }
+        self.client.batch_execute("COMMIT").map_err(database(OPERATION))
     }
 
     fn records_after(&mut self, after_id: i64, limit: usize) -> Result<Vec<StoredRecord>, StoreError> {

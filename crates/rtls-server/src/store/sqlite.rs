@@ -317,6 +317,51 @@ impl Store for SqliteStore {
         Ok(ids)
     }
 
+    fn last_record_id(&mut self) -> Result<i64, StoreError> {
+        // `AUTOINCREMENT`'s sequence keeps the highest id ever committed, even once its row is
+        // pruned; the rows and blocks are asked too, in case the sequence row was removed
+        self.connection
+            .prepare_cached(
+                "SELECT max(coalesce((SELECT seq FROM sqlite_sequence WHERE name = 'records'), 0), \
+                            coalesce((SELECT max(id) FROM records), 0), \
+                            coalesce((SELECT max(last_id) FROM record_blocks), 0))",
+            )
+            .and_then(|mut statement| statement.query_row([], |row| row.get(0)))
+            .map_err(database("read the last record id"))
+    }
+
+    fn append_records_with_ids(&mut self, ids: &[i64], records: &[NewRecord]) -> Result<(), StoreError> {
+        let fail = database("append records");
+        super::check_given_ids("sqlite", ids, records)?;
+        if records.is_empty() {
+            return Ok(());
+        }
+        let transaction = self
+            .connection
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(fail)?;
+        {
+            let mut insert = transaction
+                .prepare_cached(
+                    "INSERT INTO records (id, received_ms, source, time_s, tag, json) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+                )
+                .map_err(fail)?;
+            for (id, record) in ids.iter().zip(records) {
+                insert
+                    .execute(params![
+                        id,
+                        record.received_ms,
+                        record.source,
+                        record.time_s,
+                        record.tag,
+                        record.json
+                    ])
+                    .map_err(fail)?;
+            }
+        }
+        transaction.commit().map_err(fail)
+    }
+
     fn records_after(&mut self, after_id: i64, limit: usize) -> Result<Vec<StoredRecord>, StoreError> {
         blocks::records_after(&mut self.connection, after_id, limit)
     }

@@ -46,6 +46,8 @@ conformance!(
     large_batch_keeps_its_order,
     failed_batch_stores_nothing,
     inserted_records_are_handed_over_once_before_the_commit,
+    given_ids_are_kept_and_counted_on,
+    given_ids_must_be_new_and_increasing,
     ids_are_not_reused_after_pruning,
     history_bounds_limit_and_tags,
     event_filters,
@@ -163,6 +165,83 @@ fn inserted_records_are_handed_over_once_before_the_commit(store: &mut dyn Store
     assert!(store.append_records_then_commit(&bad, &mut |_| called = true).is_err());
     assert!(!called);
     assert_eq!(store.record_count().unwrap(), 4);
+}
+
+fn given_ids_are_kept_and_counted_on(store: &mut dyn Store) {
+    assert_eq!(store.last_record_id().unwrap(), 0, "an empty log");
+    store.append_records_with_ids(&[], &[]).unwrap();
+    let batch: Vec<NewRecord> = (0..3)
+        .map(|i| record(1_000 + i, i as f64, "tag-1", &format!("a{i}")))
+        .collect();
+    // gaps between the ids (a failed commit's) are kept
+    store.append_records_with_ids(&[5, 9, 10], &batch).unwrap();
+    let stored = store.records_after(0, 10).unwrap();
+    assert_eq!(stored.iter().map(|r| r.id).collect::<Vec<_>>(), [5, 9, 10]);
+    for (stored, new) in stored.iter().zip(&batch) {
+        assert_eq!(
+            (
+                stored.received_ms,
+                &stored.source,
+                stored.time_s,
+                &stored.tag,
+                &stored.json
+            ),
+            (new.received_ms, &new.source, new.time_s, &new.tag, &new.json)
+        );
+    }
+    assert_eq!(store.records_after(5, 1).unwrap()[0].id, 9);
+    assert_eq!(store.last_record_id().unwrap(), 10);
+    // the back end's own ids continue above the given ones
+    let next = store.append_records(&[record(2_000, 4.0, "tag-1", "b")]).unwrap();
+    assert!(next[0] > 10, "id {} after the given 10", next[0]);
+    assert_eq!(store.last_record_id().unwrap(), next[0]);
+    // and given ids above those
+    store
+        .append_records_with_ids(&[next[0] + 1], &[record(3_000, 5.0, "tag-2", "c")])
+        .unwrap();
+    assert_eq!(store.last_record_id().unwrap(), next[0] + 1);
+    // an id once given out stays counted after its row is pruned
+    assert_eq!(store.prune(10_000).unwrap().records, 5);
+    assert_eq!(store.record_count().unwrap(), 0);
+    assert_eq!(store.last_record_id().unwrap(), next[0] + 1);
+    assert!(store.append_records(&[record(4_000, 6.0, "t", "d")]).unwrap()[0] > next[0] + 1);
+}
+
+fn given_ids_must_be_new_and_increasing(store: &mut dyn Store) {
+    let two = [record(1_000, 1.0, "t", "a"), record(1_000, 2.0, "t", "b")];
+    store.append_records_with_ids(&[3, 4], &two).unwrap();
+    let refused = |result: Result<(), StoreError>| {
+        matches!(
+            result,
+            Err(StoreError::Database {
+                operation: "append records",
+                ..
+            })
+        )
+    };
+    // one already in the log: the whole batch is refused
+    assert!(refused(store.append_records_with_ids(&[4, 5], &two)));
+    assert!(refused(store.append_records_with_ids(&[7, 6], &two)), "decreasing");
+    assert!(refused(store.append_records_with_ids(&[8, 8], &two)), "repeated");
+    assert!(
+        refused(store.append_records_with_ids(&[9], &two)),
+        "one id for two records"
+    );
+    let with_poison = [record(1_000, 3.0, "t", "c"), poisoned_record(store.backend())];
+    assert!(refused(store.append_records_with_ids(&[11, 12], &with_poison)));
+    assert_eq!(store.record_count().unwrap(), 2);
+    assert_eq!(
+        store
+            .records_after(0, 10)
+            .unwrap()
+            .iter()
+            .map(|r| r.id)
+            .collect::<Vec<_>>(),
+        [3, 4]
+    );
+    // the store stays usable
+    store.append_records_with_ids(&[20], &two[..1]).unwrap();
+    assert_eq!(store.record_count().unwrap(), 3);
 }
 
 fn failed_batch_stores_nothing(store: &mut dyn Store) {

@@ -113,4 +113,12 @@ pub(super) fn compaction_keeps_the_ingest_log(store: &mut dyn Store) {
         }
     );
     assert_eq!(store.records_after(0, 100).unwrap(), all[30..].to_vec());
+    assert_eq!(store.last_record_id().unwrap(), all[30].id);
+    // with the newest record packed and its row gone, its id still counts
+    let given = all[30].id + 10;
+    store
+        .append_records_with_ids(&[given], &[record(1_000, 100.0, "t1", "given")])
+        .unwrap();
+    assert_eq!(store.compact_ingest_log(5_000, given, 100).unwrap(), 1);
+    assert_eq!(store.last_record_id().unwrap(), given);
 }
