@@ -2,26 +2,35 @@
 //! worker threads, one [`Tracker`] per tag partition, so no async task ever runs filter work.
 //!
 //! ```text
-//!  transports ──submit()──▶ [bounded queue] ──▶ ingest-log thread ──append, commit──▶ store
-//!  (HTTP, MQTT)   ◀──── ack after commit ─────────┘      │ dispatch by tag hash (bounded),
-//!                                                        │ once appended, during the commit
-//!                                                        ▼
+//!  transports ──submit()──▶ [bounded queue] ──▶ ingest-log thread ──[bounded]──▶ commit thread
+//!  (HTTP, MQTT)                                   │ ids counted in memory;         │ insert,
+//!       ▲                                         │ dispatch by tag hash           │ commit ──▶ store
+//!       │                                         │ (bounded), before the insert   │
+//!       └────────────── ack after commit ─────────┼────────────────────────────────┘
+//!                                                 ▼
 //!                                  partition threads (Tracker each)
 //!                                    │ live state, hub broadcast, MQTT publications
 //!                                    ▼ (bounded)
 //!                                  output thread ──▶ store (history, events, checkpoint)
 //! ```
 //!
-//! Every queue is bounded: a full partition blocks the ingest-log thread, which fills the
-//! ingest queue, so `submit` waits (and after [`PipelineConfig::submit_timeout`] answers
-//! [`IngestError::Unavailable`]); producers are slowed, never dropped. Broadcasts to
+//! (In a cluster one ingest-log thread inserts, dispatches during the commit, and acknowledges:
+//! the store gives the ids there; see `ingest_log`.)
+//!
+//! Every queue is bounded: a full partition or commit queue blocks the ingest-log thread,
+//! which fills the ingest queue, so `submit` waits (and after
+//! [`PipelineConfig::submit_timeout`] answers [`IngestError::Unavailable`]); producers are
+//! slowed, never dropped. Broadcasts to
 //! WebSocket and MQTT subscribers are bounded ring buffers: a slow subscriber misses
 //! messages (counted) instead of slowing ingest.
 //!
 //! Restart: the output thread checkpoints the highest ingest-log id below which every record's
 //! outputs are stored; on start the records after it are replayed through the trackers. An
 //! acknowledged record is in the ingest log, so it is never lost; its outputs may be stored
-//! twice if the server died between storing them and the next checkpoint.
+//! twice if the server died between storing them and the next checkpoint. Records are tracked
+//! before they are committed, so the checkpoint may pass ids whose commit then failed (or never
+//! came: the server died); those records were not acknowledged, and the ids of a new run start
+//! above the checkpoint, the log's last id and every quarantined record's.
 
 mod admission;
 mod cluster_side;
@@ -270,12 +279,14 @@ impl Pipeline {
         let validator = tracker()?;
         ingest_store.defer_wal_checkpoints()?;
         let checkpoint = ingest_store.checkpoint(CHECKPOINT)?.unwrap_or(0);
+        let clustered = config.cluster.is_some();
+        // one node counts the ingest log's ids on from here (a cluster's come from the store)
+        let last_record_id = if clustered { 0 } else { ingest_store.last_record_id()? };
         let progress = Arc::new(Progress::new(partitions, checkpoint));
         let live = Arc::new(LiveState::new(site, partitions));
         let readers = Arc::new(ReaderMonitor::new(site, unix_ms()));
         let (hub, _) = broadcast::channel(config.broadcast_capacity.max(16));
         let (publications, _) = broadcast::channel(config.broadcast_capacity.max(16));
-        let clustered = config.cluster.is_some();
         let fanout = Fanout {
             live: Arc::clone(&live),
             hub: hub.clone(),
@@ -371,15 +382,38 @@ impl Pipeline {
         drop(output_tx);
 
         let (ingest_tx, ingest_rx) = mpsc::channel(config.ingest_queue_batches.max(1));
-        let ingest_worker = ingest_log::IngestLogWorker {
-            store: ingest_store,
-            rx: ingest_rx,
-            partitions: partition_txs.clone(),
-            progress: Arc::clone(&progress),
-            metrics: Arc::clone(&metrics),
-            replay_after_id: (!clustered).then_some(checkpoint),
-        };
-        threads.push(spawn("rtls-ingest-log".into(), Box::new(move || ingest_worker.run()))?);
+        if clustered {
+            let worker = ingest_log::SharedLogWorker {
+                store: ingest_store,
+                rx: ingest_rx,
+                partitions: partition_txs.clone(),
+                progress: Arc::clone(&progress),
+                metrics: Arc::clone(&metrics),
+            };
+            threads.push(spawn("rtls-ingest-log".into(), Box::new(move || worker.run()))?);
+        } else {
+            let (first_id_tx, first_id_rx) = std::sync::mpsc::sync_channel(1);
+            let (commit_tx, commit_rx) = std::sync::mpsc::sync_channel(ingest_log::COMMIT_QUEUE_GROUPS);
+            let committer = ingest_log::CommitWorker {
+                store: ingest_store,
+                rx: commit_rx,
+                partitions: partition_txs.clone(),
+                progress: Arc::clone(&progress),
+                metrics: Arc::clone(&metrics),
+                replay_after_id: checkpoint,
+                last_record_id,
+                first_id: first_id_tx,
+            };
+            threads.push(spawn("rtls-ingest-commit".into(), Box::new(move || committer.run()))?);
+            let dispatcher = ingest_log::DispatchWorker {
+                rx: ingest_rx,
+                partitions: partition_txs.clone(),
+                progress: Arc::clone(&progress),
+                first_id: first_id_rx,
+                commits: commit_tx,
+            };
+            threads.push(spawn("rtls-ingest-log".into(), Box::new(move || dispatcher.run()))?);
+        }
 
         Ok(Self {
             inner: Arc::new(Inner {
