@@ -35,6 +35,21 @@ pub(super) trait UpdateOutcome<const N: usize> {
     fn position_correction(&self, dimensions: usize) -> ([f64; 3], [[f64; 3]; 3]) {
         let m = self.measurement_dim();
         let (mut correction, mut covariance) = ([0.0; 3], [[0.0; 3]; 3]);
+        if m == 1 {
+            // one reading (the tightly coupled case): Δp_a = K_a ν, (K S Kᵀ)_ab = K_a K_b S
+            let (nu, s) = (self.innovation(0), self.innovation_covariance(0, 0));
+            let mut k = [0.0; 3];
+            for (a, k_a) in k.iter_mut().enumerate().take(dimensions) {
+                *k_a = self.gain(2 * a, 0);
+                correction[a] = *k_a * nu;
+            }
+            for (a, row) in covariance.iter_mut().enumerate().take(dimensions) {
+                for (b, entry) in row.iter_mut().enumerate().take(dimensions) {
+                    *entry = k[a] * k[b] * s;
+                }
+            }
+            return (correction, covariance);
+        }
         for a in 0..dimensions {
             // Δp_a = Σ_j K[2a, j] ν_j
             correction[a] = (0..m).map(|j| self.gain(2 * a, j) * self.innovation(j)).sum();
