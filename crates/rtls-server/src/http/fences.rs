@@ -101,13 +101,14 @@ pub(super) async fn create(State(state): State<AppState>, headers: HeaderMap, bo
     let fence: Fence = parse_json(value.to_string().as_bytes())?;
     uuid::Uuid::parse_str(&fence.id)
         .map_err(|e| ApiError::field("id", format!("`{}` is not a UUID ({e})", fence.id)))?;
-    let answer = ReadFrame::written_in(&state, fence.crs.as_deref());
+    let answer = ReadFrame::of_written_fence(&state, &fence).await?;
+    let written = answer.clone();
     let site = std::sync::Arc::clone(&state.site);
     let live = std::sync::Arc::clone(state.pipeline.live());
     let created = state
         .query(move |store| {
             let mut zones = live.zones().to_vec();
-            let zone = match put_fence(&mut zones, None, &fence, &site) {
+            let zone = match put_fence(&mut zones, None, &fence, &site, &written) {
                 Ok(zone) => zone,
                 Err(e) => return Ok(Err(e)),
             };
@@ -133,6 +134,7 @@ pub(super) async fn replace(
         object.entry("id").or_insert_with(|| Value::String(fence_id.clone()));
     }
     let fence: Fence = parse_json(value.to_string().as_bytes())?;
+    let written = ReadFrame::of_written_fence(&state, &fence).await?;
     let site = std::sync::Arc::clone(&state.site);
     let live = std::sync::Arc::clone(state.pipeline.live());
     let replaced = state
@@ -144,7 +146,7 @@ pub(super) async fn replace(
             }) else {
                 return Ok(Err(ApiError::not_found(format!("fence `{fence_id}` not found"))));
             };
-            let zone = match put_fence(&mut zones, Some(index), &fence, &site) {
+            let zone = match put_fence(&mut zones, Some(index), &fence, &site, &written) {
                 Ok(zone) => zone,
                 Err(e) => return Ok(Err(e)),
             };
@@ -210,12 +212,13 @@ fn put_fence(
     index: Option<usize>,
     fence: &Fence,
     site: &rtls_engine::site::Site,
+    written: &ReadFrame,
 ) -> ApiResult<rtls_engine::zones::Zone> {
     let zone_id = match index {
         Some(index) => zones[index].id.clone(),
         None => fence.foreign_id.clone().unwrap_or_else(|| fence.id.clone()),
     };
-    let zone = zone_from_fence(fence, zone_id, site)?;
+    let zone = zone_from_fence(fence, zone_id, site, written)?;
     match index {
         Some(index) => zones[index] = zone.clone(),
         None if zones
@@ -232,20 +235,22 @@ fn put_fence(
     Ok(zone)
 }
 
-/// Creates `fence`, or replaces the fence with its id (its zone id stays), and hands the set
-/// to the running trackers; the fence as watched, in the fence reads' default frame
+/// Creates `fence` (its region in site metres, whatever its `crs` and `zone_id` say: the hub
+/// made it), or replaces the fence with its id (its zone id stays), and hands the set to the
+/// running trackers; the fence as watched, in the fence reads' default frame
 /// ([`ReadFrame::fence_default`]).
 ///
 /// # Errors
 /// 400 naming the field of a bad fence; 503 when the store fails.
 pub(super) async fn upsert(state: &AppState, who: &crate::auth::Principal, fence: Fence) -> ApiResult<Fence> {
+    let written = ReadFrame::site_metres(state);
     let site = std::sync::Arc::clone(&state.site);
     let live = std::sync::Arc::clone(state.pipeline.live());
     let stored = state
         .query(move |store| {
             let mut zones = live.zones().to_vec();
             let index = zones.iter().position(|z| fence_from_zone(z).id == fence.id);
-            let zone = match put_fence(&mut zones, index, &fence, &site) {
+            let zone = match put_fence(&mut zones, index, &fence, &site, &written) {
                 Ok(zone) => zone,
                 Err(e) => return Ok(Err(e)),
             };
@@ -362,15 +367,16 @@ fn region_in_site(region: &Region, site: &Site, stated: bool) -> ApiResult<Regio
     })
 }
 
-/// A fence as a site zone with id `zone_id` (see the module documentation).
-fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site) -> ApiResult<SiteZone> {
+/// A fence as a site zone with id `zone_id` (see the module documentation); a `local` region
+/// is taken from the frame it was `written` in ([`ReadFrame::of_written_fence`]).
+fn zone_from_fence(fence: &Fence, zone_id: String, site: &Site, written: &ReadFrame) -> ApiResult<SiteZone> {
     // omlox: "If crs is not present, 'EPSG:4326' ("GPS") MUST be assumed as the default."
     let crs = match fence.crs.as_deref() {
         None => Crs::Wgs84,
         stated => Crs::parse(stated).map_err(|reason| ApiError::field("crs", reason))?,
     };
     let region = match crs {
-        Crs::Local => fence.region.clone(),
+        Crs::Local => written.site_region(&fence.region)?,
         Crs::Wgs84 => region_in_site(&fence.region, site, fence.crs.is_some())?,
     };
     let vertices_m: Vec<[f64; 2]> = match &region {

@@ -45,7 +45,7 @@ use super::zone_store::{is_proximity, site_zone, zone};
 use super::{query_value, ApiError, ApiResult, AppState};
 use crate::omlox::crs::Crs;
 use crate::omlox::geojson::{feature_collection, ToFeature};
-use crate::omlox::{Fence, Location, Region, Trackable, TrackableMotion};
+use crate::omlox::{Fence, Location, Region, Trackable, TrackableMotion, Zone};
 
 /// Where the coordinates of a read go.
 #[derive(Debug, Clone, PartialEq)]
@@ -117,29 +117,92 @@ impl ReadFrame {
         }
     }
 
-    /// The frame a fence written in `crs` is answered in: the one it was written in (`local`
-    /// as site metres, anything else as WGS-84 where the site has a `[frame]`).
-    pub(super) fn written_in(state: &AppState, crs: Option<&str>) -> Self {
-        let local = Self {
+    /// Site metres (`local`, the site's own zone): the frame of a fence the hub makes itself
+    /// (`createfence`).
+    pub(super) fn site_metres(state: &AppState) -> Self {
+        Self {
             projection: Projection::Site,
             geojson: false,
             site_zone_id: site_zone(state).id,
-        };
-        match Crs::parse(crs) {
-            Ok(Crs::Local) if crs.is_some() => local,
-            _ => Self::fence_default(state),
         }
+    }
+
+    /// The frame a fence's region is written in, from its `crs` and `zone_id`; a create
+    /// answers in it. EPSG:4326 (also a fence without `crs`) is WGS-84 through the site's
+    /// `[frame]` (as [`Self::fence_default`]); `local` with a `zone_id` is that zone's frame
+    /// (the site's own zone: site metres; a stored zone: its ground control points' affine
+    /// map, reached through WGS-84); `local` without one is the site's metres. A `zone_id`
+    /// beside a CRS other than `local` is not read: WGS-84 is one frame whichever zone.
+    ///
+    /// # Errors
+    /// 400 naming `crs` for a CRS other than `local` and `EPSG:4326`; 400 naming `zone_id` for
+    /// a zone that does not exist or has no local frame (a proximity zone, fewer than three
+    /// ground control points off one line, a site without a `[frame]`).
+    pub(super) async fn of_written_fence(state: &AppState, fence: &Fence) -> ApiResult<Self> {
+        // omlox: "If crs is not present, 'EPSG:4326' ("GPS") MUST be assumed as the default."
+        let crs = match fence.crs.as_deref() {
+            None => Crs::Wgs84,
+            stated => Crs::parse(stated).map_err(|reason| ApiError::field("crs", reason))?,
+        };
+        let projection = match (crs, fence.zone_id.as_deref()) {
+            (Crs::Wgs84, _) => return Ok(Self::fence_default(state)),
+            (Crs::Local, None) => Projection::Site,
+            (Crs::Local, Some(zone_id)) => {
+                // a body's field, not a path or query: an unknown zone is a bad field (400)
+                let zone = zone(state, zone_id).await.map_err(|e| {
+                    if e.status == axum::http::StatusCode::NOT_FOUND {
+                        ApiError::field("zone_id", format!("no zone has the id `{zone_id}`"))
+                    } else {
+                        e
+                    }
+                })?;
+                zone_projection(state, zone)?
+            }
+        };
+        Ok(Self {
+            projection,
+            geojson: false,
+            site_zone_id: site_zone(state).id,
+        })
     }
 
     /// The frame `query` asks for, `default` without `crs` and `zone_id`.
     async fn with_default(state: &AppState, query: Option<&str>, default: Fallback) -> ApiResult<Self> {
-        let geojson = query_value(query, "geojson").as_deref() == Some("true");
-        let wgs84 = match query_value(query, "crs") {
+        let crs = query_value(query, "crs");
+        let zone_id = query_value(query, "zone_id");
+        Self::with_params(
+            state,
+            crs.as_deref(),
+            zone_id.as_deref(),
+            query_value(query, "geojson").as_deref() == Some("true"),
+            default,
+        )
+        .await
+    }
+
+    /// The frame of a WebSocket subscription's `params.crs` and `params.zone_id` on a topic
+    /// whose payloads carry Locations: as on the REST location reads ([`Self::of`]).
+    ///
+    /// # Errors
+    /// As [`Self::of`].
+    pub(super) async fn of_params(state: &AppState, crs: Option<&str>, zone_id: Option<&str>) -> ApiResult<Self> {
+        Self::with_params(state, crs, zone_id, false, Fallback::Local).await
+    }
+
+    /// The frame of `crs`, `zone_id` and `geojson`, `default` without the first two.
+    async fn with_params(
+        state: &AppState,
+        crs: Option<&str>,
+        zone_id: Option<&str>,
+        geojson: bool,
+        default: Fallback,
+    ) -> ApiResult<Self> {
+        let wgs84 = match crs {
             None => None,
-            Some(crs) => Some(Crs::parse(Some(&crs)).map_err(|reason| ApiError::field("crs", reason))? == Crs::Wgs84),
+            Some(crs) => Some(Crs::parse(Some(crs)).map_err(|reason| ApiError::field("crs", reason))? == Crs::Wgs84),
         };
-        let zone = match query_value(query, "zone_id") {
-            Some(zone_id) => Some(zone(state, &zone_id).await?),
+        let zone = match zone_id {
+            Some(zone_id) => Some(zone(state, zone_id).await?),
             None => None,
         };
         let site_frame = state.site.frame.map(ZoneFrame::Site);
@@ -150,33 +213,7 @@ impl ReadFrame {
                     "the site has no [frame] origin, so locations are only available in crs=local",
                 )
             })?),
-            (_, Some(zone)) if zone.id == site_zone(state).id => Projection::Site,
-            (_, Some(zone)) => {
-                if is_proximity(zone.kind) {
-                    return Err(ApiError::field(
-                        "zone_id",
-                        format!(
-                            "zone `{}` is a proximity zone (a reader's position and radius): it has no local frame",
-                            zone.id
-                        ),
-                    ));
-                }
-                let fitted = ZoneFrame::of_zone(&zone).map_err(|e| ApiError::field("zone_id", e.message))?;
-                let site = site_frame.ok_or_else(|| {
-                    ApiError::field(
-                        "zone_id",
-                        format!(
-                            "the site has no [frame] origin to relate its metres to zone `{}`'s ground control points",
-                            zone.id
-                        ),
-                    )
-                })?;
-                Projection::Zone {
-                    id: zone.id,
-                    site,
-                    zone: fitted,
-                }
-            }
+            (_, Some(zone)) => zone_projection(state, zone)?,
             // RFC 7946: GeoJSON is WGS-84 when the site can give it; omlox: so is a fence
             (None, None) if geojson || default == Fallback::Wgs84WhenGeoreferenced => {
                 site_frame.map_or(Projection::Site, Projection::Wgs84)
@@ -188,6 +225,11 @@ impl ReadFrame {
             geojson,
             site_zone_id: site_zone(state).id,
         })
+    }
+
+    /// Whether this frame is the site's metres (positions stay as the trackers give them).
+    pub(super) fn is_site_metres(&self) -> bool {
+        self.projection == Projection::Site
     }
 
     /// The omlox `crs` of the coordinates this frame gives.
@@ -220,6 +262,64 @@ impl ReadFrame {
                 _ => "crs",
             };
             ApiError::field(parameter, format!("the position {site_m:?} cannot be projected"))
+        })
+    }
+
+    /// A position `[x, y(, z)]` given in this frame in site metres: the inverse of
+    /// [`Self::position`] (a zone's `[x, y]` to longitude and latitude through its ground
+    /// control points, then to site metres through the site's `[frame]`; a height stays).
+    /// `None` when the frame cannot place it.
+    fn site_position(&self, given: &[f64]) -> Option<Vec<f64>> {
+        if given.len() < 2 || given.iter().any(|c| !c.is_finite()) {
+            return None;
+        }
+        let site_m = match &self.projection {
+            Projection::Site => given.to_vec(),
+            Projection::Wgs84(frame) => frame.local_of(given)?,
+            Projection::Zone { site, zone, .. } => {
+                let geodetic = zone.wgs84_of(&given[..2])?;
+                let mut site_m = site.local_of(&geodetic)?;
+                site_m.extend(given.get(2));
+                site_m
+            }
+        };
+        site_m.iter().all(|c| c.is_finite()).then_some(site_m)
+    }
+
+    /// A fence's region given in this frame, in site metres ([`Self::site_position`] of
+    /// every position); a Point's radius is metres in every frame.
+    ///
+    /// # Errors
+    /// 400 naming the position (`region.coordinates`, `region.coordinates[r][i]`) the frame
+    /// cannot place.
+    pub(super) fn site_region(&self, region: &Region) -> ApiResult<Region> {
+        let place = |position: &[f64], field: String| {
+            self.site_position(position).ok_or_else(|| {
+                ApiError::field(
+                    field,
+                    format!(
+                        "{position:?} cannot be placed in the site from the fence's {} frame",
+                        self.crs()
+                    ),
+                )
+            })
+        };
+        Ok(match region {
+            Region::Point { coordinates } => Region::Point {
+                coordinates: place(coordinates, "region.coordinates".into())?,
+            },
+            Region::Polygon { coordinates } => Region::Polygon {
+                coordinates: coordinates
+                    .iter()
+                    .enumerate()
+                    .map(|(r, ring)| {
+                        ring.iter()
+                            .enumerate()
+                            .map(|(i, p)| place(p, format!("region.coordinates[{r}][{i}]")))
+                            .collect::<ApiResult<Vec<_>>>()
+                    })
+                    .collect::<ApiResult<Vec<_>>>()?,
+            },
         })
     }
 
@@ -321,6 +421,42 @@ impl ReadFrame {
         }
         ([(header::CONTENT_TYPE, "application/geo+json")], body.to_string()).into_response()
     }
+}
+
+/// The projection to `zone`'s local frame: site metres for the site's own zone, else the
+/// zone's fitted frame reached through the site's georeference.
+///
+/// # Errors
+/// 400 naming `zone_id` for a proximity zone, a zone without a usable frame, or a site
+/// without a `[frame]`.
+fn zone_projection(state: &AppState, zone: Zone) -> ApiResult<Projection> {
+    if zone.id == site_zone(state).id {
+        return Ok(Projection::Site);
+    }
+    if is_proximity(zone.kind) {
+        return Err(ApiError::field(
+            "zone_id",
+            format!(
+                "zone `{}` is a proximity zone (a reader's position and radius): it has no local frame",
+                zone.id
+            ),
+        ));
+    }
+    let fitted = ZoneFrame::of_zone(&zone).map_err(|e| ApiError::field("zone_id", e.message))?;
+    let site = state.site.frame.map(ZoneFrame::Site).ok_or_else(|| {
+        ApiError::field(
+            "zone_id",
+            format!(
+                "the site has no [frame] origin to relate its metres to zone `{}`'s ground control points",
+                zone.id
+            ),
+        )
+    })?;
+    Ok(Projection::Zone {
+        id: zone.id,
+        site,
+        zone: fitted,
+    })
 }
 
 /// `location` in WGS-84 through `frame` when given (as it is without one): the WebSocket's

@@ -41,6 +41,7 @@ pub const MAX_BATCH: usize = 4096;
 pub const MAX_FRAME_BYTES: usize = 32 * 1024 - 512;
 
 use super::positions::PositionColumns;
+use super::read_frame::ReadFrame;
 use super::{metrics, ApiResult, AppState};
 use crate::auth::Access;
 use crate::convert::{fence_from_zone, wgs84_geometry};
@@ -83,9 +84,9 @@ struct Subscription {
     tag: Option<String>,
     /// Only this trackable's messages (`trackable_motions`, `collision_events`).
     trackable: Option<String>,
-    /// `params.crs = "EPSG:4326"` on `location_updates`: positions in WGS-84 through the
-    /// site's `[frame]`.
-    wgs84: bool,
+    /// `params.crs` / `params.zone_id` on `location_updates` and `trackable_motions`: the
+    /// frame positions go to (`None`: as published, site metres).
+    frame: Option<ReadFrame>,
     /// On `collision_events`: the collision thread publishes while this is held.
     _collisions: Option<CollisionListener>,
 }
@@ -125,7 +126,7 @@ async fn serve(mut socket: WebSocket, state: AppState) {
                     Message::Close(_) => break,
                     _ => continue,
                 };
-                let reply = handle(&text, &mut subscriptions, &mut next_id, state.site.frame.is_some(), state.pipeline.live());
+                let reply = handle(&text, &mut subscriptions, &mut next_id, &state).await;
                 if send(&mut socket, &reply).await.is_err() {
                     break;
                 }
@@ -172,12 +173,11 @@ async fn send(socket: &mut WebSocket, message: &impl serde::Serialize) -> Result
 }
 
 /// Answers one client message.
-fn handle(
+async fn handle(
     text: &str,
     subscriptions: &mut HashMap<u64, Subscription>,
     next_id: &mut u64,
-    georeferenced: bool,
-    live: &LiveState,
+    state: &AppState,
 ) -> WsMessage {
     // read the event and the topic first, so an unknown one gets its own omlox error code
     let value: Value = match serde_json::from_str(text) {
@@ -199,40 +199,21 @@ fn handle(
             let Some(topic) = request.topic else {
                 return WsMessage::error(WsErrorCode::SubscriptionFailed, "`topic` is required");
             };
-            let tag = request.params.as_ref().and_then(|p| {
-                p.get("provider_id")
-                    .or_else(|| p.get("tag"))
+            let param = |name: &str| {
+                request
+                    .params
+                    .as_ref()
+                    .and_then(|p| p.get(name))
                     .and_then(Value::as_str)
                     .map(String::from)
-            });
-            let trackable = request
-                .params
-                .as_ref()
-                .and_then(|p| p.get("trackable_id").and_then(Value::as_str).map(String::from));
-            let crs = request
-                .params
-                .as_ref()
-                .and_then(|p| p.get("crs"))
-                .and_then(Value::as_str);
-            let wgs84 = match Crs::parse(crs) {
-                Ok(Crs::Local) => false,
-                Ok(Crs::Wgs84) if georeferenced && carries_locations(topic) => true,
-                Ok(Crs::Wgs84) if carries_locations(topic) => {
-                    return WsMessage::error(
-                        WsErrorCode::SubscriptionFailed,
-                        "crs EPSG:4326: the site has no [frame] origin, so locations are only in crs local",
-                    )
-                }
-                Ok(Crs::Wgs84) | Err(_) => {
-                    return WsMessage::error(
-                        WsErrorCode::SubscriptionFailed,
-                        &format!(
-                            "crs `{}`: only local, or EPSG:4326 on location_updates and trackable_motions",
-                            crs.unwrap_or_default()
-                        ),
-                    )
-                }
             };
+            let tag = param("provider_id").or_else(|| param("tag"));
+            let trackable = param("trackable_id");
+            let frame =
+                match subscription_frame(topic, param("crs").as_deref(), param("zone_id").as_deref(), state).await {
+                    Ok(frame) => frame,
+                    Err(reason) => return WsMessage::error(WsErrorCode::SubscriptionFailed, &reason),
+                };
             let id = *next_id;
             *next_id += 1;
             subscriptions.insert(
@@ -241,8 +222,9 @@ fn handle(
                     topic,
                     tag,
                     trackable,
-                    wgs84,
-                    _collisions: (topic == Topic::CollisionEvents).then(|| live.listen_for_collisions()),
+                    frame,
+                    _collisions: (topic == Topic::CollisionEvents)
+                        .then(|| state.pipeline.live().listen_for_collisions()),
                 },
             );
             WsMessage::subscribed(topic, id)
@@ -258,6 +240,49 @@ fn handle(
             None => WsMessage::error(WsErrorCode::UnsubscribeFailed, "no such subscription_id"),
         },
         _ => WsMessage::error(WsErrorCode::UnknownEvent, "clients send subscribe or unsubscribe"),
+    }
+}
+
+/// The frame a subscription's `params.crs` and `params.zone_id` ask for ("crs and geojson
+/// params as defined for the location and fence API"; `zone_id` "the zone id to be used to
+/// project coordinates"): on `location_updates` and `trackable_motions` the REST location
+/// reads' frame ([`ReadFrame::of_params`]), `None` for site metres; on other topics only
+/// `crs: "local"` (their payloads carry no Location to project).
+///
+/// # Errors
+/// The reason, for error 10002: a CRS other than `local` / `EPSG:4326`, EPSG:4326 on a site
+/// without a `[frame]`, an unknown zone or one without a local frame, or `crs` / `zone_id` on
+/// a topic they do not apply to.
+async fn subscription_frame(
+    topic: Topic,
+    crs: Option<&str>,
+    zone_id: Option<&str>,
+    state: &AppState,
+) -> Result<Option<ReadFrame>, String> {
+    if !carries_locations(topic) {
+        return match (Crs::parse(crs), zone_id) {
+            (Ok(Crs::Local), None) => Ok(None),
+            (_, Some(zone_id)) => Err(format!(
+                "zone_id `{zone_id}`: only on location_updates and trackable_motions"
+            )),
+            _ => Err(format!(
+                "crs `{}`: only local, or EPSG:4326 on location_updates and trackable_motions",
+                crs.unwrap_or_default()
+            )),
+        };
+    }
+    if crs.is_none() && zone_id.is_none() {
+        return Ok(None);
+    }
+    match ReadFrame::of_params(state, crs, zone_id).await {
+        Ok(frame) if frame.is_site_metres() => Ok(None),
+        Ok(frame) => Ok(Some(frame)),
+        Err(e) => Err(match e.field {
+            Some(field) => format!("{field}: {}", e.message),
+            // the one lookup that answers 404 is the zone's
+            None if e.status == axum::http::StatusCode::NOT_FOUND => format!("zone_id: {}", e.message),
+            None => e.message,
+        }),
     }
 }
 
@@ -374,10 +399,11 @@ fn payload<'a>(
 ) -> Option<Payload<'a>> {
     let payload = match (message.as_ref(), subscription.topic) {
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdates) if wanted(subscription, tag) => {
-            if !subscription.wgs84 {
+            let Some(projection) = &subscription.frame else {
                 return Some(Payload::Location(location));
-            }
-            serde_json::to_value(super::read_frame::in_frame(Location::clone(location), frame)).ok()?
+            };
+            // a position the frame cannot take is not sent: its coordinates would be in no frame
+            serde_json::to_value(projection.location(Location::clone(location)).ok()?).ok()?
         }
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
             // the Feature of the REST reads' geojson=true, in WGS-84 when the site has a frame
@@ -445,10 +471,13 @@ fn motions<'a>(
                 for moved in moved_by(context.trackables, context.live, tag, *time_s, location) {
                     let trackable = &moved.trackable;
                     if moved.moves && subscription.trackable.as_deref().is_none_or(|t| t == trackable.id) {
-                        let location = if subscription.wgs84 {
-                            super::read_frame::in_frame(Location::clone(location), context.frame)
-                        } else {
-                            Location::clone(location)
+                        let location = match &subscription.frame {
+                            Some(projection) => match projection.location(Location::clone(location)) {
+                                Ok(location) => location,
+                                // a position the frame cannot take is not sent
+                                Err(_) => continue,
+                            },
+                            None => Location::clone(location),
                         };
                         out.push(TrackableMotion::of(trackable, location));
                     }
