@@ -206,6 +206,19 @@ def zone_without_local_frame(case, error):
     )
 
 
+def fence_zone_without_local_frame(case, error):
+    if not case.operation.path.startswith("/fences") or error.get("field") != "zone_id":
+        return False
+    body = case.body if isinstance(case.body, dict) else {}
+    crs = body.get("crs")
+    return (
+        isinstance(crs, str)
+        and crs.lower() == "local"
+        and body.get("zone_id") != SITE_ZONE
+        and any(reason in error["message"] for reason in ("no zone has the id", "no local frame", "ground control points"))
+    )
+
+
 def proximity_zone_with_ground_control_points(case, error):
     if not case.operation.path.startswith("/zones") or error.get("field") != "ground_control_points":
         return False
@@ -299,6 +312,7 @@ EXCEPTIONS = [
     empty_identifier,
     proximity_zone_without_radius,
     zone_without_local_frame,
+    fence_zone_without_local_frame,
     ground_control_point_not_a_pair,
     elevation_ref_not_floor_or_wgs84,
     ring_without_three_corners,

@@ -7,8 +7,12 @@
 //!
 //! A fence is written in `EPSG:4326` (longitude, latitude in degrees; omlox's default, so also
 //! a fence without `crs`) on a site with a `[frame]`, whose georeference takes it to site
-//! metres, or in the site's local metres (`crs: "local"`): a `Polygon` region (closed ring) or
-//! a `Point` with `radius` (m, a 32-gon). On a site without a `[frame]` a fence without `crs`
+//! metres, or in a zone's local frame (`crs: "local"` with the zone's `zone_id`: a stored
+//! zone's ground control points, then the site's `[frame]`; the site's own zone, or no
+//! `zone_id`, is the site's metres — `read_frame`'s `ReadFrame::of_written_fence`): a `Polygon` region
+//! (closed ring) or a `Point` with `radius` (m, a 32-gon). The zone is used when the fence is
+//! written: the fence is stored in site metres, and a later change of the zone's ground
+//! control points does not move it. On a site without a `[frame]` a fence without `crs`
 //! is refused (400 naming `crs`): its coordinates are degrees there is nothing to place by.
 //! The reads give regions in EPSG:4326 by default where the site has a `[frame]`, else in
 //! `local` with the site's zone as `zone_id`; in another frame on request, and as GeoJSON

@@ -1,4 +1,6 @@
-//! How the omlox reads give coordinates back: the query parameters `crs`, `zone_id` and
+//! How the omlox reads give coordinates back — and, inverted, how a fence written in a zone's
+//! local frame comes to site metres ([`ReadFrame::of_written_fence`],
+//! [`ReadFrame::site_region`]): the query parameters `crs`, `zone_id` and
 //! `geojson` of `GET /v2/providers/locations`, `/v2/providers/{id}/location`,
 //! `/v2/trackables/{id}/location`, `/v2/trackables/{id}/locations`,
 //! `/v2/trackables/{id}/motion`, `/v2/trackables/motions`, `/v2/fences/summary`,

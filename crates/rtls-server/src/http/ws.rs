@@ -13,7 +13,9 @@
 //! under 0 whatever the hub answers (the Go omlox client does) gets its messages.
 //! `params.provider_id` (or `tag`) filters by tag (on `collision_events`: either tag whose
 //! update placed one of the two trackables); `params.trackable_id` filters `trackable_motions`
-//! and `collision_events` (either of the two) by trackable. A client that falls more than the
+//! and `collision_events` (either of the two) by trackable. `params.crs` and `params.zone_id`
+//! on `location_updates` and `trackable_motions` project positions as `?crs=` and `?zone_id=`
+//! do on the REST reads (`zone_id` projects into the zone's local frame; it does not filter). A client that falls more than the
 //! broadcast capacity behind misses messages (counted in `rtls_websocket_dropped`).
 //!
 //! Batching: every message waiting in the broadcast queue when the socket is ready is sent

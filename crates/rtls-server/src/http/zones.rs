@@ -211,8 +211,9 @@ pub(super) async fn create_fence(
         exit_tolerance: None,
         tolerance_timeout: None,
         exit_delay: None,
+        // the ring is in site metres (`local` without a zone_id), as `upsert` takes it
         crs: Some("local".into()),
-        zone_id: Some(zone.id.clone()),
+        zone_id: None,
         elevation_ref: None,
         properties: None,
     };
