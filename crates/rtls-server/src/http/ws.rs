@@ -15,8 +15,9 @@
 //! update placed one of the two trackables); `params.trackable_id` filters `trackable_motions`
 //! and `collision_events` (either of the two) by trackable. `params.crs` and `params.zone_id`
 //! on `location_updates` and `trackable_motions` project positions as `?crs=` and `?zone_id=`
-//! do on the REST reads (`zone_id` projects into the zone's local frame; it does not filter). A client that falls more than the
-//! broadcast capacity behind misses messages (counted in `rtls_websocket_dropped`).
+//! do on the REST reads (`zone_id` projects into the zone's local frame; it does not filter).
+//! A client that falls more than the broadcast capacity behind misses messages (counted in
+//! `rtls_websocket_dropped`).
 //!
 //! Batching: every message waiting in the broadcast queue when the socket is ready is sent
 //! together, one `message` per subscription whose `payload` holds all of them in order (up to
