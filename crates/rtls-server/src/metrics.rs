@@ -74,6 +74,8 @@ pub struct Metrics {
     pub websocket_clients: Gauge,
     /// Messages a slow WebSocket client missed.
     pub websocket_dropped: Counter,
+    /// Locations a WebSocket subscription's `crs` / `zone_id` could not project (not sent).
+    pub websocket_unprojected: Counter,
     /// HTTP requests, by route and status class.
     pub http_requests: Family<Labels, Counter>,
     /// HTTP connections closed at accept by a limit (`reason`: `per_ip`, `total`).
@@ -155,6 +157,7 @@ impl Metrics {
             tags: Gauge::default(),
             websocket_clients: Gauge::default(),
             websocket_dropped: Counter::default(),
+            websocket_unprojected: Counter::default(),
             http_requests: Family::default(),
             http_connections_refused: Family::default(),
             http_requests_limited: Counter::default(),
@@ -274,6 +277,11 @@ impl Metrics {
             "websocket_dropped",
             "Messages slow WebSocket clients missed",
             m.websocket_dropped.clone(),
+        );
+        registry.register(
+            "websocket_unprojected",
+            "Locations a WebSocket subscription's crs or zone_id could not project, not sent",
+            m.websocket_unprojected.clone(),
         );
         registry.register(
             "http_requests",

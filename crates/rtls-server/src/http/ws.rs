@@ -16,8 +16,9 @@
 //! and `collision_events` (either of the two) by trackable. `params.crs` and `params.zone_id`
 //! on `location_updates` and `trackable_motions` project positions as `?crs=` and `?zone_id=`
 //! do on the REST reads (`zone_id` projects into the zone's local frame; it does not filter).
-//! A client that falls more than the broadcast capacity behind misses messages (counted in
-//! `rtls_websocket_dropped`).
+//! A location the subscription's frame cannot project is not sent (counted in
+//! `rtls_websocket_unprojected`). A client that falls more than the broadcast capacity behind
+//! misses messages (counted in `rtls_websocket_dropped`).
 //!
 //! Batching: every message waiting in the broadcast queue when the socket is ready is sent
 //! together, one `message` per subscription whose `payload` holds all of them in order (up to
@@ -159,6 +160,7 @@ async fn serve(mut socket: WebSocket, state: AppState) {
                     frame: state.site.frame.as_ref(),
                     trackables: &trackables,
                     live: state.pipeline.live(),
+                    unprojected: &metrics.websocket_unprojected,
                 };
                 if deliver(&mut socket, &batch, &subscriptions, &context).await.is_err() {
                     break;
@@ -299,6 +301,9 @@ struct Context<'a> {
     trackables: &'a TrackableIndex,
     /// The providers' latest locations (a trackable with `locating_rules` chooses among them).
     live: &'a LiveState,
+    /// Locations a subscription's frame could not project, so not sent
+    /// (`rtls_websocket_unprojected`).
+    unprojected: &'a prometheus_client::metrics::counter::Counter,
 }
 
 /// Sends hub messages to every matching subscription: one WebSocket message per subscription
@@ -320,7 +325,7 @@ async fn deliver(
                 .collect(),
             _ => batch
                 .iter()
-                .filter_map(|message| payload(message, subscription, context.fences, context.frame))
+                .filter_map(|message| payload(message, subscription, context))
                 .collect(),
         };
         if payloads.is_empty() {
@@ -397,16 +402,21 @@ struct Delivery<'a> {
 fn payload<'a>(
     message: &'a Arc<HubMessage>,
     subscription: &Subscription,
-    fences: &HashMap<String, Value>,
-    frame: Option<&rtls_engine::site::FrameSettings>,
+    context: &Context<'_>,
 ) -> Option<Payload<'a>> {
+    let (fences, frame) = (context.fences, context.frame);
     let payload = match (message.as_ref(), subscription.topic) {
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdates) if wanted(subscription, tag) => {
             let Some(projection) = &subscription.frame else {
                 return Some(Payload::Location(location));
             };
-            // a position the frame cannot take is not sent: its coordinates would be in no frame
-            serde_json::to_value(projection.location(Location::clone(location)).ok()?).ok()?
+            // a position the frame cannot take is not sent (its coordinates would be in no
+            // frame), and counted
+            let Ok(projected) = projection.location(Location::clone(location)) else {
+                context.unprojected.inc();
+                return None;
+            };
+            serde_json::to_value(projected).ok()?
         }
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
             // the Feature of the REST reads' geojson=true, in WGS-84 when the site has a frame
@@ -477,8 +487,11 @@ fn motions<'a>(
                         let location = match &subscription.frame {
                             Some(projection) => match projection.location(Location::clone(location)) {
                                 Ok(location) => location,
-                                // a position the frame cannot take is not sent
-                                Err(_) => continue,
+                                // a position the frame cannot take is not sent, and counted
+                                Err(_) => {
+                                    context.unprojected.inc();
+                                    continue;
+                                }
                             },
                             None => Location::clone(location),
                         };
