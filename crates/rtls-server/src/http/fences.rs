@@ -352,23 +352,7 @@ fn region_in_site(region: &Region, site: &Site, stated: bool) -> ApiResult<Regio
             _ => Err(ApiError::field(field, "a position is [longitude, latitude] in degrees")),
         }
     };
-    Ok(match region {
-        Region::Point { coordinates } => Region::Point {
-            coordinates: to_site(coordinates, "region.coordinates".into())?,
-        },
-        Region::Polygon { coordinates } => Region::Polygon {
-            coordinates: coordinates
-                .iter()
-                .enumerate()
-                .map(|(r, ring)| {
-                    ring.iter()
-                        .enumerate()
-                        .map(|(i, p)| to_site(p, format!("region.coordinates[{r}][{i}]")))
-                        .collect::<ApiResult<Vec<_>>>()
-                })
-                .collect::<ApiResult<Vec<_>>>()?,
-        },
-    })
+    region.try_map_positions(to_site)
 }
 
 /// A fence as a site zone with id `zone_id` (see the module documentation); a `local` region

@@ -306,23 +306,7 @@ impl ReadFrame {
                 )
             })
         };
-        Ok(match region {
-            Region::Point { coordinates } => Region::Point {
-                coordinates: place(coordinates, "region.coordinates".into())?,
-            },
-            Region::Polygon { coordinates } => Region::Polygon {
-                coordinates: coordinates
-                    .iter()
-                    .enumerate()
-                    .map(|(r, ring)| {
-                        ring.iter()
-                            .enumerate()
-                            .map(|(i, p)| place(p, format!("region.coordinates[{r}][{i}]")))
-                            .collect::<ApiResult<Vec<_>>>()
-                    })
-                    .collect::<ApiResult<Vec<_>>>()?,
-            },
-        })
+        region.try_map_positions(place)
     }
 
     /// A location (site metres) in this frame, `crs` set.
@@ -373,17 +357,7 @@ impl ReadFrame {
             fence.zone_id = Some(self.site_zone_id.clone());
             return Ok(fence);
         }
-        fence.region = match fence.region {
-            Region::Point { coordinates } => Region::Point {
-                coordinates: self.position(&coordinates)?,
-            },
-            Region::Polygon { coordinates } => Region::Polygon {
-                coordinates: coordinates
-                    .iter()
-                    .map(|ring| ring.iter().map(|p| self.position(p)).collect())
-                    .collect::<ApiResult<_>>()?,
-            },
-        };
+        fence.region = fence.region.try_map_positions(|p, _| self.position(p))?;
         fence.crs = Some(self.crs().into());
         fence.zone_id = match &self.projection {
             Projection::Zone { id, .. } => Some(id.clone()),

@@ -108,3 +108,31 @@ pub enum Region {
         coordinates: Vec<Vec<Vec<f64>>>,
     },
 }
+
+impl Region {
+    /// The same region with every position replaced by `f(position, field)`, `field` the
+    /// position's JSON path (`region.coordinates`, `region.coordinates[r][i]`) for an error
+    /// to name; the first error stops the mapping.
+    ///
+    /// # Errors
+    /// The first error of `f`.
+    pub fn try_map_positions<E>(&self, mut f: impl FnMut(&[f64], String) -> Result<Vec<f64>, E>) -> Result<Self, E> {
+        Ok(match self {
+            Self::Point { coordinates } => Self::Point {
+                coordinates: f(coordinates, "region.coordinates".into())?,
+            },
+            Self::Polygon { coordinates } => Self::Polygon {
+                coordinates: coordinates
+                    .iter()
+                    .enumerate()
+                    .map(|(r, ring)| {
+                        ring.iter()
+                            .enumerate()
+                            .map(|(i, p)| f(p, format!("region.coordinates[{r}][{i}]")))
+                            .collect::<Result<Vec<_>, E>>()
+                    })
+                    .collect::<Result<Vec<_>, E>>()?,
+            },
+        })
+    }
+}
