@@ -6,28 +6,12 @@
 mod common;
 
 use axum::http::{Method, StatusCode};
-use common::{assert_omlox_error, call, post_created, Reply, FRAME, WRITE};
+use common::{assert_omlox_error, call, lon_lat, post_created, turned_zone, zone_of, Reply, FRAME, WRITE};
 use rtls_server::convert::uuid_for;
 use serde_json::{json, Value};
 
 /// The test site's hazard zone, a box x ∈ [14, 18] m, y ∈ [0, 20] m, as a closed ring.
 const LANE: [[f64; 2]; 5] = [[14.0, 0.0], [18.0, 0.0], [18.0, 20.0], [14.0, 20.0], [14.0, 0.0]];
-
-/// The stored zone's frame, turned 90° from the site's and shifted: its `[u, v]` of site
-/// metres `[x, y]`.
-fn zone_of(site: [f64; 2]) -> [f64; 2] {
-    [2.0 - site[1], site[0] - 5.0]
-}
-
-/// Site metres of a zone position (the inverse of [`zone_of`]).
-fn site_of(zone: [f64; 2]) -> [f64; 2] {
-    [5.0 + zone[1], 2.0 - zone[0]]
-}
-
-fn lon_lat(site: [f64; 2]) -> [f64; 2] {
-    let [lon, lat, _] = FRAME.wgs84_of([site[0], site[1], 0.0]).unwrap();
-    [lon, lat]
-}
 
 fn xy(position: &Value) -> [f64; 2] {
     [0, 1].map(|k| position["coordinates"][k].as_f64().unwrap_or(f64::NAN))
@@ -70,12 +54,7 @@ async fn scene(name: &str, georeferenced: bool) -> (axum::Router, String, String
         .as_str()
         .unwrap()
         .to_string();
-    let points: Vec<[f64; 2]> = [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]]
-        .into_iter()
-        .flat_map(|uv| [lon_lat(site_of(uv)), uv])
-        .collect();
-    let zone = json!({"type": "uwb", "name": "turned", "ground_control_points": points});
-    let zone = post_created(&app, "/v2/zones", &zone).await["id"]
+    let zone = post_created(&app, "/v2/zones", &turned_zone()).await["id"]
         .as_str()
         .unwrap()
         .to_string();

@@ -8,7 +8,9 @@ mod common;
 use std::time::Duration;
 
 use axum::http::{Method, StatusCode};
-use common::{assert_omlox_error, call, post_created, post_measurements, Reply, FRAME, READ, WRITE};
+use common::{
+    assert_omlox_error, call, lon_lat, post_created, post_measurements, turned_zone, zone_of, Reply, FRAME, READ, WRITE,
+};
 use futures_util::{SinkExt, StreamExt};
 use rtls_server::config::MqttMode;
 use rtls_server::serve::ServeOptions;
@@ -16,22 +18,6 @@ use serde_json::{json, Value};
 use tokio_tungstenite::tungstenite::Message;
 
 type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
-
-/// The stored zone's frame, turned 90° from the site's and shifted: its `[u, v]` of site
-/// metres `[x, y]` (as in `omlox_read_frames.rs`).
-fn zone_of(site: [f64; 2]) -> [f64; 2] {
-    [2.0 - site[1], site[0] - 5.0]
-}
-
-/// Site metres of a zone position (the inverse of [`zone_of`]).
-fn site_of(zone: [f64; 2]) -> [f64; 2] {
-    [5.0 + zone[1], 2.0 - zone[0]]
-}
-
-fn lon_lat(site: [f64; 2]) -> [f64; 2] {
-    let [lon, lat, _] = FRAME.wgs84_of([site[0], site[1], 0.0]).unwrap();
-    [lon, lat]
-}
 
 fn xy(position: &Value) -> [f64; 2] {
     [0, 1].map(|k| position[k].as_f64().unwrap_or(f64::NAN))
@@ -42,15 +28,6 @@ fn assert_near(got: [f64; 2], want: [f64; 2], tolerance: f64, what: &str) {
         (got[0] - want[0]).abs() < tolerance && (got[1] - want[1]).abs() < tolerance,
         "{what}: {got:?} against {want:?}"
     );
-}
-
-/// The zone's body: four ground control points of its `[u, v]` and their WGS-84 places.
-fn turned_zone() -> Value {
-    let points: Vec<[f64; 2]> = [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]]
-        .into_iter()
-        .flat_map(|uv| [lon_lat(site_of(uv)), uv])
-        .collect();
-    json!({"type": "uwb", "name": "turned", "ground_control_points": points})
 }
 
 /// The square x ∈ [6, 10] m, y ∈ [8, 12] m of the site (the walk along y = 10 m crosses it),

@@ -418,3 +418,30 @@ pub fn loopback_config(
     config.mqtt.listen = "127.0.0.1:0".parse().unwrap();
     config
 }
+
+/// The stored zone of the frame tests, turned 90° from the site's frame and shifted: its
+/// `[u, v]` of site metres `[x, y]`.
+pub fn zone_of(site: [f64; 2]) -> [f64; 2] {
+    [2.0 - site[1], site[0] - 5.0]
+}
+
+/// Site metres of a turned-zone position (the inverse of [`zone_of`]).
+pub fn site_of(zone: [f64; 2]) -> [f64; 2] {
+    [5.0 + zone[1], 2.0 - zone[0]]
+}
+
+/// `[longitude, latitude]` of site metres through [`FRAME`].
+pub fn lon_lat(site: [f64; 2]) -> [f64; 2] {
+    let [lon, lat, _] = FRAME.wgs84_of([site[0], site[1], 0.0]).unwrap();
+    [lon, lat]
+}
+
+/// The turned zone's body: four ground control points of its `[u, v]` and their WGS-84
+/// places.
+pub fn turned_zone() -> Value {
+    let points: Vec<[f64; 2]> = [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]]
+        .into_iter()
+        .flat_map(|uv| [lon_lat(site_of(uv)), uv])
+        .collect();
+    serde_json::json!({"type": "uwb", "name": "turned", "ground_control_points": points})
+}
