@@ -131,6 +131,8 @@ pub(super) fn accept<const N: usize, U: UpdateOutcome<N>>(
                 reduction_m2,
                 dimensions::<N>(),
             )
+            // a non-finite correction (a diverged update) tests nothing; the divergence check
+            // reports the state itself
             .ok()
             .flatten()
             .unwrap_or(1.0);

@@ -157,10 +157,11 @@ pub(crate) struct Track<const N: usize> {
     /// The position corrections of the open consistency window ([`CorrectionTest`]).
     #[serde(default)]
     pub(super) corrections: CorrectionWindow,
-    /// The covariance inflation the last update's consistency test asked for, applied by
-    /// [`super::step::apply_fading`] once the update's cross-covariances are carried; 1 when
-    /// none.
-    #[serde(default = "no_fading")]
+    /// The covariance inflation the update being taken asked for, handed from
+    /// [`super::step::accept`] to [`super::step::apply_fading`] (which runs once the update's
+    /// cross-covariances are carried) within one record's processing; 1 between records, so
+    /// not part of a checkpoint.
+    #[serde(skip, default = "no_fading")]
     pub(super) fading: f64,
 }
 
