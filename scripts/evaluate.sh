@@ -44,7 +44,8 @@ track() {
 }
 
 # tuned RUN_DIR NAME INPUT [track flags…]: `rtls tune --truth` on the first half of the recording
-# (by truth time), then the whole recording tracked with the tuned site; scored on the second
+# (by truth time) with the same --pipeline/--filter/--motion-model flags the track will run, then
+# the whole recording tracked with the tuned site; scored on the second
 # half only (truth-late.csv), with the raw fixes of the same run
 tuned() {
   local dir=$1 name=$2 input=$3; shift 3
@@ -55,7 +56,7 @@ rows = list(csv.reader(open(sys.argv[1])))
 w = csv.writer(open(sys.argv[2], "w", newline=""), lineterminator="\n")
 w.writerow(rows[0]); w.writerows(r for r in rows[1:] if float(r[0]) > float(sys.argv[3]))' "$dir/truth.csv" "$dir/truth-late.csv" "$split"
   "$RTLS" tune --site "$dir/site.toml" --input "$dir/$input" --truth "$dir/truth.csv" --until-s "$split" \
-    --out "$dir/$name.tuned.toml" > "$dir/$name.tune.txt"
+    --out "$dir/$name.tuned.toml" "$@" > "$dir/$name.tune.txt"
   SITE="$dir/$name.tuned.toml" track "$dir" "$name" "$input" "$@"
 }
 

@@ -89,12 +89,9 @@ pub struct TrackArgs {
     /// Raw fixes of the positioning stage (before the filter), in the track-file shape.
     #[arg(long)]
     pub fixes: Option<PathBuf>,
-    /// Override the site's `tracker.pipeline`.
-    #[arg(long, value_enum)]
-    pub pipeline: Option<PipelineArg>,
-    /// Override the site's `tracker.filter`.
-    #[arg(long, value_enum)]
-    pub filter: Option<FilterArg>,
+    /// `--pipeline`, `--filter`, `--motion-model`: the site's tracker settings overridden.
+    #[command(flatten)]
+    pub overrides: ModelOverrides,
     /// Correct ranges and RSSI with the bias learned by `rtls survey` (its cells CSV) at the
     /// tag's last tracked position before tracking them; needs `--correct-readers`.
     #[arg(long, requires = "correct_readers")]
@@ -102,9 +99,6 @@ pub struct TrackArgs {
     /// The readers CSV of the same survey (`rtls survey --readers-out`).
     #[arg(long, requires = "correct")]
     pub correct_readers: Option<PathBuf>,
-    /// Override the site's `tracker.motion_model`.
-    #[arg(long, value_enum)]
-    pub motion_model: Option<MotionModelArg>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -130,31 +124,57 @@ fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
     ))
 }
 
+/// The tracker settings `rtls track` and `rtls tune` let the command line override, so a
+/// recording is tuned with the pipeline, filter and motion model it will be tracked with.
+#[derive(Debug, Clone, Copy, Default, Args)]
+pub struct ModelOverrides {
+    /// Override the site's `tracker.pipeline`.
+    #[arg(long, value_enum)]
+    pub pipeline: Option<PipelineArg>,
+    /// Override the site's `tracker.filter`.
+    #[arg(long, value_enum)]
+    pub filter: Option<FilterArg>,
+    /// Override the site's `tracker.motion_model`.
+    #[arg(long, value_enum)]
+    pub motion_model: Option<MotionModelArg>,
+}
+
+impl ModelOverrides {
+    /// Writes the overrides into `site.tracker`.
+    ///
+    /// # Errors
+    /// The tightly coupled pipeline with the linear KF (raw measurements are nonlinear).
+    pub fn apply(&self, site: &mut Site) -> anyhow::Result<()> {
+        if let Some(pipeline) = self.pipeline {
+            site.tracker.pipeline = match pipeline {
+                PipelineArg::FixThenFilter => Pipeline::FixThenFilter,
+                PipelineArg::TightlyCoupled => Pipeline::TightlyCoupled,
+            };
+        }
+        if let Some(filter) = self.filter {
+            site.tracker.filter = match filter {
+                FilterArg::Kf => FilterKind::Kf,
+                FilterArg::Ekf => FilterKind::Ekf,
+                FilterArg::Ukf => FilterKind::Ukf,
+            };
+        }
+        if let Some(model) = self.motion_model {
+            site.tracker.motion_model = match model {
+                MotionModelArg::Cv => MotionModelKind::Cv,
+                MotionModelArg::Imm => MotionModelKind::Imm,
+            };
+        }
+        if site.tracker.pipeline == Pipeline::TightlyCoupled && site.tracker.filter == FilterKind::Kf {
+            bail!("the tightly coupled pipeline needs --filter ekf or ukf (raw measurements are nonlinear)");
+        }
+        Ok(())
+    }
+}
+
 /// Loads the site (with command-line overrides) and its radio map, if it names one.
 fn load_site(args: &TrackArgs) -> anyhow::Result<(Site, Option<RadioMap>)> {
     let (mut site, radio_map) = load_site_file(&args.site)?;
-    if let Some(pipeline) = args.pipeline {
-        site.tracker.pipeline = match pipeline {
-            PipelineArg::FixThenFilter => Pipeline::FixThenFilter,
-            PipelineArg::TightlyCoupled => Pipeline::TightlyCoupled,
-        };
-    }
-    if let Some(filter) = args.filter {
-        site.tracker.filter = match filter {
-            FilterArg::Kf => FilterKind::Kf,
-            FilterArg::Ekf => FilterKind::Ekf,
-            FilterArg::Ukf => FilterKind::Ukf,
-        };
-    }
-    if let Some(model) = args.motion_model {
-        site.tracker.motion_model = match model {
-            MotionModelArg::Cv => MotionModelKind::Cv,
-            MotionModelArg::Imm => MotionModelKind::Imm,
-        };
-    }
-    if site.tracker.pipeline == Pipeline::TightlyCoupled && site.tracker.filter == FilterKind::Kf {
-        bail!("the tightly coupled pipeline needs --filter ekf or ukf (raw measurements are nonlinear)");
-    }
+    args.overrides.apply(&mut site)?;
     Ok((site, radio_map))
 }
 

@@ -17,14 +17,14 @@ use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use rtls_engine::evaluation::parse_truth_csv;
 use rtls_engine::record::{CsvRecords, JsonLines, Record};
 use rtls_engine::tracker::{NoiseClass, Tracker};
 use rtls_engine::tuning::{tune, Tuning, TuningSettings};
 use toml_edit::{value, DocumentMut, InlineTable, Item, TableLike, Value};
 
-use crate::track::load_site_file;
+use crate::track::{load_site_file, ModelOverrides};
 
 /// Arguments of `rtls tune`.
 #[derive(Debug, Args)]
@@ -50,6 +50,10 @@ pub struct TuneArgs {
     /// Print the result as one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// `--pipeline`, `--filter`, `--motion-model`: tune the site as it will be tracked (the
+    /// same flags as `rtls track`); the overrides are written into the tuned site.
+    #[command(flatten)]
+    pub overrides: ModelOverrides,
 }
 
 /// Reads every record of `path`, checking reader ids against the site (errors name file, line
@@ -91,7 +95,8 @@ pub fn run(args: &TuneArgs) -> anyhow::Result<()> {
     if until_s.is_nan() {
         bail!("--until-s must be a number of seconds");
     }
-    let (site, radio_map) = load_site_file(&args.site)?;
+    let (mut site, radio_map) = load_site_file(&args.site)?;
+    args.overrides.apply(&mut site)?;
     let tracker = Tracker::new(&site)?;
     let records = read_records(&args.input, &tracker, until_s)?;
     if records.is_empty() {
@@ -118,7 +123,8 @@ pub fn run(args: &TuneArgs) -> anyhow::Result<()> {
 
     let site_name = args.site.display().to_string();
     let text = std::fs::read_to_string(&args.site).with_context(|| format!("reading {site_name}"))?;
-    let tuned = tuned_site_text(&text, &site_name, &tuning, truth.is_some(), &args.input, until_s)?;
+    let mut tuned = tuned_site_text(&text, &site_name, &tuning, truth.is_some(), &args.input, until_s)?;
+    tuned = with_overrides(&tuned, &args.overrides)?;
     // the tuned text must load as a site, or the file would be a trap
     rtls_engine::site::Site::from_toml_str(&tuned, &args.out.display().to_string())
         .context("the tuned site does not load (a bug: please report it)")?;
@@ -220,6 +226,33 @@ fn tuned_site_text(
     ))
 }
 
+/// The tuned site text with the command line's `--pipeline`, `--filter` and `--motion-model`
+/// written into `[tracker]`: the values were tuned for them.
+fn with_overrides(text: &str, overrides: &ModelOverrides) -> anyhow::Result<String> {
+    let names = [
+        ("pipeline", overrides.pipeline.and_then(|v| v.to_possible_value())),
+        ("filter", overrides.filter.and_then(|v| v.to_possible_value())),
+        (
+            "motion_model",
+            overrides.motion_model.and_then(|v| v.to_possible_value()),
+        ),
+    ];
+    if names.iter().all(|(_, v)| v.is_none()) {
+        return Ok(text.to_string());
+    }
+    let mut document: DocumentMut = text.parse().context("parsing the tuned site")?;
+    let tracker = document
+        .get_mut("tracker")
+        .and_then(Item::as_table_like_mut)
+        .context("the tuned site has no [tracker] table")?;
+    for (key, name) in names {
+        if let Some(name) = name {
+            tracker.insert(key, value(name.get_name()));
+        }
+    }
+    Ok(document.to_string())
+}
+
 /// Four significant decimals are plenty for noise settings and keep the file readable.
 fn round(x: f64) -> f64 {
     (x * 1e4).round() / 1e4
@@ -277,18 +310,19 @@ fn text_report(tuning: &Tuning, records: usize, out: &Path) -> String {
     let _ = writeln!(text, "tuned on {records} records; candidates (σ_a m/s²):");
     let _ = writeln!(
         text,
-        "  {:>8}  {:>14}  {:>8}  {:>8}  {:>8}",
-        "σ_a", "log-likelihood", "updates", "RMSE m", "in 95 %"
+        "  {:>8}  {:>14}  {:>8}  {:>8}  {:>7}  {:>8}",
+        "σ_a", "log-likelihood", "updates", "RMSE m", "± SE", "in 95 %"
     );
     for (i, c) in tuning.candidates.iter().enumerate() {
         let _ = writeln!(
             text,
-            "{} {:>8}  {:>14.1}  {:>8}  {:>8}  {:>8}{}",
+            "{} {:>8}  {:>14.1}  {:>8}  {:>8}  {:>7}  {:>8}{}",
             if i == tuning.chosen { "*" } else { " " },
             c.acceleration_noise_std_mps2,
             c.log_likelihood,
             c.updates,
             c.rmse_m.map_or("-".into(), |r| format!("{r:.3}")),
+            c.rmse_standard_error_m.map_or("-".into(), |r| format!("{r:.3}")),
             c.inside_95.map_or("-".into(), |r| format!("{:.1}%", 100.0 * r)),
             if i == tuning.chosen { "  ← chosen" } else { "" }
         );
@@ -353,8 +387,13 @@ fn text_report(tuning: &Tuning, records: usize, out: &Path) -> String {
         if let Some(p) = fit.path_loss {
             let _ = write!(
                 text,
-                " path loss ρ₀ {:.1} dBm, n {:.2}, σ {:.1} dB ({} samples)",
-                p.reference_power_dbm, p.exponent, p.shadowing_std_db, p.samples
+                " path loss ρ₀ {:.1} dBm, n {:.2}, σ {:.1} dB ({} samples; {}, held-out RMS {:.1} dB)",
+                p.reference_power_dbm,
+                p.exponent,
+                p.shadowing_std_db,
+                p.samples,
+                p.choice.name(),
+                p.held_out_rms_db
             );
         }
         text.push('\n');
@@ -373,6 +412,7 @@ fn json_report(tuning: &Tuning, records: usize) -> serde_json::Value {
                 "log_likelihood": c.log_likelihood,
                 "updates": c.updates,
                 "rmse_m": c.rmse_m,
+                "rmse_standard_error_m": c.rmse_standard_error_m,
                 "inside_95": c.inside_95,
             })
         })
@@ -386,7 +426,8 @@ fn json_report(tuning: &Tuning, records: usize) -> serde_json::Value {
                 "range": r.range.map(|f| serde_json::json!({"bias_m": f.bias_m, "range_std_m": f.range_std_m, "scale": f.scale, "samples": f.samples})),
                 "path_loss": r.path_loss.map(|f| serde_json::json!({
                     "reference_power_dbm": f.reference_power_dbm, "exponent": f.exponent,
-                    "shadowing_std_db": f.shadowing_std_db, "samples": f.samples})),
+                    "shadowing_std_db": f.shadowing_std_db, "samples": f.samples,
+                    "choice": f.choice.name(), "held_out_rms_db": f.held_out_rms_db})),
             })
         })
         .collect();

@@ -18,10 +18,15 @@
 //! - Ranges: per reader, the residuals `rᵢ − dᵢ` against the slant distance from the reader to
 //!   the true position at the record's time give `bias_m = median(r − d)` and
 //!   `range_std_m = 1.4826 · MAD(r − d)` (a robust standard deviation).
-//! - RSSI: per reader, the log-distance law `ρ = ρ₀ − 10 n log₁₀(d / 1 m)` by least squares on
-//!   `(log₁₀ d, ρ)`, with the residual standard deviation as the shadowing.
+//! - RSSI: per reader, the log-distance law `ρ = ρ₀ − 10 n log₁₀(d / 1 m)` on `(log₁₀ d, ρ)`:
+//!   the site's law kept, its `ρ₀` refitted, or both `ρ₀` and `n` refitted by least squares,
+//!   whichever is simplest within one standard error of the least 5-fold cross-validated error
+//!   ([`PathLossChoice`]), with the residual standard deviation as the shadowing.
 //! - `σ_a`: the grid value whose tracks (with the calibrated readers) have the smallest RMSE
-//!   against the truth.
+//!   against the truth; each candidate's RMSE comes with its standard error (batch means over
+//!   [`RMSE_BATCHES`] contiguous batches in time), printed by `rtls tune`, so a user sees
+//!   whether the calibration part determines `σ_a` at all (on a short walk it often does not:
+//!   the tuned value is then a guess, and the recording's later manoeuvres may need more).
 //! - The error-correlation settings (with or without truth, at the chosen `σ_a`):
 //!   `adaptive_noise.correlation_from_innovations` on and off and, when the recording has
 //!   speeds (odometry) taken with the heading's variance as fresh noise (the IMM, or
@@ -87,7 +92,7 @@
 
 mod readers;
 
-pub use readers::{PathLossFit, RangeFit, ReaderCalibration};
+pub use readers::{PathLossChoice, PathLossFit, RangeFit, ReaderCalibration};
 
 use std::collections::BTreeMap;
 
@@ -134,6 +139,10 @@ pub struct Candidate {
     pub updates: u64,
     /// With truth: RMSE of the non-predicted track updates, m.
     pub rmse_m: Option<f64>,
+    /// With truth: the standard error of `rmse_m` from [`RMSE_BATCHES`] contiguous batches of
+    /// the scored samples (batch means, so that errors correlated in time are not counted as
+    /// independent), m: `SE(MSE) = std_b(MSE_b)/√B`, `SE(RMSE) ≈ SE(MSE) / (2 RMSE)`.
+    pub rmse_standard_error_m: Option<f64>,
     /// With truth: the share of truths inside the reported 95 % ellipse.
     pub inside_95: Option<f64>,
     /// With truth: `k² = ε₉₅ / χ²_d(0.95)`, the factor the reported covariances needed.
@@ -234,6 +243,10 @@ const CALIBRATION_RUNS: usize = 4;
 /// Coverage within this band needs no scaling (the band a consistent track's coverage falls in
 /// on a recording of a few hundred correlated samples).
 const COVERAGE_BAND: (f64, f64) = (0.90, 0.98);
+
+/// Contiguous batches of a candidate's scored samples (in time) for the standard error of its
+/// RMSE.
+pub const RMSE_BATCHES: usize = 10;
 
 /// A scaling that costs more than this factor of RMSE is refused: the invariance it relies on
 /// does not hold for the site, and a consistent covariance is no excuse for a worse track.
@@ -530,15 +543,67 @@ fn run_candidate(
         Some(_) => (Some(f64::INFINITY), None, None),
         None => (None, None, None),
     };
+    let rmse_standard_error_m = match (truth, rmse_m) {
+        (Some(truth), Some(rmse)) if rmse.is_finite() && rmse > 0.0 => {
+            rmse_standard_error(truth, &samples, settings, rmse)
+        }
+        _ => None,
+    };
     Ok(Candidate {
         acceleration_noise_std_mps2: site.tracker.acceleration_noise_std_mps2,
         log_likelihood: innovations.log_likelihood(),
         updates,
         rmse_m,
+        rmse_standard_error_m,
         inside_95,
         covariance_scale_95,
         innovations,
     })
+}
+
+/// The standard error of a run's RMSE (see [`Candidate::rmse_standard_error_m`]): its scored
+/// samples cut into [`RMSE_BATCHES`] contiguous batches in time (after each tag's first
+/// `skip_initial_s`), each batch's MSE, `SE(MSE) = std_b(MSE_b)/√B`, `SE(RMSE) = SE(MSE) /
+/// (2 RMSE)`; `None` with fewer than two batches that scored.
+fn rmse_standard_error(
+    truth: &[TruthSample],
+    samples: &[TrackSample],
+    settings: &TuningSettings,
+    rmse_m: f64,
+) -> Option<f64> {
+    // each tag's first sample: the start of its skipped part
+    let mut first_s: BTreeMap<&str, f64> = BTreeMap::new();
+    for sample in samples {
+        let first = first_s.entry(&sample.tag).or_insert(sample.time_s);
+        *first = first.min(sample.time_s);
+    }
+    let mut kept: Vec<TrackSample> = samples
+        .iter()
+        .filter(|s| s.time_s >= first_s[s.tag.as_str()] + settings.skip_initial_s)
+        .cloned()
+        .collect();
+    kept.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    let evaluation = EvaluationSettings {
+        max_gap_s: settings.max_truth_gap_s,
+        skip_initial_s: 0.0,
+        ..EvaluationSettings::default()
+    };
+    let batch = kept.len().div_ceil(RMSE_BATCHES).max(1);
+    // MSE_b of each batch that scored
+    let batch_mse: Vec<f64> = kept
+        .chunks(batch)
+        .filter_map(|chunk| evaluate(truth, chunk, &evaluation).ok())
+        .filter(|scored| scored.overall.count > 0)
+        .map(|scored| scored.overall.rmse_m.powi(2))
+        .collect();
+    let b = batch_mse.len() as f64;
+    if batch_mse.len() < 2 {
+        return None;
+    }
+    // SE(MSE) = std_b(MSE_b)/√B;  SE(RMSE) = SE(MSE) / (2 RMSE)
+    let mean = batch_mse.iter().sum::<f64>() / b;
+    let variance = batch_mse.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (b - 1.0);
+    Some((variance / b).sqrt() / (2.0 * rmse_m))
 }
 
 /// Samples of each tag's truth, time-sorted, for interpolation.

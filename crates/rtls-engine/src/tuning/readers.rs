@@ -42,6 +42,11 @@ pub struct RangeFit {
     pub samples: usize,
 }
 
+/// Contiguous blocks of a reader's RSSI samples (in record order) for the path-loss
+/// cross-validation; contiguous because shadowing persists along a walk, so interleaved folds
+/// would hold out samples their neighbours already told the fit.
+const PATH_LOSS_FOLDS: usize = 5;
+
 /// A reader's log-distance law fitted against truth: `ρ = ρ₀ − 10 n log₁₀(d / 1 m) + N(0, σ²)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PathLossFit {
@@ -53,6 +58,38 @@ pub struct PathLossFit {
     pub shadowing_std_db: f64,
     /// Samples used.
     pub samples: usize,
+    /// Which law the cross-validation chose.
+    pub choice: PathLossChoice,
+    /// Its root-mean-square error on held-out blocks, dB.
+    pub held_out_rms_db: f64,
+}
+
+/// The laws `rtls tune` weighs for a reader's RSSI, from fewest to most fitted parameters. A
+/// calibration walk of a minute or two spans a narrow range of distances, over which the
+/// exponent is barely determined: refitting it can make a law that explains the walk and
+/// fails the next one. The simplest law whose error on held-out blocks of the samples
+/// ([`PATH_LOSS_FOLDS`]-fold, contiguous) is within one standard error of the smallest is
+/// chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PathLossChoice {
+    /// The site's law as it was (0 parameters fitted).
+    Kept,
+    /// The site's exponent (2, free space, when the site has no law) with `ρ₀` refitted.
+    Offset,
+    /// `ρ₀` and `n` both refitted (least squares, `n` clamped to 1–6).
+    Refitted,
+}
+
+impl PathLossChoice {
+    /// Its name in `rtls tune`'s report: `kept`, `offset`, `refitted`.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Kept => "kept",
+            Self::Offset => "offset",
+            Self::Refitted => "refitted",
+        }
+    }
 }
 
 /// What the truth says about one reader.
@@ -156,28 +193,102 @@ fn line_fit(samples: &[(f64, f64)]) -> Option<(f64, f64)> {
     (significant && bounded && bias.is_finite()).then_some((bias, scale))
 }
 
-/// Least squares `ρ = ρ₀ − 10 n x`, `x = log₁₀ d`, over `(x, ρ)` pairs.
-fn fit_path_loss(samples: &[(f64, f64)]) -> PathLossFit {
+/// `(ρ₀, n)` of a law `ρ = ρ₀ − 10 n x`, `x = log₁₀ d`, fitted to `(x, ρ)` samples as
+/// `choice` says; `prior` is the site's law at 1 m, if any.
+fn law_of(choice: PathLossChoice, samples: &[(f64, f64)], prior: Option<(f64, f64)>) -> Option<(f64, f64)> {
     let n = samples.len() as f64;
+    if samples.is_empty() {
+        return None;
+    }
     let mean_x = samples.iter().map(|s| s.0).sum::<f64>() / n;
     let mean_rho = samples.iter().map(|s| s.1).sum::<f64>() / n;
-    let sxx: f64 = samples.iter().map(|s| (s.0 - mean_x).powi(2)).sum();
-    let sxr: f64 = samples.iter().map(|s| (s.0 - mean_x) * (s.1 - mean_rho)).sum();
-    // slope b = Sxρ / Sxx = −10 n; n clamped to a physical range; ρ₀ = ρ̄ + 10 n x̄
-    let exponent = if sxx > 1e-9 { -sxr / sxx / 10.0 } else { 2.0 };
-    let exponent = exponent.clamp(EXPONENT_RANGE.0, EXPONENT_RANGE.1);
-    let reference_power_dbm = mean_rho + 10.0 * exponent * mean_x;
-    // σ² = Σ (ρ − ρ₀ + 10 n x)² / (N − 2)
-    let residual_variance = samples
+    match choice {
+        PathLossChoice::Kept => prior,
+        PathLossChoice::Offset => {
+            // n fixed; ρ₀ = ρ̄ + 10 n x̄
+            let exponent = prior.map_or(2.0, |(_, n)| n);
+            Some((mean_rho + 10.0 * exponent * mean_x, exponent))
+        }
+        PathLossChoice::Refitted => {
+            let sxx: f64 = samples.iter().map(|s| (s.0 - mean_x).powi(2)).sum();
+            let sxr: f64 = samples.iter().map(|s| (s.0 - mean_x) * (s.1 - mean_rho)).sum();
+            // slope b = Sxρ / Sxx = −10 n; n clamped to a physical range; ρ₀ = ρ̄ + 10 n x̄
+            let exponent = if sxx > 1e-9 { -sxr / sxx / 10.0 } else { 2.0 };
+            let exponent = exponent.clamp(EXPONENT_RANGE.0, EXPONENT_RANGE.1);
+            Some((mean_rho + 10.0 * exponent * mean_x, exponent))
+        }
+    }
+}
+
+/// `Σ (ρ − ρ₀ + 10 n x)²` over `samples`.
+fn squared_error(samples: &[(f64, f64)], (reference_power_dbm, exponent): (f64, f64)) -> f64 {
+    samples
         .iter()
         .map(|s| (s.1 - reference_power_dbm + 10.0 * exponent * s.0).powi(2))
-        .sum::<f64>()
-        / (n - 2.0).max(1.0);
+        .sum()
+}
+
+/// The law of `(x, ρ)` samples (`x = log₁₀ d`, in record order) chosen by cross-validation
+/// among [`PathLossChoice`]s: each candidate is fitted on all blocks but one and scored on it,
+/// `MSE_k = mean_{i ∈ k} (ρᵢ − ρ̂₀⁽⁻ᵏ⁾ + 10 n̂⁽⁻ᵏ⁾ xᵢ)²`, `CV = mean_k MSE_k`; by the
+/// one-standard-error rule the simplest law whose `CV` is within one standard error
+/// (`std_k(MSE_k)/√K`) of the least `CV` wins (Hastie, Tibshirani, Friedman, *The Elements of
+/// Statistical Learning*, 2nd ed., §7.10). The winner is refitted on every sample; `σ² = Σ residual² / (N − p)`, `p` its
+/// fitted parameters. `prior` is the site's law at 1 m (`ρ₀`, `n`), if it has one.
+fn fit_path_loss(samples: &[(f64, f64)], prior: Option<(f64, f64)>) -> PathLossFit {
+    let n = samples.len();
+    let block = n.div_ceil(PATH_LOSS_FOLDS).max(1);
+    // per candidate: the held-out mean squared error of each block, MSE_k
+    let mut scored: Vec<(PathLossChoice, Vec<f64>)> = Vec::new();
+    for choice in [PathLossChoice::Kept, PathLossChoice::Offset, PathLossChoice::Refitted] {
+        let folds: Option<Vec<f64>> = (0..n)
+            .step_by(block)
+            .map(|start| {
+                let end = (start + block).min(n);
+                let training: Vec<(f64, f64)> = samples[..start].iter().chain(&samples[end..]).copied().collect();
+                law_of(choice, &training, prior)
+                    .map(|law| squared_error(&samples[start..end], law) / (end - start) as f64)
+            })
+            .collect();
+        if let Some(folds) = folds.filter(|f| f.iter().all(|e| e.is_finite())) {
+            scored.push((choice, folds));
+        }
+    }
+    // CV = mean_k MSE_k, SE = std_k(MSE_k) / √K
+    let summary = |folds: &[f64]| {
+        let k = folds.len() as f64;
+        let mean = folds.iter().sum::<f64>() / k;
+        let variance = folds.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (k - 1.0).max(1.0);
+        (mean, (variance / k).sqrt())
+    };
+    // the one-standard-error rule: the simplest law whose CV is within one SE of the least
+    let least = scored
+        .iter()
+        .map(|(_, folds)| summary(folds))
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    let (choice, cv) = match least {
+        Some((least_cv, least_se)) => scored
+            .iter()
+            .map(|(choice, folds)| (*choice, summary(folds).0))
+            .find(|(_, cv)| *cv <= least_cv + least_se)
+            .unwrap_or((PathLossChoice::Refitted, least_cv)),
+        None => (PathLossChoice::Refitted, f64::NAN),
+    };
+    let law = law_of(choice, samples, prior).unwrap_or((0.0, 2.0));
+    let parameters = match choice {
+        PathLossChoice::Kept => 0.0,
+        PathLossChoice::Offset => 1.0,
+        PathLossChoice::Refitted => 2.0,
+    };
+    // σ² = Σ (ρ − ρ₀ + 10 n x)² / (N − p)
+    let residual_variance = squared_error(samples, law) / (n as f64 - parameters).max(1.0);
     PathLossFit {
-        reference_power_dbm,
-        exponent,
+        reference_power_dbm: law.0,
+        exponent: law.1,
         shadowing_std_db: residual_variance.sqrt().max(0.1),
-        samples: samples.len(),
+        samples: n,
+        choice,
+        held_out_rms_db: cv.sqrt(),
     }
 }
 
@@ -228,10 +339,17 @@ pub(super) fn calibrate(
                 .get(reader.id.as_str())
                 .filter(|r| r.len() >= MIN_SAMPLES)
                 .map(|r| fit_range(r));
+            // the site's law at 1 m: ρ₀(1 m) = ρ₀(d₀) + 10 n log₁₀ d₀
+            let prior = reader.radio.as_ref().and_then(|r| r.path_loss).map(|law| {
+                (
+                    law.reference_power_dbm + 10.0 * law.exponent * law.reference_distance_m.log10(),
+                    law.exponent,
+                )
+            });
             let path_loss = rssi
                 .get(reader.id.as_str())
                 .filter(|s| s.len() >= MIN_SAMPLES)
-                .map(|s| fit_path_loss(s));
+                .map(|s| fit_path_loss(s, prior));
             (range.is_some() || path_loss.is_some()).then(|| ReaderCalibration {
                 reader: reader.id.clone(),
                 range,
@@ -341,12 +459,46 @@ mod tests {
                 (x, -45.0 - 25.0 * x)
             })
             .collect();
-        let fit = fit_path_loss(&samples);
+        let fit = fit_path_loss(&samples, None);
         assert!(
             (fit.exponent - 2.5).abs() < 1e-9 && (fit.reference_power_dbm + 45.0).abs() < 1e-9,
             "{fit:?}"
         );
+        assert_eq!(fit.choice, PathLossChoice::Refitted);
         assert_eq!(fit.shadowing_std_db, 0.1);
+        // a site law that is right is kept, one off by an offset gets its ρ₀ refitted
+        assert_eq!(fit_path_loss(&samples, Some((-45.0, 2.5))).choice, PathLossChoice::Kept);
+        let offset = fit_path_loss(&samples, Some((-50.0, 2.5)));
+        assert_eq!(offset.choice, PathLossChoice::Offset);
+        assert!((offset.reference_power_dbm + 45.0).abs() < 1e-9, "{offset:?}");
+    }
+
+    #[test]
+    fn a_walk_over_few_distances_keeps_the_site_exponent() {
+        // a law ρ = −50 − 20 log₁₀ d, shadowing ±6 dB persisting over blocks of 10 samples,
+        // walked over 2–3 m only: the exponent is barely determined there, so a refit of it
+        // predicts held-out blocks worse than the site's law with ρ₀ refitted
+        let mut state = 7_u64;
+        let mut uniform = || {
+            // SplitMix64 → [0, 1)
+            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1_u64 << 53) as f64
+        };
+        let mut samples = Vec::new();
+        for _ in 0..10 {
+            let shadow = 12.0 * (uniform() - 0.5);
+            for _ in 0..10 {
+                let x = (2.0 + uniform()).log10();
+                samples.push((x, -50.0 - 20.0 * x + shadow + (uniform() - 0.5)));
+            }
+        }
+        let fit = fit_path_loss(&samples, Some((-52.0, 2.0)));
+        assert_ne!(fit.choice, PathLossChoice::Refitted, "{fit:?}");
+        assert_eq!(fit.exponent, 2.0);
+        assert!(fit.held_out_rms_db.is_finite() && fit.held_out_rms_db > 0.0);
     }
 
     #[test]
