@@ -294,8 +294,12 @@ mod tests {
             parse_udp_adapter("quuppa=127.0.0.1:9001"),
             Ok((Vendor::Quuppa, "127.0.0.1:9001".parse().unwrap()))
         );
-        let error = parse_udp_adapter("zebra=127.0.0.1:9001").unwrap_err();
-        assert!(error.contains("pozyx, quuppa, sewio, generic"), "{error}");
+        assert_eq!(
+            parse_udp_adapter("zebra=127.0.0.1:9002"),
+            Ok((Vendor::Zebra, "127.0.0.1:9002".parse().unwrap()))
+        );
+        let error = parse_udp_adapter("acme=127.0.0.1:9001").unwrap_err();
+        assert!(error.contains("pozyx, quuppa, sewio, zebra, generic"), "{error}");
         assert!(parse_udp_adapter("quuppa").unwrap_err().contains("VENDOR=ADDR"));
         assert!(parse_udp_adapter("quuppa=localhost").unwrap_err().contains("localhost"));
     }

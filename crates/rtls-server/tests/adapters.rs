@@ -1,6 +1,7 @@
 //! The vendor adapters through the router (`POST /api/v1/adapters/{vendor}`), with the
 //! vendors' published example messages (sources in `src/adapters/`): auth, refusals counted by
-//! reason, field-level errors, and the fixes stored and tracked.
+//! reason, field-level errors, and the fixes stored and tracked. Zebra's hub read over TCP:
+//! tests/zebra_hub.rs.
 
 mod common;
 
@@ -16,6 +17,8 @@ use serde_json::json;
 const SEWIO_POSITION: &str = r#"{"body":{"id":"18","datastreams":[{"id":"posX","current_value":" 6.34","at":"2016-10-18 14:16:56.365"},{"id":"posY","current_value":" 2.27","at":"2016-10-18 14:16:56.365"},{"id":"clr","current_value":" 0.10","at":"2016-10-18 14:16:56.365"}]},"resource":"\/feeds\/18"}"#;
 /// The same page: tag 1's battery update (no position).
 const SEWIO_BATTERY: &str = r#"{"body":{"id":"1","datastreams":[{"id":"battery_level","current_value":"77%","at":"2016-10-18 15:27:38.606"},{"id":"firmware_version","current_value":"3.115","at":"2016-10-18 15:27:38.606"}]},"resource":"\/feeds\/1"}"#;
+/// The Zebra Dart RTLS User Guide's example output (page 85), one packet per line.
+const ZEBRA_EXAMPLE: &str = include_str!("../src/adapters/zebra_dart_example.txt");
 /// The Quuppa push sample (DefaultLocation format).
 const QUUPPA: &str = r##"{"tagId": "d10000001111", "tagName": null, "color": "#FF0000", "tagGroupName": null, "locationType": "position", "locationMovementStatus": "stationary", "locationRadius": 0.09, "location": [-1.09, 0.38, 1.0], "locationTS": 1641888440139, "locationCoordSysId": "3e7c4371-42be-4019-b7c0-ec2012d448ad", "locationCoordSysName": "CoordSys001"}"##;
 
@@ -33,16 +36,13 @@ async fn vendor_messages_are_authorised_parsed_counted_and_tracked() {
         call(&app, Method::POST, route, Some(READ), SEWIO_POSITION).await.status,
         StatusCode::FORBIDDEN
     );
-    let reply = call(
-        &app,
-        Method::POST,
-        "/api/v1/adapters/zebra",
-        Some(WRITE),
-        SEWIO_POSITION,
-    )
-    .await;
+    let reply = call(&app, Method::POST, "/api/v1/adapters/acme", Some(WRITE), SEWIO_POSITION).await;
     assert_eq!(reply.status, StatusCode::NOT_FOUND);
-    assert!(reply.text().contains("pozyx, quuppa, sewio"), "{}", reply.text());
+    assert!(
+        reply.text().contains("pozyx, quuppa, sewio, zebra, generic"),
+        "{}",
+        reply.text()
+    );
 
     // the generic adapter without [adapters.generic] says what to configure
     let reply = call(&app, Method::POST, "/api/v1/adapters/generic", Some(WRITE), QUUPPA).await;
@@ -107,6 +107,54 @@ async fn vendor_messages_are_authorised_parsed_counted_and_tracked() {
     assert_eq!(
         metric_value(&metrics, "rtls_ingest_refused_total{reason=\"no_position\"}"),
         2.0
+    );
+    assert_eq!(
+        metric_value(&metrics, "rtls_ingest_refused_total{reason=\"format\"}"),
+        2.0
+    );
+    state.pipeline.shutdown();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn zebra_lines_are_fixes_refusals_counted_and_a_bad_line_costs_only_itself() {
+    let state = state("api-adapters-zebra");
+    let app = rtls_server::http::router(state.clone());
+    let route = "/api/v1/adapters/zebra";
+
+    // the guide's example (metres, the default unit): 7 locates stored, 11 N packets and a P
+    // packet refused with their line and reason
+    let reply = call(&app, Method::POST, route, Some(WRITE), ZEBRA_EXAMPLE).await;
+    assert_eq!(reply.status, StatusCode::OK, "{}", reply.text());
+    let answer = reply.json();
+    assert_eq!(answer["accepted"], json!(7));
+    let refused = answer["refused"].as_array().unwrap();
+    assert_eq!(refused.len(), 12);
+    assert!(refused.iter().all(|r| r["reason"] == "no_position"), "{answer}");
+    let presence = refused.iter().find(|r| r["at"] == "line 17").unwrap();
+    assert_eq!(presence["tag"], json!("00210F51"));
+    assert_eq!(state.query(|s| s.record_count()).await.unwrap(), 7);
+
+    // a malformed line among good ones: listed as `format`, the others stored
+    let lines = "R,00210E2C,24.45,15.25,2.59,5,1433877486.442,4,*,G0.9\nT,0021F7B1,29.53,north,1.52,12,1433877486.430,4,*,G0.73\n";
+    let reply = call(&app, Method::POST, route, Some(WRITE), lines).await;
+    assert_eq!(reply.status, StatusCode::OK, "{}", reply.text());
+    assert_eq!(reply.json()["accepted"], json!(1));
+    assert_eq!(
+        reply.json()["refused"],
+        json!([{"at": "line 2", "tag": "0021F7B1", "reason": "format",
+                "detail": "line 2 <Y>: expected a number (m), got \"north\""}])
+    );
+    // a payload of malformed lines only: 400 naming the field, nothing stored
+    let reply = call(&app, Method::POST, route, Some(WRITE), "T,0021F7B1,29.53\n").await;
+    assert_eq!(reply.status, StatusCode::BAD_REQUEST);
+    let message = reply.json()["message"].as_str().unwrap().to_string();
+    assert!(message.contains("line 1 <Y>: required field is missing"), "{message}");
+    assert_eq!(state.query(|s| s.record_count()).await.unwrap(), 8);
+
+    let metrics = call(&app, Method::GET, "/metrics", Some(READ), "").await.text();
+    assert_eq!(
+        metric_value(&metrics, "rtls_ingest_refused_total{reason=\"no_position\"}"),
+        12.0
     );
     assert_eq!(
         metric_value(&metrics, "rtls_ingest_refused_total{reason=\"format\"}"),

@@ -1,5 +1,5 @@
 //! Adapters for RTLS vendors' own position feeds: each turns one message of a vendor's
-//! published JSON format into our `fix` records (`rtls_engine::record`), so an installation
+//! published format (JSON, or Zebra Dart's ASCII lines) into our `fix` records (`rtls_engine::record`), so an installation
 //! that already runs a vendor's positioning engine can feed its positions to the tracker
 //! without a converter of its own.
 //!
@@ -8,26 +8,33 @@
 //! | Pozyx (Enterprise / Creator) | `pozyx` | the MQTT `tags` stream: an array of tag updates | mm, Unix s | <https://docs.pozyx.io/enterprise/MQTT-data-structure.1224015817.html> |
 //! | Quuppa (QPE) | `quuppa` | `DefaultLocation` tag data (`/qpe/getTagData`, output targets): one tag object, an array of them, or a `{"tags": [...]}` response | m, Unix ms | <https://www.quuppa.com/documentation/QSP/topics/QSP_udp_logging_api.html> |
 //! | Sewio (RTLS Studio) | `sewio` | a feed with `datastreams` `posX`/`posY`/`posZ`/`clr`: a WebSocket message `{"body": feed, "resource": …}`, a REST feed or a REST `{"results": [feed, …]}` | m, UTC `YYYY-MM-DD hh:mm:ss.sss` | <http://rtlsstudio.com/studio/index.php/websockets-connector/> |
+//! | Zebra Dart UWB (hub) | `zebra` | the hub's Dart-format ASCII output (TCP port 5117): lines `R`/`T`/`O` (locates), `P`/`N`/`D`/`I` (refused), settings in `[adapters.zebra]` ([`ZebraAdapter`]) | m or ft (`[adapters.zebra] unit`), Unix s | Zebra, "Dart RTLS User Guide" D2119 Rev F, ch. 11 "System output", pp. 83–88 |
 //!
 //! A gateway of none of these vendors can be read by the generic adapter (`generic`,
 //! [`GenericAdapter`]) once its field names are configured in `[adapters.generic]`.
 //!
-//! Each adapter's module names the published example messages its tests use. OpenRTLS and
-//! Zebra Dart are not here: no published message format or example was found for them.
+//! Each adapter's module names the published example messages its tests use. The Zebra hub
+//! can also be read directly: `rtls serve` connects to its output port and reads its lines
+//! ([`crate::zebra_hub`]). Of Zebra's formats only the Dart one is read: the guide names the
+//! Z-SLMF format of port 5118 but does not describe it.
 //!
 //! # Units
 //! Positions become metres in the vendor's own frame (the site's frame must be the vendor's:
 //! no transform is applied), times Unix seconds. A vendor's accuracy radius `r` (m) — Quuppa's
 //! `locationRadius`, Sewio's `clr` — becomes the covariance `r² I` of the fix (`r` taken as the
 //! standard deviation of each coordinate); where the vendor gives none (Pozyx) or gives 0, the
-//! server's `default_accuracy_m` is used instead.
+//! server's `default_accuracy_m` is used instead. Zebra's hub gives a GDOP instead of a
+//! radius: its module says how that becomes σ.
 //!
 //! # Refusals
 //! A well-formed message that carries no position — Pozyx `"success": false`, a Quuppa
-//! `locationType` other than `position`, a Sewio battery or zone update, a Sewio anchor — is
-//! not an error and is not dropped silently: it is returned as a [`Refusal`] whose `reason` the
-//! ingest path counts in `rtls_ingest_refused_total{reason}` and reports to the sender.
-//! A malformed message is an [`AdapterError`] naming the field.
+//! `locationType` other than `position`, a Sewio battery or zone update, a Sewio anchor, a
+//! Zebra presence, non-locate, diagnostic or information packet — is not an error and is not
+//! dropped silently: it is returned as a [`Refusal`] whose `reason` the ingest path counts in
+//! `rtls_ingest_refused_total{reason}` and reports to the sender.
+//! A malformed message is an [`AdapterError`] naming the field. In Zebra's line-based output a
+//! malformed line costs that line only: beside usable lines it is a [`Refusal`] with reason
+//! `format`.
 //!
 //! # Examples
 //! ```
@@ -43,8 +50,10 @@ mod generic;
 mod pozyx;
 mod quuppa;
 mod sewio;
+mod zebra;
 
 pub use generic::{GenericAdapter, LengthUnit, TimeUnit};
+pub use zebra::{ZebraAdapter, ZebraUnit};
 
 use rtls_engine::record::{Measurement, Record};
 use serde_json::Value;
@@ -61,21 +70,31 @@ pub enum Vendor {
     Quuppa,
     /// Sewio RTLS Studio: WebSocket / REST feeds.
     Sewio,
+    /// Zebra Dart UWB: the hub's Dart-format ASCII lines (settings in `[adapters.zebra]`,
+    /// [`ZebraAdapter`]).
+    Zebra,
     /// A gateway whose field names are configured (`[adapters.generic]`, [`GenericAdapter`]).
     Generic,
 }
 
 impl Vendor {
     /// Every vendor, in the order of the documentation.
-    pub const ALL: [Vendor; 4] = [Vendor::Pozyx, Vendor::Quuppa, Vendor::Sewio, Vendor::Generic];
+    pub const ALL: [Vendor; 5] = [
+        Vendor::Pozyx,
+        Vendor::Quuppa,
+        Vendor::Sewio,
+        Vendor::Zebra,
+        Vendor::Generic,
+    ];
 
-    /// The vendor's name in routes and topics (`pozyx`, `quuppa`, `sewio`, `generic`).
+    /// The vendor's name in routes and topics (`pozyx`, `quuppa`, `sewio`, `zebra`, `generic`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
             Vendor::Pozyx => "pozyx",
             Vendor::Quuppa => "quuppa",
             Vendor::Sewio => "sewio",
+            Vendor::Zebra => "zebra",
             Vendor::Generic => "generic",
         }
     }
@@ -86,7 +105,8 @@ impl Vendor {
     /// ```
     /// use rtls_server::adapters::Vendor;
     /// assert_eq!(Vendor::from_name("quuppa"), Some(Vendor::Quuppa));
-    /// assert_eq!(Vendor::from_name("zebra"), None);
+    /// assert_eq!(Vendor::from_name("zebra"), Some(Vendor::Zebra));
+    /// assert_eq!(Vendor::from_name("acme"), None);
     /// ```
     #[must_use]
     pub fn from_name(name: &str) -> Option<Vendor> {
@@ -112,7 +132,7 @@ impl Vendor {
 /// and what is wrong with it. Nothing of the message is used.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum AdapterError {
-    /// The payload is not JSON.
+    /// The payload is not JSON (a JSON vendor's).
     #[error("not valid JSON ({0}): send the vendor's message unchanged")]
     Json(String),
     /// The generic adapter was asked for but the server's configuration has no
@@ -122,7 +142,8 @@ pub enum AdapterError {
     /// A field is missing or has the wrong type or value.
     #[error("{field}: {reason}")]
     Field {
-        /// The field's path, e.g. `[0].data.coordinates.x`.
+        /// The field's path, e.g. `[0].data.coordinates.x`, or line and field, e.g.
+        /// `line 2 <X>`.
         field: String,
         /// What is wrong, and what was expected.
         reason: String,
@@ -141,11 +162,12 @@ impl AdapterError {
 /// A well-formed vendor message that carries no position.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct Refusal {
-    /// The message's path in the payload (`[1]`, `tags[0]`, `body`).
+    /// The message's path in the payload (`[1]`, `tags[0]`, `body`, `line 3`).
     pub at: String,
     /// The tag, when the message names one.
     pub tag: Option<String>,
-    /// The counter's label: `no_position` or `anchor`.
+    /// The counter's label: `no_position`, `anchor`, or `format` (a malformed line among
+    /// usable ones in a line-based payload: Zebra's).
     pub reason: &'static str,
     /// Why, in words.
     pub detail: String,
@@ -156,18 +178,19 @@ pub struct Refusal {
 pub struct Parsed {
     /// One `fix` record per message with a position, in payload order.
     pub records: Vec<Record>,
-    /// The messages without a position.
+    /// The messages without a position (and a line-based payload's malformed lines).
     pub refusals: Vec<Refusal>,
 }
 
 /// Parses one payload of `vendor`'s feed into fix records (see the [module](self) for units and
 /// refusals); `default_accuracy_m` (σ, m) weighs fixes whose message gives no accuracy. The
-/// generic adapter needs its settings: [`GenericAdapter::parse`].
+/// generic adapter needs its settings: [`GenericAdapter::parse`]; Zebra's are taken at their
+/// defaults (metres): [`ZebraAdapter::parse`] with others.
 ///
 /// # Errors
-/// [`AdapterError::Json`] when the payload is not JSON, [`AdapterError::Field`] naming the first
-/// malformed field (a missing tag id, a non-numeric coordinate, a time stamp that is not one),
-/// [`AdapterError::NotConfigured`] for [`Vendor::Generic`].
+/// [`AdapterError::Json`] when a JSON vendor's payload is not JSON, [`AdapterError::Field`]
+/// naming the first malformed field (a missing tag id, a non-numeric coordinate, a time stamp
+/// that is not one), [`AdapterError::NotConfigured`] for [`Vendor::Generic`].
 ///
 /// # Examples
 /// ```
@@ -176,11 +199,15 @@ pub struct Parsed {
 /// assert_eq!(error.to_string(), "[0].tagId: required field is missing");
 /// ```
 pub fn parse(vendor: Vendor, payload: &[u8], default_accuracy_m: f64) -> Result<Parsed, AdapterError> {
-    let value: Value = serde_json::from_slice(payload).map_err(|e| AdapterError::Json(e.to_string()))?;
+    let json = |parse: fn(&Value, f64) -> Result<Parsed, AdapterError>| {
+        let value: Value = serde_json::from_slice(payload).map_err(|e| AdapterError::Json(e.to_string()))?;
+        parse(&value, default_accuracy_m)
+    };
     match vendor {
-        Vendor::Pozyx => pozyx::parse(&value, default_accuracy_m),
-        Vendor::Quuppa => quuppa::parse(&value, default_accuracy_m),
-        Vendor::Sewio => sewio::parse(&value, default_accuracy_m),
+        Vendor::Pozyx => json(pozyx::parse),
+        Vendor::Quuppa => json(quuppa::parse),
+        Vendor::Sewio => json(sewio::parse),
+        Vendor::Zebra => ZebraAdapter::default().parse(payload, default_accuracy_m),
         Vendor::Generic => Err(AdapterError::NotConfigured),
     }
 }

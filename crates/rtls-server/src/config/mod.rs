@@ -49,6 +49,13 @@
 //! x = "pos.x"                    # y, z (optional) likewise; position_unit = "m" (default), "cm" or "mm"
 //! y = "pos.y"                    # accuracy = "…" (optional radius, position_unit); items = "…" (array path)
 //!
+//! [adapters.zebra]               # optional: a Zebra Dart hub's ASCII lines (docs/SERVER.md, Vendor adapters)
+//! unit = "m"                     # the hub's coordinates: "m" (default) or "ft"
+//! range_sigma_m = 0.3            # a locate's σ = its GDOP × this (without GDOP: server.default_accuracy_m)
+//! o_packet_accuracy_m = 10.0     # σ of an O packet (a 1-D estimate between two receivers)
+//! hub = "10.0.0.5:5117"          # optional: connect to the hub's Dart output and read it (also --zebra-hub)
+//! idle_timeout_s = 300.0         # a hub connection silent this long is opened again
+//!
 //! [[webhooks]]                   # zero or more: alarms POSTed as JSON (docs/SERVER.md, Webhooks)
 //! url = "https://ops.example.com/rtls/alarms"   # http:// or https://
 //! name = "ops"                   # the `webhook` label of metrics and logs; default: the URL's host[:port]
@@ -64,7 +71,7 @@
 //! [udp]                          # optional: best-effort UDP ingest, one payload per datagram (docs/SERVER.md, UDP ingest)
 //! listen = "127.0.0.1:9000"      # our measurement JSON lines (the body of POST /api/v1/measurements)
 //! [udp.adapters]                 # a vendor's messages through its adapter, one port per vendor
-//! quuppa = "127.0.0.1:9001"      # also pozyx, sewio, generic (which needs [adapters.generic])
+//! quuppa = "127.0.0.1:9001"      # also pozyx, sewio, zebra, generic (which needs [adapters.generic])
 //!
 //! [[nats_forward]]               # zero or more: positions and events published to NATS (docs/SERVER.md)
 //! url = "nats://127.0.0.1:4222"  # nats:// or tls://; user:password@ for a user; several: comma-separated
@@ -166,6 +173,10 @@ pub struct AdaptersSection {
     /// `[adapters.generic]`: the field names of a generic gateway's JSON
     /// ([`crate::adapters::GenericAdapter`]); without it `generic` payloads are refused.
     pub generic: Option<crate::adapters::GenericAdapter>,
+    /// `[adapters.zebra]`: the unit and accuracies of a Zebra Dart hub's lines, and the hub to
+    /// connect to ([`crate::adapters::ZebraAdapter`]); without it metres, the default
+    /// accuracies and no hub connection.
+    pub zebra: crate::adapters::ZebraAdapter,
 }
 
 /// `[tls]`: with a certificate, the HTTP listener serves HTTPS (and WSS) only and the embedded
@@ -388,6 +399,10 @@ impl ServerConfig {
                 .validate()
                 .map_err(|reason| invalid("adapters.generic", reason))?;
         }
+        self.adapters
+            .zebra
+            .validate()
+            .map_err(|reason| invalid("adapters.zebra", reason))?;
         if self.cluster.enabled() && !self.server.db.starts_with("postgres") {
             return Err(invalid(
                 "server.db",

@@ -116,6 +116,28 @@ fn the_documented_generic_adapter_table_parses_and_validates() {
     assert_eq!(generic.z.as_deref(), Some("location.2"));
 }
 
+/// The example's commented-out `[adapters.zebra]` table, uncommented: every key is known, and
+/// the values shown are the defaults (but for the hub); a hub that is not `HOST:PORT` is refused.
+#[test]
+fn the_documented_zebra_table_parses_with_the_defaults_it_documents() {
+    let table = uncommented_example_table("[adapters.zebra]");
+    let mut config: ServerConfig = toml::from_str(&table).unwrap_or_else(|e| panic!("{e}\n{table}"));
+    config.validate().unwrap();
+    let keys = table.lines().filter(|l| l.contains(" = ")).count();
+    assert_eq!(keys, 5, "every key shown:\n{table}");
+    assert_eq!(config.adapters.zebra.hub.as_deref(), Some("10.0.0.5:5117"));
+    assert_eq!(
+        config.adapters.zebra,
+        crate::adapters::ZebraAdapter {
+            hub: Some("10.0.0.5:5117".into()),
+            ..crate::adapters::ZebraAdapter::default()
+        }
+    );
+    config.adapters.zebra.hub = Some("10.0.0.5".into());
+    let error = config.validate().unwrap_err().to_string();
+    assert!(error.starts_with("config adapters.zebra: hub:"), "{error}");
+}
+
 /// The example's commented-out `[cluster]` table, uncommented: every key is known, and the
 /// values shown are the defaults (but for the servers).
 #[test]

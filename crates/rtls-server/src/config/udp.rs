@@ -30,6 +30,8 @@ pub struct UdpAdapters {
     pub quuppa: Option<SocketAddr>,
     /// Sewio RTLS Studio feed messages.
     pub sewio: Option<SocketAddr>,
+    /// Zebra Dart hub lines (one or more per datagram), read by `[adapters.zebra]`.
+    pub zebra: Option<SocketAddr>,
     /// A gateway's JSON read by `[adapters.generic]` (which must then be configured).
     pub generic: Option<SocketAddr>,
 }
@@ -42,6 +44,7 @@ impl UdpAdapters {
             Vendor::Pozyx => self.pozyx,
             Vendor::Quuppa => self.quuppa,
             Vendor::Sewio => self.sewio,
+            Vendor::Zebra => self.zebra,
             Vendor::Generic => self.generic,
         }
     }
@@ -52,6 +55,7 @@ impl UdpAdapters {
             Vendor::Pozyx => &mut self.pozyx,
             Vendor::Quuppa => &mut self.quuppa,
             Vendor::Sewio => &mut self.sewio,
+            Vendor::Zebra => &mut self.zebra,
             Vendor::Generic => &mut self.generic,
         };
         *slot = Some(address);
@@ -137,7 +141,7 @@ mod tests {
             .contains("[adapters.generic]"));
         generic.validate(true).unwrap();
 
-        assert!(toml::from_str::<UdpSection>("[adapters]\nzebra = \"127.0.0.1:9\"\n").is_err());
+        assert!(toml::from_str::<UdpSection>("[adapters]\nacme = \"127.0.0.1:9\"\n").is_err());
         assert!(UdpSection::default().listeners().is_empty(), "off by default");
     }
 }

@@ -11,12 +11,13 @@ use super::{ApiError, ApiResult, AppState};
 use crate::adapters::Vendor;
 use crate::auth::Access;
 
-/// `POST /api/v1/adapters/{vendor}` (`pozyx`, `quuppa`, `sewio`, `generic`), with the write token as
-/// `/api/v1/measurements`: the body is one payload of the vendor's feed, unchanged. 200
+/// `POST /api/v1/adapters/{vendor}` (`pozyx`, `quuppa`, `sewio`, `zebra`, `generic`), with the
+/// write token as `/api/v1/measurements`: the body is one payload of the vendor's feed,
+/// unchanged (Zebra's: one or more Dart lines, as text). 200
 /// `{"accepted": n, "refused": [{"at", "tag", "reason", "detail"}]}` once the fixes are
-/// stored (messages without a position are listed and counted in
-/// `rtls_ingest_refused_total{reason}`); 400 naming the field of a malformed message
-/// (nothing stored); 404 for an unknown vendor; 503 when overloaded.
+/// stored (messages without a position, and malformed Zebra lines among usable ones, are
+/// listed and counted in `rtls_ingest_refused_total{reason}`); 400 naming the field of a
+/// malformed message (nothing stored); 404 for an unknown vendor; 503 when overloaded.
 pub(super) async fn ingest(
     State(state): State<AppState>,
     Path(vendor): Path<String>,

@@ -119,6 +119,8 @@ pub struct PipelineConfig {
     /// The generic adapter's field names (`[adapters.generic]`); `None`: `generic` payloads
     /// are refused.
     pub generic_adapter: Option<crate::adapters::GenericAdapter>,
+    /// How Zebra Dart lines are read (`[adapters.zebra]`: unit, accuracies).
+    pub zebra_adapter: crate::adapters::ZebraAdapter,
 }
 
 impl Default for PipelineConfig {
@@ -139,6 +141,7 @@ impl Default for PipelineConfig {
             }),
             default_accuracy_m: 1.0,
             generic_adapter: None,
+            zebra_adapter: crate::adapters::ZebraAdapter::default(),
             track_step: Tracker::push,
             stall_after_s: 10.0,
             cluster: None,

@@ -138,7 +138,8 @@ impl Pipeline {
 
     /// Parses a payload of a vendor's feed with its adapter ([`crate::adapters`]), counts each
     /// message without a position in `rtls_ingest_refused_total{reason}` (`no_position`,
-    /// `anchor`) and stores and queues the fixes as [`Pipeline::submit_records`] does.
+    /// `anchor`; a malformed line among usable ones of a Zebra payload: `format`) and stores
+    /// and queues the fixes as [`Pipeline::submit_records`] does.
     ///
     /// # Errors
     /// [`IngestError::Invalid`] naming `source: field` when the payload is malformed (counted
@@ -152,6 +153,7 @@ impl Pipeline {
         let default_accuracy_m = self.inner.config.default_accuracy_m;
         let parsed = match (vendor, &self.inner.config.generic_adapter) {
             (crate::adapters::Vendor::Generic, Some(generic)) => generic.parse(payload, default_accuracy_m),
+            (crate::adapters::Vendor::Zebra, _) => self.inner.config.zebra_adapter.parse(payload, default_accuracy_m),
             _ => crate::adapters::parse(vendor, payload, default_accuracy_m),
         }
         .map_err(|e| self.refused("format", format!("{source}: {e}")))?;

@@ -166,6 +166,7 @@ pub async fn serve(
         }),
         default_accuracy_m: config.server.default_accuracy_m,
         generic_adapter: config.adapters.generic.clone(),
+        zebra_adapter: config.adapters.zebra.clone(),
         ..PipelineConfig::default()
     };
     // the stores are synchronous (the PostgreSQL client blocks on a runtime of its own): open
