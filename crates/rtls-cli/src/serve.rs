@@ -50,9 +50,13 @@ pub struct ServeArgs {
     #[arg(long)]
     udp_listen: Option<SocketAddr>,
     /// UDP ingest of a vendor's messages through its adapter, one message per datagram:
-    /// `VENDOR=ADDR` (`quuppa=0.0.0.0:9001`; pozyx, quuppa, sewio, generic); repeatable.
+    /// `VENDOR=ADDR` (`quuppa=0.0.0.0:9001`; pozyx, quuppa, sewio, zebra, generic); repeatable.
     #[arg(long, value_parser = parse_udp_adapter)]
     udp_adapter: Vec<(Vendor, SocketAddr)>,
+    /// A Zebra Dart hub's output to connect to and read, `HOST:PORT` (its Dart format port,
+    /// 5117); reconnects when the connection drops (`[adapters.zebra]` sets its unit).
+    #[arg(long, value_name = "HOST:PORT")]
+    zebra_hub: Option<String>,
     /// Days of history kept.
     #[arg(long)]
     retention_days: Option<f64>,
@@ -227,6 +231,9 @@ fn apply_overrides(config: &mut ServerConfig, args: &ServeArgs) {
     }
     for (vendor, address) in &args.udp_adapter {
         config.udp.adapters.set(*vendor, *address);
+    }
+    if let Some(hub) = &args.zebra_hub {
+        config.adapters.zebra.hub = Some(hub.clone());
     }
     if let Some(days) = args.retention_days {
         config.server.retention_days = days;

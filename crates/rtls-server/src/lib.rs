@@ -14,6 +14,8 @@
 //!   [`feed::RecordSource`] (the binary's `--demo` mine) through the ingest path;
 //!   [`webhooks`] — alarms POSTed to HTTP(S) endpoints (signed, retried, in order);
 //!   [`udp`] — best-effort UDP ingest of measurement lines or vendor messages;
+//!   [`adapters`] — vendor engines' own messages as fixes; [`zebra_hub`] — a Zebra Dart
+//!   hub's output read over TCP, reconnecting;
 //!   [`nats_forward`] — positions and events published to NATS; [`log_limit`] — warnings
 //!   that may repeat, logged at most every 10 s.
 //!
@@ -49,6 +51,7 @@ pub mod store;
 pub mod tls;
 pub mod udp;
 pub mod webhooks;
+pub mod zebra_hub;
 
 pub use error::{Result, ServerError};
 

@@ -34,7 +34,8 @@ pub struct Metrics {
     /// Payloads refused with a client error, by transport.
     pub ingest_rejected: Family<Labels, Counter>,
     /// Payloads refused at ingest, by reason (`format`, `site`, `time_window`), and vendor
-    /// messages without a position (`no_position`, `anchor`; [`crate::adapters`]).
+    /// messages without a position (`no_position`, `anchor`; [`crate::adapters`]) or, in a
+    /// Zebra payload of several lines, malformed lines (`format`).
     pub ingest_refused: Family<Labels, Counter>,
     /// Payloads refused because the ingest queue stayed full.
     pub ingest_overloaded: Counter,
@@ -90,6 +91,11 @@ pub struct Metrics {
     /// (`accepted`, `refused` — malformed or refused at ingest, `dropped` — overload or
     /// shutdown; [`crate::udp`]).
     pub udp_datagrams: Family<Labels, Counter>,
+    /// Lines read from a Zebra Dart hub, by `hub` (`HOST:PORT`) and `outcome` (`accepted`,
+    /// `refused`, `dropped`, as [`Metrics::udp_datagrams`]; [`crate::zebra_hub`]).
+    pub zebra_hub_lines: Family<Labels, Counter>,
+    /// Whether the connection to a Zebra Dart hub is open (1) or not (0), by `hub`.
+    pub zebra_hub_connected: Family<Labels, Gauge>,
     /// Messages forwarded to NATS, by `forward` and `outcome` (`published` — handed to the
     /// client, `dropped` — queue full, missed hub messages, a publish error, or left at
     /// shutdown; [`crate::nats_forward`]).
@@ -163,6 +169,8 @@ impl Metrics {
             http_requests_limited: Counter::default(),
             webhook_deliveries: Family::default(),
             udp_datagrams: Family::default(),
+            zebra_hub_lines: Family::default(),
+            zebra_hub_connected: Family::default(),
             nats_forward: Family::default(),
             store_compacted: Family::default(),
             store_compaction_failures: Counter::default(),
@@ -195,7 +203,7 @@ impl Metrics {
         );
         registry.register(
             "ingest_refused",
-            "Payloads refused at ingest (nothing of them stored), by reason: format, site, time_window; vendor adapter messages without a position: no_position, anchor",
+            "Payloads refused at ingest (nothing of them stored), by reason: format, site, time_window; vendor adapter messages without a position: no_position, anchor; malformed lines of a Zebra payload: format",
             m.ingest_refused.clone(),
         );
         registry.register(
@@ -307,6 +315,16 @@ impl Metrics {
             "udp_datagrams",
             "UDP datagrams by listener and outcome (accepted, refused, dropped); UDP is best-effort",
             m.udp_datagrams.clone(),
+        );
+        registry.register(
+            "zebra_hub_lines",
+            "Lines read from a Zebra Dart hub by hub and outcome (accepted, refused, dropped)",
+            m.zebra_hub_lines.clone(),
+        );
+        registry.register(
+            "zebra_hub_connected",
+            "Whether the connection to a Zebra Dart hub is open (1) or not (0), by hub",
+            m.zebra_hub_connected.clone(),
         );
         registry.register(
             "nats_forward",

@@ -322,6 +322,10 @@ pub async fn serve(
         udp_addrs.push((listener.vendor(), address));
         tasks.push(listener.start(pipeline.clone(), stop_rx.clone()));
     }
+    if let Some(hub) = &config.adapters.zebra.hub {
+        let idle = Duration::from_secs_f64(config.adapters.zebra.idle_timeout_s);
+        tasks.push(crate::zebra_hub::ZebraHub::new(hub, idle, pipeline.clone()).start(stop_rx.clone()));
+    }
     if let Some(cluster) = cluster {
         // trackables changed through another node reach this one's live topics
         tasks.push(tokio::spawn(crate::http::trackable_sync::refresh_trackables_every(
