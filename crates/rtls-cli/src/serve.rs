@@ -50,7 +50,8 @@ pub struct ServeArgs {
     #[arg(long)]
     udp_listen: Option<SocketAddr>,
     /// UDP ingest of a vendor's messages through its adapter, one message per datagram:
-    /// `VENDOR=ADDR` (`quuppa=0.0.0.0:9001`; pozyx, quuppa, sewio, zebra, generic); repeatable.
+    /// `VENDOR=ADDR` (`quuppa=0.0.0.0:9001`; pozyx, quuppa, sewio, zebra, openrtls, generic);
+    /// repeatable.
     #[arg(long, value_parser = parse_udp_adapter)]
     udp_adapter: Vec<(Vendor, SocketAddr)>,
     /// A Zebra Dart hub's output to connect to and read, `HOST:PORT` (its Dart format port,
@@ -306,7 +307,10 @@ mod tests {
             Ok((Vendor::Zebra, "127.0.0.1:9002".parse().unwrap()))
         );
         let error = parse_udp_adapter("acme=127.0.0.1:9001").unwrap_err();
-        assert!(error.contains("pozyx, quuppa, sewio, zebra, generic"), "{error}");
+        assert!(
+            error.contains("pozyx, quuppa, sewio, zebra, openrtls, generic"),
+            "{error}"
+        );
         assert!(parse_udp_adapter("quuppa").unwrap_err().contains("VENDOR=ADDR"));
         assert!(parse_udp_adapter("quuppa=localhost").unwrap_err().contains("localhost"));
     }

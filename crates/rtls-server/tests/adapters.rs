@@ -39,7 +39,7 @@ async fn vendor_messages_are_authorised_parsed_counted_and_tracked() {
     let reply = call(&app, Method::POST, "/api/v1/adapters/acme", Some(WRITE), SEWIO_POSITION).await;
     assert_eq!(reply.status, StatusCode::NOT_FOUND);
     assert!(
-        reply.text().contains("pozyx, quuppa, sewio, zebra, generic"),
+        reply.text().contains("pozyx, quuppa, sewio, zebra, openrtls, generic"),
         "{}",
         reply.text()
     );

@@ -8,6 +8,7 @@
 //! | Pozyx (Enterprise / Creator) | `pozyx` | the MQTT `tags` stream: an array of tag updates | mm, Unix s | <https://docs.pozyx.io/enterprise/MQTT-data-structure.1224015817.html> |
 //! | Quuppa (QPE) | `quuppa` | `DefaultLocation` tag data (`/qpe/getTagData`, output targets): one tag object, an array of them, or a `{"tags": [...]}` response | m, Unix ms | <https://www.quuppa.com/documentation/QSP/topics/QSP_udp_logging_api.html> |
 //! | Sewio (RTLS Studio) | `sewio` | a feed with `datastreams` `posX`/`posY`/`posZ`/`clr`: a WebSocket message `{"body": feed, "resource": …}`, a REST feed or a REST `{"results": [feed, …]}` | m, UTC `YYYY-MM-DD hh:mm:ss.sss` | <http://rtlsstudio.com/studio/index.php/websockets-connector/> |
+//! | OpenRTLS | `openrtls` | the master's JSON location (LS) output, UDP port 8787 (API 16040600): one message (or an array) with `id`, `timestamp`, `coordinates` `{x, y, z, …}` | m (not stated: see the module), Unix s | <https://wiki.openrtls.com/index.php?title=Software:JsonCommands> |
 //! | Zebra Dart UWB (hub) | `zebra` | the hub's Dart-format ASCII output (TCP port 5117): lines `R`/`T`/`O` (locates), `P`/`N`/`D`/`I` (refused), settings in `[adapters.zebra]` ([`ZebraAdapter`]) | m or ft (`[adapters.zebra] unit`), Unix s | Zebra, "Dart RTLS User Guide" D2119 Rev F, ch. 11 "System output", pp. 83–88 |
 //!
 //! A gateway of none of these vendors can be read by the generic adapter (`generic`,
@@ -47,6 +48,7 @@
 //! ```
 
 mod generic;
+mod openrtls;
 mod pozyx;
 mod quuppa;
 mod sewio;
@@ -73,21 +75,25 @@ pub enum Vendor {
     /// Zebra Dart UWB: the hub's Dart-format ASCII lines (settings in `[adapters.zebra]`,
     /// [`ZebraAdapter`]).
     Zebra,
+    /// OpenRTLS: the master's JSON location output.
+    OpenRtls,
     /// A gateway whose field names are configured (`[adapters.generic]`, [`GenericAdapter`]).
     Generic,
 }
 
 impl Vendor {
     /// Every vendor, in the order of the documentation.
-    pub const ALL: [Vendor; 5] = [
+    pub const ALL: [Vendor; 6] = [
         Vendor::Pozyx,
         Vendor::Quuppa,
         Vendor::Sewio,
         Vendor::Zebra,
+        Vendor::OpenRtls,
         Vendor::Generic,
     ];
 
-    /// The vendor's name in routes and topics (`pozyx`, `quuppa`, `sewio`, `zebra`, `generic`).
+    /// The vendor's name in routes and topics (`pozyx`, `quuppa`, `sewio`, `zebra`, `openrtls`,
+    /// `generic`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
@@ -95,6 +101,7 @@ impl Vendor {
             Vendor::Quuppa => "quuppa",
             Vendor::Sewio => "sewio",
             Vendor::Zebra => "zebra",
+            Vendor::OpenRtls => "openrtls",
             Vendor::Generic => "generic",
         }
     }
@@ -207,6 +214,7 @@ pub fn parse(vendor: Vendor, payload: &[u8], default_accuracy_m: f64) -> Result<
         Vendor::Pozyx => json(pozyx::parse),
         Vendor::Quuppa => json(quuppa::parse),
         Vendor::Sewio => json(sewio::parse),
+        Vendor::OpenRtls => json(openrtls::parse),
         Vendor::Zebra => ZebraAdapter::default().parse(payload, default_accuracy_m),
         Vendor::Generic => Err(AdapterError::NotConfigured),
     }

@@ -240,38 +240,39 @@ impl ZebraAdapter {
                 detail,
             }))
         };
-        let dimensions =
-            match header {
-                "R" => 3,
-                "T" | "O" => 2,
-                "P" => {
-                    let receiver = fields.get(7).copied().unwrap_or("?");
-                    return refused(
-                        Some(tag),
-                        format!("a presence (P) packet: X, Y, Z are receiver {receiver}'s coordinates, not the tag's"),
-                    );
-                }
-                "N" => {
-                    let reasons = fields.get(8).copied().unwrap_or("not given");
-                    return refused(
-                        Some(tag),
-                        format!("a non-locate (N) packet: no location was computed (non-locate details {reasons})"),
-                    );
-                }
-                "D" => return refused(
+        let dimensions = match header {
+            "R" => 3,
+            "T" | "O" => 2,
+            "P" => {
+                let receiver = fields.get(7).copied().unwrap_or("?");
+                return refused(
+                    Some(tag),
+                    format!("a presence (P) packet: X, Y, Z are receiver {receiver}'s coordinates, not the tag's"),
+                );
+            }
+            "N" => {
+                let reasons = fields.get(8).copied().unwrap_or("not given");
+                return refused(
+                    Some(tag),
+                    format!("a non-locate (N) packet: no location was computed (non-locate details {reasons})"),
+                );
+            }
+            "D" => {
+                return refused(
                     None,
                     format!(
                         "a diagnostic (D) packet about {tag}: hub, receiver or reference-tag status, not a location"
                     ),
-                ),
-                // "I", the last of the headers checked above
-                _ => {
-                    return refused(
-                        Some(tag),
-                        "an information (I) packet: tag or receiver status, not a location".to_string(),
-                    )
-                }
-            };
+                )
+            }
+            // "I", the last of the headers checked above
+            _ => {
+                return refused(
+                    Some(tag),
+                    "an information (I) packet: tag or receiver status, not a location".to_string(),
+                )
+            }
+        };
         let unit = self.unit.name();
         let required = |index: usize, name: &str| {
             fields

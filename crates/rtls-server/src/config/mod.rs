@@ -71,7 +71,7 @@
 //! [udp]                          # optional: best-effort UDP ingest, one payload per datagram (docs/SERVER.md, UDP ingest)
 //! listen = "127.0.0.1:9000"      # our measurement JSON lines (the body of POST /api/v1/measurements)
 //! [udp.adapters]                 # a vendor's messages through its adapter, one port per vendor
-//! quuppa = "127.0.0.1:9001"      # also pozyx, sewio, zebra, generic (which needs [adapters.generic])
+//! quuppa = "127.0.0.1:9001"      # also pozyx, sewio, zebra, openrtls, generic (which needs [adapters.generic])
 //!
 //! [[nats_forward]]               # zero or more: positions and events published to NATS (docs/SERVER.md)
 //! url = "nats://127.0.0.1:4222"  # nats:// or tls://; user:password@ for a user; several: comma-separated

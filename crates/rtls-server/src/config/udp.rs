@@ -32,6 +32,8 @@ pub struct UdpAdapters {
     pub sewio: Option<SocketAddr>,
     /// Zebra Dart hub lines (one or more per datagram), read by `[adapters.zebra]`.
     pub zebra: Option<SocketAddr>,
+    /// OpenRTLS location messages (the master's LS output, sent to UDP port 8787 by default).
+    pub openrtls: Option<SocketAddr>,
     /// A gateway's JSON read by `[adapters.generic]` (which must then be configured).
     pub generic: Option<SocketAddr>,
 }
@@ -45,6 +47,7 @@ impl UdpAdapters {
             Vendor::Quuppa => self.quuppa,
             Vendor::Sewio => self.sewio,
             Vendor::Zebra => self.zebra,
+            Vendor::OpenRtls => self.openrtls,
             Vendor::Generic => self.generic,
         }
     }
@@ -56,6 +59,7 @@ impl UdpAdapters {
             Vendor::Quuppa => &mut self.quuppa,
             Vendor::Sewio => &mut self.sewio,
             Vendor::Zebra => &mut self.zebra,
+            Vendor::OpenRtls => &mut self.openrtls,
             Vendor::Generic => &mut self.generic,
         };
         *slot = Some(address);

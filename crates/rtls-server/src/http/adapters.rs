@@ -11,7 +11,8 @@ use super::{ApiError, ApiResult, AppState};
 use crate::adapters::Vendor;
 use crate::auth::Access;
 
-/// `POST /api/v1/adapters/{vendor}` (`pozyx`, `quuppa`, `sewio`, `zebra`, `generic`), with the
+/// `POST /api/v1/adapters/{vendor}` (`pozyx`, `quuppa`, `sewio`, `zebra`, `openrtls`,
+/// `generic`), with the
 /// write token as `/api/v1/measurements`: the body is one payload of the vendor's feed,
 /// unchanged (Zebra's: one or more Dart lines, as text). 200
 /// `{"accepted": n, "refused": [{"at", "tag", "reason", "detail"}]}` once the fixes are

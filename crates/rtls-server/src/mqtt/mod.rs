@@ -17,7 +17,7 @@
 //! | topic | direction | payload |
 //! | --- | --- | --- |
 //! | `rtls/v1/measurements/{reader}` | reader → server | JSON Lines of the measurement record format (`docs/FORMATS.md`), one or more records per message |
-//! | `rtls/v1/adapters/{vendor}/…` | a vendor's engine (or a bridge from its broker) → server | one message of the vendor's feed, read by its adapter ([`crate::adapters`]: `pozyx`, `quuppa`, `sewio`, `zebra`, `generic`) |
+//! | `rtls/v1/adapters/{vendor}/…` | a vendor's engine (or a bridge from its broker) → server | one message of the vendor's feed, read by its adapter ([`crate::adapters`]: `pozyx`, `quuppa`, `sewio`, `zebra`, `openrtls`, `generic`) |
 //! | `rtls/v1/tracks/{tag}`, `rtls/v1/events/{type}`, … | server → subscribers | the JSON of each [`Publication`](crate::sink::Publication) the server emits |
 //! | `rtls/v1/errors/{client_id}` | embedded broker → that client only | `{"topic": …, "error": …}` for a payload the sink refused as invalid |
 //!
