@@ -1,45 +1,7 @@
 //! Zebra Dart UWB RTLS: the hub's ASCII output in the Dart format (TCP port 5117), one packet
 //! per line, read by [`ZebraAdapter`] (`[adapters.zebra]`).
 //!
-//! A line is `<Data Header>,<tag>,<X>,<Y>,<Z>,<battery>,<timestamp>,<unit>[,<details>…]<LF>`;
-//! a payload (an HTTP body, a datagram, a TCP read) holds one line or several.
-//!
-//! | Dart field | record field |
-//! | --- | --- |
-//! | `<Data Header>` `R` (3-D locate) | a 3-D fix `[X, Y, Z]` |
-//! | `<Data Header>` `T` (2-D locate; Z is the receivers' mean height) | a 2-D fix `[X, Y]` |
-//! | `<Data Header>` `O` (1-D estimate: a point on the line between two receivers) | a 2-D fix `[X, Y]` weighed by `o_packet_accuracy_m` |
-//! | `<tag>` (e.g. `0021F7B1`) | `tag`, as written |
-//! | `<X>`, `<Y>`, `<Z>` in the hub's unit (`unit`: `m` or `ft`) | `position_m` |
-//! | `<timestamp>` (Unix s, decimals: the hub's time of processing) | `t` |
-//! | `G<GDOP>` among the details (`G*`: none) | `covariance_m2` = `(GDOP · range_sigma_m)² I`; without one `default_accuracy_m² I` |
-//! | `P` (presence: X, Y, Z are the *receiver's*), `N` (non-locate), `D` (diagnostic), `I` (information) | refused, reason `no_position` |
-//!
-//! # Accuracy
-//! The hub states no accuracy in metres. Its GDOP (dimensionless, "calculated based on the
-//! output tag location and configured location of involved receivers") scales the error of
-//! the receivers' time-of-arrival ranges into the position's, so σ = GDOP × `range_sigma_m`
-//! for each coordinate. The guide defines GDOP no further (2-D or 3-D, with or without a time
-//! term), so the whole GDOP is taken for each coordinate: conservative by at most √3. The
-//! default `range_sigma_m` (0.3 m) is a UWB time-of-arrival range error typical of deployed
-//! systems, not a Zebra figure (the guide gives none): set it from a site survey. With the
-//! guide's good-geometry GDOP of 1–2 (page 71) that is σ 0.3–0.6 m; its `G10000.00` lines are
-//! weighed as the near-useless fixes they are (σ 3 km). A line without GDOP (the output option
-//! off, or `G*`) gets `server.default_accuracy_m`, as the other adapters' messages without an
-//! accuracy do. The DQI (a unitless residual of the hub's minimisation) is not used.
-//!
-//! An O packet is a guess along the line between the only two receivers that heard the tag:
-//! the tag may be anywhere across that line within both receivers' reach, tens of metres
-//! from it, so its fix is weighed by `o_packet_accuracy_m` (default 10 m, a 95 % radius of
-//! about 25 m), whatever the details say — wide enough that the tracker follows it only where
-//! better fixes are missing.
-//!
-//! # Malformed lines
-//! A line that does not parse is an [`AdapterError`] naming the line and the field
-//! (`line 2 <X>: expected a number (ft), got "abc"`). It costs that line only: in a payload of
-//! several lines it becomes a [`Refusal`] with reason `format` and the error as its detail,
-//! and the other lines are used. A payload whose every line is malformed is the error
-//! itself (nothing of it is usable).
+//! The format, its mapping to fixes and the accuracy: [`ZebraAdapter`].
 //!
 //! # References
 //! - Zebra Enterprise Solutions, "Dart RTLS User Guide", document D2119 Rev F (2016),
@@ -62,6 +24,47 @@ const METRES_PER_FOOT: f64 = 0.3048;
 
 /// `[adapters.zebra]`: how a Zebra Dart hub's output is read, and where the hub is.
 ///
+/// A line is `<Data Header>,<tag>,<X>,<Y>,<Z>,<battery>,<timestamp>,<unit>[,<details>…]<LF>`;
+/// a payload (an HTTP body, a datagram, a TCP read) holds one line or several.
+///
+/// | Dart field | record field |
+/// | --- | --- |
+/// | `<Data Header>` `R` (3-D locate) | a 3-D fix `[X, Y, Z]` |
+/// | `<Data Header>` `T` (2-D locate; Z is the receivers' mean height) | a 2-D fix `[X, Y]` |
+/// | `<Data Header>` `O` (1-D estimate: a point on the line between two receivers) | a 2-D fix `[X, Y]` weighed by `o_packet_accuracy_m` |
+/// | `<tag>` (e.g. `0021F7B1`) | `tag`, as written |
+/// | `<X>`, `<Y>`, `<Z>` in the hub's unit (`unit`: `m` or `ft`) | `position_m` |
+/// | `<timestamp>` (Unix s, decimals: the hub's time of processing) | `t` |
+/// | `G<GDOP>` among the details (`G*`: none) | `covariance_m2` = `(GDOP · range_sigma_m)² I`; without one `default_accuracy_m² I` |
+/// | `P` (presence: X, Y, Z are the *receiver's*), `N` (non-locate), `D` (diagnostic), `I` (information) | refused, reason `no_position` |
+///
+/// # Accuracy
+/// The hub states no accuracy in metres. Its GDOP (dimensionless, "calculated based on the
+/// output tag location and configured location of involved receivers") scales the error of
+/// the receivers' time-of-arrival ranges into the position's, so σ = GDOP × `range_sigma_m`
+/// for each coordinate. The guide defines GDOP no further (2-D or 3-D, with or without a time
+/// term), so the whole GDOP is taken for each coordinate: conservative by at most √3. The
+/// default `range_sigma_m` (0.3 m) is a UWB time-of-arrival range error typical of deployed
+/// systems, not a Zebra figure (the guide gives none): set it from a site survey. With the
+/// guide's good-geometry GDOP of 1–2 (page 71) that is σ 0.3–0.6 m; its `G10000.00` lines are
+/// weighed as the near-useless fixes they are (σ 3 km). A line without GDOP (the output option
+/// off, or `G*`) gets `server.default_accuracy_m`, as the other adapters' messages without an
+/// accuracy do. The DQI (a unitless residual of the hub's minimisation) is not used.
+///
+/// An O packet is a guess along the line between the only two receivers that heard the tag:
+/// the tag may be anywhere across that line within both receivers' reach, tens of metres
+/// from it, so its fix is weighed by `o_packet_accuracy_m` (default 10 m, a 95 % radius of
+/// about 25 m), whatever the details say — wide enough that the tracker follows it only where
+/// better fixes are missing.
+///
+/// # Malformed lines
+/// A line that does not parse is an [`AdapterError`] naming the line and the field
+/// (`line 2 <X>: expected a number (ft), got "abc"`). It costs that line only: in a payload of
+/// several lines it becomes a [`Refusal`] with reason `format` and the error as its detail,
+/// and the other lines are used. A payload whose every line is malformed is the error
+/// itself (nothing of it is usable).
+///
+///
 /// # Examples
 /// ```
 /// use rtls_server::adapters::ZebraAdapter;
@@ -72,6 +75,10 @@ const METRES_PER_FOOT: f64 = 0.3048;
 /// assert_eq!(parsed.records[0].tag, "00201C40");
 /// assert_eq!(parsed.records[0].time_s, 1_433_877_589.612);
 /// ```
+///
+/// # References
+/// Zebra, "Dart RTLS User Guide", document D2119 Rev F, chapter 11 "System output", pages
+/// 83–88; the sources of the tests' example lines are in `src/adapters/zebra.rs`.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ZebraAdapter {
@@ -161,8 +168,8 @@ impl ZebraAdapter {
         Ok(())
     }
 
-    /// Parses one payload of the hub's Dart output: each line a packet (see the
-    /// [module](self) for the mapping, the accuracy and refusals). `default_accuracy_m` (σ, m)
+    /// Parses one payload of the hub's Dart output: each line a packet (see
+    /// [`ZebraAdapter`] for the mapping, the accuracy and refusals). `default_accuracy_m` (σ, m)
     /// weighs fixes without a GDOP.
     ///
     /// # Errors
