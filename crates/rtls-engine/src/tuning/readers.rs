@@ -68,7 +68,7 @@ pub struct PathLossFit {
 /// calibration walk of a minute or two spans a narrow range of distances, over which the
 /// exponent is barely determined: refitting it can make a law that explains the walk and
 /// fails the next one. The simplest law whose error on held-out blocks of the samples
-/// ([`PATH_LOSS_FOLDS`]-fold, contiguous) is within one standard error of the smallest is
+/// (5-fold, contiguous blocks) is within one standard error of the smallest is
 /// chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PathLossChoice {
