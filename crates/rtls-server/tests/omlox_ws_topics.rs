@@ -189,11 +189,17 @@ async fn collisions_start_once_and_end_once_judged_with_the_tracks_uncertainty()
     // other's first update, and collisions are judged against each one's newest update)
     let running = start("ws-collisions", 1).await;
     let http = running.bound.http;
-    let (mut socket, _) = subscribe(
+    // the same events in site metres and, through the site's frame, in longitude/latitude
+    let (mut socket, ids) = subscribe(
         http,
-        &[json!({"event": "subscribe", "topic": "collision_events", "params": {"trackable_id": FORKLIFT}})],
+        &[
+            json!({"event": "subscribe", "topic": "collision_events", "params": {"trackable_id": FORKLIFT}}),
+            json!({"event": "subscribe", "topic": "collision_events",
+                   "params": {"trackable_id": FORKLIFT, "crs": "EPSG:4326"}}),
+        ],
     )
     .await;
+    let (in_site, in_wgs84) = (ids[0], ids[1]);
     // the forklift drives past miner-3, who stands 0.5 m off its path at x = 10 m; miner-9
     // stands far away
     let mut lines = walk("forklift-tag", 5000.0, 18.0);
@@ -211,20 +217,58 @@ async fn collisions_start_once_and_end_once_judged_with_the_tracks_uncertainty()
         .status()
         .is_success());
 
-    let mut events = Vec::new();
-    while !events.iter().any(|e: &Value| e["collision_type"] == "collision_end") {
-        let (topic, _, payload) = next_message(&mut socket).await;
+    // [site metres, longitude/latitude]
+    let mut received: [Vec<Value>; 2] = [Vec::new(), Vec::new()];
+    let take = |received: &mut [Vec<Value>; 2], subscription: u64, payload: Vec<Value>| {
+        let which = usize::from(subscription == in_wgs84);
+        assert!(subscription == in_site || subscription == in_wgs84);
+        received[which].extend(payload);
+    };
+    let ended = |events: &[Value]| events.iter().any(|e| e["collision_type"] == "collision_end");
+    while !(ended(&received[0]) && ended(&received[1])) {
+        let (topic, subscription, payload) = next_message(&mut socket).await;
         assert_eq!(topic, "collision_events");
-        events.extend(payload);
+        take(&mut received, subscription, payload);
     }
     // the rest of the drive: nothing more about this pair
     let _ = tokio::time::timeout(Duration::from_millis(500), async {
         loop {
-            let (_, _, payload) = next_message(&mut socket).await;
-            events.extend(payload);
+            let (_, subscription, payload) = next_message(&mut socket).await;
+            take(&mut received, subscription, payload);
         }
     })
     .await;
+    let [events, projected] = received;
+    // params.crs: every position of every event through the site's frame, nothing else changed
+    assert_eq!(projected.len(), events.len());
+    let wgs84 = |p: &Value| {
+        let c: Vec<f64> = p.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        FRAME.wgs84_of([c[0], c[1], c.get(2).copied().unwrap_or(0.0)]).unwrap()
+    };
+    let near = |got: &Value, want: [f64; 3]| {
+        (got[0].as_f64().unwrap() - want[0]).abs() < 1e-9 && (got[1].as_f64().unwrap() - want[1]).abs() < 1e-9
+    };
+    for (site, lon_lat) in events.iter().zip(&projected) {
+        assert_eq!(site["id"], lon_lat["id"]);
+        assert_eq!(site["center_distance"], lon_lat["center_distance"]);
+        if let Some(area) = site.get("collision_area") {
+            let want = wgs84(&area["coordinates"]);
+            assert!(near(&lon_lat["collision_area"]["coordinates"], want), "{lon_lat}");
+        }
+        for (a, b) in site["collisions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(lon_lat["collisions"].as_array().unwrap())
+        {
+            assert!(
+                near(&b["position"]["coordinates"], wgs84(&a["position"]["coordinates"])),
+                "{b}"
+            );
+            let vertex = &a["geometry"]["coordinates"][0][0];
+            assert!(near(&b["geometry"]["coordinates"][0][0], wgs84(vertex)), "{b}");
+        }
+    }
     let kinds: Vec<&str> = events.iter().map(|e| e["collision_type"].as_str().unwrap()).collect();
     assert_eq!(kinds.first(), Some(&"collision_start"), "{kinds:?}");
     assert_eq!(

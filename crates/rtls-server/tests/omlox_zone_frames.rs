@@ -299,6 +299,16 @@ async fn zone_id_on_a_subscription_projects_its_locations_and_fence_events_follo
         assert_eq!(reply["event"], "subscribed", "{reply}");
         ids.push(reply["subscription_id"].as_u64().unwrap());
     }
+    // the GeoJSON topic in the zone's frame, named by the foreign members
+    let reply = request(
+        &mut socket,
+        json!({"event": "subscribe", "topic": "location_updates:geojson",
+               "params": {"provider_id": "miner-3", "zone_id": zone}}),
+    )
+    .await;
+    assert_eq!(reply["event"], "subscribed", "{reply}");
+    let geojson = reply["subscription_id"].as_u64().unwrap();
+    let mut features = Vec::new();
     let reply = request(&mut socket, json!({"event": "subscribe", "topic": "fence_events"})).await;
     let events = reply["subscription_id"].as_u64().unwrap();
     // refusals: an unknown zone, a zone without a frame, zone_id where no location is carried
@@ -335,7 +345,7 @@ async fn zone_id_on_a_subscription_projects_its_locations_and_fence_events_follo
         .is_success());
     let (mut in_zone_frame, mut in_site, mut both) = (Vec::new(), Vec::new(), Vec::new());
     let mut kinds = Vec::new();
-    while kinds.len() < 2 || in_site.len() < 5 || in_zone_frame.len() < 5 {
+    while kinds.len() < 2 || in_site.len() < 5 || in_zone_frame.len() < 5 || features.len() < 5 {
         let message = next_json(&mut socket).await;
         assert_eq!(message["event"], "message", "{message}");
         let id = message["subscription_id"].as_u64().unwrap();
@@ -344,6 +354,8 @@ async fn zone_id_on_a_subscription_projects_its_locations_and_fence_events_follo
                 assert_ne!(object["fence_id"], decoy["id"], "the decoy is never walked: {object}");
                 assert_eq!(object["fence_id"], in_zone["id"], "{object}");
                 kinds.push(object["event_type"].as_str().unwrap().to_string());
+            } else if id == geojson {
+                features.push(object.clone());
             } else if id == ids[0] {
                 in_zone_frame.push(object.clone());
             } else if id == ids[1] {
@@ -375,6 +387,27 @@ async fn zone_id_on_a_subscription_projects_its_locations_and_fence_events_follo
         matched += 1;
     }
     assert!(matched >= 3, "{matched} matched");
+    // each Feature's point is its Location's in the zone's frame
+    let mut features_matched = 0;
+    for feature in &features {
+        assert_eq!(
+            (&feature["crs"], &feature["zone_id"]),
+            (&json!("local"), &json!(zone)),
+            "{feature}"
+        );
+        let Some(local) = in_zone_frame
+            .iter()
+            .find(|l| l["timestamp_generated"] == feature["properties"]["timestamp_generated"])
+        else {
+            continue;
+        };
+        assert_eq!(
+            feature["geometry"]["coordinates"], local["position"]["coordinates"],
+            "{feature}"
+        );
+        features_matched += 1;
+    }
+    assert!(features_matched >= 3, "{features_matched} features matched");
     for object in &both {
         if let Some(twin) = in_zone_frame
             .iter()

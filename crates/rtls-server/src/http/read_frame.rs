@@ -47,7 +47,7 @@ use super::zone_store::{is_proximity, site_zone, zone};
 use super::{query_value, ApiError, ApiResult, AppState};
 use crate::omlox::crs::Crs;
 use crate::omlox::geojson::{feature_collection, ToFeature};
-use crate::omlox::{Fence, Location, Region, Trackable, TrackableMotion, Zone};
+use crate::omlox::{CollisionEvent, Fence, Location, Region, Trackable, TrackableMotion, Zone};
 
 /// Where the coordinates of a read go.
 #[derive(Debug, Clone, PartialEq)]
@@ -330,6 +330,46 @@ impl ReadFrame {
         Ok(())
     }
 
+    /// A collision event (site metres) in this frame: its `collision_area`, and each
+    /// collision's `position` and `geometry`.
+    ///
+    /// # Errors
+    /// As [`Self::position`].
+    pub(super) fn collision(&self, event: &CollisionEvent) -> ApiResult<CollisionEvent> {
+        let mut event = event.clone();
+        if self.projection == Projection::Site {
+            return Ok(event);
+        }
+        if let Some(area) = event.collision_area.as_mut() {
+            area.coordinates = self.position(&area.coordinates)?;
+        }
+        for collision in &mut event.collisions {
+            if let Some(point) = collision.position.as_mut() {
+                point.coordinates = self.position(&point.coordinates)?;
+            }
+            if let Some(polygon) = collision.geometry.as_mut() {
+                for ring in &mut polygon.coordinates {
+                    for position in ring.iter_mut() {
+                        *position = self.position(position)?;
+                    }
+                }
+            }
+        }
+        Ok(event)
+    }
+
+    /// A location (site metres) as the GeoJSON Feature of `location_updates:geojson` in this
+    /// frame: local coordinates named by the foreign members `crs` and `zone_id`, as
+    /// [`Self::answer`]'s `geojson=true` reads have them.
+    ///
+    /// # Errors
+    /// As [`Self::position`].
+    pub(super) fn location_feature(&self, location: Location) -> ApiResult<Value> {
+        let mut feature = self.location(location)?.to_feature();
+        self.name_local_frame(&mut feature);
+        Ok(feature)
+    }
+
     /// Locations (site metres) in this frame.
     ///
     /// # Errors
@@ -387,6 +427,13 @@ impl ReadFrame {
     /// GeoJSON as `application/geo+json`; local coordinates named by the foreign members
     /// `crs` and `zone_id`.
     fn geojson_answer(&self, mut body: Value) -> Response {
+        self.name_local_frame(&mut body);
+        ([(header::CONTENT_TYPE, "application/geo+json")], body.to_string()).into_response()
+    }
+
+    /// GeoJSON `body` in a local frame gets the foreign members `crs` (`local`) and, in a
+    /// zone's frame, `zone_id`; WGS-84 (RFC 7946's own) gets neither.
+    fn name_local_frame(&self, body: &mut Value) {
         match &self.projection {
             Projection::Wgs84(_) => {}
             Projection::Site => body["crs"] = json!("local"),
@@ -395,7 +442,6 @@ impl ReadFrame {
                 body["zone_id"] = json!(id);
             }
         }
-        ([(header::CONTENT_TYPE, "application/geo+json")], body.to_string()).into_response()
     }
 }
 

@@ -14,9 +14,13 @@
 //! `params.provider_id` (or `tag`) filters by tag (on `collision_events`: either tag whose
 //! update placed one of the two trackables); `params.trackable_id` filters `trackable_motions`
 //! and `collision_events` (either of the two) by trackable. `params.crs` and `params.zone_id`
-//! on `location_updates` and `trackable_motions` project positions as `?crs=` and `?zone_id=`
-//! do on the REST reads (`zone_id` projects into the zone's local frame; it does not filter).
-//! A location the subscription's frame cannot project is not sent (counted in
+//! on `location_updates`, `location_updates:geojson`, `trackable_motions` and
+//! `collision_events` project positions as `?crs=` and `?zone_id=` do on the REST reads
+//! (`zone_id` projects into the zone's local frame; it does not filter): a Location's
+//! position, the GeoJSON Feature's geometry (with the foreign members `crs` and `zone_id` when
+//! local, as `geojson=true` reads have them; without params it is WGS-84 when the site has a
+//! frame), a collision's `collision_area` and each collision's `position` and `geometry`.
+//! A location or collision the subscription's frame cannot project is not sent (counted in
 //! `rtls_websocket_unprojected`). A client that falls more than the broadcast capacity behind
 //! misses messages (counted in `rtls_websocket_dropped`).
 //!
@@ -88,8 +92,9 @@ struct Subscription {
     tag: Option<String>,
     /// Only this trackable's messages (`trackable_motions`, `collision_events`).
     trackable: Option<String>,
-    /// `params.crs` / `params.zone_id` on `location_updates` and `trackable_motions`: the
-    /// frame positions go to (`None`: as published, site metres).
+    /// `params.crs` / `params.zone_id` on the topics that carry positions
+    /// ([`carries_locations`]): the frame positions go to (`None`: as published — site metres,
+    /// or on `location_updates:geojson` WGS-84 when the site has a frame).
     frame: Option<ReadFrame>,
     /// On `collision_events`: the collision thread publishes while this is held.
     _collisions: Option<CollisionListener>,
@@ -250,9 +255,11 @@ async fn handle(
 
 /// The frame a subscription's `params.crs` and `params.zone_id` ask for ("crs and geojson
 /// params as defined for the location and fence API"; `zone_id` "the zone id to be used to
-/// project coordinates"): on `location_updates` and `trackable_motions` the REST location
-/// reads' frame ([`ReadFrame::of_params`]), `None` for site metres; on other topics only
-/// `crs: "local"` (their payloads carry no Location to project).
+/// project coordinates"): on the topics that carry positions ([`carries_locations`]) the REST
+/// location reads' frame ([`ReadFrame::of_params`]), `None` for site metres (on
+/// `location_updates:geojson` only without params: its default is WGS-84 when the site has a
+/// frame, so an explicit `crs: "local"` keeps its frame); on other topics only
+/// `crs: "local"` (their payloads carry no position to project).
 ///
 /// # Errors
 /// The reason, for error 10002: a CRS other than `local` / `EPSG:4326`, EPSG:4326 on a site
@@ -268,10 +275,11 @@ async fn subscription_frame(
         return match (Crs::parse(crs), zone_id) {
             (Ok(Crs::Local), None) => Ok(None),
             (_, Some(zone_id)) => Err(format!(
-                "zone_id `{zone_id}`: only on location_updates and trackable_motions"
+                "zone_id `{zone_id}`: only on location_updates(:geojson), trackable_motions and collision_events"
             )),
             _ => Err(format!(
-                "crs `{}`: only local, or EPSG:4326 on location_updates and trackable_motions",
+                "crs `{}`: only local, or EPSG:4326 on location_updates(:geojson), trackable_motions and \
+                 collision_events",
                 crs.unwrap_or_default()
             )),
         };
@@ -280,7 +288,7 @@ async fn subscription_frame(
         return Ok(None);
     }
     match ReadFrame::of_params(state, crs, zone_id).await {
-        Ok(frame) if frame.is_site_metres() => Ok(None),
+        Ok(frame) if frame.is_site_metres() && topic != Topic::LocationUpdatesGeojson => Ok(None),
         Ok(frame) => Ok(Some(frame)),
         Err(e) => Err(match e.field {
             Some(field) => format!("{field}: {}", e.message),
@@ -419,8 +427,17 @@ fn payload<'a>(
             serde_json::to_value(projected).ok()?
         }
         (HubMessage::Location { tag, location, .. }, Topic::LocationUpdatesGeojson) if wanted(subscription, tag) => {
-            // the Feature of the REST reads' geojson=true, in WGS-84 when the site has a frame
-            super::read_frame::in_frame(Location::clone(location), frame).to_feature()
+            match &subscription.frame {
+                // the Feature of the REST reads' geojson=true, in WGS-84 when the site has a frame
+                None => super::read_frame::in_frame(Location::clone(location), frame).to_feature(),
+                Some(projection) => {
+                    let Ok(feature) = projection.location_feature(Location::clone(location)) else {
+                        context.unprojected.inc();
+                        return None;
+                    };
+                    feature
+                }
+            }
         }
         (HubMessage::FenceEvent { tag, event }, Topic::FenceEvents) if wanted(subscription, tag) => {
             return Some(Payload::Shared(event));
@@ -436,7 +453,15 @@ fn payload<'a>(
                     .as_deref()
                     .is_none_or(|t| news.trackables().contains(&t)) =>
         {
-            return news.event().map(|event| Payload::Collision(event));
+            let event = news.event()?;
+            let Some(projection) = &subscription.frame else {
+                return Some(Payload::Collision(event));
+            };
+            let Ok(projected) = projection.collision(event) else {
+                context.unprojected.inc();
+                return None;
+            };
+            serde_json::to_value(projected).ok()?
         }
         (HubMessage::Proximity(proximity), Topic::ProximityUpdates) if wanted(subscription, &proximity.provider_id) => {
             return Some(Payload::Proximity(proximity));
@@ -505,8 +530,12 @@ fn motions<'a>(
 }
 
 /// The topics whose payloads carry an omlox `Location` (`params.crs` applies to them).
+/// Whether `topic`'s payloads carry positions a subscription's `crs` / `zone_id` project.
 fn carries_locations(topic: Topic) -> bool {
-    matches!(topic, Topic::LocationUpdates | Topic::TrackableMotions)
+    matches!(
+        topic,
+        Topic::LocationUpdates | Topic::LocationUpdatesGeojson | Topic::TrackableMotions | Topic::CollisionEvents
+    )
 }
 
 fn wanted(subscription: &Subscription, tag: &str) -> bool {
