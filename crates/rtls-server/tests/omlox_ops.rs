@@ -175,6 +175,15 @@ async fn fences_trackables_and_providers_link_through_the_live_tracks() {
     // a deleted location takes its provider out of the fence until its next update
     let reply = call(&app, Method::DELETE, "/v2/providers/miner-7/location", Some(WRITE), "").await;
     assert_eq!(reply.status, StatusCode::NO_CONTENT);
+    // a stored provider without a location: there is none, as asked (idempotent); an unknown
+    // provider is a 404
+    let gate = json!({"id": "gate-9", "type": "uwb"}).to_string();
+    let reply = call(&app, Method::POST, "/v2/providers", Some(WRITE), &gate).await;
+    assert_eq!(reply.status, StatusCode::CREATED, "{}", reply.text());
+    let reply = call(&app, Method::DELETE, "/v2/providers/gate-9/location", Some(WRITE), "").await;
+    assert_eq!(reply.status, StatusCode::NO_CONTENT, "{}", reply.text());
+    let reply = call(&app, Method::DELETE, "/v2/providers/nobody-9/location", Some(WRITE), "").await;
+    assert_omlox_error(&reply, StatusCode::NOT_FOUND, "nobody-9");
     for query in ["", "?spatial_query=true"] {
         let providers = call_json(&app, &format!("/v2/fences/forklift-lane/providers{query}")).await;
         assert_eq!(providers, json!([]), "{query}");

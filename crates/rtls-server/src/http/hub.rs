@@ -454,7 +454,8 @@ pub(super) async fn delete_locations(State(state): State<AppState>, headers: Hea
 }
 
 /// `DELETE /v2/providers/{provider_id}/location`: forgets a tag's latest location (it comes
-/// back at its track's next update); 204, or 404 when it has none.
+/// back at its track's next update); 204, also for a stored provider without a location (there
+/// is none afterwards, as asked: a DELETE is idempotent), 404 for an unknown provider.
 pub(super) async fn delete_provider_location(
     State(state): State<AppState>,
     Path(provider_id): Path<String>,
@@ -463,7 +464,8 @@ pub(super) async fn delete_provider_location(
     let who = state.authorize(&headers, Access::Write)?;
     let live = state.pipeline.live();
     if live.tag(&provider_id).is_none() {
-        return Err(ApiError::not_found(format!("provider `{provider_id}` has no location")));
+        known_provider_or_404(&state, &provider_id).await?;
+        return Ok(StatusCode::NO_CONTENT);
     }
     live.remove_tag(&provider_id);
     state.audit(&who, "location-deleted", &provider_id).await;
