@@ -189,6 +189,29 @@ impl Lifecycle {
         })
     }
 
+    /// A track confirmed from the start at `time_s`: its target is known to exist (a track
+    /// handed over from another tracker, or one seeded from a known start position), so no
+    /// M-of-N confirmation is needed. It coasts, is lost and deleted like any confirmed track.
+    ///
+    /// # Errors
+    /// The errors of [`LifecycleSettings::validate`]; [`EngineError::InvalidParameter`]
+    /// (`time_s`) for a non-finite time.
+    ///
+    /// # Example
+    /// ```
+    /// use rtls_engine::lifecycle::{Lifecycle, LifecycleEvent, LifecycleSettings, TrackStatus};
+    /// let mut track = Lifecycle::confirmed(LifecycleSettings::default(), 2.0)?;
+    /// assert_eq!(track.status(), TrackStatus::Confirmed);
+    /// assert_eq!(track.tick(3.0)?, Some(LifecycleEvent::StartedCoasting));
+    /// # Ok::<(), rtls_engine::EngineError>(())
+    /// ```
+    pub fn confirmed(settings: LifecycleSettings, time_s: f64) -> Result<Self> {
+        let mut lifecycle = Self::start(settings, time_s)?;
+        lifecycle.status = TrackStatus::Confirmed;
+        lifecycle.recent_updates_s.clear();
+        Ok(lifecycle)
+    }
+
     /// The current status.
     #[must_use]
     pub fn status(&self) -> TrackStatus {

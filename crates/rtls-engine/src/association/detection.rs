@@ -6,6 +6,7 @@ use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, Updated};
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance, Ranges};
 use rtls_estimation::Gaussian;
 
+use super::field_of_view::FieldOfView;
 use crate::error::{EngineError, Result};
 
 /// Below this track–node distance (m) the range Jacobian is undefined (as in
@@ -50,6 +51,8 @@ pub enum DetectionKind {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Detection {
     kind: DetectionKind,
+    /// The sector a range was measured in ([`Detection::within`]); `None`: all around.
+    view: Option<FieldOfView>,
 }
 
 impl Detection {
@@ -90,6 +93,7 @@ impl Detection {
                 position_m,
                 covariance_m2: [[a, off], [off, d]],
             },
+            view: None,
         })
     }
 
@@ -123,7 +127,97 @@ impl Detection {
                 range_m,
                 variance_m2,
             },
+            view: None,
         })
+    }
+
+    /// This range, measured by a directional sensor whose sector is `view` (apex at the node):
+    /// only tracks whose prediction lies in the view are candidates for it (see
+    /// [`FieldOfView`]).
+    ///
+    /// # Errors
+    /// [`EngineError::InvalidParameter`] (`view`) for a fix: a field of view belongs to a
+    /// ranging sensor.
+    ///
+    /// # Example
+    /// ```
+    /// use rtls_engine::association::{Detection, FieldOfView};
+    /// let view = FieldOfView::new(0.0, 0.5, 3.0)?;
+    /// assert!(Detection::range([0.0, 0.0], 1.0, 0.0009)?.within(view).is_ok());
+    /// assert!(Detection::fix([1.0, 0.0], [[0.01, 0.0], [0.0, 0.01]])?.within(view).is_err());
+    /// # Ok::<(), rtls_engine::EngineError>(())
+    /// ```
+    pub fn within(self, view: FieldOfView) -> Result<Self> {
+        match self.kind {
+            DetectionKind::Range { .. } => Ok(Self {
+                view: Some(view),
+                ..self
+            }),
+            DetectionKind::Fix { .. } => Err(EngineError::InvalidParameter {
+                name: "view",
+                reason: "only a range has a field of view (its apex is the node)",
+            }),
+        }
+    }
+
+    /// The field of view of a range from a directional sensor, if given.
+    #[must_use]
+    pub fn field_of_view(&self) -> Option<&FieldOfView> {
+        self.view.as_ref()
+    }
+
+    /// Whether `prior` can have made this detection as far as its field of view goes (always,
+    /// without one): its predicted position inside the sector and its predicted range not
+    /// surely beyond the maximum range (`d̂ − 3 √S ≤ r_max`, [`FieldOfView`]). `None` where the
+    /// range's `S` is undefined (the track on the node).
+    pub(crate) fn in_view(&self, prior: &Gaussian<4>) -> Option<bool> {
+        let (Some(view), DetectionKind::Range { node_m, .. }) = (&self.view, &self.kind) else {
+            return Some(true);
+        };
+        let x = prior.mean();
+        if !view.contains_bearing(*node_m, [x[0], x[2]]) {
+            return Some(false);
+        }
+        let (predicted_m, s) = self.range_terms(prior)?;
+        Some(view.within_range(predicted_m, s))
+    }
+
+    /// `|ν| = |r − d̂|` (m) and `S` (m²) of a range detection against `prior`; `None` for a fix
+    /// or where `S` is undefined.
+    pub(crate) fn range_innovation(&self, prior: &Gaussian<4>) -> Option<(f64, f64)> {
+        let DetectionKind::Range { range_m, .. } = self.kind else {
+            return None;
+        };
+        let (predicted_m, s) = self.range_terms(prior)?;
+        Some(((range_m - predicted_m).abs(), s))
+    }
+
+    /// The predicted range `d̂ = ‖p − a‖` (m) of a range detection against `prior` and its
+    /// innovation variance `S = uᵀ P_pos u + σ²` (m²); `None` for a fix or where `S` is
+    /// undefined (a track on the node).
+    pub(crate) fn range_terms(&self, prior: &Gaussian<4>) -> Option<(f64, f64)> {
+        let DetectionKind::Range {
+            node_m, variance_m2, ..
+        } = self.kind
+        else {
+            return None;
+        };
+        let x = prior.mean();
+        let p = prior.covariance();
+        // δ = p − a, d = ‖δ‖
+        let delta = [x[0] - node_m[0], x[2] - node_m[1]];
+        let d = delta[0].hypot(delta[1]);
+        if d.is_nan() || d < MIN_RANGE_DISTANCE_M {
+            return None;
+        }
+        // u = δ / d  (H = [uₓ, 0, u_y, 0])
+        let u = [delta[0] / d, delta[1] / d];
+        // S = uᵀ P_pos u + σ²
+        let s = u[0] * u[0] * p[(0, 0)] + 2.0 * u[0] * u[1] * p[(0, 2)] + u[1] * u[1] * p[(2, 2)] + variance_m2;
+        if s.is_nan() || s <= 0.0 {
+            return None;
+        }
+        Some((d, s))
     }
 
     /// What was measured.
@@ -182,24 +276,9 @@ impl Detection {
                     log_det_s: det.ln(),
                 })
             }
-            DetectionKind::Range {
-                node_m,
-                range_m,
-                variance_m2,
-            } => {
-                // δ = p − a, d = ‖δ‖
-                let delta = [x[0] - node_m[0], x[2] - node_m[1]];
-                let d = delta[0].hypot(delta[1]);
-                if d.is_nan() || d < MIN_RANGE_DISTANCE_M {
-                    return None;
-                }
-                // u = δ / d  (H = [uₓ, 0, u_y, 0])
-                let u = [delta[0] / d, delta[1] / d];
-                // S = uᵀ P_pos u + σ²
-                let s = u[0] * u[0] * p[(0, 0)] + 2.0 * u[0] * u[1] * p[(0, 2)] + u[1] * u[1] * p[(2, 2)] + variance_m2;
-                if s.is_nan() || s <= 0.0 {
-                    return None;
-                }
+            DetectionKind::Range { range_m, .. } => {
+                // d = ‖p − a‖, S = uᵀ P_pos u + σ²
+                let (d, s) = self.range_terms(prior)?;
                 // ν = r − d
                 let nu = range_m - d;
                 Some(PairScore {
@@ -255,7 +334,9 @@ impl Detection {
     /// fix:    |x_t − zₓ| ≤ √(γ Sₓₓ) ≤ √(γ P_xx) + √(γ Rₓₓ)
     /// range:  |x_t − aₓ| ≤ d ≤ r + √(γ S) ≤ r + √(γ (P_xx + P_yy)) + √γ σ
     /// ```
-    pub(crate) fn x_window(&self, gate: f64, track_half_width_m: f64) -> (f64, f64) {
+    /// A range's window also holds every track within `margin_m` of it, `|ν| = |r − d| ≤ m`
+    /// (`|x_t − aₓ| ≤ d ≤ r + m`: the candidates of the manoeuvre fallback; 0 when it is off).
+    pub(crate) fn x_window(&self, gate: f64, track_half_width_m: f64, margin_m: f64) -> (f64, f64) {
         let (center, own) = match self.kind {
             DetectionKind::Fix {
                 position_m,
@@ -267,7 +348,10 @@ impl Detection {
                 variance_m2,
             } => (node_m[0], range_m + (gate * variance_m2).sqrt()),
         };
-        let half = own + track_half_width_m;
+        let mut half = own + track_half_width_m;
+        if let DetectionKind::Range { range_m, .. } = self.kind {
+            half = half.max(range_m + margin_m);
+        }
         (center - half, center + half)
     }
 }

@@ -28,13 +28,34 @@ pub(crate) struct Gating {
     /// Pairs whose `S` was undefined (a track on the node of a range): treated as outside the
     /// gate, counted.
     pub(crate) singular_pairs: usize,
+    /// With a manoeuvre margin `m`: every range–track pair in view, outside the gate, with
+    /// `|ν| ≤ m`, sorted by (detection, track).
+    pub(crate) near: Vec<NearPair>,
+}
+
+/// A range outside a track's gate but within the manoeuvre margin of it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct NearPair {
+    /// Index into the scan's detections.
+    pub(crate) detection: usize,
+    /// Index into the tracks.
+    pub(crate) track: usize,
+    /// `|ν| = |r − d̂|`, m.
+    pub(crate) innovation_abs_m: f64,
+    /// `S`, m².
+    pub(crate) variance_m2: f64,
+    /// Its `d²` and `ln |S|`.
+    pub(crate) score: PairScore,
 }
 
 /// Gates every detection against every prior. `gates[m − 1]` is `χ²_{P_G}(m)` for `m = 1, 2`.
+/// A range with a field of view is gated only against the tracks in view
+/// ([`FieldOfView`](super::FieldOfView)). With a manoeuvre margin `m > 0`, the in-view ranges
+/// outside a track's gate with `|ν| ≤ m` are kept in [`Gating::near`].
 ///
 /// The exact test `d² ≤ γ` runs only on pairs whose track x lies in the detection's window
 /// ([`Detection::x_window`]), a necessary condition, so the result equals the dense check.
-pub(crate) fn gate(priors: &[Gaussian<4>], detections: &[Detection], gates: [f64; 2]) -> Gating {
+pub(crate) fn gate(priors: &[Gaussian<4>], detections: &[Detection], gates: [f64; 2], margin_m: f64) -> Gating {
     let mut gating = Gating::default();
     if priors.is_empty() || detections.is_empty() {
         return gating;
@@ -60,19 +81,42 @@ pub(crate) fn gate(priors: &[Gaussian<4>], detections: &[Detection], gates: [f64
     let mut candidates: Vec<usize> = Vec::new();
     for (d, detection) in detections.iter().enumerate() {
         let gate = gates[detection.dim() - 1];
-        let (lo, hi) = detection.x_window(gate, narrow_width);
+        let (lo, hi) = detection.x_window(gate, narrow_width, margin_m);
         candidates.clear();
         let start = narrow.partition_point(|&(x, _)| x < lo);
         candidates.extend(narrow[start..].iter().take_while(|&&(x, _)| x <= hi).map(|&(_, t)| t));
         candidates.extend_from_slice(&wide);
         candidates.sort_unstable();
         for &t in &candidates {
-            match detection.score(&priors[t]) {
+            let prior = &priors[t];
+            match detection.in_view(prior) {
+                Some(false) => continue,
+                None => {
+                    gating.singular_pairs += 1;
+                    continue;
+                }
+                Some(true) => {}
+            }
+            match detection.score(prior) {
                 Some(score) if score.nis <= gate => gating.pairs.push(GatedPair {
                     detection: d,
                     track: t,
                     score,
                 }),
+                Some(score) if margin_m > 0.0 => {
+                    if let Some((innovation_abs_m, variance_m2)) = detection.range_innovation(prior) {
+                        // |ν| = |r − d̂| ≤ m
+                        if innovation_abs_m <= margin_m {
+                            gating.near.push(NearPair {
+                                detection: d,
+                                track: t,
+                                innovation_abs_m,
+                                variance_m2,
+                                score,
+                            });
+                        }
+                    }
+                }
                 Some(_) => {}
                 None => gating.singular_pairs += 1,
             }

@@ -7,8 +7,13 @@
 //! - [`jpda_marginals`] — exact joint probabilistic data association weights of a cluster;
 //! - [`AnonymousTracker`] — CV tracks `[x, vx, y, vy]` fed scan by scan: χ² gating on the NIS,
 //!   GNN or JPDA per cluster, KF updates for fixes and EKF updates for ranges, track start from
-//!   unassigned fixes and the [`Lifecycle`](crate::lifecycle::Lifecycle) (M-of-N confirmation,
-//!   coasting, lost, deletion) for every track.
+//!   unassigned fixes or from known states ([`AnonymousTracker::seed_track`]) and the
+//!   [`Lifecycle`](crate::lifecycle::Lifecycle) (M-of-N confirmation, coasting, lost, deletion)
+//!   for every track;
+//! - [`FieldOfView`] — the sector of a directional ranging sensor: only tracks predicted inside
+//!   it are candidates for its range;
+//! - [`ManoeuvreFallback`] — a range outside every gate that only one track can have made goes
+//!   to that track, its velocity re-opened (off by default).
 //!
 //! # Cost and likelihood
 //! For a detection `z` of dimension `m` and a predicted track with innovation `ν`, innovation
@@ -30,8 +35,10 @@
 mod assignment;
 mod associate;
 mod detection;
+mod field_of_view;
 mod gating;
 mod jpda;
+mod manoeuvre;
 mod report;
 mod settings;
 mod tracker;
@@ -43,13 +50,17 @@ mod jpda_tests;
 #[cfg(test)]
 mod scenario_tests;
 #[cfg(test)]
+mod seeded_tests;
+#[cfg(test)]
 mod test_support;
 #[cfg(test)]
 mod tracker_tests;
 
 pub use assignment::{solve_assignment, Assignment, CostMatrix};
 pub use detection::{Detection, DetectionKind};
+pub use field_of_view::FieldOfView;
 pub use jpda::{jpda_marginals, JpdaMarginals, JpdaOutcome};
+pub use manoeuvre::ManoeuvreFallback;
 pub use report::{
     AnonymousTrackUpdate, DetectionCounts, DetectionFate, DetectionReport, ScanReport, TrackEvent, TrackEventKind,
 };

@@ -56,6 +56,12 @@ pub enum DetectionFate {
         /// `(track, β)` for every track whose gate it fell in.
         tracks: Vec<(Arc<str>, f64)>,
     },
+    /// A range outside every gate that the manoeuvre fallback gave to the one track that can
+    /// have made it, its velocity re-opened ([`ManoeuvreFallback`](super::ManoeuvreFallback)).
+    Manoeuvre {
+        /// The track it updated.
+        track: Arc<str>,
+    },
     /// A fix no track took: it started this (tentative) track.
     StartedTrack {
         /// The new track.
@@ -80,7 +86,8 @@ pub struct DetectionReport {
 pub struct DetectionCounts {
     /// Detections in the scan.
     pub total: usize,
-    /// Used to update tracks ([`DetectionFate::Assigned`] or [`DetectionFate::Weighted`]).
+    /// Used to update tracks ([`DetectionFate::Assigned`], [`DetectionFate::Weighted`] or
+    /// [`DetectionFate::Manoeuvre`]).
     pub assigned: usize,
     /// Not used by any track: `total − assigned` (new tracks and unused ranges).
     pub unassigned: usize,
@@ -115,6 +122,13 @@ pub struct ScanReport {
     /// Track–range pairs whose innovation covariance was undefined (the track on the node):
     /// treated as outside the gate.
     pub singular_pairs: usize,
+    /// Ranges outside every gate given to a track by the manoeuvre fallback
+    /// ([`DetectionFate::Manoeuvre`]); 0 without the fallback.
+    pub manoeuvre_assigned: usize,
+    /// Ranges outside every gate that several tracks could have made after a manoeuvre, with
+    /// not exactly one that can have drifted that far: unused, since which track manoeuvred is
+    /// unknown; 0 without the fallback.
+    pub manoeuvre_ambiguous: usize,
 }
 
 impl DetectionCounts {
@@ -126,7 +140,9 @@ impl DetectionCounts {
         };
         for report in reports {
             match report.fate {
-                DetectionFate::Assigned { .. } | DetectionFate::Weighted { .. } => counts.assigned += 1,
+                DetectionFate::Assigned { .. } | DetectionFate::Weighted { .. } | DetectionFate::Manoeuvre { .. } => {
+                    counts.assigned += 1;
+                }
                 DetectionFate::StartedTrack { .. } => counts.started_tracks += 1,
                 DetectionFate::UnusedRange => counts.unused_ranges += 1,
             }

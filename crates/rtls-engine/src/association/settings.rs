@@ -2,6 +2,7 @@
 
 use serde::Deserialize;
 
+use super::manoeuvre::ManoeuvreFallback;
 use crate::error::{EngineError, Result};
 use crate::lifecycle::LifecycleSettings;
 
@@ -39,8 +40,15 @@ pub struct AnonymousTrackerSettings {
     /// GNN or JPDA.
     pub association: Association,
     /// `σ_a` (m/s²) of the constant-velocity model's white acceleration (discrete, kinematic
-    /// gain `G = [dt²/2, dt]ᵀ` per axis).
+    /// gain `G = [dt²/2, dt]ᵀ` per axis). Unused when `acceleration_psd_m2ps3` is set.
     pub acceleration_noise_std_mps2: f64,
+    /// `q` (m²/s³): when set, the CV model's process noise is continuous white acceleration of
+    /// this power spectral density per axis, `Q = q [[dt³/3, dt²/2], [dt²/2, dt]]`, instead of
+    /// the discrete `σ_a` model (a continuous model predicts the same in one step or in many,
+    /// so scans may come at any spacing). `None` (the default): the discrete model. Set in code
+    /// only (not read from a site file).
+    #[serde(skip)]
+    pub acceleration_psd_m2ps3: Option<f64>,
     /// `σ_v` (m/s): standard deviation of each velocity component of a new track (which starts
     /// at the fix with zero velocity).
     pub initial_velocity_std_mps: f64,
@@ -58,6 +66,10 @@ pub struct AnonymousTrackerSettings {
     pub jpda_max_cluster_tracks: usize,
     /// JPDA: a cluster whose joint events exceed this number is associated by GNN (reported).
     pub jpda_max_joint_events: usize,
+    /// The manoeuvre fallback for ranges outside every gate ([`ManoeuvreFallback`]); `None`
+    /// (the default): such ranges are unused. Set in code only (not read from a site file).
+    #[serde(skip)]
+    pub manoeuvre: Option<ManoeuvreFallback>,
 }
 
 impl Default for AnonymousTrackerSettings {
@@ -65,7 +77,8 @@ impl Default for AnonymousTrackerSettings {
     /// `P_G` = 0.99; `P_D` = 0.9; `λ` = 10⁻³ false fixes per m² and 10⁻² false ranges per m per
     /// scan; confirmation after 3 updates within 3 s, coasting up to 5 s, deletion after 30 s
     /// (an anonymous track cannot be recognised again once lost, so it is not kept for long);
-    /// JPDA exact up to 8 tracks and 10⁵ joint events per cluster.
+    /// JPDA exact up to 8 tracks and 10⁵ joint events per cluster; discrete process noise and
+    /// no manoeuvre fallback.
     fn default() -> Self {
         Self {
             association: Association::Gnn,
@@ -83,6 +96,8 @@ impl Default for AnonymousTrackerSettings {
             },
             jpda_max_cluster_tracks: 8,
             jpda_max_joint_events: 100_000,
+            acceleration_psd_m2ps3: None,
+            manoeuvre: None,
         }
     }
 }
@@ -97,7 +112,8 @@ impl AnonymousTrackerSettings {
     /// [`EngineError::InvalidParameter`] naming the field: a non-finite or non-positive
     /// standard deviation or clutter density, `gate_probability` not in `(0, 1)`,
     /// `detection_probability` not in `(0, 1]`, `jpda_max_cluster_tracks` not in `1..=64`,
-    /// `jpda_max_joint_events = 0`, or a lifecycle field (`lifecycle.…`) its own validation
+    /// `jpda_max_joint_events = 0`, an `acceleration_psd_m2ps3` that is not finite and > 0, a
+    /// manoeuvre field (`manoeuvre.…`) or a lifecycle field (`lifecycle.…`) its own validation
     /// rejects.
     pub fn validate(&self) -> Result<()> {
         for (name, value) in [
@@ -130,6 +146,17 @@ impl AnonymousTrackerSettings {
                 name: "jpda_max_cluster_tracks",
                 reason: "must be between 1 and 64 (exact enumeration beyond that is hopeless)",
             });
+        }
+        if let Some(q) = self.acceleration_psd_m2ps3 {
+            if !(q.is_finite() && q > 0.0) {
+                return Err(EngineError::InvalidParameter {
+                    name: "acceleration_psd_m2ps3",
+                    reason: "must be finite and > 0",
+                });
+            }
+        }
+        if let Some(manoeuvre) = &self.manoeuvre {
+            manoeuvre.validate()?;
         }
         if self.jpda_max_joint_events == 0 {
             return Err(EngineError::InvalidParameter {

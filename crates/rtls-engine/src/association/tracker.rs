@@ -8,9 +8,10 @@ use rtls_estimation::motion::{ConstantVelocity, NoiseGain, ProcessNoise};
 use rtls_estimation::stats::ChiSquareGate;
 use rtls_estimation::{Gaussian, Matrix, Vector};
 
-use super::associate::{Decisions, Scan};
+use super::associate::{Decisions, Scan, TrackChange};
 use super::detection::{Detection, DetectionKind};
-use super::gating::gate;
+use super::gating::{gate, NearPair};
+use super::manoeuvre::{Candidate, Choice, ManoeuvreFallback};
 use super::report::{
     AnonymousTrackUpdate, DetectionCounts, DetectionFate, DetectionReport, ScanReport, TrackEvent, TrackEventKind,
 };
@@ -77,6 +78,10 @@ impl AnonymousTrack {
 ///      tracks or `jpda_max_joint_events` events is associated by GNN (counted in
 ///      [`ScanReport::gnn_fallback_clusters`]);
 /// 4. fixes update by the KF, ranges by the EKF (`H = [(x − aₓ)/d, 0, (y − a_y)/d, 0]`);
+///    A range with a [`FieldOfView`](super::FieldOfView) is gated only against the tracks
+///    predicted inside it. With a [`ManoeuvreFallback`](super::ManoeuvreFallback), a range
+///    outside every gate then goes to the one established track that can have made it after a
+///    manoeuvre (if no gated detection updated that track), its velocity re-opened;
 /// 5. a fix no track took starts a tentative track at the fix with zero velocity (velocity
 ///    σ `initial_velocity_std_mps`), named `anon-<n>` in creation order. **Ranges alone cannot
 ///    start a track** (a range leaves the position on a circle): an untaken range is reported
@@ -87,9 +92,15 @@ impl AnonymousTrack {
 ///    `1 − β₀ ≥ ½`) count towards M-of-N confirmation or resume; the others coast, are lost
 ///    (reporting their last updated state) and deleted after the timeouts.
 ///
+/// Tracks of targets whose start is known are seeded, confirmed, with
+/// [`AnonymousTracker::seed_track`]; [`AnonymousTracker::predict_tracks`] looks ahead without
+/// changing them.
+///
 /// Seed 003's limit ① — several robots in one grid cell could not be told apart — is what the
-/// association removes: once tracks exist (from fixes), each anonymous range goes to the track
-/// it fits.
+/// association removes: once tracks exist (from fixes, or seeded), each anonymous range goes to
+/// the track it fits. Seed 003's reproduction (`rtls repro wsn-ekf`, "ours") runs on this
+/// tracker: seeded robots, each firing instant's echoes one scan, sonar sectors as fields of
+/// view, the manoeuvre fallback on.
 ///
 /// # Errors
 /// [`AnonymousTracker::new`] rejects invalid settings; [`AnonymousTracker::process_scan`]
@@ -148,7 +159,11 @@ impl AnonymousTracker {
     pub fn new(settings: AnonymousTrackerSettings) -> Result<Self> {
         settings.validate()?;
         let sigma_a = settings.acceleration_noise_std_mps2;
-        let motion = ConstantVelocity::new(ProcessNoise::discrete(sigma_a * sigma_a, NoiseGain::kinematic()))?;
+        let noise = match settings.acceleration_psd_m2ps3 {
+            Some(q) => ProcessNoise::continuous(q),
+            None => ProcessNoise::discrete(sigma_a * sigma_a, NoiseGain::kinematic()),
+        };
+        let motion = ConstantVelocity::new(noise)?;
         let gate = ChiSquareGate::new(settings.gate_probability)?;
         Ok(Self {
             settings,
@@ -197,7 +212,8 @@ impl AnonymousTracker {
             .iter()
             .map(|track| kf.predict(&track.state, &self.motion, time_s))
             .collect::<rtls_estimation::Result<Vec<_>>>()?;
-        let gating = gate(&priors, detections, self.gates);
+        let margin_m = self.settings.manoeuvre.map_or(0.0, |m| m.margin_m);
+        let gating = gate(&priors, detections, self.gates, margin_m);
         let mut gated_tracks = vec![0usize; detections.len()];
         for pair in &gating.pairs {
             gated_tracks[pair.detection] += 1;
@@ -223,6 +239,24 @@ impl AnonymousTracker {
             fates: vec![None; detections.len()],
         };
         let cluster_counts = scan.associate(&mut decisions)?;
+        let manoeuvres = match &self.settings.manoeuvre {
+            Some(fallback) => {
+                let last_update_s: Vec<f64> = self.tracks.iter().map(|t| t.lifecycle.last_update_s()).collect();
+                let ungated = Ungated {
+                    fallback,
+                    time_s,
+                    priors: &priors,
+                    ids: &ids,
+                    established: &established,
+                    last_update_s: &last_update_s,
+                    gated_tracks: &gated_tracks,
+                    near: &gating.near,
+                    detections,
+                };
+                ungated.fall_back(&mut decisions)?
+            }
+            None => ManoeuvreCounts::default(),
+        };
         let Decisions { changes, fates } = decisions;
 
         // Untaken fixes start tracks; untaken ranges are reported.
@@ -326,7 +360,178 @@ impl AnonymousTracker {
             clusters: cluster_counts.clusters,
             gnn_fallback_clusters: cluster_counts.gnn_fallbacks,
             singular_pairs: gating.singular_pairs,
+            manoeuvre_assigned: manoeuvres.assigned,
+            manoeuvre_ambiguous: manoeuvres.ambiguous,
         })
+    }
+
+    /// Starts a confirmed track `id` at a known `state` (`[x, vx, y, vy]` at its time,
+    /// m and m/s): a target whose start is known (robots placed at known positions, a track
+    /// handed over by another tracker), which ranges alone could not start. The track is
+    /// confirmed at once (no M-of-N), then coasts, is lost and deleted like any other; it is
+    /// associated like any established track. The tracker's clock moves to the state's time:
+    /// later scans must not be earlier.
+    ///
+    /// # Errors
+    /// [`EngineError::InvalidParameter`] naming `id` for an empty id, one in use by a live
+    /// track or one of the form `anon-…` (reserved for tracks the tracker starts), or `time_s`
+    /// for a state earlier than the last scan. The tracker is unchanged after an error.
+    ///
+    /// # Example
+    /// Two robots at known starts; an anonymous range from a node updates the one it fits.
+    /// ```
+    /// use rtls_engine::association::{AnonymousTracker, AnonymousTrackerSettings, Detection, DetectionFate};
+    /// use rtls_estimation::{Gaussian, Matrix, Vector};
+    /// let p0 = Matrix::<4>::from_diagonal(&Vector::<4>::new(0.01, 0.01, 0.01, 0.01));
+    /// let mut tracker = AnonymousTracker::new(AnonymousTrackerSettings::default())?;
+    /// tracker.seed_track("robot-0", Gaussian::new(Vector::<4>::new(1.0, 0.0, 1.0, 0.0), p0, 0.0)?)?;
+    /// tracker.seed_track("robot-1", Gaussian::new(Vector::<4>::new(3.0, 0.0, 1.0, 0.0), p0, 0.0)?)?;
+    /// assert!(tracker.seed_track("robot-1", Gaussian::new(Vector::<4>::zeros(), p0, 0.0)?).is_err());
+    /// let report = tracker.process_scan(0.1, &[Detection::range([4.0, 1.0], 1.01, 0.0009)?])?;
+    /// assert_eq!(report.detections[0].fate, DetectionFate::Assigned { track: "robot-1".into() });
+    /// # Ok::<(), rtls_engine::EngineError>(())
+    /// ```
+    pub fn seed_track(&mut self, id: impl Into<Arc<str>>, state: Gaussian<4>) -> Result<()> {
+        let id: Arc<str> = id.into();
+        if id.is_empty() || id.starts_with("anon-") || self.tracks.iter().any(|t| t.id == id) {
+            return Err(EngineError::InvalidParameter {
+                name: "id",
+                reason: "a seeded track needs a non-empty id not in use and not of the form anon-<n> \
+                         (reserved for the tracks the tracker starts)",
+            });
+        }
+        let time_s = state.time_s();
+        if self.last_scan_s.is_some_and(|last| time_s < last) {
+            return Err(EngineError::InvalidParameter {
+                name: "time_s",
+                reason: "time went backwards: a seeded state must not be earlier than the last scan",
+            });
+        }
+        let lifecycle = Lifecycle::confirmed(self.settings.lifecycle, time_s)?;
+        self.tracks.push(AnonymousTrack {
+            id,
+            state,
+            last_update: state,
+            lifecycle,
+        });
+        self.last_scan_s = Some(self.last_scan_s.map_or(time_s, |last| last.max(time_s)));
+        Ok(())
+    }
+
+    /// Every live track's state predicted to `time_s` (s), in track order, by the tracker's
+    /// CV model; the tracker is unchanged (a look ahead, e.g. to schedule the next
+    /// measurements).
+    ///
+    /// # Errors
+    /// [`EngineError::Estimation`] for a time before a track's state (earlier than the last
+    /// scan) or a non-finite time.
+    ///
+    /// # Example
+    /// ```
+    /// use rtls_engine::association::{AnonymousTracker, AnonymousTrackerSettings};
+    /// use rtls_estimation::{Gaussian, Matrix, Vector};
+    /// let mut tracker = AnonymousTracker::new(AnonymousTrackerSettings::default())?;
+    /// let p0 = Matrix::<4>::identity() * 0.01;
+    /// tracker.seed_track("a", Gaussian::new(Vector::<4>::new(1.0, 0.5, 2.0, 0.0), p0, 0.0)?)?;
+    /// let ahead = tracker.predict_tracks(2.0)?;
+    /// assert!((ahead[0].mean()[0] - 2.0).abs() < 1e-12); // x + vx t
+    /// assert_eq!(tracker.tracks()[0].state().time_s(), 0.0);
+    /// # Ok::<(), rtls_engine::EngineError>(())
+    /// ```
+    pub fn predict_tracks(&self, time_s: f64) -> Result<Vec<Gaussian<4>>> {
+        let kf = KalmanFilter::default();
+        Ok(self
+            .tracks
+            .iter()
+            .map(|track| kf.predict(&track.state, &self.motion, time_s))
+            .collect::<rtls_estimation::Result<Vec<_>>>()?)
+    }
+
+    /// The time of the last scan (or of the latest seeded state), s; `None` before either.
+    #[must_use]
+    pub fn last_scan_s(&self) -> Option<f64> {
+        self.last_scan_s
+    }
+}
+
+/// What the manoeuvre fallback of a scan reads.
+struct Ungated<'a> {
+    fallback: &'a ManoeuvreFallback,
+    time_s: f64,
+    priors: &'a [Gaussian<4>],
+    ids: &'a [Arc<str>],
+    established: &'a [bool],
+    last_update_s: &'a [f64],
+    /// Per detection, the number of tracks whose gate it passed.
+    gated_tracks: &'a [usize],
+    near: &'a [NearPair],
+    detections: &'a [Detection],
+}
+
+/// How many ranges the manoeuvre fallback gave to a track, and how many it found ambiguous.
+#[derive(Debug, Clone, Copy, Default)]
+struct ManoeuvreCounts {
+    assigned: usize,
+    ambiguous: usize,
+}
+
+impl Ungated<'_> {
+    /// The manoeuvre fallback ([`ManoeuvreFallback`]) after the gated association: each range
+    /// outside every gate goes to the one established track that can have made it, if that
+    /// track took no gated detection in this scan; of several such ranges a track takes the
+    /// one of least `d² + ln |S|`.
+    ///
+    /// # Errors
+    /// A failed filter update.
+    fn fall_back(&self, out: &mut Decisions) -> Result<ManoeuvreCounts> {
+        let mut counts = ManoeuvreCounts::default();
+        // (cost, detection, track) of every range the fallback may give to a track
+        let mut proposals: Vec<(f64, usize, usize)> = Vec::new();
+        let mut start = 0;
+        while start < self.near.len() {
+            let d = self.near[start].detection;
+            let end = start + self.near[start..].iter().take_while(|p| p.detection == d).count();
+            if self.gated_tracks[d] == 0 && out.fates[d].is_none() {
+                let candidates: Vec<Candidate> = self.near[start..end]
+                    .iter()
+                    .filter(|p| self.established[p.track])
+                    .map(|p| Candidate {
+                        track: p.track,
+                        innovation_abs_m: p.innovation_abs_m,
+                        variance_m2: p.variance_m2,
+                        last_update_s: self.last_update_s[p.track],
+                        cost: p.score.cost(),
+                    })
+                    .collect();
+                match self.fallback.choose(&candidates, self.time_s) {
+                    Choice::Candidate(k) => proposals.push((candidates[k].cost, d, candidates[k].track)),
+                    Choice::Ambiguous => counts.ambiguous += 1,
+                    Choice::Nobody => {}
+                }
+            }
+            start = end;
+        }
+        // each free track takes its cheapest proposal (ties: the earlier detection)
+        proposals.sort_by(|a, b| a.2.cmp(&b.2).then(a.0.total_cmp(&b.0)).then(a.1.cmp(&b.1)));
+        let mut last_track = None;
+        for (_, d, t) in proposals {
+            if last_track == Some(t) || out.changes[t].is_some() {
+                continue;
+            }
+            last_track = Some(t);
+            // P⁻ += diag(0, σ_m², 0, σ_m²), then the range update
+            let opened = self.fallback.open_velocity(&self.priors[t])?;
+            let posterior = self.detections[d].update(&opened)?;
+            out.changes[t] = Some(TrackChange {
+                state: posterior.state,
+                detected: true,
+            });
+            out.fates[d] = Some(DetectionFate::Manoeuvre {
+                track: Arc::clone(&self.ids[t]),
+            });
+            counts.assigned += 1;
+        }
+        Ok(counts)
     }
 }
 

@@ -82,7 +82,7 @@ fn the_gating_sweep_equals_the_dense_check() {
             })
             .collect();
         let detections: Vec<Detection> = (0..80).map(|_| random_detection(&mut rng)).collect();
-        let swept = gate(&priors, &detections, gates);
+        let swept = gate(&priors, &detections, gates, 0.0);
         let mut dense = Vec::new();
         for (d, detection) in detections.iter().enumerate() {
             for (t, prior) in priors.iter().enumerate() {
