@@ -1,6 +1,7 @@
 //! Seed 003's experiment: robots driving across a wireless sensor network of ultrasonic nodes,
 //! tracked by least-squares multilateration (the paper's baseline), the paper's
-//! single-observation EKF, or our EKF with data association — each in closed loop with the
+//! single-observation EKF, or ours, the engine's multi-target tracker with data association
+//! ([`rtls_engine::association::AnonymousTracker`]) — each in closed loop with the
 //! paper's adaptive node scheduling, edge monitoring and dual-token timing.
 //!
 //! One call of [`run_seed_003`] simulates one method for one seed, cycle by cycle:
@@ -14,7 +15,8 @@
 //!    the node stamps the range with its own clock and counts the time of flight on it;
 //! 4. the communication token brings the reports to the base one at a time (TDMA); the engine's
 //!    [`rtls_engine::scheduling::EnergyLedger`] books every node's radio and sonar on-time;
-//! 5. the tracker processes the echoes in firing order at their time stamps; the estimates are
+//! 5. the tracker processes the echoes in firing order at their time stamps (ours: the echoes
+//!    of one firing instant as one scan of the engine's tracker); the estimates are
 //!    evaluated at the cycle's last firing; the next cycle starts when the last report is in.
 
 mod bound;
@@ -28,7 +30,6 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rtls_engine::scheduling::{CycleTimetable, EnergyLedger};
 use rtls_estimation::motion::ConstantVelocity;
-use rtls_estimation::stats::ChiSquareGate;
 use rtls_estimation::{Gaussian, Matrix, Vector};
 
 pub use self::clock::ClockConfig;
@@ -51,8 +52,10 @@ pub enum Method {
     /// The paper's single-observation EKF: each echo updates the robot its sonar was aimed at
     /// (§3.3).
     PaperEkf,
-    /// Ours: the same EKF, each echo assigned to the track it matches (χ² gate, global nearest
-    /// neighbour), unmatched echoes dropped.
+    /// Ours: the engine's multi-target tracker
+    /// ([`AnonymousTracker`](rtls_engine::association::AnonymousTracker)) — the same CV EKF per
+    /// robot, each echo assigned to the track it matches (χ² gate, global nearest neighbour,
+    /// sonar sectors as fields of view, the manoeuvre fallback), unmatched echoes dropped.
     AssociatedEkf,
 }
 
@@ -249,8 +252,9 @@ pub fn run_seed_003(config: &Seed003Config, method: Method, seed: u64) -> Result
     let p0 = config.initial_covariance();
     let settings = TrackerSettings {
         motion,
+        acceleration_psd_m2ps3: config.tracker.acceleration_psd_m2ps3,
         range_variance_m2: config.sonar.range_noise_std_m.powi(2),
-        gate: ChiSquareGate::new(config.tracker.gate_probability).map_err(SimError::estimation(0.0))?,
+        gate_probability: config.tracker.gate_probability,
         sector_margin_rad: config.tracker.sector_margin_deg.to_radians(),
         manoeuvre_margin_m: config.tracker.manoeuvre_margin_m,
         manoeuvre_velocity_std_mps: config.tracker.manoeuvre_velocity_std_mps,
@@ -277,10 +281,8 @@ pub fn run_seed_003(config: &Seed003Config, method: Method, seed: u64) -> Result
     let initial_m: Vec<[f64; 2]> = initial.iter().map(trackers::position).collect();
     let mut tracker = match method {
         Method::LeastSquares => Tracker::LeastSquares(initial_m.clone()),
-        Method::PaperEkf | Method::AssociatedEkf => Tracker::Ekf {
-            tracks: initial,
-            associate: method == Method::AssociatedEkf,
-        },
+        Method::PaperEkf => Tracker::PaperEkf(initial),
+        Method::AssociatedEkf => Tracker::engine(&settings, &config.sonar, &initial)?,
     };
     let bed = &config.bed;
     let mut scheduler = Scheduler::new(

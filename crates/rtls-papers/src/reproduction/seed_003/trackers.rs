@@ -4,24 +4,28 @@
 //! - least-squares multilateration per cycle (the paper's baseline, §2.4);
 //! - the paper's single-observation EKF (§3.3): every echo updates the robot its sonar was
 //!   aimed at;
-//! - ours: the same EKF per robot, each echo assigned to the track whose predicted range it
-//!   matches (χ² gate on the NIS, global nearest neighbour over the echoes of one instant); an
-//!   echo no track gates goes to the one track in the beam whose predicted range is within the
-//!   manoeuvre margin of it, if there is exactly one (a manoeuvre, not another robot).
+//! - ours: the engine's multi-target tracker, [`AnonymousTracker`], with one seeded track per
+//!   robot: each firing instant's echoes are one scan of anonymous ranges, each with its
+//!   sonar's sector as field of view; χ² gating on the NIS, global nearest neighbour, and the
+//!   engine's manoeuvre fallback (an echo outside every gate goes to the one track in the beam
+//!   whose predicted range is within the manoeuvre margin of it, or the one that can have
+//!   drifted that far).
 
 use nalgebra::{DVector, Matrix2, Vector2};
-use rtls_engine::association::{solve_assignment, CostMatrix};
+use rtls_engine::association::{
+    AnonymousTracker, AnonymousTrackerSettings, Association, Detection, DetectionFate, FieldOfView, ManoeuvreFallback,
+};
+use rtls_engine::lifecycle::LifecycleSettings;
 use rtls_estimation::filter::{ExtendedKalmanFilter, Updated};
 use rtls_estimation::measurement::{NoiseCovariance, Ranges};
 use rtls_estimation::motion::ConstantVelocity;
-use rtls_estimation::stats::ChiSquareGate;
 use rtls_estimation::{EstimationError, Gaussian};
 use rtls_positioning::multilateration::{gauss_newton, two_range, GaussNewtonOptions, Initial};
 use rtls_positioning::Fix2;
 
 use super::schedule::Timed;
 use crate::error::{Result, SimError};
-use rtls_sim::sensors::ultrasonic::{Echo, SonarRing};
+use rtls_sim::sensors::ultrasonic::{Aim, Echo, SonarRing};
 
 /// A firing of this cycle with its echo, as the base station sees it (plus the simulation's
 /// truth about who reflected it, in `echo.source`, used only for counting).
@@ -60,12 +64,14 @@ pub(crate) struct CycleOutcome {
 /// Parameters shared by the trackers.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct TrackerSettings {
-    /// The EKFs' motion model.
+    /// The EKFs' motion model (continuous white acceleration of PSD `q`).
     pub motion: ConstantVelocity,
+    /// `q` of `motion` (m²/s³), for the engine's tracker.
+    pub acceleration_psd_m2ps3: f64,
     /// Range noise variance `σ²` the trackers assume (m²).
     pub range_variance_m2: f64,
-    /// Association gate (ours).
-    pub gate: ChiSquareGate,
+    /// Association gate probability `P_G` (ours).
+    pub gate_probability: f64,
     /// Association widens each sonar sector by this much on each side (rad).
     pub sector_margin_rad: f64,
     /// Largest range innovation a manoeuvring track may show (m).
@@ -77,37 +83,90 @@ pub(crate) struct TrackerSettings {
     pub manoeuvre_speed_change_mps: f64,
 }
 
+/// Expected false echoes per firing per metre of range in ours' association: inside the echo
+/// window only robots reflect (the simulated bed has no clutter), so an echo is left unassigned
+/// only when no track can take it. With `λ = 10⁻⁶ /m` the price of an unassigned echo,
+/// `c₀ = −2 ln λ − ln 2π + 2 ln P_D − 2 ln(1 − P_D P_G) ≈ 31`, exceeds any gated pairing's
+/// `d² + ln |S| ≤ χ²₀.₉₉(1) + ln S ≈ 6.6 − 4` by far: the assignment takes as many echoes as
+/// the gates allow, then the most likely pairing.
+const ECHO_CLUTTER_DENSITY_PER_M: f64 = 1e-6;
+
+/// A time no track of a run reaches without an update (s): the robots stay on the bed, so their
+/// tracks are never lost or deleted.
+const NEVER_S: f64 = 1e9;
+
 /// One of the three estimators, holding every robot's estimate.
 #[derive(Debug, Clone)]
 pub(crate) enum Tracker {
     /// Least-squares fix per cycle; the last fix per robot (m).
     LeastSquares(Vec<[f64; 2]>),
-    /// EKF per robot; `associate` selects ours (gated GNN) over the paper's (echo = robot).
-    Ekf {
-        /// Track states `[x, vx, y, vy]`.
-        tracks: Vec<Gaussian<4>>,
-        /// Whether echoes are associated by gate and GNN.
-        associate: bool,
-    },
+    /// The paper's EKF per robot (`[x, vx, y, vy]`): every echo updates the robot its sonar was
+    /// aimed at.
+    PaperEkf(Vec<Gaussian<4>>),
+    /// Ours: the engine's anonymous multi-target tracker, track `robot-<i>` for robot `i`
+    /// (seeded, never deleted, so track `i` is robot `i`).
+    Engine(Box<AnonymousTracker>),
 }
 
 impl Tracker {
-    /// Every robot's position estimate at `time_s` (m): the EKF mean predicted to that time,
-    /// or the last LS fix.
+    /// Ours: the engine's [`AnonymousTracker`] with a confirmed track `robot-<i>` seeded at each
+    /// robot's initial estimate: GNN, the CV model with continuous white acceleration `q`, the χ²
+    /// gate `P_G`, the sonar's `P_D`, [`ECHO_CLUTTER_DENSITY_PER_M`], the manoeuvre fallback, and
+    /// tracks never lost ([`NEVER_S`]).
+    ///
+    /// # Errors
+    /// As [`SimError::from_engine`], for settings the engine rejects.
+    pub fn engine(settings: &TrackerSettings, sonar: &SonarRing, initial: &[Gaussian<4>]) -> Result<Self> {
+        let engine_settings = AnonymousTrackerSettings {
+            association: Association::Gnn,
+            acceleration_psd_m2ps3: Some(settings.acceleration_psd_m2ps3),
+            gate_probability: settings.gate_probability,
+            detection_probability: sonar.detection_probability,
+            range_clutter_density_per_m: ECHO_CLUTTER_DENSITY_PER_M,
+            lifecycle: LifecycleSettings {
+                confirm_updates: 1,
+                confirm_window_s: 0.0,
+                coast_timeout_s: NEVER_S,
+                delete_timeout_s: NEVER_S,
+            },
+            manoeuvre: Some(ManoeuvreFallback {
+                margin_m: settings.manoeuvre_margin_m,
+                velocity_std_mps: settings.manoeuvre_velocity_std_mps,
+                speed_change_mps: settings.manoeuvre_speed_change_mps,
+            }),
+            ..AnonymousTrackerSettings::default()
+        };
+        let mut tracker = AnonymousTracker::new(engine_settings).map_err(SimError::from_engine)?;
+        for (robot, state) in initial.iter().enumerate() {
+            tracker
+                .seed_track(format!("robot-{robot}"), *state)
+                .map_err(SimError::from_engine)?;
+        }
+        Ok(Self::Engine(Box::new(tracker)))
+    }
+
+    /// Every robot's position estimate at `time_s` (m): the EKF mean predicted to that time
+    /// (not before its state), or the last LS fix.
     pub fn positions_at(&self, settings: &TrackerSettings, time_s: f64) -> Result<Vec<[f64; 2]>> {
         match self {
             Self::LeastSquares(fixes) => Ok(fixes.clone()),
-            Self::Ekf { tracks, .. } => tracks
+            Self::PaperEkf(tracks) => tracks
                 .iter()
                 .map(|track| {
                     let predicted = predict(track, settings, time_s)?;
                     Ok(position(&predicted))
                 })
                 .collect(),
+            Self::Engine(tracker) => {
+                let time_s = tracker.last_scan_s().map_or(time_s, |last| time_s.max(last));
+                let predicted = tracker.predict_tracks(time_s).map_err(SimError::from_engine)?;
+                Ok(predicted.iter().map(position).collect())
+            }
         }
     }
 
-    /// Processes one cycle's observations (sorted by firing time).
+    /// Processes one cycle's observations (sorted by firing time); the observations fired at
+    /// one instant (in different cells) form one group.
     pub fn process(
         &mut self,
         settings: &TrackerSettings,
@@ -119,32 +178,123 @@ impl Tracker {
             used_by: vec![None; observations.len()],
             ..CycleOutcome::default()
         };
-        match self {
-            Self::LeastSquares(fixes) => least_squares_cycle(fixes, settings, nodes_m, observations, &mut outcome),
-            Self::Ekf { tracks, associate } => {
-                // observations fired at one instant (different cells) form one group
-                let mut start = 0;
-                while start < observations.len() {
-                    let time_s = observations[start].timed.time_s;
-                    let end = start
-                        + observations[start..]
-                            .iter()
-                            .take_while(|o| o.timed.time_s == time_s)
-                            .count();
-                    if *associate {
-                        associate_group(tracks, settings, sonar, nodes_m, observations, start..end, &mut outcome)?;
-                    } else {
-                        for i in start..end {
-                            paper_update(tracks, settings, nodes_m, observations, i, &mut outcome)?;
-                        }
+        if let Self::LeastSquares(fixes) = self {
+            least_squares_cycle(fixes, settings, nodes_m, observations, &mut outcome)?;
+            return Ok(outcome);
+        }
+        let mut start = 0;
+        while start < observations.len() {
+            let time_s = observations[start].timed.time_s;
+            let end = start
+                + observations[start..]
+                    .iter()
+                    .take_while(|o| o.timed.time_s == time_s)
+                    .count();
+            match self {
+                Self::LeastSquares(_) => {}
+                Self::PaperEkf(tracks) => {
+                    for i in start..end {
+                        paper_update(tracks, settings, nodes_m, observations, i, &mut outcome)?;
                     }
-                    start = end;
                 }
-                Ok(())
+                Self::Engine(tracker) => {
+                    engine_scan(
+                        tracker,
+                        settings,
+                        sonar,
+                        nodes_m,
+                        observations,
+                        start..end,
+                        &mut outcome,
+                    )?;
+                }
             }
-        }?;
+            start = end;
+        }
         Ok(outcome)
     }
+}
+
+/// The sector of a firing as the engine's field of view: from the start of the first fired
+/// sonar's sector to the end of the last one's (the union of adjacent sectors; the hull, were
+/// there gaps between narrower sectors), widened by `margin_rad` on each side, out to the echo
+/// window's range.
+///
+/// # Errors
+/// As [`SimError::from_engine`], for a sector the engine rejects (a zero width).
+fn field_of_view(sonar: &SonarRing, aim: Aim, margin_rad: f64) -> Result<FieldOfView> {
+    let spacing_rad = std::f64::consts::TAU / sonar.sonars as f64;
+    // [θ₀, θ₁] = [k s, (k + c − 1) s + w]
+    let start_rad = aim.first as f64 * spacing_rad;
+    let end_rad = (aim.first + aim.count.max(1) - 1) as f64 * spacing_rad + sonar.sector_width_deg.to_radians();
+    let half_width_rad = (0.5 * (end_rad - start_rad) + margin_rad).min(std::f64::consts::PI);
+    FieldOfView::new(0.5 * (start_rad + end_rad), half_width_rad, sonar.max_range_m()).map_err(SimError::from_engine)
+}
+
+/// Ours: the echoes of observations `group` (one firing instant) as one scan of the engine's
+/// tracker: each echo a [`Detection::range`] from its node with its sonar's sector as field of
+/// view. The scan time is the mean of the firings' time stamps (the nodes' clocks, which differ
+/// by the sync error: well under a millisecond, a tenth of a millimetre at 0.5 m/s), kept from
+/// going back before the previous scan. The scan report gives each echo's robot (`Assigned`, or
+/// `Manoeuvre`: outside every gate, given by the fallback — counted as `sole_candidate`), the
+/// unused echoes (`gated_out`), the ambiguous ones and the singular pairs.
+fn engine_scan(
+    tracker: &mut AnonymousTracker,
+    settings: &TrackerSettings,
+    sonar: &SonarRing,
+    nodes_m: &[[f64; 2]],
+    observations: &[Observation],
+    group: std::ops::Range<usize>,
+    outcome: &mut CycleOutcome,
+) -> Result<()> {
+    let mut echoes: Vec<usize> = Vec::new();
+    let mut detections: Vec<Detection> = Vec::new();
+    let mut stamps_s = 0.0;
+    for i in group {
+        let Observation { timed, stamp_s, echo } = observations[i];
+        let Some(echo) = echo else { continue };
+        let view = field_of_view(sonar, timed.request.aim, settings.sector_margin_rad)?;
+        let detection = Detection::range(nodes_m[timed.request.node], echo.range_m, settings.range_variance_m2)
+            .and_then(|d| d.within(view))
+            .map_err(SimError::from_engine)?;
+        echoes.push(i);
+        detections.push(detection);
+        stamps_s += stamp_s;
+    }
+    if echoes.is_empty() {
+        return Ok(());
+    }
+    let mean_stamp_s = stamps_s / echoes.len() as f64;
+    let time_s = tracker
+        .last_scan_s()
+        .map_or(mean_stamp_s, |last| mean_stamp_s.max(last));
+    let report = tracker
+        .process_scan(time_s, &detections)
+        .map_err(SimError::from_engine)?;
+    for (&i, detection) in echoes.iter().zip(&report.detections) {
+        let (track, manoeuvre) = match &detection.fate {
+            DetectionFate::Assigned { track } => (track, false),
+            DetectionFate::Manoeuvre { track } => (track, true),
+            DetectionFate::Weighted { .. } | DetectionFate::StartedTrack { .. } | DetectionFate::UnusedRange => {
+                outcome.gated_out += 1;
+                continue;
+            }
+        };
+        let robot = tracker
+            .tracks()
+            .iter()
+            .position(|t| t.id() == &**track)
+            .ok_or(SimError::EmptyInput {
+                what: "the engine's track of an assigned echo",
+            })?;
+        outcome.used_by[i] = Some(robot);
+        outcome.sole_candidate += usize::from(manoeuvre);
+        let timed = observations[i].timed;
+        outcome.latencies_s.push(timed.arrival_s - timed.time_s);
+    }
+    outcome.ambiguous += report.manoeuvre_ambiguous;
+    outcome.singular += report.singular_pairs;
+    Ok(())
 }
 
 /// `[x, y]` of a `[x, vx, y, vy]` state.
@@ -203,167 +353,6 @@ fn paper_update(
         }
     }
     Ok(())
-}
-
-/// Ours: the echoes of observations `group` (one firing instant) are assigned to tracks by
-/// global nearest neighbour. A track is a candidate for an echo if its prediction lies in the
-/// sonar's beam (its sector(s) widened by the margin, its predicted range within 3 σ of the
-/// echo window's); a candidate inside the χ² gate `νᵀ S⁻¹ ν ≤ γ` costs `νᵀ S⁻¹ ν + ln |S|` (the
-/// negative log-likelihood up to a constant). When no candidate passes the gate and exactly
-/// one candidate's range innovation is within the manoeuvre margin (`|ν| ≤ m`), that track
-/// may still take the echo, at a cost above any gated pairing: only robots reflect inside the
-/// echo window, so the echo is that robot's, and a gate failure means it manoeuvred (a 90° turn
-/// at 0.5 m/s leaves the CV prediction 10–20 cm off within a cycle); its velocity is then
-/// re-opened before the update, `P⁻ += diag(0, σ_m², 0, σ_m²)`, so that the range can correct a
-/// velocity the CV model still holds from before the turn. The assignment maximises the number
-/// of assigned echoes, then minimises the total cost. Unassigned echoes are dropped, among them
-/// the echoes outside every gate for which several tracks are within the manoeuvre margin
-/// (counted as ambiguous: one of them manoeuvred, but which one is unknown).
-fn associate_group(
-    tracks: &mut [Gaussian<4>],
-    settings: &TrackerSettings,
-    sonar: &SonarRing,
-    nodes_m: &[[f64; 2]],
-    observations: &[Observation],
-    group: std::ops::Range<usize>,
-    outcome: &mut CycleOutcome,
-) -> Result<()> {
-    /// Cost added to a pairing outside the gate, above any gated cost.
-    const UNGATED_COST: f64 = 1e6;
-    let Some(first) = observations.get(group.start) else {
-        return Ok(());
-    };
-    let threshold = settings
-        .gate
-        .threshold(1)
-        .map_err(SimError::estimation(first.stamp_s))?;
-    // candidates[e] = (track, cost, updated) for the tracks that may take echo e
-    let mut echoes: Vec<usize> = Vec::new();
-    let mut candidates: Vec<Vec<(usize, f64, Updated<4>)>> = Vec::new();
-    for i in group {
-        let Observation { timed, stamp_s, echo } = observations[i];
-        let Some(echo) = echo else { continue };
-        // every track predicted to the echo's time stamp (the nodes' clocks differ slightly)
-        let time_s = stamp_s;
-        let priors = tracks
-            .iter()
-            .map(|track| predict(track, settings, time_s))
-            .collect::<Result<Vec<_>>>()?;
-        let node_m = nodes_m[timed.request.node];
-        // the tracks that can be in the beam: inside the aimed sector(s) (widened by the margin)
-        // and not beyond the echo window's range by more than 3 σ of the predicted range
-        let mut in_beam = Vec::new();
-        for (track, prior) in priors.iter().enumerate() {
-            if !sonar.in_aim(node_m, timed.request.aim, position(prior), settings.sector_margin_rad) {
-                continue;
-            }
-            let Some(updated) = range_update(prior, settings, node_m, echo.range_m)? else {
-                outcome.singular += 1;
-                continue;
-            };
-            // predicted range d̂ = z − ν, its σ = √S
-            let predicted_m = echo.range_m - updated.innovation[0];
-            let sigma_m = updated.innovation_covariance[(0, 0)].max(0.0).sqrt();
-            if predicted_m - 3.0 * sigma_m <= sonar.max_range_m() {
-                in_beam.push((track, updated));
-            }
-        }
-        let plausible: Vec<usize> = in_beam
-            .iter()
-            .filter(|(_, u)| u.innovation[0].abs() <= settings.manoeuvre_margin_m)
-            .map(|(track, _)| *track)
-            .collect();
-        let any_gated = in_beam.iter().any(|(_, u)| u.nis <= threshold);
-        // of several plausible tracks, those that can have drifted that far since their last
-        // update: |ν| ≤ 3 √S + |Δv|max (t − t_last), the CV prediction's drift after any
-        // velocity change since then
-        let reachable: Vec<usize> = in_beam
-            .iter()
-            .filter(|(track, u)| {
-                let since_update_s = (time_s - tracks[*track].time_s()).max(0.0);
-                let sigma_m = u.innovation_covariance[(0, 0)].max(0.0).sqrt();
-                let drift_m = 3.0 * sigma_m + settings.manoeuvre_speed_change_mps * since_update_s;
-                plausible.contains(track) && u.innovation[0].abs() <= drift_m
-            })
-            .map(|(track, _)| *track)
-            .collect();
-        // the track that may take the echo as a manoeuvre: the only plausible one, or else the
-        // only one that can have drifted that far; otherwise one of them has manoeuvred but
-        // which is unknown: dropped
-        let manoeuvring = match (plausible.as_slice(), reachable.as_slice()) {
-            ([only], _) | (_, [only]) => Some(*only),
-            _ => None,
-        };
-        outcome.ambiguous += usize::from(manoeuvring.is_none() && plausible.len() > 1 && !any_gated);
-        let mut gated = Vec::new();
-        for (track, updated) in in_beam {
-            // gate: νᵀ S⁻¹ ν ≤ γ; cost = νᵀ S⁻¹ ν + ln |S|
-            let cost = updated.nis + updated.log_det_innovation_covariance;
-            if updated.nis <= threshold {
-                gated.push((track, cost, updated));
-            } else if manoeuvring == Some(track) {
-                // manoeuvre: P⁻ += diag(0, σ_m², 0, σ_m²), then the range update
-                let mut covariance = *priors[track].covariance();
-                let opened = settings.manoeuvre_velocity_std_mps.powi(2);
-                covariance[(1, 1)] += opened;
-                covariance[(3, 3)] += opened;
-                let prior = Gaussian::new(*priors[track].mean(), covariance, priors[track].time_s())
-                    .map_err(SimError::estimation(time_s))?;
-                if let Some(updated) = range_update(&prior, settings, node_m, echo.range_m)? {
-                    gated.push((track, UNGATED_COST + cost, updated));
-                }
-            }
-        }
-        echoes.push(i);
-        candidates.push(gated);
-    }
-    let costs: Vec<Vec<(usize, f64)>> = candidates
-        .iter()
-        .map(|echo| echo.iter().map(|(track, cost, _)| (*track, *cost)).collect())
-        .collect();
-    let assignment = best_assignment(&costs, tracks.len())?;
-    for (k, (&i, choice)) in echoes.iter().zip(&assignment).enumerate() {
-        match choice {
-            Some(c) => {
-                let (track, cost, updated) = &candidates[k][*c];
-                tracks[*track] = updated.state;
-                outcome.used_by[i] = Some(*track);
-                outcome.sole_candidate += usize::from(*cost >= UNGATED_COST);
-                let timed = observations[i].timed;
-                outcome.latencies_s.push(timed.arrival_s - timed.time_s);
-            }
-            None => outcome.gated_out += 1,
-        }
-    }
-    Ok(())
-}
-
-/// The assignment of echoes to distinct tracks (index into each echo's `(track, cost)`
-/// candidate list, or `None`) with the most assigned echoes and, among those, the least total cost: the engine's
-/// [`solve_assignment`] with echo rows, track columns (pairs without a candidate forbidden) and
-/// one non-assignment cost `c₀` for every echo, larger than any difference between the costs of
-/// two assignments, `c₀ = 1 + 2 Σₑ maxₜ |cₑₜ|`, so that assigning one more echo always pays.
-/// Ties are broken by the echoes' order (firing order), i.e. by the data alone.
-fn best_assignment(candidates: &[Vec<(usize, f64)>], tracks: usize) -> Result<Vec<Option<usize>>> {
-    let mut costs = CostMatrix::forbidden(candidates.len(), tracks).map_err(SimError::from_engine)?;
-    let mut largest_sum = 0.0;
-    for (e, echo) in candidates.iter().enumerate() {
-        let mut largest: f64 = 0.0;
-        for &(track, cost) in echo {
-            costs.set(e, track, cost).map_err(SimError::from_engine)?;
-            largest = largest.max(cost.abs());
-        }
-        largest_sum += largest;
-    }
-    // c₀ > Σ cost(assignment with k + 1 echoes) − Σ cost(assignment with k echoes)
-    let non_assignment = vec![1.0 + 2.0 * largest_sum; candidates.len()];
-    let assignment = solve_assignment(&costs, &non_assignment).map_err(SimError::from_engine)?;
-    Ok(assignment
-        .row_to_column
-        .iter()
-        .zip(candidates)
-        .map(|(column, echo)| column.and_then(|track| echo.iter().position(|&(t, _)| t == track)))
-        .collect())
 }
 
 /// The paper's baseline: per robot, the ranges of the firings aimed at it this cycle give a
