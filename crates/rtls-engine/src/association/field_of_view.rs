@@ -70,7 +70,7 @@ impl FieldOfView {
                 reason: "the half-width must be in (0, π] (π: all around)",
             });
         }
-        if !(max_range_m > 0.0) {
+        if max_range_m.is_nan() || max_range_m <= 0.0 {
             return Err(EngineError::InvalidParameter {
                 name: "max_range_m",
                 reason: "the maximum range must be > 0 (f64::INFINITY for none)",

@@ -164,7 +164,7 @@ fn a_firings_field_of_view_is_its_sonars_sectors() {
             let near_edge = (0..=360).step_by(10).any(|edge_deg| {
                 let bearing = (point[1] - node[1]).atan2(point[0] - node[0]).to_degrees();
                 let offset = (bearing - f64::from(edge_deg)).rem_euclid(360.0);
-                offset < 0.1 || offset > 359.9
+                !(0.1..=359.9).contains(&offset)
             });
             if near_edge {
                 continue;
