@@ -10,7 +10,8 @@
 //! or CSV when the file name ends in `.csv` (docs/FORMATS.md). Every input error names the
 //! file, the line and the field.
 //!
-//! The summary on standard error counts records, updates, fixes and events, and the rejected
+//! The summary on standard error counts records, updates, fixes and events, names each tag whose
+//! fixes alternate between two places (two transmitters under one id), and counts the rejected
 //! records by kind and reason (numbers in a reason are replaced by `#`, so reasons group),
 //! and the range offsets the tracks learnt (`[tracker.range_bias]`, beyond the site's
 //! `bias_m`: per anchor, the mean over the tags that learnt one and their spread). A tag that had records but no track output is named with its rejections, and the exit
@@ -26,6 +27,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
+use rtls_engine::lifecycle::LifecycleEvent;
 use rtls_engine::radio_map::RadioMap;
 use rtls_engine::record::{CsvRecords, JsonLines, Record};
 use rtls_engine::site::{
@@ -258,6 +260,8 @@ struct Counts {
     events: BTreeMap<&'static str, usize>,
     rejected: Rejections,
     tags: BTreeMap<String, TagCounts>,
+    /// Tags whose gated-out fixes kept returning to one other place (`alternating`), with it.
+    alternating: BTreeMap<String, [f64; 3]>,
 }
 
 /// One tag's records, track updates and rejected or late records.
@@ -401,6 +405,14 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
                             .or_default() += 1;
                     }
                 }
+                Event::Lifecycle {
+                    tag,
+                    event: LifecycleEvent::Alternating,
+                    position_m,
+                    ..
+                } => {
+                    counts.alternating.insert(tag.to_string(), *position_m);
+                }
                 _ => {}
             }
             if let Some(w) = events_out.as_mut() {
@@ -468,6 +480,12 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     );
     if !counts.rejected.is_empty() {
         eprintln!("rejected by reason: {}", rejections_line(&counts.rejected));
+    }
+    for (tag, [x, y, _]) in &counts.alternating {
+        eprintln!(
+            "tag {tag}: its fixes alternate between its track and ({x:.1}, {y:.1}) m: two transmitters \
+             sending as one id, or a recurring reflection (an `alternating` lifecycle event)"
+        );
     }
     let offsets = tracker.range_offsets();
     if !offsets.is_empty() {

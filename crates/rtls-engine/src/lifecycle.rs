@@ -133,6 +133,10 @@ pub enum LifecycleEvent {
     /// where they are (a tag carried or moved farther than its motion model allows; reported
     /// by the tracker, not by [`Lifecycle`]).
     Jumped,
+    /// The fixes the track gates out keep returning to one other place while its own fixes
+    /// go on: two transmitters sending as one tag id, or a reflection that recurs (reported
+    /// by the tracker once per track, at the other place; see `tracker::jump`).
+    Alternating,
 }
 
 /// The lifecycle of one track.

@@ -19,6 +19,15 @@
 //! jump when:     n ≥ max(2, M)  and  t_n − t_1 ≥ JUMP_MIN_SPAN_S  (t_n − t_1 ≤ within_s)
 //! ```
 //!
+//! **Alternation.** Two transmitters sending as one tag id (a mis-configured tag, two phones
+//! under one account) give fixes from two places in turn: the track follows one, the other's
+//! fixes are gated out, start a hypothesis, and the next fix of the first drops it. The track
+//! keeps the hypothesis it dropped last; when a gated-out fix falls inside that hypothesis's
+//! gate (predicted to the fix), the fixes have come back to the other place. After
+//! [`ALTERNATION_RETURNS`] such returns the track reports `alternating` once, at the other
+//! place: no motion model of one tag explains the fixes, and the operator should know which
+//! id (a recurring reflection looks the same, and is worth knowing about too).
+//!
 //! A burst of outliers that agree with each other (a reflection that persists) must last
 //! [`JUMP_MIN_SPAN_S`] before the track follows it: at 10 Hz that is about as many gated-out
 //! fixes as the rejection rate needs to re-initialise the track, so the hypothesis is never
@@ -32,11 +41,39 @@
 use nalgebra::DVector;
 use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance};
 
-use super::jump_state::JumpHypothesis;
+use super::jump_state::{Alternation, JumpHypothesis};
 use super::track::{state_from_fix, Shared};
 
 /// The least time a jump hypothesis's fixes must span before the track follows it, s.
 pub(super) const JUMP_MIN_SPAN_S: f64 = 1.0;
+
+/// Returns of gated-out fixes to a dropped hypothesis before the track reports `alternating`
+/// (module documentation).
+pub(super) const ALTERNATION_RETURNS: u32 = 3;
+
+/// Whether a gated-out fix came back to the hypothesis the track's own fixes dropped last:
+/// it falls inside that hypothesis's gate, predicted to the fix. Counts the return in
+/// `alternation`; `true` once the returns reach [`ALTERNATION_RETURNS`] for the first time
+/// on this track (the caller reports it).
+pub(super) fn returned<const N: usize>(
+    alternation: &mut Alternation<N>,
+    shared: &Shared,
+    time_s: f64,
+    position: &[f64],
+    covariance: &[f64],
+) -> bool {
+    let Some(departed) = alternation.departed.as_ref() else {
+        return false;
+    };
+    // νᵀ S⁻¹ ν ≤ γ against the dropped hypothesis predicted to the fix
+    if updated(departed, shared, time_s, position, covariance).is_none() {
+        return false;
+    }
+    alternation.returns += 1;
+    let report = alternation.returns >= ALTERNATION_RETURNS && !alternation.reported;
+    alternation.reported |= report;
+    report
+}
 
 /// A hypothesis holding one fix; `None` when the fix cannot start a state.
 fn start<const N: usize>(

@@ -2,6 +2,28 @@
 
 use rtls_estimation::Gaussian;
 
+/// The jump hypothesis an in-gate fix last dropped and how many gated-out fixes came back to
+/// it since ([`super::jump`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) struct Alternation<const N: usize> {
+    /// The dropped hypothesis.
+    pub(super) departed: Option<JumpHypothesis<N>>,
+    /// Gated-out fixes that fell inside its gate after it was dropped.
+    pub(super) returns: u32,
+    /// Whether the track reported `alternating`.
+    pub(super) reported: bool,
+}
+
+impl<const N: usize> Default for Alternation<N> {
+    fn default() -> Self {
+        Self {
+            departed: None,
+            returns: 0,
+            reported: false,
+        }
+    }
+}
+
 /// Fixes that left the track's gate and agree with each other under the motion model.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct JumpHypothesis<const N: usize> {

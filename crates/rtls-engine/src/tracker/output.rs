@@ -89,6 +89,7 @@ fn lifecycle_name(event: LifecycleEvent) -> &'static str {
         LifecycleEvent::Recovered => "recovered",
         LifecycleEvent::Deleted => "deleted",
         LifecycleEvent::Jumped => "jumped",
+        LifecycleEvent::Alternating => "alternating",
     }
 }
 

@@ -198,6 +198,7 @@ pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.rejection_rate = 0.0;
     track.gated_updates = 0;
     track.jump = None;
+    track.alternation = Default::default();
 }
 
 /// Under the IMM: reports a `model-switch` when the mode to report changes (see

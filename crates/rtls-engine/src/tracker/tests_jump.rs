@@ -141,3 +141,55 @@ fn a_burst_of_agreeing_outliers_shorter_than_the_span_does_not_move_a_fast_track
         assert!((p[1] - 5.0).abs() < 0.5, "t = {t}: {p:?}");
     }
 }
+
+/// The `alternating` events of `out`, with their positions.
+fn alternations(out: &Output) -> Vec<(f64, [f64; 3])> {
+    out.events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Lifecycle {
+                event: LifecycleEvent::Alternating,
+                time_s,
+                position_m,
+                ..
+            } => Some((*time_s, *position_m)),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn fixes_from_two_transmitters_under_one_id_are_reported_alternating_once() {
+    // from t = 10 s every third fix comes from a second transmitter standing at (0, 205)
+    // (UJIIndoorLoc's phone 20: one id, two phones in different buildings)
+    let out = track(fixes(60, |t| {
+        if t >= 10.0 && (t as u32).is_multiple_of(3) {
+            [-5.0 - t, 200.0]
+        } else {
+            [0.0, 0.0]
+        }
+    }));
+    let reported = alternations(&out);
+    assert_eq!(reported.len(), 1, "{reported:?}");
+    let (t, p) = reported[0];
+    // the third return: the fourth fix of the second transmitter, t = 21 s
+    assert_eq!(t, 21.0);
+    assert!(p[0].abs() < 2.0 && (p[1] - 205.0).abs() < 2.0, "{p:?}");
+    // the track stays on the first transmitter
+    for (t, p) in measured_from(&out, 3.0) {
+        assert!(p[1].abs() < 12.0, "t = {t}: {p:?}");
+    }
+}
+
+#[test]
+fn outliers_at_scattered_places_are_not_alternating() {
+    // outliers every third second, each somewhere else
+    let out = track(fixes(60, |t| {
+        if t >= 10.0 && (t as u32).is_multiple_of(3) {
+            [40.0 * (t * 0.7).sin(), 60.0 + 40.0 * (t * 1.3).cos()]
+        } else {
+            [0.0, 0.0]
+        }
+    }));
+    assert!(alternations(&out).is_empty(), "{:?}", alternations(&out));
+}

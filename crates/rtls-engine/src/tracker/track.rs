@@ -22,7 +22,7 @@ use super::constraint_model::{Constraints, Hearing};
 use super::gnss_state::GnssTrack;
 use super::heading_cross::HeadingCross;
 use super::heading_state::HeadingChannel;
-use super::jump_state::JumpHypothesis;
+use super::jump_state::{Alternation, JumpHypothesis};
 use super::modes::Manoeuvres;
 use super::noise::NoiseScales;
 use super::output::{Event, UpdateSource};
@@ -154,6 +154,10 @@ pub(crate) struct Track<const N: usize> {
     /// ([`super::jump`]).
     #[serde(default)]
     pub(super) jump: Option<JumpHypothesis<N>>,
+    /// The jump hypothesis the track's own fixes last dropped, and how often gated-out fixes
+    /// came back to it ([`super::jump::Alternation`]).
+    #[serde(default)]
+    pub(super) alternation: Alternation<N>,
     /// The position corrections of the open consistency window ([`CorrectionTest`]).
     #[serde(default)]
     pub(super) corrections: CorrectionWindow,
@@ -199,6 +203,7 @@ impl<const N: usize> Track<N> {
             early_closed_s: None,
             held_open_epoch_s: None,
             jump: None,
+            alternation: Alternation::default(),
             corrections: CorrectionWindow::default(),
             fading: 1.0,
         }

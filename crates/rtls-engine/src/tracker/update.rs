@@ -67,8 +67,11 @@ pub(super) fn fix_update_as<const N: usize>(
     )?;
     match verdict {
         Verdict::Taken => {
-            // the track explains its fixes again
-            track.jump = None;
+            // the track explains its fixes again; the hypothesis it drops is kept, to tell
+            // fixes that come back to it (an id sent by two transmitters)
+            if let Some(dropped) = track.jump.take() {
+                track.alternation.departed = Some(dropped);
+            }
             Ok(true)
         }
         // (a track the gate just re-initialised has no state to jump from)
@@ -101,6 +104,19 @@ fn jump_hypothesis<const N: usize>(
     kind: &'static str,
     out: &mut Output,
 ) -> Result<()> {
+    if track.jump.is_none() && jump::returned(&mut track.alternation, shared, time_s, position, covariance) {
+        out.events.push(Event::Lifecycle {
+            tag: Arc::clone(&track.tag),
+            time_s,
+            event: LifecycleEvent::Alternating,
+            // the other place: the fix, at the tag's height in 2-D
+            position_m: [
+                position[0],
+                position.get(1).copied().unwrap_or(0.0),
+                position.get(2).copied().unwrap_or(shared.tag_height_m),
+            ],
+        });
+    }
     let hypothesis = jump::absorb(track.jump.take(), shared, time_s, position, covariance);
     let Some(hypothesis) = hypothesis else {
         return Ok(());
