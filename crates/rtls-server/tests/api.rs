@@ -605,8 +605,14 @@ async fn geojson_is_wgs84_longitude_latitude_when_the_site_is_georeferenced_and_
     )
     .await;
     assert_eq!(reply.status, StatusCode::OK);
+    // the walk tracked to its second-last fix, t = 3003.5 s (the last one waits in the 0.2 s
+    // re-ordering window for a newer record): the two reads below see one state
     let tracked = eventually(Duration::from_secs(10), || {
-        local_state.pipeline.live().tag("miner-9").is_some()
+        local_state
+            .pipeline
+            .live()
+            .tag("miner-9")
+            .is_some_and(|state| state.time_s >= 3003.5)
     })
     .await;
     assert!(tracked);
