@@ -127,12 +127,21 @@ async fn a_cluster_loses_no_acknowledged_record_when_a_node_and_a_nats_server_di
         );
         tokio::time::sleep(Duration::from_millis(100)).await;
     };
-    // the dead node's partitions continued from its checkpoints, not from their priors
-    let (mut restored, mut refused) = (0.0, 0.0);
-    for node in &nodes[1..] {
-        restored += metric(&client, &node.http, "rtls_cluster_resumes_total{outcome=\"restored\"}").await;
-        refused += metric(&client, &node.http, "rtls_cluster_resumes_total{outcome=\"refused\"}").await;
-    }
+    // the dead node's partitions continued from its checkpoints, not from their priors (a
+    // resume is counted once its warm-up after the checkpoint is done, after the ownership
+    // above: polled for up to 10 s)
+    let counted = Instant::now();
+    let (restored, refused) = loop {
+        let (mut restored, mut refused) = (0.0, 0.0);
+        for node in &nodes[1..] {
+            restored += metric(&client, &node.http, "rtls_cluster_resumes_total{outcome=\"restored\"}").await;
+            refused += metric(&client, &node.http, "rtls_cluster_resumes_total{outcome=\"refused\"}").await;
+        }
+        if restored >= 1.0 || refused > 0.0 || counted.elapsed() > Duration::from_secs(10) {
+            break (restored, refused);
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
     tokio::time::sleep(Duration::from_secs(4)).await;
     let nats_killed_at = unix_s();
     let _ = nats[1].0.kill();
