@@ -236,7 +236,7 @@ async fn publishing_outside_the_prefix_or_at_qos_2_closes_the_connection() {
         ("outside", "rtls/v1/tracks/tag-1".to_owned(), QoS::AtLeastOnce),
         ("bare-prefix", "rtls/v1/measurements/".to_owned(), QoS::AtMostOnce),
         ("qos2", measurement_topic("qos2"), QoS::ExactlyOnce),
-        ("no-vendor", "rtls/v1/adapters/zebra/tags".to_owned(), QoS::AtLeastOnce),
+        ("no-vendor", "rtls/v1/adapters/acme/tags".to_owned(), QoS::AtLeastOnce),
     ] {
         let mut writer = TestClient::start(client_options(broker.addr, client_id, Some(WRITE_TOKEN)), false);
         writer.connected().await;
