@@ -247,6 +247,30 @@ fn number(value: &Value, field: &str) -> Result<f64, AdapterError> {
 }
 
 /// A tag id: a non-empty string (or an integer, written in decimal), or an error naming it.
+/// The messages of a payload that is one JSON object or an array of them.
+///
+/// # Errors
+/// An [`AdapterError`] on `-` for anything else, saying `expected {what}`.
+fn objects<'a>(value: &'a Value, what: &str) -> Result<Vec<&'a Value>, AdapterError> {
+    match value {
+        Value::Array(items) => Ok(items.iter().collect()),
+        Value::Object(_) => Ok(vec![value]),
+        other => Err(AdapterError::field("-", format!("expected {what}, got {other}"))),
+    }
+}
+
+/// A record's fix, `(position_m, covariance_m2)`, for the adapters' tests.
+#[cfg(test)]
+fn fix_of(record: &Record) -> (&[f64], &[f64]) {
+    match &record.measurement {
+        Measurement::Fix {
+            position_m,
+            covariance_m2,
+        } => (position_m, covariance_m2),
+        other => panic!("expected a fix, got {other:?}"),
+    }
+}
+
 fn tag_id(value: Option<&Value>, field: &str) -> Result<String, AdapterError> {
     match value {
         None | Some(Value::Null) => Err(AdapterError::field(field, "required field is missing")),

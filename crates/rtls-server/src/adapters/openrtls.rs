@@ -31,20 +31,11 @@
 
 use serde_json::Value;
 
-use super::{fix, number, tag_id, AdapterError, Parsed, Refusal};
+use super::{fix, number, objects, tag_id, AdapterError, Parsed, Refusal};
 
 /// Parses an OpenRTLS payload (one location message, or an array of them).
 pub(super) fn parse(value: &Value, default_accuracy_m: f64) -> Result<Parsed, AdapterError> {
-    let messages: Vec<&Value> = match value {
-        Value::Array(items) => items.iter().collect(),
-        Value::Object(_) => vec![value],
-        other => {
-            return Err(AdapterError::field(
-                "-",
-                format!("expected a location message object, got {other}"),
-            ))
-        }
-    };
+    let messages = objects(value, "a location message object or an array of them")?;
     let mut parsed = Parsed::default();
     for (index, message) in messages.into_iter().enumerate() {
         let at = format!("[{index}]");
@@ -90,9 +81,8 @@ pub(super) fn parse(value: &Value, default_accuracy_m: f64) -> Result<Parsed, Ad
 
 #[cfg(test)]
 mod tests {
-    use rtls_engine::record::Measurement;
 
-    use super::super::{parse, Vendor};
+    use super::super::{fix_of, parse, Vendor};
 
     /// The page's TWR JSON message (see the module's references; `meas` cut to two entries).
     const TWR: &str = r#"{
@@ -132,13 +122,7 @@ mod tests {
         let record = &parsed.records[0];
         assert_eq!(record.tag, "0xDECA343036200653");
         assert_eq!(record.time_s, 1_459_933_834.145);
-        let Measurement::Fix {
-            position_m,
-            covariance_m2,
-        } = &record.measurement
-        else {
-            panic!("expected a fix")
-        };
+        let (position_m, covariance_m2) = fix_of(record);
         assert_eq!(position_m, &vec![4.481, 1.868, 0.831]);
         assert!((covariance_m2[0] - 0.49).abs() < 1e-12 && (covariance_m2[8] - 0.49).abs() < 1e-12);
     }

@@ -25,20 +25,11 @@
 
 use serde_json::Value;
 
-use super::{accuracy_or, fix, number, tag_id, AdapterError, Parsed, Refusal};
+use super::{accuracy_or, fix, number, objects, tag_id, AdapterError, Parsed, Refusal};
 
 /// Parses a Pozyx payload (an array of tag updates, or one update).
 pub(super) fn parse(value: &Value, default_accuracy_m: f64) -> Result<Parsed, AdapterError> {
-    let updates: Vec<&Value> = match value {
-        Value::Array(items) => items.iter().collect(),
-        Value::Object(_) => vec![value],
-        other => {
-            return Err(AdapterError::field(
-                "-",
-                format!("expected an array of tag updates, got {other}"),
-            ))
-        }
-    };
+    let updates = objects(value, "an array of tag updates")?;
     let mut parsed = Parsed::default();
     for (index, update) in updates.into_iter().enumerate() {
         let at = format!("[{index}]");
@@ -101,9 +92,8 @@ pub(super) fn parse(value: &Value, default_accuracy_m: f64) -> Result<Parsed, Ad
 
 #[cfg(test)]
 mod tests {
-    use rtls_engine::record::Measurement;
 
-    use super::super::{parse, Vendor};
+    use super::super::{fix_of, parse, Vendor};
 
     /// The Pozyx stream fields of the published example (see the module's references).
     const EXAMPLE: &str = r#"[{"version": "0.1", "tagId": "10006789", "timestamp": 1671165464.3779979, "success": true,
@@ -118,13 +108,7 @@ mod tests {
         let record = &parsed.records[0];
         assert_eq!(record.tag, "10006789");
         assert!((record.time_s - 1_671_165_464.377_998).abs() < 1e-6);
-        let Measurement::Fix {
-            position_m,
-            covariance_m2,
-        } = &record.measurement
-        else {
-            panic!("expected a fix, got {:?}", record.measurement)
-        };
+        let (position_m, covariance_m2) = fix_of(record);
         assert_eq!(position_m, &vec![29.34, 69.521, 1.0]);
         // no accuracy in the stream: the default σ = 0.3 m on each axis
         let expected = [0.09, 0.0, 0.0, 0.0, 0.09, 0.0, 0.0, 0.0, 0.09];

@@ -104,9 +104,8 @@ pub(super) fn parse(value: &Value, default_accuracy_m: f64) -> Result<Parsed, Ad
 
 #[cfg(test)]
 mod tests {
-    use rtls_engine::record::Measurement;
 
-    use super::super::{parse, Vendor};
+    use super::super::{fix_of, parse, Vendor};
 
     /// The published sample (see the module's references).
     const EXAMPLE: &str = r##"{
@@ -132,13 +131,7 @@ mod tests {
         let record = &parsed.records[0];
         assert_eq!(record.tag, "d10000001111");
         assert!((record.time_s - 1_641_888_440.139).abs() < 1e-6);
-        let Measurement::Fix {
-            position_m,
-            covariance_m2,
-        } = &record.measurement
-        else {
-            panic!("expected a fix")
-        };
+        let (position_m, covariance_m2) = fix_of(record);
         assert_eq!(position_m, &vec![-1.09, 0.38, 1.0]);
         // σ = locationRadius = 0.09 m → 0.0081 m² on the diagonal
         assert!((covariance_m2[0] - 0.0081).abs() < 1e-12);

@@ -150,24 +150,13 @@ fn utc_seconds(text: &str, field: &str) -> Result<f64, AdapterError> {
 
 #[cfg(test)]
 mod tests {
-    use rtls_engine::record::Measurement;
 
-    use super::super::{parse, Vendor};
+    use super::super::{fix_of, parse, Vendor};
 
     /// Tag 18's position update, from the WebSockets connector documentation.
     const POSITION: &str = r#"{"body":{"id":"18","datastreams":[{"id":"posX","current_value":" 6.34","at":"2016-10-18 14:16:56.365"},{"id":"posY","current_value":" 2.27","at":"2016-10-18 14:16:56.365"},{"id":"clr","current_value":" 0.10","at":"2016-10-18 14:16:56.365"}]},"resource":"\/feeds\/18"}"#;
     /// Tag 1's battery update, from the same page.
     const BATTERY: &str = r#"{"body":{"id":"1","datastreams":[{"id":"battery_level","current_value":"77%","at":"2016-10-18 15:27:38.606"},{"id":"firmware_version","current_value":"3.115","at":"2016-10-18 15:27:38.606"}]},"resource":"\/feeds\/1"}"#;
-
-    fn fix_of(record: &rtls_engine::record::Record) -> (&Vec<f64>, &Vec<f64>) {
-        match &record.measurement {
-            Measurement::Fix {
-                position_m,
-                covariance_m2,
-            } => (position_m, covariance_m2),
-            other => panic!("expected a fix, got {other:?}"),
-        }
-    }
 
     #[test]
     fn a_websocket_position_becomes_a_fix_weighed_by_clr() {

@@ -340,23 +340,12 @@ fn gdop(details: &[&str], field: &str) -> Result<Option<f64>, AdapterError> {
 
 #[cfg(test)]
 mod tests {
-    use rtls_engine::record::{Measurement, Record};
 
+    use super::super::fix_of;
     use super::{ZebraAdapter, ZebraUnit};
 
     /// The guide's example output (page 85), each packet on one line as the hub sends it.
     const EXAMPLE: &str = include_str!("zebra_dart_example.txt");
-
-    fn fix_of(record: &Record) -> (&[f64], &[f64]) {
-        let Measurement::Fix {
-            position_m,
-            covariance_m2,
-        } = &record.measurement
-        else {
-            panic!("expected a fix")
-        };
-        (position_m, covariance_m2)
-    }
 
     fn feet() -> ZebraAdapter {
         ZebraAdapter {
