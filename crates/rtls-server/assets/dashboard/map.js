@@ -106,7 +106,10 @@ class SiteMap {
     const b = site.bounds_m;
     if (b) {
       const pad = Math.max(2, 0.05 * Math.max(b.max[0] - b.min[0], b.max[1] - b.min[1]));
-      this.map.fitBounds([[b.min[1] - pad, b.min[0] - pad], [b.max[1] + pad, b.max[0] + pad]]);
+      // no zoom animation: the tag canvas is drawn from the map's settled view, and while a
+      // CSS zoom animation runs (or never ends, in a headless browser) the Leaflet layers are
+      // scaled by the transform but the canvas is not: tags drew ~20 m off their drifts
+      this.map.fitBounds([[b.min[1] - pad, b.min[0] - pad], [b.max[1] + pad, b.max[0] + pad]], { animate: false });
     }
     this.invalidate();
   }
