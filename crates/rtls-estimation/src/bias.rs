@@ -125,6 +125,12 @@ impl BiasVector {
     pub fn variance(&self, slot: usize) -> f64 {
         self.covariance[(slot, slot)]
     }
+
+    /// The covariance `P_b` of every slot (slot order), unit².
+    #[must_use]
+    pub fn covariance(&self) -> &DMatrix<f64> {
+        &self.covariance
+    }
 }
 
 /// A reading's part in [`BiasModel::update_observable`].

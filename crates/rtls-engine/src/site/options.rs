@@ -234,6 +234,12 @@ pub struct RangeBiasSettings {
     pub random_walk_m_per_sqrt_s: f64,
     /// The largest offset learnt, m (> 0). Default 1.
     pub max_abs_m: f64,
+    /// Whether a tightly coupled EKF takes each range with its offset's error considered
+    /// (Schmidt–Kalman: the track keeps its state's cross-covariance with the offsets' errors,
+    /// so an error shared by every range of an anchor is not averaged away); `false` adds the
+    /// offset's variance to each range's noise as if it were fresh. Default true. The UKF and
+    /// the IMM always take the second way.
+    pub consider: bool,
 }
 
 impl Default for RangeBiasSettings {
@@ -243,6 +249,7 @@ impl Default for RangeBiasSettings {
             prior_std_m: 0.2,
             random_walk_m_per_sqrt_s: 0.005,
             max_abs_m: 1.0,
+            consider: true,
         }
     }
 }

@@ -87,6 +87,8 @@ pub(super) fn speed_update<const N: usize>(
         Ok(result) => {
             let gate = shared.gates[1];
             let updated = result.updated;
+            // A = I − K H, for the state's cross-covariance with the range offsets
+            let a = rtls_estimation::Matrix::<N>::identity() - &updated.gain * &h;
             out.innovations.record(NoiseClass::Velocity, &updated, gate, scale);
             // what the velocity's noise would be with the heading's error as fresh noise:
             // the adaptive scale is learnt against it
@@ -107,6 +109,8 @@ pub(super) fn speed_update<const N: usize>(
             let taken = accept(shared, track, updated, None, kind, UpdateSource::Velocity, out)? == Verdict::Taken;
             if taken {
                 track.heading_cross = Some(HeadingCross::new(time_s, result.cross_covariance));
+                // X_b ← (I − K H) F X_b: the speed does not involve the offsets
+                track.offset_cross = track.offset_cross.as_ref().map(|cross| cross.after_gain(time_s, &a));
                 apply_fading(track)?;
             }
             Ok(taken)

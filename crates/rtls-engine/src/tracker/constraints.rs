@@ -42,7 +42,7 @@ use super::epoch::solve;
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::output::epoch_raw_fix;
 use super::output::Output;
-use super::step::{predict, reacquire};
+use super::step::{carry_cross_covariances, predict, reacquire};
 use super::track::rejected;
 use super::track::{dimensions, Shared, Track};
 use super::update::fix_update;
@@ -356,6 +356,8 @@ fn pseudo_update<const N: usize>(
         FilterKind::Ukf => shared.ukf.update(state, model, &measured)?,
         FilterKind::Ekf | FilterKind::Kf => shared.ekf.update(state, model, &measured)?,
     };
+    let prior = *state;
     track.state = Some(updated.state);
-    Ok(())
+    // the state's cross-covariances with the heading's and the offsets' errors follow
+    carry_cross_covariances(track, &prior)
 }

@@ -2,16 +2,18 @@
 //! (seed 003's one-observation update), with the reader's learnt range offset and the range
 //! self-calibration.
 
-use nalgebra::DVector;
-use rtls_estimation::filter::Updated;
+use nalgebra::{DMatrix, DVector, SMatrix, SVector};
+use rtls_estimation::filter::{consider_update, Updated};
 use rtls_estimation::measurement::MeasurementModel;
+use rtls_estimation::{Gaussian, Matrix};
 
 use super::anchors::AnchorReading;
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::noise::{NoiseClass, Source};
+use super::offset_cross::OffsetCross;
 use super::output::{Output, UpdateSource};
-use super::range_bias::RoundReading;
-use super::step::{accept, carry_heading_cross, is_gated, outside_gate, predict, Verdict};
+use super::range_bias::{Learning, RoundReading};
+use super::step::{accept, apply_fading, carry_heading_cross, is_gated, outside_gate, predict, Verdict};
 use super::track::{dimensions, rejected, Shared, Track};
 use crate::error::Result;
 use crate::site::FilterKind;
@@ -48,9 +50,16 @@ pub(super) fn coupled_update<const N: usize>(
         shared.error_correlation.as_ref(),
     );
     let scale = inflation * track.noise.scale(class);
-    // the anchor's learnt range offset: z' = r − b⁻, R' = λ c R + P_b⁻
+    // the anchor's learnt range offset: z' = r − b⁻, and its error either considered
+    // (super::offset_cross) or added to the noise as if fresh, R' = λ c R + P_b⁻
     let bias_prior = match (&shared.range_bias, reading) {
         (Some(model), AnchorReading::Range { anchor, .. }) => Some(track.range_bias.offset(model, anchor, time_s)),
+        _ => None,
+    };
+    let consider_slot = match (&shared.range_bias, reading) {
+        (Some(model), AnchorReading::Range { anchor, .. }) if considers_offsets(shared) => {
+            Some(track.range_bias.slot(model, anchor))
+        }
         _ => None,
     };
     let (model, z, stated_variance) = match reading {
@@ -61,12 +70,17 @@ pub(super) fn coupled_update<const N: usize>(
             ..
         } => {
             let (offset_m, offset_variance_m2) = bias_prior.unwrap_or((0.0, 0.0));
+            let fresh_offset_variance_m2 = if consider_slot.is_some() {
+                0.0
+            } else {
+                offset_variance_m2
+            };
             (
                 AnchorMeasurement::new(
                     position_m,
                     shared.tag_height_m,
                     AnchorLaw::Range,
-                    scale * variance_m2 + offset_variance_m2,
+                    scale * variance_m2 + fresh_offset_variance_m2,
                 ),
                 range_m - offset_m,
                 variance_m2,
@@ -117,10 +131,25 @@ pub(super) fn coupled_update<const N: usize>(
     };
     let prior = predict(shared, track, state, time_s)?;
     let measured = z;
-    let z = DVector::from_element(1, z);
-    let result = match shared.settings.filter {
-        FilterKind::Ukf => shared.ukf.update(&prior.state, &model, &z),
-        FilterKind::Ekf | FilterKind::Kf => shared.ekf.update(&prior.state, &model, &z),
+    // a considered range: its cross-covariance with the offsets after the update, A = I − K H
+    // and H P⁻ Hᵀ
+    let mut considered: Option<Considered<N>> = None;
+    let result = if let (Some(slot), Some(bias_model)) = (consider_slot, &shared.range_bias) {
+        let offsets = track.range_bias.covariance(bias_model, time_s);
+        let cross = track
+            .offset_cross
+            .as_ref()
+            .map_or_else(|| OffsetCross::new(time_s), |cross| cross.predicted(time_s));
+        considered_range(&prior.state, &model, measured, slot, &offsets, &cross).map(|(updated, taken)| {
+            considered = Some(taken);
+            updated
+        })
+    } else {
+        let z = DVector::from_element(1, z);
+        match shared.settings.filter {
+            FilterKind::Ukf => shared.ukf.update(&prior.state, &model, &z),
+            FilterKind::Ekf | FilterKind::Kf => shared.ekf.update(&prior.state, &model, &z),
+        }
     }
     .and_then(|updated| match (&shared.manoeuvres, &prior.modes) {
         // every mode updated by an EKF step in its own layout
@@ -133,6 +162,7 @@ pub(super) fn coupled_update<const N: usize>(
     });
     match result {
         Ok((updated, modes)) => {
+            let mut learning = Learning::Nothing;
             out.innovations
                 .record(class, &updated, shared.gates[0], scale / inflation);
             track.noise.observe(
@@ -153,8 +183,10 @@ pub(super) fn coupled_update<const N: usize>(
                 // start-up track's large errors are not linear in the position, and the
                 // projection would not remove them
                 let reading_variance_m2 = scale * variance_m2;
-                let predicted_variance_m2 =
-                    updated.innovation_covariance[(0, 0)] - reading_variance_m2 - offset_variance_m2;
+                let predicted_variance_m2 = considered.as_ref().map_or_else(
+                    || updated.innovation_covariance[(0, 0)] - reading_variance_m2 - offset_variance_m2,
+                    |considered| considered.prediction_variance_m2,
+                );
                 let prior_variance_m2 = bias_model.prior_std() * bias_model.prior_std();
                 let correlation_s = shared.settings.adaptive_noise.correlation_s;
                 if outside_gate(shared, track, &updated) {
@@ -176,14 +208,38 @@ pub(super) fn coupled_update<const N: usize>(
                             noise_variance_m2: reading_variance_m2 / inflation,
                             gradient,
                         };
-                        track
-                            .range_bias
-                            .observe(bias_model, anchor, reading, time_s, dimensions::<N>(), correlation_s);
+                        learning = track.range_bias.observe(
+                            bias_model,
+                            anchor,
+                            reading,
+                            time_s,
+                            dimensions::<N>(),
+                            correlation_s,
+                        );
                     }
                 }
             }
             if accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)? == Verdict::Taken {
-                carry_heading_cross(track, &prior.state)?;
+                match considered {
+                    Some(considered) => {
+                        // X_b from the considered update; X_h ← A F X_h (P⁺ ≠ A P⁻ here)
+                        track.offset_cross = Some(considered.cross);
+                        track.heading_cross = track.heading_cross.map(|cross| cross.after_gain(time_s, &considered.a));
+                        apply_fading(track)?;
+                    }
+                    None => carry_heading_cross(track, &prior.state)?,
+                }
+            }
+            // a learning round measured the offsets: X_b ← X_b (P_b⁻)⁻¹ P_b⁺ (super::offset_cross)
+            match learning {
+                Learning::Nothing => {}
+                Learning::Learnt { prior, posterior } => {
+                    track.offset_cross = track
+                        .offset_cross
+                        .as_ref()
+                        .and_then(|cross| cross.after_learning(&prior, &posterior));
+                }
+                Learning::Forgotten => track.offset_cross = None,
             }
             Ok(())
         }
@@ -197,4 +253,67 @@ pub(super) fn coupled_update<const N: usize>(
             Ok(())
         }
     }
+}
+
+/// What a considered range leaves for after its acceptance.
+struct Considered<const N: usize> {
+    /// `X_b` after the update.
+    cross: OffsetCross<N>,
+    /// `A = I − K H`.
+    a: Matrix<N>,
+    /// `H P⁻ Hᵀ`: the prediction's variance along the range, m².
+    prediction_variance_m2: f64,
+}
+
+/// One range `z' = r − b̂ᵢ = h(x) + eᵢᵀ e_b + w` by the Schmidt–Kalman update, linearised at the
+/// prior (the EKF's `H`), with column `slot` of `cross` (predicted to the range's time) and
+/// `P_bᵢᵢ` (equations in [`super::offset_cross`]); `model` carries `R = λ c σ²` alone.
+fn considered_range<const N: usize>(
+    prior: &Gaussian<N>,
+    model: &AnchorMeasurement,
+    range_m: f64,
+    slot: usize,
+    offsets: &DMatrix<f64>,
+    cross: &OffsetCross<N>,
+) -> rtls_estimation::Result<(Updated<N>, Considered<N>)> {
+    // H = ∂h/∂x at x⁻,  ν = z' − h(x⁻)
+    let h = MeasurementModel::<N>::jacobian(model, prior.mean())?;
+    let predicted = MeasurementModel::<N>::predict(model, prior.mean())?;
+    let innovation = DVector::from_element(1, range_m - predicted[0]);
+    // J = eᵢᵀ: the considered parameter is offset i alone
+    let j = DMatrix::from_element(1, 1, 1.0);
+    let column = SMatrix::<f64, N, 1>::from(cross.column(slot));
+    let offset_variance = SMatrix::<f64, 1, 1>::new(offsets[(slot, slot)]);
+    let result = consider_update(
+        prior,
+        &column,
+        &offset_variance,
+        &h,
+        &j,
+        MeasurementModel::<N>::noise_covariance(model),
+        innovation,
+    )?;
+    // K (N × 1) and A = I − K H
+    let gain = SVector::<f64, N>::from_fn(|row, _| result.updated.gain[(row, 0)]);
+    let a = Matrix::<N>::identity() - gain * SMatrix::<f64, 1, N>::from_fn(|_, col| h[(0, col)]);
+    // H P⁻ Hᵀ
+    let prediction_variance_m2 = (&h * prior.covariance() * h.transpose())[(0, 0)];
+    let cross = cross.after_considered_range(&a, &gain, offsets, slot, result.cross_covariance.column(0).into());
+    Ok((
+        result.updated,
+        Considered {
+            cross,
+            a,
+            prediction_variance_m2,
+        },
+    ))
+}
+
+/// Whether ranges are taken with their offsets' errors considered: `[tracker.range_bias]`
+/// enabled with `consider`, an EKF without the IMM.
+pub(super) fn considers_offsets(shared: &Shared) -> bool {
+    shared.range_bias.is_some()
+        && shared.settings.range_bias.consider
+        && shared.manoeuvres.is_none()
+        && shared.settings.filter != FilterKind::Ukf
 }

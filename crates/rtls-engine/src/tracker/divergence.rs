@@ -97,6 +97,7 @@ pub(super) fn reset<const N: usize>(
     out.events.push(rejected(&track.tag, time_s, kind, reason));
     track.state = None;
     track.heading_cross = None;
+    track.offset_cross = None;
     track.modes = None;
     track.lost_state = None;
     track.unreported = None;

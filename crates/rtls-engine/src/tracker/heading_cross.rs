@@ -18,7 +18,7 @@ pub(crate) struct HeadingCross<const N: usize> {
 }
 
 /// `F(Δt)` of the constant-velocity layout `[x, v_x, y, v_y, …]`: per axis `[[1, Δt], [0, 1]]`.
-fn cv_transition<const N: usize>(dt_s: f64) -> Matrix<N> {
+pub(super) fn cv_transition<const N: usize>(dt_s: f64) -> Matrix<N> {
     let mut f = Matrix::<N>::identity();
     // N / 2 tracked axes
     for axis in 0..N / 2 {
@@ -47,6 +47,15 @@ impl<const N: usize> HeadingCross<N> {
         let time_s = posterior.time_s();
         let cross = carry_cross_covariance(prior.covariance(), posterior.covariance(), &self.predicted(time_s))?;
         Ok(Self { time_s, cross })
+    }
+
+    /// After an update with `A = I − K H` that did not involve the heading but whose
+    /// covariance is not `A P⁻` (a considered range): `X ← A F X`.
+    pub(super) fn after_gain(&self, time_s: f64, a: &Matrix<N>) -> Self {
+        Self {
+            time_s,
+            cross: a * self.predicted(time_s),
+        }
     }
 
     /// `X ← c X` (the state's covariance scaled by `c²`).

@@ -159,6 +159,7 @@ mod jump_state;
 pub(crate) mod models;
 mod modes;
 mod noise;
+mod offset_cross;
 mod outcome;
 mod output;
 mod range_bias;

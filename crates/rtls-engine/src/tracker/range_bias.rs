@@ -2,6 +2,7 @@
 //! the tightly coupled range update reads, and the round of readings it learns from
 //! ([`rtls_estimation::bias`]).
 
+use nalgebra::DMatrix;
 use rtls_estimation::bias::{BiasModel, BiasObservation, BiasVector};
 
 /// Readings older than this (behind the newest) leave the round: the position errors the
@@ -28,12 +29,33 @@ struct Pending {
     time_s: f64,
 }
 
+/// What a learning round did to the offsets, for the state's cross-covariance with them
+/// ([`super::offset_cross`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum Learning {
+    /// Nothing was learnt.
+    Nothing,
+    /// The offsets' covariance went from `prior` (the random walk's prediction) to
+    /// `posterior`, both over every slot.
+    Learnt {
+        prior: DMatrix<f64>,
+        posterior: DMatrix<f64>,
+    },
+    /// A numerical failure: the offsets start again from their prior.
+    Forgotten,
+}
+
 /// Each anchor's offset as this track has learnt it, and the readings of the open round.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct RangeBiases {
     biases: BiasVector,
-    /// Slot in `biases` of each anchor index; `None` before the anchor's first learning round.
+    /// Slot in `biases` of each anchor index; `None` before the anchor's first considered
+    /// range or learning round.
     slots: Vec<Option<usize>>,
+    /// Per slot: whether no round has learnt from it yet (its value is the prior's, 0). Slots
+    /// beyond its length have been learnt from.
+    #[serde(default)]
+    prior_only: Vec<bool>,
     round: Vec<Pending>,
     /// Time of the newest reading of the last round learnt from, s.
     last_learnt_s: Option<f64>,
@@ -46,6 +68,32 @@ impl RangeBiases {
             Some(slot) => model.predicted(&self.biases, slot, time_s),
             None => (0.0, model.prior_std() * model.prior_std()),
         }
+    }
+
+    /// The slot of `anchor`, added with the prior `N(0, σ_b²)` on first use: a considered
+    /// range needs its offset's slot before any round has learnt it.
+    pub(super) fn slot(&mut self, model: &BiasModel, anchor: usize) -> usize {
+        if self.slots.len() <= anchor {
+            self.slots.resize(anchor + 1, None);
+        }
+        if let Some(slot) = self.slots[anchor] {
+            return slot;
+        }
+        let slot = model.add_reader(&mut self.biases);
+        self.slots[anchor] = Some(slot);
+        self.prior_only.resize(slot + 1, false);
+        self.prior_only[slot] = true;
+        slot
+    }
+
+    /// The covariance `P_b` over every slot, predicted to `time_s` along the diagonal (the
+    /// random walk; the correlations between slots do not walk).
+    pub(super) fn covariance(&self, model: &BiasModel, time_s: f64) -> DMatrix<f64> {
+        let mut covariance = self.biases.covariance().clone();
+        for slot in 0..covariance.nrows() {
+            covariance[(slot, slot)] = model.predicted(&self.biases, slot, time_s).1;
+        }
+        covariance
     }
 
     /// Whether a reading at `time_s` is wanted: a round is open, or the last round learnt from
@@ -69,10 +117,11 @@ impl RangeBiases {
         time_s: f64,
         dimensions: usize,
         correlation_s: f64,
-    ) {
+    ) -> Learning {
         self.round.retain(|p| time_s - p.time_s <= ROUND_WINDOW_S);
+        let mut learning = Learning::Nothing;
         if self.round.iter().any(|p| p.anchor == anchor) {
-            self.learn(model, dimensions, correlation_s);
+            learning = self.learn(model, dimensions, correlation_s);
             self.round.clear();
         }
         if self.wants(time_s, correlation_s) {
@@ -82,6 +131,7 @@ impl RangeBiases {
                 time_s,
             });
         }
+        learning
     }
 
     /// Learns from one fix-then-filter epoch at once (its readings' residuals against the
@@ -93,10 +143,10 @@ impl RangeBiases {
         time_s: f64,
         dimensions: usize,
         correlation_s: f64,
-    ) {
+    ) -> Learning {
         self.round.clear();
         if !self.wants(time_s, correlation_s) {
-            return;
+            return Learning::Nothing;
         }
         self.round = readings
             .iter()
@@ -106,8 +156,9 @@ impl RangeBiases {
                 time_s,
             })
             .collect();
-        self.learn(model, dimensions, correlation_s);
+        let learning = self.learn(model, dimensions, correlation_s);
         self.round.clear();
+        learning
     }
 
     /// Drops the open round: a reading of it fell outside the gate, so the prediction its
@@ -121,20 +172,12 @@ impl RangeBiases {
     ///
     /// A round `Δt` after the last one counts as `1 / max(1, 2 τ_c / Δt)` of independent looks
     /// (each reading's variance `c σ²`, the filter's rule for correlated errors).
-    fn learn(&mut self, model: &BiasModel, dimensions: usize, correlation_s: f64) {
+    fn learn(&mut self, model: &BiasModel, dimensions: usize, correlation_s: f64) -> Learning {
         if self.round.len() <= dimensions {
-            return;
+            return Learning::Nothing;
         }
-        let slots: Vec<usize> = self
-            .round
-            .iter()
-            .map(|p| {
-                if self.slots.len() <= p.anchor {
-                    self.slots.resize(p.anchor + 1, None);
-                }
-                *self.slots[p.anchor].get_or_insert_with(|| model.add_reader(&mut self.biases))
-            })
-            .collect();
+        let anchors: Vec<usize> = self.round.iter().map(|p| p.anchor).collect();
+        let slots: Vec<usize> = anchors.into_iter().map(|anchor| self.slot(model, anchor)).collect();
         let newest_s = self.round.iter().map(|p| p.time_s).fold(f64::NEG_INFINITY, f64::max);
         // c = max(1, 2 τ_c / Δt), Δt since the last round learnt from
         let since_s = self.last_learnt_s.map_or(f64::INFINITY, |t| newest_s - t);
@@ -150,19 +193,37 @@ impl RangeBiases {
             })
             .collect();
         self.last_learnt_s = Some(newest_s);
-        let learnt = model
-            .predict(&self.biases, newest_s)
-            .and_then(|predicted| model.update_observable(&predicted, &slots, &observations, dimensions));
+        let learnt = model.predict(&self.biases, newest_s).and_then(|predicted| {
+            let posterior = model.update_observable(&predicted, &slots, &observations, dimensions)?;
+            Ok((predicted, posterior))
+        });
         match learnt {
-            Ok(biases) => self.biases = biases,
-            Err(_) => *self = Self::default(),
+            Ok((predicted, biases)) => {
+                for &slot in &slots {
+                    if let Some(flag) = self.prior_only.get_mut(slot) {
+                        *flag = false;
+                    }
+                }
+                let learning = Learning::Learnt {
+                    prior: predicted.covariance().clone(),
+                    posterior: biases.covariance().clone(),
+                };
+                self.biases = biases;
+                learning
+            }
+            Err(_) => {
+                *self = Self::default();
+                Learning::Forgotten
+            }
         }
     }
 
-    /// The learnt offsets: anchor index, value and standard deviation.
+    /// The learnt offsets: anchor index, value and standard deviation (anchors no round has
+    /// learnt from yet are left out).
     pub(crate) fn estimates(&self) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
         self.slots.iter().enumerate().filter_map(|(anchor, slot)| {
-            slot.map(|slot| (anchor, self.biases.value(slot), self.biases.variance(slot).sqrt()))
+            slot.filter(|&slot| !self.prior_only.get(slot).copied().unwrap_or(false))
+                .map(|slot| (anchor, self.biases.value(slot), self.biases.variance(slot).sqrt()))
         })
     }
 }

@@ -189,6 +189,7 @@ const REACQUIRE_MIN_UPDATES: u32 = 10;
 pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.state = None;
     track.heading_cross = None;
+    track.offset_cross = None;
     track.modes = None;
     track.epoch.clear();
     track.noise = Default::default();
@@ -244,20 +245,32 @@ pub(super) enum Verdict {
     NotTaken,
 }
 
-/// After an update of the state that did not involve the heading, carries the state's
-/// cross-covariance with the heading channel's error (when it has one) from `prior` to the
-/// track's new state ([`HeadingCross::after_position_update`](super::heading_cross::HeadingCross)).
+/// After an update of the state that involved neither the heading nor the range offsets,
+/// carries the state's cross-covariances with the heading channel's error and with the
+/// offsets' errors (when it has them) from `prior` to the track's new state
+/// ([`HeadingCross::after_position_update`](super::heading_cross::HeadingCross),
+/// [`OffsetCross::after_position_update`](super::offset_cross::OffsetCross)).
 pub(super) fn carry_heading_cross<const N: usize>(track: &mut Track<N>, prior: &Gaussian<N>) -> Result<()> {
-    // (nothing to carry, and nothing copied, on a track without speeds)
+    carry_cross_covariances(track, prior)?;
+    apply_fading(track)
+}
+
+/// [`carry_heading_cross`] without the fading: for a pseudo-measurement of the map or a silent
+/// reader, which takes no part in the consistency test.
+pub(super) fn carry_cross_covariances<const N: usize>(track: &mut Track<N>, prior: &Gaussian<N>) -> Result<()> {
+    // (nothing to carry, and nothing copied, on a track without speeds or considered offsets)
     if let (Some(cross), Some(posterior)) = (&track.heading_cross, &track.state) {
         track.heading_cross = Some(cross.after_position_update(prior, posterior)?);
     }
-    apply_fading(track)
+    if let (Some(cross), Some(posterior)) = (&track.offset_cross, &track.state) {
+        track.offset_cross = Some(cross.after_position_update(prior, posterior)?);
+    }
+    Ok(())
 }
 
 /// Applies the inflation `λ` the consistency test of the update just taken asked for
 /// ([`rtls_estimation::adaptive::corrections`]): `P ← λ P` and, so the joint covariance of the
-/// state's and the heading channel's errors stays positive semi-definite
+/// state's and the heading channel's (or range offsets') errors stays positive semi-definite
 /// (`diag(√λ I, I) [[P, X], [Xᵀ, P_h]] diag(√λ I, I)`), `X ← √λ X`. Called once the update's
 /// cross-covariance is carried.
 ///
@@ -272,6 +285,9 @@ pub(super) fn apply_fading<const N: usize>(track: &mut Track<N>) -> Result<()> {
         *state = Gaussian::new(*state.mean(), state.covariance() * lambda, state.time_s())?;
     }
     if let Some(cross) = track.heading_cross.as_mut() {
+        cross.scale(lambda.sqrt());
+    }
+    if let Some(cross) = track.offset_cross.as_mut() {
         cross.scale(lambda.sqrt());
     }
     Ok(())

@@ -121,6 +121,43 @@ pub(super) fn run(tracker: &mut Tracker, records: Vec<Record>) -> Output {
     out
 }
 
+/// `P`'s horizontal block of an update: `[P_xx, P_xy, P_yy]` (`position_covariance_m2` is
+/// `D × D` row-major in its first `D²` entries, so `P_yy` is entry `D + 1`).
+pub(super) fn horizontal_covariance_m2(update: &TrackUpdate) -> [f64; 3] {
+    let c = &update.position_covariance_m2;
+    let d = update.dimensions;
+    [c[0], c[1], c[d + 1]]
+}
+
+/// `eᵀ P⁻¹ e` of a horizontal error `e` (m) against the update's horizontal covariance: inside
+/// the 95 % ellipse when ≤ χ²₂(0.95) = 5.991.
+pub(super) fn horizontal_nees(update: &TrackUpdate, e: [f64; 2]) -> f64 {
+    let [a, b, d] = horizontal_covariance_m2(update);
+    (d * e[0] * e[0] - 2.0 * b * e[0] * e[1] + a * e[1] * e[1]) / (a * d - b * b)
+}
+
+#[test]
+fn the_horizontal_nees_reads_the_covariance_of_either_dimension() {
+    let mut update = TrackUpdate {
+        time_s: 0.0,
+        tag: "t".into(),
+        dimensions: 2,
+        position_m: [0.0; 3],
+        velocity_mps: [0.0; 3],
+        position_covariance_m2: [4.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        predicted: false,
+        status: TrackStatus::Confirmed,
+        source: UpdateSource::Fix,
+        mode: None,
+        revised: false,
+    };
+    // P = diag(4, 1): e = (2, 1) is 1 + 1
+    assert!((horizontal_nees(&update, [2.0, 1.0]) - 2.0).abs() < 1e-12);
+    update.dimensions = 3;
+    update.position_covariance_m2 = [4.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 9.0];
+    assert!((horizontal_nees(&update, [2.0, 1.0]) - 2.0).abs() < 1e-12);
+}
+
 pub(super) fn rmse(updates: &[(f64, [f64; 3])], path: fn(f64) -> [f64; 2], after_s: f64) -> f64 {
     let errors: Vec<f64> = updates
         .iter()

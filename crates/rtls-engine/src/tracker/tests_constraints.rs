@@ -180,11 +180,8 @@ fn score(out: &Output) -> Score {
         let e = [u.position_m[0] - truth[0], u.position_m[1] - truth[1]];
         let e2 = e[0] * e[0] + e[1] * e[1];
         count += 1;
-        let c = &u.position_covariance_m2;
-        let (a, b, d) = (c[0], c[1], c[4]);
         // NEES = eᵀ P⁻¹ e ≤ χ²₂(0.95) = 5.991
-        let nees = (d * e[0] * e[0] - 2.0 * b * e[0] * e[1] + a * e[1] * e[1]) / (a * d - b * b);
-        inside += usize::from(nees <= 5.991);
+        inside += usize::from(super::tests::horizontal_nees(u, e) <= 5.991);
         if in_fall(truth) {
             fall_sum += e2;
             fall_count += 1;

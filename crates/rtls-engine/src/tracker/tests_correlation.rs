@@ -42,7 +42,8 @@ fn tracked(
     site.tracker.adaptive_noise.rssi_correlation_s = rssi_correlation_s;
     let out = run(&mut Tracker::new(&site).unwrap(), records);
     let last = out.updates.iter().rev().find(|u| !u.predicted).unwrap();
-    let trace = last.position_covariance_m2[0] + last.position_covariance_m2[4];
+    let [xx, _, yy] = super::tests::horizontal_covariance_m2(last);
+    let trace = xx + yy;
     (trace, out.updates.iter().map(|u| u.position_m).collect())
 }
 

@@ -25,6 +25,7 @@ use super::heading_state::HeadingChannel;
 use super::jump_state::{Alternation, JumpHypothesis};
 use super::modes::Manoeuvres;
 use super::noise::NoiseScales;
+use super::offset_cross::OffsetCross;
 use super::output::{Event, UpdateSource};
 use super::range_bias::RangeBiases;
 use super::schedule::{Scheduling, TrackSchedule};
@@ -140,6 +141,10 @@ pub(crate) struct Track<const N: usize> {
     pub(super) schedule: TrackSchedule,
     /// The anchors' range offsets this track has learnt (tightly coupled).
     pub(super) range_bias: RangeBiases,
+    /// The state error's cross-covariance with the offsets' errors, once a range has been
+    /// taken with its offset's error considered ([`super::offset_cross`]).
+    #[serde(default)]
+    pub(super) offset_cross: Option<OffsetCross<N>>,
     /// The open epoch's readers, for negative information and the map at its close.
     pub(super) hearing: Hearing,
     /// Fix-then-filter with `rewind_horizon_s` > 0: the readers of the tag's last epoch. An
@@ -197,6 +202,7 @@ impl<const N: usize> Track<N> {
             heading: HeadingChannel::default(),
             heading_cross: None,
             range_bias: RangeBiases::default(),
+            offset_cross: None,
             gnss: GnssTrack::default(),
             hearing: Hearing::default(),
             expected_readers: Vec::new(),

@@ -200,6 +200,7 @@ fn start_at<const N: usize>(
     let position_m = position_of(&state, shared.tag_height_m).0;
     track.state = Some(state);
     track.heading_cross = None;
+    track.offset_cross = None;
     track.lost_state = None;
     track.unreported = Some(UpdateSource::Fix);
     match track.lifecycle.as_mut() {
