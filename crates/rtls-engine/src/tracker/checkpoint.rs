@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use super::core::Core;
 use super::rewind::History;
+use super::tag_index::TagIndex;
 use super::track::Track;
 use crate::error::{EngineError, Result};
 use crate::record::{Reorderer, TimeGate};
@@ -110,11 +111,9 @@ impl<const N: usize> Core<N> {
                 tracks.len()
             )));
         }
-        let mut index = std::collections::HashMap::with_capacity(tracks.len());
-        for (i, track) in tracks.iter().enumerate() {
-            if index.insert(std::sync::Arc::clone(&track.tag), i).is_some() {
-                return Err(EngineError::Checkpoint(format!("the tag {} appears twice", track.tag)));
-            }
+        let index =
+            TagIndex::of(&tracks).map_err(|tag| EngineError::Checkpoint(format!("the tag {tag} appears twice")))?;
+        for track in &tracks {
             if track.alarmed.len() != alarm_zone_ids.len() {
                 return Err(EngineError::Checkpoint(format!(
                     "the track of {} has {} alarm flags for {} alarm zones",
@@ -149,6 +148,7 @@ impl<const N: usize> Core<N> {
         self.tracks = tracks;
         self.index = index;
         self.touched.clear();
+        self.due.mark_all(self.tracks.len());
         self.monitor = monitor;
         Ok(())
     }

@@ -1,23 +1,22 @@
 //! The per-tag tracks of one state size (`N = 4`: 2-D CV, `N = 6`: 3-D CV) and what happens to
 //! them on a record and on a clock tick.
 
-use std::collections::HashMap;
 use std::sync::Arc;
 
 use super::aided::HeldAcceleration;
-use super::alarms::position_of;
 use super::direct::direct_measurement;
-use super::divergence::{divergence, reset, reset_if_diverged};
+use super::divergence::{reset, reset_if_diverged};
+use super::due::DueTracks;
 use super::epoch::{anchor_reading, close_due_epoch, opens_epoch, straggles};
 use super::gnss::{close_due_gnss_epoch, pseudorange};
-use super::output::{Event, Output, UpdateSource};
+use super::output::{Event, Output};
 use super::range_bias::RangeOffset;
-use super::report::{clear_alarms, coast, report, track_update};
-use super::step::predict;
+use super::report::report;
+use super::tag_index::TagIndex;
+use super::tick::{tick_one, wake_s, TickMark};
 use crate::error::{EngineError, Result};
-use crate::lifecycle::{LifecycleEvent, TrackStatus};
+use crate::lifecycle::TrackStatus;
 use crate::record::Measurement;
-use crate::site::Pipeline;
 use crate::zones::{Zone, ZoneKind, ZoneMonitor};
 use rtls_estimation::{EstimationError, Gaussian};
 
@@ -25,11 +24,18 @@ use super::constraints::close_epoch_if_due;
 use super::rewind::{History, Input};
 use super::track::{rejected, Shared, Track};
 
+#[cfg(test)]
+thread_local! {
+    /// Tests: every tick visits every track, the due schedule's reference
+    /// (`tests_due_ticks`).
+    pub(super) static TICK_EVERY_TRACK: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
 /// All tracks of one state size.
 #[derive(Debug, Clone)]
 pub(crate) struct Core<const N: usize> {
     pub(crate) shared: Shared,
-    pub(super) index: HashMap<Arc<str>, usize>,
+    pub(super) index: TagIndex,
     pub(super) tracks: Vec<Track<N>>,
     /// Each track's recent inputs and copies, for re-filtering a late record (empty and
     /// unused when `rewind_horizon_s` is 0); indexed as `tracks`.
@@ -37,16 +43,9 @@ pub(crate) struct Core<const N: usize> {
     /// Tracks given a record since the last [`Self::report_pending`] (indices, may repeat):
     /// the only ones that can have an update pending, so a report does not walk every track.
     pub(super) touched: Vec<usize>,
+    /// The tracks the next tick visits, and when the others wake ([`DueTracks`]).
+    pub(super) due: DueTracks,
     pub(crate) monitor: ZoneMonitor,
-}
-
-/// Whether the track's open fix-then-filter epoch or GNSS epoch (either pipeline) holds readings
-/// from before `now_s`. Its fix will carry the epoch's last reading time, so ticking the track
-/// at `now_s` first would put the fix's update behind the tick (time going backwards for the
-/// lifecycle).
-fn holds_earlier_readings<const N: usize>(shared: &Shared, track: &Track<N>, now_s: f64) -> bool {
-    (shared.settings.pipeline == Pipeline::FixThenFilter && track.epoch.last().is_some_and(|&(t, _)| t < now_s))
-        || track.gnss.holds_readings_before(now_s)
 }
 
 impl<const N: usize> Core<N> {
@@ -76,12 +75,14 @@ impl<const N: usize> Core<N> {
     }
 
     pub(crate) fn new(shared: Shared, monitor: ZoneMonitor) -> Self {
+        let due = DueTracks::new(shared.settings.output_interval_s / 2.0);
         Self {
             shared,
-            index: HashMap::new(),
+            index: TagIndex::default(),
             tracks: Vec::new(),
             histories: Vec::new(),
             touched: Vec::new(),
+            due,
             monitor,
         }
     }
@@ -116,12 +117,12 @@ impl<const N: usize> Core<N> {
     #[cfg(test)]
     pub(crate) fn heading_state(&self, tag: &str) -> Option<rtls_estimation::aided::HeadingState> {
         self.index
-            .get(tag)
-            .and_then(|&i| self.tracks[i].heading.state().copied())
+            .get(tag, &self.tracks)
+            .and_then(|i| self.tracks[i].heading.state().copied())
     }
 
     pub(crate) fn status(&self, tag: &str) -> Option<TrackStatus> {
-        self.index.get(tag).and_then(|&i| self.tracks[i].status())
+        self.index.get(tag, &self.tracks).and_then(|i| self.tracks[i].status())
     }
 
     /// Applies one record of `tag`. One record never aborts the run: a failure while applying
@@ -134,20 +135,20 @@ impl<const N: usize> Core<N> {
     /// # Errors
     /// None today; the `Result` is kept for failures that concern the whole tracker.
     pub(crate) fn apply(&mut self, time_s: f64, tag: &str, measurement: &Measurement, out: &mut Output) -> Result<()> {
-        let index = match self.index.get(tag) {
-            Some(&i) => i,
+        let index = match self.index.get(tag, &self.tracks) {
+            Some(i) => i,
             None => {
-                let tag: Arc<str> = Arc::from(tag);
-                let track = Track::new(Arc::clone(&tag), self.shared.alarm_zones.len());
+                let track = Track::new(Arc::from(tag), self.shared.alarm_zones.len());
                 if self.shared.settings.rewind_horizon_s > 0.0 {
                     self.histories.push(History::new(&track));
                 }
                 self.tracks.push(track);
-                self.index.insert(tag, self.tracks.len() - 1);
+                self.index.push(&self.tracks);
                 self.tracks.len() - 1
             }
         };
         self.touched.push(index);
+        self.due.mark(index);
         if self.touched.len() > 2 * self.tracks.len() + 64 {
             // a caller that never reports (a file run) keeps it to a list of the tracks
             self.touched.sort_unstable();
@@ -289,26 +290,37 @@ impl<const N: usize> Core<N> {
         let shared = &self.shared;
         let horizon_s = shared.settings.rewind_horizon_s;
         let mut deleted = false;
-        if horizon_s <= 0.0 {
-            for track in &mut self.tracks {
+        // the tracks this tick can change, in index order: the rest keep as they are
+        let visiting = self.due.take_due(now_s, self.tracks.len());
+        #[cfg(test)]
+        let visiting = if TICK_EVERY_TRACK.with(std::cell::Cell::get) {
+            (0..self.tracks.len()).collect()
+        } else {
+            visiting
+        };
+        for &index in &visiting {
+            let track = &mut self.tracks[index];
+            if horizon_s <= 0.0 {
                 deleted |= tick_one(shared, track, &mut self.monitor, now_s, out);
+            } else {
+                let history = &mut self.histories[index];
+                if history.newest_s() <= now_s {
+                    // a tick that changed the track is an input to re-apply if a late record
+                    // rewinds it; one that changed nothing (the usual case) is not, so a
+                    // record of another tag that overtook this one does not force a rewind
+                    // (a late record re-filtered past this tick: its replay ran the ticks it
+                    // needed)
+                    let before = TickMark::of(track, now_s);
+                    let copy = history.copy_due(now_s, horizon_s).then(|| track.clone());
+                    deleted |= tick_one(shared, track, &mut self.monitor, now_s, out);
+                    if TickMark::of(track, now_s) != before {
+                        history.push(now_s, Input::Tick, copy, horizon_s);
+                    }
+                }
             }
+            self.due.schedule(index, wake_s(shared, track));
         }
-        for (track, history) in self.tracks.iter_mut().zip(&mut self.histories) {
-            if history.newest_s() > now_s {
-                // a late record re-filtered past this tick: its replay ran the ticks it needed
-                continue;
-            }
-            // a tick that changed the track is an input to re-apply if a late record rewinds
-            // it; one that changed nothing (the usual case) is not, so a record of another
-            // tag that overtook this one does not force a rewind
-            let before = TickMark::of(track, now_s);
-            let copy = history.copy_due(now_s, horizon_s).then(|| track.clone());
-            deleted |= tick_one(shared, track, &mut self.monitor, now_s, out);
-            if TickMark::of(track, now_s) != before {
-                history.push(now_s, Input::Tick, copy, horizon_s);
-            }
-        }
+        self.due.done(visiting);
         if deleted {
             self.forget_deleted();
         }
@@ -334,16 +346,12 @@ impl<const N: usize> Core<N> {
                 keep[k - 1]
             });
         }
-        self.index = self
-            .tracks
-            .iter()
-            .enumerate()
-            .map(|(i, t)| (Arc::clone(&t.tag), i))
-            .collect();
+        self.index = TagIndex::of_distinct(&self.tracks);
         // the indices moved: the tracks with an update pending, anew (deletions are rare)
         self.touched = (0..self.tracks.len())
             .filter(|&i| self.tracks[i].unreported.is_some())
             .collect();
+        self.due.mark_all(self.tracks.len());
     }
 
     /// Reports every track's pending update now, instead of when the tag's next record or the
@@ -386,6 +394,8 @@ impl<const N: usize> Core<N> {
                 reset(track, time_s, "track", &format!("{error}"), out);
             }
         }
+        // epochs closed and updates reported: every track's wake time may have moved
+        self.due.mark_all(self.tracks.len());
         Ok(())
     }
 }
@@ -413,50 +423,6 @@ fn apply_to_track<const N: usize>(
         }
     }
     reset_if_diverged(&shared.bounds, track, time_s, kind, out);
-}
-
-/// One track's clock tick at `now_s`; a failure restarts the track. `true` when the track was
-/// deleted.
-fn tick_one<const N: usize>(
-    shared: &Shared,
-    track: &mut Track<N>,
-    monitor: &mut ZoneMonitor,
-    now_s: f64,
-    out: &mut Output,
-) -> bool {
-    match tick_track(shared, track, monitor, now_s, out) {
-        Ok(gone) => gone,
-        Err(error) => {
-            reset(track, now_s, "track", &format!("{error}"), out);
-            false
-        }
-    }
-}
-
-/// What a clock tick can change in a track besides reporting its pending update: its state's
-/// time or presence, its lifecycle, its open epochs and held records, its coasting output.
-#[derive(Debug, PartialEq)]
-struct TickMark {
-    state_s: Option<f64>,
-    status: Option<TrackStatus>,
-    epoch: usize,
-    deferred: usize,
-    output_at_tick: bool,
-    gnss_pending: bool,
-}
-
-impl TickMark {
-    fn of<const N: usize>(track: &Track<N>, now_s: f64) -> Self {
-        Self {
-            state_s: track.state.as_ref().map(Gaussian::time_s),
-            status: track.status(),
-            epoch: track.epoch.len(),
-            deferred: track.deferred.len(),
-            // a coasting or lost output is dated at the tick (a report, at its state's time)
-            output_at_tick: track.last_output_s >= now_s,
-            gnss_pending: track.gnss.holds_readings_before(f64::INFINITY),
-        }
-    }
 }
 
 /// What [`Core::apply`] does with one record; its errors are the record's.
@@ -521,105 +487,5 @@ fn apply_record<const N: usize>(
         }
         Measurement::Pseudorange { .. } => pseudorange(shared, track, time_s, measurement, out),
         _ => direct_measurement(shared, track, time_s, measurement, out),
-    }
-}
-
-/// One track's part of [`Core::tick`]; returns `true` when the track was deleted.
-fn tick_track<const N: usize>(
-    shared: &Shared,
-    track: &mut Track<N>,
-    monitor: &mut ZoneMonitor,
-    now_s: f64,
-    out: &mut Output,
-) -> Result<bool> {
-    let interval_s = shared.settings.output_interval_s;
-    close_due_epoch(shared, track, now_s, out)?;
-    close_epoch_if_due(shared, track, now_s, out)?;
-    if reset_if_diverged(&shared.bounds, track, now_s, "epoch", out) {
-        return Ok(false);
-    }
-    if track.unreported.is_some() && track.state.as_ref().is_some_and(|s| s.time_s() < now_s) {
-        report(shared, track, monitor, out)?;
-    }
-    if holds_earlier_readings(shared, track, now_s) {
-        // its fix will be dated before this tick: the lifecycle and the coasting output
-        // wait for it (the epoch closes by the first tick after its window)
-        return Ok(false);
-    }
-    let Some(lifecycle) = track.lifecycle.as_mut() else {
-        return Ok(false);
-    };
-    let silence_s = now_s - lifecycle.last_update_s();
-    // a track coasts once an update is overdue by more than the output interval
-    if silence_s > interval_s || lifecycle.status() == TrackStatus::Tentative {
-        if let Some(event) = lifecycle.tick(now_s)? {
-            let position_m = match (event, track.state.as_ref()) {
-                (LifecycleEvent::Lost, Some(state)) => {
-                    // keep the last estimated position (where the tag was last seen)
-                    let frozen = *state;
-                    let position_m = position_of(&frozen, shared.tag_height_m).0;
-                    track.lost_state = Some(frozen);
-                    position_m
-                }
-                (_, Some(state)) => position_of(state, shared.tag_height_m).0,
-                (_, None) => [0.0; 3],
-            };
-            out.events.push(Event::Lifecycle {
-                tag: Arc::clone(&track.tag),
-                time_s: now_s,
-                event,
-                position_m,
-            });
-            if event == LifecycleEvent::Deleted {
-                for zone_event in monitor.remove_tag(&track.tag, now_s)? {
-                    out.events.push(Event::Zone(zone_event));
-                }
-                clear_alarms(shared, track, now_s, out);
-                return Ok(true);
-            }
-        }
-    }
-    if now_s - track.last_output_s >= interval_s {
-        match track.status() {
-            Some(TrackStatus::Coasting) => coast_if_sound(shared, track, now_s, monitor, out)?,
-            Some(TrackStatus::Lost) => {
-                // the last position, frozen, reported as lost
-                if let Some(frozen) = &track.lost_state {
-                    let mut update =
-                        track_update(shared, track, frozen, true, TrackStatus::Lost, UpdateSource::Prediction);
-                    update.time_s = now_s;
-                    update.revised = now_s <= track.last_reported_s;
-                    out.updates.push(update);
-                    track.last_output_s = now_s;
-                    track.last_reported_s = track.last_reported_s.max(now_s);
-                }
-            }
-            _ => {}
-        }
-    }
-    Ok(false)
-}
-
-/// Outputs the coasting prediction of `track` at `now_s`, unless it has diverged: then the
-/// track is reported and reset, and nothing is output.
-fn coast_if_sound<const N: usize>(
-    shared: &Shared,
-    track: &mut Track<N>,
-    now_s: f64,
-    monitor: &mut ZoneMonitor,
-    out: &mut Output,
-) -> Result<()> {
-    // no reader heard the tag: every reader that should have is evidence where it is not
-    super::constraints::coast(shared, track, now_s)?;
-    let Some(state) = track.state.as_ref() else {
-        return Ok(());
-    };
-    let prior = predict(shared, track, state, now_s)?;
-    match divergence(&shared.bounds, &prior.state, prior.modes.as_ref()) {
-        Some(reason) => {
-            reset(track, now_s, "track", &format!("coasting prediction: {reason}"), out);
-            Ok(())
-        }
-        None => coast(shared, track, now_s, monitor, out),
     }
 }

@@ -148,6 +148,7 @@ mod core;
 mod coupled;
 mod direct;
 mod divergence;
+mod due;
 mod epoch;
 mod gnss;
 mod gnss_state;
@@ -168,6 +169,7 @@ mod rewind;
 mod schedule;
 mod solve;
 mod step;
+mod tag_index;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
@@ -180,6 +182,8 @@ mod tests_consistency;
 mod tests_constraints;
 #[cfg(test)]
 mod tests_correlation;
+#[cfg(test)]
+mod tests_due_ticks;
 #[cfg(test)]
 mod tests_fixed_path;
 #[cfg(test)]
@@ -200,6 +204,7 @@ mod tests_robust;
 mod tests_schedule;
 #[cfg(test)]
 mod tests_timing;
+mod tick;
 mod track;
 mod update;
 
