@@ -2,8 +2,8 @@
 //! (seed 003's one-observation update), with the reader's learnt range offset and the range
 //! self-calibration.
 
-use nalgebra::{DMatrix, DVector, SMatrix, SVector};
-use rtls_estimation::filter::{consider_update, Updated};
+use nalgebra::{DVector, SVector};
+use rtls_estimation::filter::{consider_update_scalar, Updated};
 use rtls_estimation::measurement::MeasurementModel;
 use rtls_estimation::{Gaussian, Matrix};
 
@@ -135,13 +135,18 @@ pub(super) fn coupled_update<const N: usize>(
     // and H P⁻ Hᵀ
     let mut considered: Option<Considered<N>> = None;
     let result = if let (Some(slot), Some(bias_model)) = (consider_slot, &shared.range_bias) {
-        let offsets = track.range_bias.covariance(bias_model, time_s);
-        let cross = track
-            .offset_cross
-            .as_ref()
-            .map_or_else(|| OffsetCross::new(time_s), |cross| cross.predicted(time_s));
-        considered_range(&prior.state, &model, measured, slot, &offsets, &cross).map(|(updated, taken)| {
-            considered = Some(taken);
+        // X_b carried to the range's time in place (F(Δt) composes, so a range that is not
+        // taken leaves it right for the next)
+        let cross = track.offset_cross.get_or_insert_with(|| OffsetCross::new(time_s));
+        cross.predict_to(time_s);
+        let column = cross.column(slot);
+        let (offset_variance_m2, offset_row) = track.range_bias.covariance_column(bias_model, slot, time_s);
+        considered_range(&prior.state, &model, measured, column, offset_variance_m2).map(|(updated, taken)| {
+            considered = Some(Considered {
+                slot,
+                offset_row,
+                ..taken
+            });
             updated
         })
     } else {
@@ -223,7 +228,15 @@ pub(super) fn coupled_update<const N: usize>(
                 match considered {
                     Some(considered) => {
                         // X_b from the considered update; X_h ← A F X_h (P⁺ ≠ A P⁻ here)
-                        track.offset_cross = Some(considered.cross);
+                        if let Some(cross) = track.offset_cross.as_mut() {
+                            cross.after_considered_range(
+                                &considered.a,
+                                &considered.gain,
+                                &considered.offset_row,
+                                considered.slot,
+                                considered.column,
+                            );
+                        }
                         track.heading_cross = track.heading_cross.map(|cross| cross.after_gain(time_s, &considered.a));
                         apply_fading(track)?;
                     }
@@ -257,52 +270,49 @@ pub(super) fn coupled_update<const N: usize>(
 
 /// What a considered range leaves for after its acceptance.
 struct Considered<const N: usize> {
-    /// `X_b` after the update.
-    cross: OffsetCross<N>,
+    /// The offset's slot `i`.
+    slot: usize,
+    /// `P_b[i, ·]` before the update (a learning round may change `P_b` before acceptance).
+    offset_row: Vec<f64>,
+    /// `X_bᵢ` after the update.
+    column: SVector<f64, N>,
+    /// `K`.
+    gain: SVector<f64, N>,
     /// `A = I − K H`.
     a: Matrix<N>,
     /// `H P⁻ Hᵀ`: the prediction's variance along the range, m².
     prediction_variance_m2: f64,
 }
 
-/// One range `z' = r − b̂ᵢ = h(x) + eᵢᵀ e_b + w` by the Schmidt–Kalman update, linearised at the
-/// prior (the EKF's `H`), with column `slot` of `cross` (predicted to the range's time) and
-/// `P_bᵢᵢ` (equations in [`super::offset_cross`]); `model` carries `R = λ c σ²` alone.
+/// One range `z' = r − b̂ᵢ = h(x) + eᵢᵀ e_b + w` by the Schmidt–Kalman update
+/// ([`consider_update_scalar`]), linearised at the prior (the EKF's `H`), with `column`, the
+/// column `i` of `X_b` at the range's time, and `P_bᵢᵢ` (equations in
+/// [`super::offset_cross`]); `model` carries `R = λ c σ²` alone. The returned
+/// [`Considered`]'s slot and offset row are the caller's to fill.
 fn considered_range<const N: usize>(
     prior: &Gaussian<N>,
     model: &AnchorMeasurement,
     range_m: f64,
-    slot: usize,
-    offsets: &DMatrix<f64>,
-    cross: &OffsetCross<N>,
+    column: SVector<f64, N>,
+    offset_variance_m2: f64,
 ) -> rtls_estimation::Result<(Updated<N>, Considered<N>)> {
     // H = ∂h/∂x at x⁻,  ν = z' − h(x⁻)
-    let h = MeasurementModel::<N>::jacobian(model, prior.mean())?;
+    let jacobian = MeasurementModel::<N>::jacobian(model, prior.mean())?;
+    let h = SVector::<f64, N>::from_fn(|col, _| jacobian[(0, col)]);
     let predicted = MeasurementModel::<N>::predict(model, prior.mean())?;
-    let innovation = DVector::from_element(1, range_m - predicted[0]);
-    // J = eᵢᵀ: the considered parameter is offset i alone
-    let j = DMatrix::from_element(1, 1, 1.0);
-    let column = SMatrix::<f64, N, 1>::from(cross.column(slot));
-    let offset_variance = SMatrix::<f64, 1, 1>::new(offsets[(slot, slot)]);
-    let result = consider_update(
-        prior,
-        &column,
-        &offset_variance,
-        &h,
-        &j,
-        MeasurementModel::<N>::noise_covariance(model),
-        innovation,
-    )?;
-    // K (N × 1) and A = I − K H
-    let gain = SVector::<f64, N>::from_fn(|row, _| result.updated.gain[(row, 0)]);
-    let a = Matrix::<N>::identity() - gain * SMatrix::<f64, 1, N>::from_fn(|_, col| h[(0, col)]);
+    let r = MeasurementModel::<N>::noise_covariance(model)[(0, 0)];
+    let (updated, column, a) =
+        consider_update_scalar(prior, &column, offset_variance_m2, &h, r, range_m - predicted[0])?;
+    let gain = SVector::<f64, N>::from_fn(|row, _| updated.gain[(row, 0)]);
     // H P⁻ Hᵀ
-    let prediction_variance_m2 = (&h * prior.covariance() * h.transpose())[(0, 0)];
-    let cross = cross.after_considered_range(&a, &gain, offsets, slot, result.cross_covariance.column(0).into());
+    let prediction_variance_m2 = h.dot(&(prior.covariance() * h));
     Ok((
-        result.updated,
+        updated,
         Considered {
-            cross,
+            slot: 0,
+            offset_row: Vec::new(),
+            column,
+            gain,
             a,
             prediction_variance_m2,
         },

@@ -66,35 +66,37 @@ impl<const N: usize> OffsetCross<N> {
         self.columns.get(slot).copied().unwrap_or_else(SVector::zeros)
     }
 
-    /// After a considered range of slot `slot` (this `X_b` predicted to its time): column
-    /// `slot` is the update's, every other `X_bⱼ ← A X_bⱼ − K P_b[slot, j]` with `A = I − K H`
-    /// and `gain_times_offset_row` the `N × K` product `K P_b[slot, ·]`.
+    /// `X_b ← F(Δt) X_b` in place, to `time_s` (no earlier than its time).
+    pub(super) fn predict_to(&mut self, time_s: f64) {
+        if time_s > self.time_s {
+            let f = cv_transition::<N>(time_s - self.time_s);
+            for column in &mut self.columns {
+                *column = f * *column;
+            }
+            self.time_s = time_s;
+        }
+    }
+
+    /// After a considered range of slot `slot` (this `X_b` at its time): column `slot` is the
+    /// update's `considered`, every other `X_bⱼ ← A X_bⱼ − K P_b[slot, j]` with `A = I − K H`
+    /// and `offset_row` the row `P_b[slot, ·]` before the update.
     pub(super) fn after_considered_range(
-        &self,
+        &mut self,
         a: &Matrix<N>,
         gain: &SVector<f64, N>,
-        offset_covariance: &DMatrix<f64>,
+        offset_row: &[f64],
         slot: usize,
         considered: SVector<f64, N>,
-    ) -> Self {
-        let slots = offset_covariance.ncols().max(self.columns.len()).max(slot + 1);
-        let columns = (0..slots)
-            .map(|j| {
-                if j == slot {
-                    return considered;
-                }
-                let p_ij = if j < offset_covariance.ncols() && slot < offset_covariance.nrows() {
-                    offset_covariance[(slot, j)]
-                } else {
-                    0.0
-                };
+    ) {
+        let slots = offset_row.len().max(self.columns.len()).max(slot + 1);
+        self.columns.resize(slots, SVector::zeros());
+        for (j, column) in self.columns.iter_mut().enumerate() {
+            if j == slot {
+                *column = considered;
+            } else {
                 // X_bⱼ ← A X_bⱼ − K P_b[i, j]
-                a * self.column(j) - gain * p_ij
-            })
-            .collect();
-        Self {
-            time_s: self.time_s,
-            columns,
+                *column = a * *column - gain * offset_row.get(j).copied().unwrap_or(0.0);
+            }
         }
     }
 

@@ -86,14 +86,14 @@ impl RangeBiases {
         slot
     }
 
-    /// The covariance `P_b` over every slot, predicted to `time_s` along the diagonal (the
-    /// random walk; the correlations between slots do not walk).
-    pub(super) fn covariance(&self, model: &BiasModel, time_s: f64) -> DMatrix<f64> {
-        let mut covariance = self.biases.covariance().clone();
-        for slot in 0..covariance.nrows() {
-            covariance[(slot, slot)] = model.predicted(&self.biases, slot, time_s).1;
-        }
-        covariance
+    /// `(P_bᵢᵢ, P_b[i, ·])` of slot `i` at `time_s`: its variance after the random walk, and its
+    /// row (the other entries do not walk; entry `i` is the walked variance too).
+    pub(super) fn covariance_column(&self, model: &BiasModel, slot: usize, time_s: f64) -> (f64, Vec<f64>) {
+        let variance = model.predicted(&self.biases, slot, time_s).1;
+        // P_b is symmetric: its row i is its column i
+        let mut row: Vec<f64> = self.biases.covariance().column(slot).iter().copied().collect();
+        row[slot] = variance;
+        (variance, row)
     }
 
     /// Whether a reading at `time_s` is wanted: a round is open, or the last round learnt from

@@ -11,6 +11,7 @@
 //! `update`; the covariance grows with the process noise.
 
 mod consider;
+mod consider_scalar;
 mod cv_axes;
 mod ekf;
 mod fixed_update;
@@ -21,6 +22,7 @@ mod ukf;
 mod update;
 
 pub use consider::{carry_cross_covariance, consider_update, ConsiderUpdated};
+pub use consider_scalar::consider_update_scalar;
 pub use cv_axes::{CvAxis, DecoupledCvFilter, DecoupledCvState};
 pub use ekf::ExtendedKalmanFilter;
 pub use fixed_update::FixedUpdated;
