@@ -141,12 +141,17 @@ pub(super) fn coupled_update<const N: usize>(
         cross.predict_to(time_s);
         let column = cross.column(slot);
         let (offset_variance_m2, offset_row) = track.range_bias.covariance_column(bias_model, slot, time_s);
-        considered_range(&prior.state, &model, measured, column, offset_variance_m2).map(|(updated, taken)| {
-            considered = Some(Considered {
-                slot,
-                offset_row,
-                ..taken
-            });
+        considered_range(
+            &prior.state,
+            &model,
+            measured,
+            slot,
+            column,
+            offset_variance_m2,
+            offset_row,
+        )
+        .map(|(updated, taken)| {
+            considered = Some(taken);
             updated
         })
     } else {
@@ -287,14 +292,16 @@ struct Considered<const N: usize> {
 /// One range `z' = r − b̂ᵢ = h(x) + eᵢᵀ e_b + w` by the Schmidt–Kalman update
 /// ([`consider_update_scalar`]), linearised at the prior (the EKF's `H`), with `column`, the
 /// column `i` of `X_b` at the range's time, and `P_bᵢᵢ` (equations in
-/// [`super::offset_cross`]); `model` carries `R = λ c σ²` alone. The returned
-/// [`Considered`]'s slot and offset row are the caller's to fill.
+/// [`super::offset_cross`]); `model` carries `R = λ c σ²` alone; `offset_row` is `P_b[i, ·]`,
+/// kept for carrying the other columns once the update is taken.
 fn considered_range<const N: usize>(
     prior: &Gaussian<N>,
     model: &AnchorMeasurement,
     range_m: f64,
+    slot: usize,
     column: SVector<f64, N>,
     offset_variance_m2: f64,
+    offset_row: Vec<f64>,
 ) -> rtls_estimation::Result<(Updated<N>, Considered<N>)> {
     // H = ∂h/∂x at x⁻,  ν = z' − h(x⁻)
     let jacobian = MeasurementModel::<N>::jacobian(model, prior.mean())?;
@@ -309,8 +316,8 @@ fn considered_range<const N: usize>(
     Ok((
         updated,
         Considered {
-            slot: 0,
-            offset_row: Vec::new(),
+            slot,
+            offset_row,
             column,
             gain,
             a,

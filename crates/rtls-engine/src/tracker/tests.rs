@@ -112,6 +112,21 @@ pub(super) fn range_records(seconds: f64, seed: u64, path: fn(f64) -> [f64; 2]) 
     records
 }
 
+/// A range of `tag` to `anchor` at `time_s`, with the site's σ and the anchor's surveyed
+/// position.
+pub(super) fn range_record(time_s: f64, tag: impl Into<String>, anchor: &str, range_m: f64) -> Record {
+    Record {
+        time_s,
+        tag: tag.into(),
+        measurement: Measurement::Range {
+            anchor: anchor.into(),
+            range_m,
+            std_m: None,
+            anchor_position_m: None,
+        },
+    }
+}
+
 pub(super) fn run(tracker: &mut Tracker, records: Vec<Record>) -> Output {
     let mut out = Output::default();
     for record in records {

@@ -5,9 +5,8 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
-use super::tests::{horizontal_nees, run, site, slant, ANCHORS};
+use super::tests::{horizontal_nees, range_record, run, site, slant, ANCHORS};
 use super::*;
-use crate::record::Measurement;
 
 /// A vehicle circling (10, 10) at radius 5 m and 2 m/s: a centripetal acceleration of
 /// 0.8 m/s², far beyond the site's σ_a below.
@@ -25,16 +24,7 @@ fn records(seed: u64) -> Vec<Record> {
         .map(|k| {
             let t = k as f64 * 0.025;
             let (id, a) = ANCHORS[k % 4];
-            Record {
-                time_s: t,
-                tag: "v1".into(),
-                measurement: Measurement::Range {
-                    anchor: id.into(),
-                    range_m: slant(circle(t), a) + 0.2 + noise.sample(&mut rng),
-                    std_m: None,
-                    anchor_position_m: None,
-                },
-            }
+            range_record(t, "v1", id, slant(circle(t), a) + 0.2 + noise.sample(&mut rng))
         })
         .collect()
 }

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
 use super::core::TICK_EVERY_TRACK;
-use super::tests::{site_text, slant, ANCHORS};
+use super::tests::{range_record, site_text, slant, ANCHORS};
 use super::*;
 use crate::record::Measurement;
 use crate::site::Site;
@@ -80,16 +80,12 @@ fn steps(seed: u64, ranges: bool) -> Vec<Step> {
         if ranges && !(60.0..70.0).contains(&t) {
             let walker = [10.0 + 0.05 * t, 8.0 - 0.03 * t];
             for (id, a) in ANCHORS {
-                steps.push(Step::Push(Record {
-                    time_s: t + 0.02,
-                    tag: "r1".into(),
-                    measurement: Measurement::Range {
-                        anchor: id.into(),
-                        range_m: slant(walker, a) + 0.1 * noise.sample(&mut rng),
-                        std_m: None,
-                        anchor_position_m: None,
-                    },
-                }));
+                steps.push(Step::Push(range_record(
+                    t + 0.02,
+                    "r1",
+                    id,
+                    slant(walker, a) + 0.1 * noise.sample(&mut rng),
+                )));
             }
         }
         if k % 10 == 9 {

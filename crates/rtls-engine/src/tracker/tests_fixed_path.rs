@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
-use super::tests::{site_text, slant, ANCHORS};
+use super::tests::{range_record, site_text, slant, ANCHORS};
 use super::update::GENERAL_KERNEL_ONLY;
 use super::*;
 use crate::record::Measurement;
@@ -65,16 +65,12 @@ fn records(seed: u64, spatial: bool) -> Vec<Record> {
         // a third tag by ranges (fix-then-filter epochs of the four anchors, σ = 0.1 m)
         let walker = [10.0 + 0.2 * t, 8.0 - 0.1 * t];
         for (id, a) in ANCHORS {
-            records.push(Record {
-                time_s: t + 0.02,
-                tag: "r1".into(),
-                measurement: Measurement::Range {
-                    anchor: id.into(),
-                    range_m: slant(walker, a) + 0.1 * noise.sample(&mut rng),
-                    std_m: None,
-                    anchor_position_m: None,
-                },
-            });
+            records.push(range_record(
+                t + 0.02,
+                "r1",
+                id,
+                slant(walker, a) + 0.1 * noise.sample(&mut rng),
+            ));
         }
     }
     records

@@ -5,9 +5,8 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
-use super::tests::{horizontal_nees, run, site, slant, ANCHORS};
+use super::tests::{horizontal_nees, range_record, run, site, slant, ANCHORS};
 use super::*;
-use crate::record::Measurement;
 
 /// A walker on a circle of radius 6 m about the square's centre, one lap per 40 s.
 fn circle(t: f64) -> [f64; 2] {
@@ -26,16 +25,12 @@ fn biased_ranges(seconds: f64, seed: u64) -> Vec<Record> {
         .map(|k| {
             let t = k as f64 * 0.025;
             let (id, a) = ANCHORS[k % 4];
-            Record {
-                time_s: t,
-                tag: "w1".into(),
-                measurement: Measurement::Range {
-                    anchor: id.into(),
-                    range_m: slant(circle(t), a) + 0.2 + OFFSETS_M[k % 4] + noise.sample(&mut rng),
-                    std_m: None,
-                    anchor_position_m: None,
-                },
-            }
+            range_record(
+                t,
+                "w1",
+                id,
+                slant(circle(t), a) + 0.2 + OFFSETS_M[k % 4] + noise.sample(&mut rng),
+            )
         })
         .collect()
 }
@@ -129,16 +124,12 @@ fn standing_ranges(seconds: f64, seed: u64) -> Vec<Record> {
     (0..(seconds * 40.0) as usize)
         .map(|k| {
             let (id, a) = ANCHORS[k % 4];
-            Record {
-                time_s: k as f64 * 0.025,
-                tag: "s1".into(),
-                measurement: Measurement::Range {
-                    anchor: id.into(),
-                    range_m: slant(STANDING_M, a) + 0.2 + offsets_m[k % 4] + noise.sample(&mut rng),
-                    std_m: None,
-                    anchor_position_m: None,
-                },
-            }
+            range_record(
+                k as f64 * 0.025,
+                "s1",
+                id,
+                slant(STANDING_M, a) + 0.2 + offsets_m[k % 4] + noise.sample(&mut rng),
+            )
         })
         .collect()
 }
