@@ -78,12 +78,56 @@ use nalgebra::{DMatrix, DVector};
 use crate::error::{EstimationError, Result};
 use crate::stats::chi_square_quantile;
 
-/// The biases' process: prior, random walk and bound. An immutable strategy.
+/// The biases' process: a default prior, random walk and bound. An immutable strategy.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BiasModel {
-    prior_std: f64,
+    prior: BiasPrior,
     random_walk_per_sqrt_s: f64,
+}
+
+/// One reader's bias prior `N(0, σ_b²)` and bound `b_max`: readers of different kinds (a UWB
+/// anchor's antenna delay of decimetres, a Wi-Fi responder's offset of metres) or of
+/// different calibration (a reader whose delay was measured) need different ones.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct BiasPrior {
+    std: f64,
     max_abs: f64,
+}
+
+impl BiasPrior {
+    /// A prior of standard deviation `σ_b` (> 0) and bound `b_max` (> 0), unit of the reading.
+    ///
+    /// # Errors
+    /// [`EstimationError::InvalidParameter`] for a value that is not finite and > 0.
+    pub fn new(std: f64, max_abs: f64) -> Result<Self> {
+        let invalid = |name, reason| Err(EstimationError::InvalidParameter { name, reason });
+        if !(std.is_finite() && std > 0.0) {
+            return invalid("prior_std", "must be finite and > 0");
+        }
+        if !(max_abs.is_finite() && max_abs > 0.0) {
+            return invalid("max_abs", "must be finite and > 0");
+        }
+        Ok(Self { std, max_abs })
+    }
+
+    /// `σ_b`.
+    #[must_use]
+    pub fn std(&self) -> f64 {
+        self.std
+    }
+
+    /// `σ_b²`.
+    #[must_use]
+    pub fn variance(&self) -> f64 {
+        self.std * self.std
+    }
+
+    /// `b_max`.
+    #[must_use]
+    pub fn max_abs(&self) -> f64 {
+        self.max_abs
+    }
 }
 
 /// A track's biases, one slot per reader it has heard: a value the track owns.
@@ -93,6 +137,10 @@ pub struct BiasVector {
     values: DVector<f64>,
     covariance: DMatrix<f64>,
     time_s: Option<f64>,
+    /// Each slot's prior (slots beyond its length, from a vector stored before priors were
+    /// per slot, take the model's).
+    #[cfg_attr(feature = "serde", serde(default))]
+    priors: Vec<BiasPrior>,
 }
 
 impl BiasVector {
@@ -157,58 +205,78 @@ const PSEUDO_INVERSE_TOLERANCE: f64 = 1e-9;
 const PARITY_FALSE_ALARM: f64 = 1e-3;
 
 impl BiasModel {
-    /// A model with prior standard deviation `σ_b` (> 0), random walk `√q` (≥ 0, unit/√s) and
-    /// bound `b_max` (> 0).
+    /// A model with default prior standard deviation `σ_b` (> 0), random walk `√q` (≥ 0,
+    /// unit/√s) and default bound `b_max` (> 0); [`Self::add_reader_with`] gives a reader its
+    /// own prior and bound.
     ///
     /// # Errors
     /// [`EstimationError::InvalidParameter`] for a value outside those ranges or not finite.
     pub fn new(prior_std: f64, random_walk_per_sqrt_s: f64, max_abs: f64) -> Result<Self> {
-        let invalid = |name, reason| Err(EstimationError::InvalidParameter { name, reason });
-        if !(prior_std.is_finite() && prior_std > 0.0) {
-            return invalid("prior_std", "must be finite and > 0");
-        }
+        let prior = BiasPrior::new(prior_std, max_abs)?;
         if !(random_walk_per_sqrt_s.is_finite() && random_walk_per_sqrt_s >= 0.0) {
-            return invalid("random_walk_per_sqrt_s", "must be finite and ≥ 0");
-        }
-        if !(max_abs.is_finite() && max_abs > 0.0) {
-            return invalid("max_abs", "must be finite and > 0");
+            return Err(EstimationError::InvalidParameter {
+                name: "random_walk_per_sqrt_s",
+                reason: "must be finite and ≥ 0",
+            });
         }
         Ok(Self {
-            prior_std,
+            prior,
             random_walk_per_sqrt_s,
-            max_abs,
         })
     }
 
-    /// `σ_b`.
+    /// The default prior: `σ_b` and `b_max` of readers added by [`Self::add_reader`].
     #[must_use]
-    pub fn prior_std(&self) -> f64 {
-        self.prior_std
+    pub fn prior(&self) -> BiasPrior {
+        self.prior
+    }
+
+    /// The prior of `slot` in `biases`.
+    #[must_use]
+    pub fn prior_of(&self, biases: &BiasVector, slot: usize) -> BiasPrior {
+        biases.priors.get(slot).copied().unwrap_or(self.prior)
     }
 
     /// `(b̂, P_b⁻)` of `slot` predicted to `time_s` (the random walk since the vector's time,
-    /// capped at `σ_b²`), without predicting the whole vector.
+    /// capped at the slot's `σ_b²`), without predicting the whole vector.
     #[must_use]
     pub fn predicted(&self, biases: &BiasVector, slot: usize, time_s: f64) -> (f64, f64) {
         let dt_s = biases.time_s.map_or(0.0, |t| (time_s - t).max(0.0));
-        (biases.values[slot], self.walked(biases.covariance[(slot, slot)], dt_s))
+        let cap = self.prior_of(biases, slot).variance();
+        (
+            biases.values[slot],
+            self.walked(biases.covariance[(slot, slot)], dt_s, cap),
+        )
     }
 
-    /// `min(P + q Δt, σ_b²)`: a variance after `dt_s` of the random walk, never above the prior.
-    fn walked(&self, variance: f64, dt_s: f64) -> f64 {
+    /// `min(P + q Δt, σ_b²)`: a variance after `dt_s` of the random walk, never above the prior's
+    /// `prior_variance`.
+    fn walked(&self, variance: f64, dt_s: f64, prior_variance: f64) -> f64 {
         let q = self.random_walk_per_sqrt_s * self.random_walk_per_sqrt_s;
-        (variance + q * dt_s).min(self.prior_std * self.prior_std)
+        (variance + q * dt_s).min(prior_variance)
     }
 
-    /// Adds a reader to `biases` with the prior `N(0, σ_b²)`, uncorrelated with the others;
-    /// returns its slot.
+    /// Adds a reader to `biases` with the model's prior `N(0, σ_b²)`, uncorrelated with the
+    /// others; returns its slot.
     pub fn add_reader(&self, biases: &mut BiasVector) -> usize {
+        self.add_reader_with(biases, self.prior)
+    }
+
+    /// Adds a reader to `biases` with its own prior `N(0, σ_b²)` and bound, uncorrelated with
+    /// the others; returns its slot.
+    pub fn add_reader_with(&self, biases: &mut BiasVector, prior: BiasPrior) -> usize {
         let n = biases.values.len();
+        // slots stored before priors were per slot take the model's
+        while biases.priors.len() < n {
+            biases.priors.push(self.prior);
+        }
         biases.values = biases.values.clone().insert_row(n, 0.0);
         let mut covariance = DMatrix::zeros(n + 1, n + 1);
         covariance.view_mut((0, 0), (n, n)).copy_from(&biases.covariance);
-        covariance[(n, n)] = self.prior_std * self.prior_std;
+        covariance[(n, n)] = prior.variance();
         biases.covariance = covariance;
+        biases.priors.truncate(n);
+        biases.priors.push(prior);
         n
     }
 
@@ -224,9 +292,10 @@ impl BiasModel {
         }
         let mut predicted = biases.clone();
         let dt_s = biases.time_s.map_or(0.0, |t| (time_s - t).max(0.0));
-        // P_b⁻ = P_b + q Δt I, diagonal capped at σ_b²
+        // P_b⁻ = P_b + q Δt I, diagonal capped at each slot's σ_b²
         for i in 0..predicted.values.len() {
-            predicted.covariance[(i, i)] = self.walked(predicted.covariance[(i, i)], dt_s);
+            let cap = self.prior_of(biases, i).variance();
+            predicted.covariance[(i, i)] = self.walked(predicted.covariance[(i, i)], dt_s, cap);
         }
         predicted.time_s = Some(biases.time_s.map_or(time_s, |t| t.max(time_s)));
         Ok(predicted)
@@ -304,7 +373,12 @@ impl BiasModel {
         };
         // K = P_b Hᵀ S⁺, b̂ ← b̂ + K y, P_b ← P_b − K S Kᵀ
         let k = &p_ht * s_pinv;
-        let values = (&biases.values + &k * y).map(|b| b.clamp(-self.max_abs, self.max_abs));
+        // b̂ᵢ clamped to ±b_max of its slot
+        let mut values = &biases.values + &k * y;
+        for (slot, value) in values.iter_mut().enumerate() {
+            let bound = self.prior_of(biases, slot).max_abs();
+            *value = value.clamp(-bound, bound);
+        }
         let covariance = &biases.covariance - &k * &s * k.transpose();
         let covariance = (&covariance + covariance.transpose()) * 0.5;
         if !(values.iter().all(|v| v.is_finite()) && covariance.iter().all(|v| v.is_finite())) {
@@ -314,6 +388,7 @@ impl BiasModel {
             values,
             covariance,
             time_s: biases.time_s,
+            priors: biases.priors.clone(),
         })
     }
 }
@@ -439,6 +514,60 @@ mod tests {
             assert!(biases.variance(slot).sqrt() < 0.02, "{biases:?}");
         }
         assert_eq!((biases.value(4), biases.variance(4)), (0.0, 0.25));
+    }
+
+    /// A Wi-Fi responder's offset of metres among UWB anchors' decimetres: with the model's
+    /// prior (σ_b 0.2 m, bound 1 m) it is clamped at 1 m; with its own (σ_b 2 m, bound 10 m) it
+    /// is learnt. Each slot's random walk is capped at its own prior.
+    #[test]
+    fn a_reader_with_its_own_prior_learns_an_offset_beyond_the_models_bound() {
+        let readers = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
+        let truth = [0.1, -0.1, 0.05, 2.5];
+        let model = BiasModel::new(0.2, 0.01, 1.0).unwrap();
+        let wide = BiasPrior::new(2.0, 10.0).unwrap();
+        let learn = |own_prior: bool| {
+            let mut biases = BiasVector::default();
+            let mut slots: Vec<usize> = (0..3).map(|_| model.add_reader(&mut biases)).collect();
+            slots.push(if own_prior {
+                model.add_reader_with(&mut biases, wide)
+            } else {
+                model.add_reader(&mut biases)
+            });
+            for k in 0..400u32 {
+                let angle = f64::from(k) * 0.05;
+                let p = [5.0 + 3.0 * angle.cos(), 5.0 + 3.0 * angle.sin()];
+                let observations: Vec<BiasObservation> = readers
+                    .iter()
+                    .zip(truth)
+                    .zip(&slots)
+                    .map(|((a, b), &slot)| {
+                        let d = ((p[0] - a[0]).powi(2) + (p[1] - a[1]).powi(2)).sqrt();
+                        BiasObservation {
+                            innovation: b - biases.value(slot),
+                            variance: 0.01,
+                            noise_variance: 0.01,
+                            gradient: [(p[0] - a[0]) / d, (p[1] - a[1]) / d, 0.0],
+                        }
+                    })
+                    .collect();
+                biases = model.predict(&biases, f64::from(k) * 0.1).unwrap();
+                biases = model.update_observable(&biases, &slots, &observations, 2).unwrap();
+            }
+            (biases, slots)
+        };
+        let (own, slots) = learn(true);
+        assert!((own.value(slots[3]) - 2.5).abs() < 0.05, "{own:?}");
+        assert_eq!(model.prior_of(&own, slots[3]), wide);
+        assert_eq!(model.prior_of(&own, slots[0]), model.prior());
+        let (shared, slots) = learn(false);
+        assert!(shared.value(slots[3]) <= 1.0, "{shared:?}");
+        // after a long gap each variance walks back to its own prior, not the model's
+        let later = model.predict(&own, 1e6).unwrap();
+        assert!((later.variance(slots[3]) - 4.0).abs() < 1e-12);
+        assert!((later.variance(slots[0]) - 0.04).abs() < 1e-12);
+        assert!((model.predicted(&own, slots[3], 1e6).1 - 4.0).abs() < 1e-12);
+        assert!(BiasPrior::new(0.0, 1.0).is_err());
+        assert!(BiasPrior::new(1.0, f64::NAN).is_err());
     }
 
     #[test]
