@@ -226,14 +226,17 @@ pub struct RangeBiasSettings {
     /// Whether the offsets are estimated; `false` takes ranges as the site states them. Default
     /// true.
     pub enabled: bool,
-    /// Prior standard deviation of an anchor's remaining offset, m (> 0). Default 0.2: uncalibrated
-    /// UWB two-way ranging is typically 0.1–0.3 m long.
-    pub prior_std_m: f64,
+    /// Prior standard deviation of an anchor's remaining offset, m (> 0), for every reader that
+    /// does not state its own (`radio.range.offset_std_m`). `None` (the default): each reader's
+    /// technology's ([`crate::site::Technology::range_offset_prior_std_m`]: UWB 0.2, Wi-Fi 1.5,
+    /// ultrasonic 0.05, BLE and RFID 0.5, cellular 10).
+    pub prior_std_m: Option<f64>,
     /// Random walk of an offset, m/√s (≥ 0): temperature drift, the slow change of NLOS excess as a
     /// tag moves. Default 0.005 (0.1 m over about 7 minutes).
     pub random_walk_m_per_sqrt_s: f64,
-    /// The largest offset learnt, m (> 0). Default 1.
-    pub max_abs_m: f64,
+    /// The largest offset learnt, m (> 0), for every reader. `None` (the default): five times
+    /// the reader's prior standard deviation (1 m for UWB's 0.2 m).
+    pub max_abs_m: Option<f64>,
     /// Whether a tightly coupled EKF takes each range with its offset's error considered
     /// (Schmidt–Kalman: the track keeps its state's cross-covariance with the offsets' errors,
     /// so an error shared by every range of an anchor is not averaged away); `false` adds the
@@ -246,9 +249,9 @@ impl Default for RangeBiasSettings {
     fn default() -> Self {
         Self {
             enabled: true,
-            prior_std_m: 0.2,
+            prior_std_m: None,
             random_walk_m_per_sqrt_s: 0.005,
-            max_abs_m: 1.0,
+            max_abs_m: None,
             consider: true,
         }
     }

@@ -244,6 +244,9 @@ pub(super) fn checks(site: &Site) -> Vec<Check> {
             out.push(within(at("range_std_m"), range.range_std_m, RANGE_STD_M));
             out.push(within(at("bias_m"), range.bias_m, RANGE_BIAS_M));
             out.push(within(at("scale"), range.scale, RANGE_SCALE));
+            if let Some(offset_std_m) = range.offset_std_m {
+                out.push(within(at("offset_std_m"), offset_std_m, BIAS_PRIOR_STD_M));
+            }
         }
     }
     for (i, corridor) in site.corridors.iter().enumerate() {
@@ -480,14 +483,18 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
         CORRELATION_S,
     ));
     let range_bias = &t.range_bias;
+    if let Some(prior_std_m) = range_bias.prior_std_m {
+        out.push(within(at("range_bias.prior_std_m"), prior_std_m, BIAS_PRIOR_STD_M));
+    }
+    if let Some(max_abs_m) = range_bias.max_abs_m {
+        out.push(within(at("range_bias.max_abs_m"), max_abs_m, BIAS_MAX_M));
+    }
     for (key, value, bounds) in [
-        ("range_bias.prior_std_m", range_bias.prior_std_m, BIAS_PRIOR_STD_M),
         (
             "range_bias.random_walk_m_per_sqrt_s",
             range_bias.random_walk_m_per_sqrt_s,
             BIAS_RANDOM_WALK,
         ),
-        ("range_bias.max_abs_m", range_bias.max_abs_m, BIAS_MAX_M),
         ("consistency.window_s", t.consistency.window_s, CONSISTENCY_WINDOW_S),
         (
             "consistency.probability",

@@ -20,6 +20,25 @@ pub enum Technology {
     Ultrasonic,
 }
 
+impl Technology {
+    /// The prior standard deviation of an uncalibrated reader's range offset, m, when neither
+    /// the reader (`radio.range.offset_std_m`) nor the site (`tracker.range_bias.prior_std_m`)
+    /// states one: UWB two-way ranging 0.2 (antenna delays leave ranges 0.1–0.3 m long); Wi-Fi
+    /// round-trip time 1.5 (fine-time-measurement offsets of 0.5–3 m per responder and phone
+    /// model); ultrasonic 0.05 (a transducer's delay of tens of µs at 343 m/s); BLE and RFID
+    /// ranges (phase or channel sounding) 0.5; cellular 10 (a base station's timing offset).
+    #[must_use]
+    pub fn range_offset_prior_std_m(self) -> f64 {
+        match self {
+            Self::Uwb => 0.2,
+            Self::Wifi => 1.5,
+            Self::Ultrasonic => 0.05,
+            Self::Ble | Self::Rfid => 0.5,
+            Self::Cellular => 10.0,
+        }
+    }
+}
+
 /// One fixed reader / anchor.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -114,6 +133,13 @@ pub struct RangeErrors {
     /// difference is taken as it comes. `rtls tune --truth` fits it.
     #[serde(default = "unit_scale")]
     pub scale: f64,
+    /// The standard deviation of this reader's range offset that remains after `bias_m`, m
+    /// (> 0): the prior of the offset a track learns (`[tracker.range_bias]`). `None` (the
+    /// default): `tracker.range_bias.prior_std_m`, or the reader's technology's default
+    /// ([`Technology::range_offset_prior_std_m`]). `rtls tune --truth` writes it from the
+    /// spread of the calibrated offset over the calibration recording.
+    #[serde(default)]
+    pub offset_std_m: Option<f64>,
 }
 
 fn unit_scale() -> f64 {

@@ -2,11 +2,11 @@
 
 use std::sync::Arc;
 
+use super::range_bias::OffsetModel;
 use rtls_estimation::adaptive::corrections::CorrectionTest;
 use rtls_estimation::adaptive::correlation::ErrorCorrelation;
 use rtls_estimation::adaptive::AdaptiveNoise;
 use rtls_estimation::aided::HeadingModel;
-use rtls_estimation::bias::BiasModel;
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, SigmaPointParameters, UnscentedKalmanFilter};
 use rtls_estimation::motion::{ConstantVelocity, ProcessNoise};
 use rtls_estimation::stats::chi_square_quantile;
@@ -119,11 +119,7 @@ impl Tracker {
                 settings.heading.odometer_offset_std_rad,
             )?,
             range_bias: if settings.range_bias.enabled {
-                Some(BiasModel::new(
-                    settings.range_bias.prior_std_m,
-                    settings.range_bias.random_walk_m_per_sqrt_s,
-                    settings.range_bias.max_abs_m,
-                )?)
+                Some(OffsetModel::new(&settings.range_bias, site)?)
             } else {
                 None
             },

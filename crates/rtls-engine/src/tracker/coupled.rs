@@ -188,24 +188,25 @@ pub(super) fn coupled_update<const N: usize>(
             if let (Some(bias_model), Some((_, offset_variance_m2)), AnchorReading::Range { variance_m2, .. }) =
                 (&shared.range_bias, bias_prior, reading)
             {
-                // learn only from a confirmed track whose prediction is at least as sure as the
-                // reading and as the offsets' prior along it (H P⁻ Hᵀ ≤ min(λ c σ², σ_b²)): a
-                // start-up track's large errors are not linear in the position, and the
-                // projection would not remove them
+                // learn only from a confirmed track whose prediction's error is linear in the
+                // range: the round's projection removes the error along each range, not the
+                // second-order part δ_⊥²/(2 d) of the error across it, so its expectation must be
+                // small against the reading's noise, (tr P⁻ₚₚ − H P⁻ Hᵀ) / (2 d) ≤ ½ σ (a
+                // start-up track's metres of error are not). No bound against the offsets' prior:
+                // an offset of metres (Wi-Fi round-trip time) leaves the position that uncertain
+                // until it is learnt.
                 let reading_variance_m2 = scale * variance_m2;
                 let predicted_variance_m2 = considered.as_ref().map_or_else(
                     || updated.innovation_covariance[(0, 0)] - reading_variance_m2 - offset_variance_m2,
                     |considered| considered.prediction_variance_m2,
                 );
-                let prior_variance_m2 = bias_model.prior_std() * bias_model.prior_std();
+                let linear = second_order_range_error_m::<N>(&model, &prior.state, predicted_variance_m2)
+                    .is_some_and(|error_m| error_m <= 0.5 * variance_m2.sqrt());
                 let correlation_s = shared.settings.adaptive_noise.correlation_s;
                 if outside_gate(shared, track, &updated) {
                     // the prediction this round is measured against is in doubt
                     track.range_bias.discard_round();
-                } else if is_gated(track)
-                    && predicted_variance_m2 <= reading_variance_m2.min(prior_variance_m2)
-                    && track.range_bias.wants(time_s, correlation_s)
-                {
+                } else if is_gated(track) && linear && track.range_bias.wants(time_s, correlation_s) {
                     // the reading's part in its round: ν, λ σ² (one look) and ∂h/∂p at the
                     // prediction
                     if let Ok(jacobian) = MeasurementModel::jacobian(&model, prior.state.mean()) {
@@ -324,6 +325,23 @@ fn considered_range<const N: usize>(
             prediction_variance_m2,
         },
     ))
+}
+
+/// The expected second-order error of a range predicted from an uncertain position,
+/// `E[δ_⊥²] / (2 d) = (tr P⁻ₚₚ − H P⁻ Hᵀ) / (2 d)` (m), `d` the predicted slant distance,
+/// `P⁻ₚₚ` the position block and `H P⁻ Hᵀ` (`along_m2`) the variance along the range; `None`
+/// when it cannot be computed (a tag on its anchor).
+fn second_order_range_error_m<const N: usize>(
+    model: &AnchorMeasurement,
+    prior: &Gaussian<N>,
+    along_m2: f64,
+) -> Option<f64> {
+    let distance_m = MeasurementModel::<N>::predict(model, prior.mean()).ok()?[0];
+    // tr P⁻ₚₚ over the position entries (x, y[, z] at 0, 2[, 4])
+    let trace_m2: f64 = (0..dimensions::<N>())
+        .map(|axis| prior.covariance()[(2 * axis, 2 * axis)])
+        .sum();
+    (distance_m > 1e-6).then(|| (trace_m2 - along_m2).max(0.0) / (2.0 * distance_m))
 }
 
 /// Whether ranges are taken with their offsets' errors considered: `[tracker.range_bias]`

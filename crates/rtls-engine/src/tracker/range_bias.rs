@@ -3,7 +3,64 @@
 //! ([`rtls_estimation::bias`]).
 
 use nalgebra::DMatrix;
-use rtls_estimation::bias::{BiasModel, BiasObservation, BiasVector};
+use rtls_estimation::bias::{BiasModel, BiasObservation, BiasPrior, BiasVector};
+
+use crate::error::Result;
+use crate::site::{RangeBiasSettings, Site};
+
+/// A reader's largest learnt offset, in multiples of its prior standard deviation, when the
+/// site does not bound them (`tracker.range_bias.max_abs_m`).
+const MAX_ABS_PRIOR_STDS: f64 = 5.0;
+
+/// The offsets' model: the random walk, and each anchor's prior and bound (`[tracker.range_bias]`
+/// with each reader's `radio.range.offset_std_m` and technology). An immutable strategy.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct OffsetModel {
+    pub(super) bias: BiasModel,
+    /// By anchor index (the site's reader order).
+    priors: Vec<BiasPrior>,
+}
+
+impl OffsetModel {
+    /// Each reader's prior: its own `radio.range.offset_std_m`, else the site's `prior_std_m`,
+    /// else its technology's default; bound the site's `max_abs_m`, else 5 σ_b.
+    ///
+    /// # Errors
+    /// [`crate::error::EngineError`] for a prior or bound that is not finite and > 0, or a
+    /// negative random walk (the site loader's range checks refuse them first).
+    pub(super) fn new(settings: &RangeBiasSettings, site: &Site) -> Result<Self> {
+        let prior = |std_m: f64| BiasPrior::new(std_m, settings.max_abs_m.unwrap_or(MAX_ABS_PRIOR_STDS * std_m));
+        let priors = site
+            .readers
+            .iter()
+            .map(|reader| {
+                let own = reader
+                    .radio
+                    .as_ref()
+                    .and_then(|r| r.range.as_ref())
+                    .and_then(|r| r.offset_std_m);
+                prior(
+                    own.or(settings.prior_std_m)
+                        .unwrap_or(reader.technology.range_offset_prior_std_m()),
+                )
+            })
+            .collect::<std::result::Result<Vec<_>, _>>()?;
+        // readers outside the site (none today) take UWB's
+        let default_std_m = settings
+            .prior_std_m
+            .unwrap_or(crate::site::Technology::Uwb.range_offset_prior_std_m());
+        let default = prior(default_std_m)?;
+        Ok(Self {
+            bias: BiasModel::new(default.std(), settings.random_walk_m_per_sqrt_s, default.max_abs())?,
+            priors,
+        })
+    }
+
+    /// The prior of `anchor`'s offset.
+    pub(super) fn prior(&self, anchor: usize) -> BiasPrior {
+        self.priors.get(anchor).copied().unwrap_or(self.bias.prior())
+    }
+}
 
 /// Readings older than this (behind the newest) leave the round: the position errors the
 /// projection removes must be the same for every reading of a round, s.
@@ -63,23 +120,23 @@ pub(crate) struct RangeBiases {
 
 impl RangeBiases {
     /// `(b̂, P_b⁻)` of `anchor` at `time_s`: `(0, σ_b²)` before it has been learnt.
-    pub(super) fn offset(&self, model: &BiasModel, anchor: usize, time_s: f64) -> (f64, f64) {
+    pub(super) fn offset(&self, model: &OffsetModel, anchor: usize, time_s: f64) -> (f64, f64) {
         match self.slots.get(anchor).copied().flatten() {
-            Some(slot) => model.predicted(&self.biases, slot, time_s),
-            None => (0.0, model.prior_std() * model.prior_std()),
+            Some(slot) => model.bias.predicted(&self.biases, slot, time_s),
+            None => (0.0, model.prior(anchor).variance()),
         }
     }
 
     /// The slot of `anchor`, added with the prior `N(0, σ_b²)` on first use: a considered
     /// range needs its offset's slot before any round has learnt it.
-    pub(super) fn slot(&mut self, model: &BiasModel, anchor: usize) -> usize {
+    pub(super) fn slot(&mut self, model: &OffsetModel, anchor: usize) -> usize {
         if self.slots.len() <= anchor {
             self.slots.resize(anchor + 1, None);
         }
         if let Some(slot) = self.slots[anchor] {
             return slot;
         }
-        let slot = model.add_reader(&mut self.biases);
+        let slot = model.bias.add_reader_with(&mut self.biases, model.prior(anchor));
         self.slots[anchor] = Some(slot);
         self.prior_only.resize(slot + 1, false);
         self.prior_only[slot] = true;
@@ -88,8 +145,8 @@ impl RangeBiases {
 
     /// `(P_bᵢᵢ, P_b[i, ·])` of slot `i` at `time_s`: its variance after the random walk, and its
     /// row (the other entries do not walk; entry `i` is the walked variance too).
-    pub(super) fn covariance_column(&self, model: &BiasModel, slot: usize, time_s: f64) -> (f64, Vec<f64>) {
-        let variance = model.predicted(&self.biases, slot, time_s).1;
+    pub(super) fn covariance_column(&self, model: &OffsetModel, slot: usize, time_s: f64) -> (f64, Vec<f64>) {
+        let variance = model.bias.predicted(&self.biases, slot, time_s).1;
         // P_b is symmetric: its row i is its column i
         let mut row: Vec<f64> = self.biases.covariance().column(slot).iter().copied().collect();
         row[slot] = variance;
@@ -111,7 +168,7 @@ impl RangeBiases {
     /// [`BiasModel::update_observable`]), and a new round starts if one is wanted.
     pub(super) fn observe(
         &mut self,
-        model: &BiasModel,
+        model: &OffsetModel,
         anchor: usize,
         reading: RoundReading,
         time_s: f64,
@@ -138,7 +195,7 @@ impl RangeBiases {
     /// epoch's fix, one per anchor), if one is wanted: the open round is replaced by it.
     pub(super) fn learn_epoch(
         &mut self,
-        model: &BiasModel,
+        model: &OffsetModel,
         readings: &[(usize, RoundReading)],
         time_s: f64,
         dimensions: usize,
@@ -172,7 +229,7 @@ impl RangeBiases {
     ///
     /// A round `Δt` after the last one counts as `1 / max(1, 2 τ_c / Δt)` of independent looks
     /// (each reading's variance `c σ²`, the filter's rule for correlated errors).
-    fn learn(&mut self, model: &BiasModel, dimensions: usize, correlation_s: f64) -> Learning {
+    fn learn(&mut self, model: &OffsetModel, dimensions: usize, correlation_s: f64) -> Learning {
         if self.round.len() <= dimensions {
             return Learning::Nothing;
         }
@@ -193,8 +250,10 @@ impl RangeBiases {
             })
             .collect();
         self.last_learnt_s = Some(newest_s);
-        let learnt = model.predict(&self.biases, newest_s).and_then(|predicted| {
-            let posterior = model.update_observable(&predicted, &slots, &observations, dimensions)?;
+        let learnt = model.bias.predict(&self.biases, newest_s).and_then(|predicted| {
+            let posterior = model
+                .bias
+                .update_observable(&predicted, &slots, &observations, dimensions)?;
             Ok((predicted, posterior))
         });
         match learnt {

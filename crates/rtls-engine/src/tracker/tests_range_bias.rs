@@ -7,6 +7,7 @@ use rand_distr::{Distribution, Normal};
 
 use super::tests::{horizontal_nees, range_record, run, site, slant, ANCHORS};
 use super::*;
+use crate::site::Site;
 
 /// A walker on a circle of radius 6 m about the square's centre, one lap per 40 s.
 fn circle(t: f64) -> [f64; 2] {
@@ -188,4 +189,50 @@ fn considered_offsets_keep_the_ellipses_of_a_standing_tag_honest() {
         considered_rmse < 1.05 * fresh_rmse,
         "{fresh_rmse} -> {considered_rmse} m"
     );
+}
+
+/// Wi-Fi round-trip-time responders' offsets beyond the site's `bias_m` (0.2 m), m: metres,
+/// not UWB's decimetres.
+const WIFI_OFFSETS_M: [f64; 4] = [1.8, -0.6, 1.2, 2.4];
+
+/// The square's readers as Wi-Fi responders, range σ 0.3 m, with `range_bias` set to `settings`.
+fn wifi_site(settings: &str) -> Site {
+    let text = super::tests::site_text("tightly-coupled", "ekf", &format!("range_bias = {{ {settings} }}"))
+        .replace("technology = \"uwb\"", "technology = \"wifi\"")
+        .replace("range_std_m = 0.1", "range_std_m = 0.3");
+    Site::from_toml_str(&text, "wifi-site.toml").unwrap()
+}
+
+/// A reader's technology sets its offset's prior when neither it nor the site states one: Wi-Fi
+/// responders' offsets of metres are learnt with Wi-Fi's (σ_b 1.5 m, bound 7.5 m), where UWB's
+/// (0.2 m, bound 1 m) clamps them and takes the rest as a position error.
+#[test]
+fn a_wifi_readers_offsets_of_metres_are_learnt_with_its_technologys_prior() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let noise = Normal::new(0.0, 0.3).unwrap();
+    // one range per 50 ms round robin (5 Hz per responder) for 180 s
+    let records: Vec<Record> = (0..3600usize)
+        .map(|k| {
+            let t = k as f64 * 0.05;
+            let (id, a) = ANCHORS[k % 4];
+            range_record(
+                t,
+                "w1",
+                id,
+                slant(circle(t), a) + 0.2 + WIFI_OFFSETS_M[k % 4] + noise.sample(&mut rng),
+            )
+        })
+        .collect();
+    let [(wifi_rmse, wifi_inside), (uwb_rmse, uwb_inside)] = ["", "prior_std_m = 0.2"].map(|settings| {
+        let mut tracker = Tracker::new(&wifi_site(settings)).unwrap();
+        let out = run(&mut tracker, records.clone());
+        score(&out, 60.0)
+    });
+    println!(
+        "Wi-Fi prior: {wifi_rmse:.3} m, {:.1} % inside; UWB's: {uwb_rmse:.3} m, {:.1} % inside",
+        100.0 * wifi_inside,
+        100.0 * uwb_inside
+    );
+    assert!(wifi_rmse < 0.6 * uwb_rmse, "{wifi_rmse} vs {uwb_rmse}");
+    assert!(wifi_inside > 0.85, "{wifi_inside}");
 }

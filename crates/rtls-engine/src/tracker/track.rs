@@ -9,7 +9,6 @@ use rtls_estimation::adaptive::corrections::{CorrectionTest, CorrectionWindow};
 use rtls_estimation::adaptive::correlation::ErrorCorrelation;
 use rtls_estimation::adaptive::AdaptiveNoise;
 use rtls_estimation::aided::HeadingModel;
-use rtls_estimation::bias::BiasModel;
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter};
 use rtls_estimation::imm::ImmState;
 use rtls_estimation::motion::ConstantVelocity;
@@ -27,7 +26,7 @@ use super::modes::Manoeuvres;
 use super::noise::NoiseScales;
 use super::offset_cross::OffsetCross;
 use super::output::{Event, UpdateSource};
-use super::range_bias::RangeBiases;
+use super::range_bias::{OffsetModel, RangeBiases};
 use super::schedule::{Scheduling, TrackSchedule};
 use crate::lifecycle::{Lifecycle, LifecycleSettings, TrackStatus};
 use crate::radio_map::RadioMap;
@@ -76,7 +75,7 @@ pub(crate) struct Shared {
     pub(crate) heading_model: HeadingModel,
     /// Anchors' range offsets as each track learns them (`[tracker.range_bias]`); `None` when
     /// disabled.
-    pub(crate) range_bias: Option<BiasModel>,
+    pub(crate) range_bias: Option<OffsetModel>,
     /// The test of each track's consistency from its corrections (`[tracker.consistency]`);
     /// `None` when disabled.
     pub(crate) consistency: Option<CorrectionTest>,
