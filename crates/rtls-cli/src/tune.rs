@@ -190,6 +190,9 @@ fn tuned_site_text(
                 let errors = sub_table(radio, "range");
                 errors.insert("range_std_m", value(round(range.range_std_m)));
                 errors.insert("bias_m", value(round(range.bias_m)));
+                if let Some(offset_std_m) = range.offset_std_m {
+                    errors.insert("offset_std_m", value(round(offset_std_m)));
+                }
                 if range.scale != 1.0 {
                     errors.insert("scale", value((range.scale * 1e6).round() / 1e6));
                 }
@@ -380,8 +383,15 @@ fn text_report(tuning: &Tuning, records: usize, out: &Path) -> String {
         if let Some(r) = fit.range {
             let _ = write!(
                 text,
-                " range bias {:.3} m, σ {:.3} m, scale {:.4} ({} ranges)",
-                r.bias_m, r.range_std_m, r.scale, r.samples
+                " range bias {:.3} m{}, σ {:.3} m, scale {:.4} ({} ranges)",
+                r.bias_m,
+                r.offset_std_m.map_or_else(
+                    || " (too few ranges for its spread)".to_string(),
+                    |s| format!(" ± {s:.3} m")
+                ),
+                r.range_std_m,
+                r.scale,
+                r.samples
             );
         }
         if let Some(p) = fit.path_loss {
@@ -423,7 +433,7 @@ fn json_report(tuning: &Tuning, records: usize) -> serde_json::Value {
         .map(|r| {
             serde_json::json!({
                 "reader": r.reader,
-                "range": r.range.map(|f| serde_json::json!({"bias_m": f.bias_m, "range_std_m": f.range_std_m, "scale": f.scale, "samples": f.samples})),
+                "range": r.range.map(|f| serde_json::json!({"bias_m": f.bias_m, "offset_std_m": f.offset_std_m, "range_std_m": f.range_std_m, "scale": f.scale, "samples": f.samples})),
                 "path_loss": r.path_loss.map(|f| serde_json::json!({
                     "reference_power_dbm": f.reference_power_dbm, "exponent": f.exponent,
                     "shadowing_std_db": f.shadowing_std_db, "samples": f.samples,

@@ -38,9 +38,27 @@ pub struct RangeFit {
     /// 1 m, enough to tell a scale from a bias, and it differs from 1 by more than 3 standard
     /// errors).
     pub scale: f64,
+    /// The standard deviation of the offset that remains after `bias_m` (and `scale`), m: how
+    /// much the mean residual moves between contiguous blocks of the recording beyond what the
+    /// noise explains, with the bias's own standard error (at least 1 cm); `None` for fewer
+    /// than 200 ranges (10 blocks of 20), too few to tell (the site's prior then stays). Written as the reader's `offset_std_m`: the prior of
+    /// the offset a track learns.
+    pub offset_std_m: Option<f64>,
     /// Residuals used.
     pub samples: usize,
 }
+
+/// The least offset standard deviation `rtls tune` writes, m: a calibrated delay is known to
+/// about a centimetre (a tag's antenna turning changes it by that much).
+pub const MIN_OFFSET_STD_M: f64 = 0.01;
+
+/// The contiguous blocks of a reader's ranges whose means estimate the spread of its offset
+/// (the spread's estimate has `B − 1` degrees of freedom: with three blocks, as a minute of
+/// calibration walk gives, it is off by a factor of two one time in four).
+pub const OFFSET_BLOCKS: usize = 10;
+
+/// The least ranges a block holds.
+pub const OFFSET_BLOCK_SAMPLES: usize = 20;
 
 /// Contiguous blocks of a reader's RSSI samples (in record order) for the path-loss
 /// cross-validation; contiguous because shadowing persists along a walk, so interleaved folds
@@ -159,12 +177,53 @@ fn fit_range(samples: &[(f64, f64)]) -> RangeFit {
         .collect();
     let (bias_m, scale) = line_fit(&inliers).unwrap_or((bias_0, 1.0));
     let range_std_m = robust_std(samples.iter().map(|(d, r)| r - scale * d), bias_m);
+    let residuals: Vec<f64> = samples
+        .iter()
+        .map(|(d, r)| r - scale * d - bias_m)
+        .filter(|e| e.abs() <= SCALE_FIT_OUTLIER_SIGMAS * std_0)
+        .collect();
     RangeFit {
         bias_m,
         range_std_m,
         scale,
+        offset_std_m: offset_spread(&residuals),
         samples: samples.len(),
     }
+}
+
+/// The standard deviation of the offset left in `residuals` (`e = r − s d − b`, record order):
+/// split into `B` contiguous blocks of `nⱼ` residuals with means `ēⱼ`,
+///
+/// ```text
+/// σ_o² = max(0, var(ēⱼ) − mean(σ̂²/nⱼ)) + σ̂²/n,   σ̂² = var(e)
+/// ```
+///
+/// the spread of the block means beyond white noise (an offset that moves with position,
+/// NLOS or temperature; noise correlated over less than a block counts as white) plus the
+/// squared standard error of `b`; at least [`MIN_OFFSET_STD_M`]. `None` for fewer than
+/// `B` × [`OFFSET_BLOCK_SAMPLES`] residuals, `B` = [`OFFSET_BLOCKS`].
+fn offset_spread(residuals: &[f64]) -> Option<f64> {
+    let n = residuals.len();
+    let blocks = OFFSET_BLOCKS;
+    if n < blocks * OFFSET_BLOCK_SAMPLES {
+        return None;
+    }
+    let mean = |values: &[f64]| values.iter().sum::<f64>() / values.len() as f64;
+    let total_mean = mean(residuals);
+    // σ̂² = Σ (e − ē)² / (n − 1)
+    let variance = residuals.iter().map(|e| (e - total_mean).powi(2)).sum::<f64>() / (n as f64 - 1.0).max(1.0);
+    let (block_means, noise_parts): (Vec<f64>, Vec<f64>) = (0..blocks)
+        .map(|j| {
+            let block = &residuals[j * n / blocks..(j + 1) * n / blocks];
+            (mean(block), variance / block.len() as f64)
+        })
+        .unzip();
+    let centre = mean(&block_means);
+    // var(ēⱼ) over the blocks, and what white noise alone would give it
+    let between = block_means.iter().map(|m| (m - centre).powi(2)).sum::<f64>() / (blocks as f64 - 1.0);
+    let white = mean(&noise_parts);
+    let offset_variance = (between - white).max(0.0) + variance / n as f64;
+    Some(offset_variance.sqrt().max(MIN_OFFSET_STD_M))
 }
 
 /// `(b, s)` of least squares `r = s d + b`, when the distances spread enough and `s` differs
@@ -375,6 +434,7 @@ pub(super) fn apply(site: &mut Site, calibration: &[ReaderCalibration]) {
                 range_std_m: range.range_std_m,
                 bias_m: range.bias_m,
                 scale: range.scale,
+                offset_std_m: range.offset_std_m,
             });
         }
         if let Some(law) = fit.path_loss {
@@ -391,6 +451,37 @@ pub(super) fn apply(site: &mut Site, calibration: &[ReaderCalibration]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// White noise leaves only the bias's standard error (σ/√n, floored at 1 cm); an offset
+    /// that moves along the recording (a different value each minute, std 0.1 m) is found.
+    #[test]
+    fn the_offsets_spread_is_what_the_noise_does_not_explain() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let noise = Normal::new(0.0, 0.1).unwrap();
+        let white: Vec<f64> = (0..3000).map(|_| noise.sample(&mut rng)).collect();
+        assert_eq!(offset_spread(&white), Some(MIN_OFFSET_STD_M));
+        let loud = Normal::new(0.0, 1.0).unwrap();
+        let white_loud: Vec<f64> = (0..3000).map(|_| loud.sample(&mut rng)).collect();
+        // σ/√n = 1/√3000 = 0.018 m, and the block means' spread is noise
+        let spread = offset_spread(&white_loud).unwrap();
+        assert!((0.01..0.04).contains(&spread), "{spread}");
+        // ten minutes of 5 Hz ranges whose offset takes a new value N(0, 0.1²) each minute
+        let offsets: Vec<f64> = (0..10).map(|_| noise.sample(&mut rng)).collect();
+        let offset_std = {
+            let m = offsets.iter().sum::<f64>() / 10.0;
+            (offsets.iter().map(|o| (o - m).powi(2)).sum::<f64>() / 9.0).sqrt()
+        };
+        let moving: Vec<f64> = (0..3000).map(|k| offsets[k / 300] + noise.sample(&mut rng)).collect();
+        let spread = offset_spread(&moving).unwrap();
+        assert!(
+            (spread - offset_std).abs() < 0.2 * offset_std,
+            "{spread} vs {offset_std}"
+        );
+        // too few residuals to tell
+        assert_eq!(offset_spread(&moving[..199]), None);
+    }
 
     #[test]
     fn range_fit_is_robust_to_outliers() {
