@@ -73,6 +73,7 @@
 //! Tracking and Navigation* (2001), §11.2 (sensor bias estimation); the projection is the
 //! parity space of fault detection (Potter & Suman 1977).
 
+use alloc::vec::Vec;
 use nalgebra::{DMatrix, DVector};
 
 use crate::error::{EstimationError, Result};
