@@ -85,18 +85,85 @@ impl AnchorReading {
     }
 }
 
+/// Anchors whose plan positions spread less than this across their line, as a share of their
+/// spread along it, are taken as a line: a fix from their ranges alone has two mirror images
+/// across it.
+const LINE_SPREAD_RATIO: f64 = 0.1;
+
+/// `√(λ₂ / λ₁)` of the scatter of `points` (plan positions, m): 0 for points on a line (or
+/// fewer than two distinct), 1 for a spread equal in every direction.
+///
+/// ```text
+/// S = Σ (p − p̄)(p − p̄)ᵀ,   λ₁,₂ = (sₓₓ + s_yy)/2 ± √(((sₓₓ − s_yy)/2)² + sₓ_y²)
+/// ```
+pub(crate) fn plan_spread_ratio(points: &[[f64; 2]]) -> f64 {
+    let n = points.len() as f64;
+    if points.len() < 2 {
+        return 0.0;
+    }
+    // p̄
+    let mean = points
+        .iter()
+        .fold([0.0, 0.0], |m, p| [m[0] + p[0] / n, m[1] + p[1] / n]);
+    // sₓₓ, s_yy, sₓ_y
+    let (sxx, syy, sxy) = points.iter().fold((0.0, 0.0, 0.0), |(xx, yy, xy), p| {
+        let (dx, dy) = (p[0] - mean[0], p[1] - mean[1]);
+        (xx + dx * dx, yy + dy * dy, xy + dx * dy)
+    });
+    // λ₁ ≥ λ₂ of the 2 × 2 scatter
+    let half_trace = 0.5 * (sxx + syy);
+    let root = (0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy).sqrt();
+    let (largest, smallest) = (half_trace + root, (half_trace - root).max(0.0));
+    if largest > 0.0 {
+        (smallest / largest).sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// Whether plan positions lie (nearly) on one line ([`LINE_SPREAD_RATIO`]).
+pub(crate) fn on_a_line(points: &[[f64; 2]]) -> bool {
+    plan_spread_ratio(points) < LINE_SPREAD_RATIO
+}
+
 /// All readers of a site, indexed by id.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Anchors {
     by_id: HashMap<String, usize>,
     list: Vec<Anchor>,
+    /// Whether the working anchors lie on one line in plan (a drift's, a corridor's): then no
+    /// set of them resolves the mirror ambiguity, and a track starts from what it hears.
+    working_on_a_line: bool,
 }
 
 impl Anchors {
     pub(crate) fn new(site: &Site) -> Self {
         let list: Vec<Anchor> = site.readers.iter().map(Anchor::from_reader).collect();
         let by_id = list.iter().enumerate().map(|(i, a)| (a.id.clone(), i)).collect();
-        Self { by_id, list }
+        let working: Vec<[f64; 2]> = list
+            .iter()
+            .filter(|a| a.working)
+            .map(|a| [a.position_m[0], a.position_m[1]])
+            .collect();
+        Self {
+            by_id,
+            list,
+            working_on_a_line: on_a_line(&working),
+        }
+    }
+
+    /// Whether the site's working anchors lie on one line in plan.
+    pub(crate) fn working_on_a_line(&self) -> bool {
+        self.working_on_a_line
+    }
+
+    /// The plan position of `reading`'s anchor (the record's own for a moving anchor's range).
+    pub(crate) fn plan_position(&self, reading: &AnchorReading) -> [f64; 2] {
+        let position_m = match *reading {
+            AnchorReading::Range { position_m, .. } => position_m,
+            other => self.list[other.anchor()].position_m,
+        };
+        [position_m[0], position_m[1]]
     }
 
     pub(crate) fn get(&self, index: usize) -> &Anchor {

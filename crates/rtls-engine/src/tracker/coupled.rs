@@ -188,13 +188,14 @@ pub(super) fn coupled_update<const N: usize>(
             if let (Some(bias_model), Some((_, offset_variance_m2)), AnchorReading::Range { variance_m2, .. }) =
                 (&shared.range_bias, bias_prior, reading)
             {
-                // learn only from a confirmed track whose prediction's error is linear in the
-                // range: the round's projection removes the error along each range, not the
-                // second-order part δ_⊥²/(2 d) of the error across it, so its expectation must be
-                // small against the reading's noise, (tr P⁻ₚₚ − H P⁻ Hᵀ) / (2 d) ≤ ½ σ (a
-                // start-up track's metres of error are not). No bound against the offsets' prior:
-                // an offset of metres (Wi-Fi round-trip time) leaves the position that uncertain
-                // until it is learnt.
+                // learn only from a confirmed track whose prediction error is one the round's
+                // projection removes: linear in the range (the projection removes the error along
+                // each range, not the second-order part δ_⊥²/(2 d) across it: (tr P⁻ₚₚ − H P⁻ Hᵀ)
+                // / (2 d) ≤ ½ σ) and settled (H P⁻ Hᵀ ≤ λ c σ² + P_bᵢᵢ: no reading moves the
+                // state by more than half its error along the range, so the round's readings
+                // share one error). The offset's variance is in the bound because an offset of
+                // metres (Wi-Fi round-trip time) leaves the position that uncertain until it is
+                // learnt.
                 let reading_variance_m2 = scale * variance_m2;
                 let predicted_variance_m2 = considered.as_ref().map_or_else(
                     || updated.innovation_covariance[(0, 0)] - reading_variance_m2 - offset_variance_m2,
@@ -202,11 +203,12 @@ pub(super) fn coupled_update<const N: usize>(
                 );
                 let linear = second_order_range_error_m::<N>(&model, &prior.state, predicted_variance_m2)
                     .is_some_and(|error_m| error_m <= 0.5 * variance_m2.sqrt());
+                let settled = predicted_variance_m2 <= reading_variance_m2 + offset_variance_m2;
                 let correlation_s = shared.settings.adaptive_noise.correlation_s;
                 if outside_gate(shared, track, &updated) {
                     // the prediction this round is measured against is in doubt
                     track.range_bias.discard_round();
-                } else if is_gated(track) && linear && track.range_bias.wants(time_s, correlation_s) {
+                } else if is_gated(track) && linear && settled && track.range_bias.wants(time_s, correlation_s) {
                     // the reading's part in its round: ν, λ σ² (one look) and ∂h/∂p at the
                     // prediction
                     if let Ok(jacobian) = MeasurementModel::jacobian(&model, prior.state.mean()) {

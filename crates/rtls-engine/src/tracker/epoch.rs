@@ -37,6 +37,9 @@ pub(super) fn anchor_reading<const N: usize>(
         expire_initial_readings(shared, track, time_s, kind, out);
         track.epoch.push((time_s, reading));
         let readings: Vec<AnchorReading> = track.epoch.iter().map(|(_, r)| *r).collect();
+        if awaits_spanning_anchors(shared, track, &readings, time_s) {
+            return Ok(());
+        }
         // a failure waits for more readings; its reason is reported if the readings expire
         if let Ok(fixes) = solve::<N>(shared, &readings, None) {
             track.epoch.clear();
@@ -63,6 +66,35 @@ pub(super) fn anchor_reading<const N: usize>(
         track.early_closed_s = Some(start_s);
     }
     Ok(())
+}
+
+/// A tightly coupled track waits at most this long for readings of anchors off the line of
+/// those it has heard before it starts from them, s.
+pub(super) const SPANNING_WAIT_S: f64 = 1.0;
+
+/// Whether a tightly coupled track should wait before starting from `readings`: their anchors
+/// lie on one line in plan (the first three heard along one wall), so a fix from them may be
+/// the mirror image of the tag across it, metres off; the site has anchors off that line; and
+/// the first reading is less than [`SPANNING_WAIT_S`] old (a tag that hears only a line of
+/// anchors still starts).
+fn awaits_spanning_anchors<const N: usize>(
+    shared: &Shared,
+    track: &Track<N>,
+    readings: &[AnchorReading],
+    time_s: f64,
+) -> bool {
+    let first_s = track.epoch.first().map_or(time_s, |(t, _)| *t);
+    time_s - first_s < SPANNING_WAIT_S && tightly_coupled_awaits_line(shared, readings)
+}
+
+/// Whether `readings` come from anchors on one line in plan while the site has anchors off it
+/// (a tightly coupled track does not start from them before [`SPANNING_WAIT_S`]).
+fn tightly_coupled_awaits_line(shared: &Shared, readings: &[AnchorReading]) -> bool {
+    if shared.settings.pipeline != Pipeline::TightlyCoupled || shared.anchors.working_on_a_line() {
+        return false;
+    }
+    let points: Vec<[f64; 2]> = readings.iter().map(|r| shared.anchors.plan_position(r)).collect();
+    super::anchors::on_a_line(&points)
 }
 
 /// Whether the open epoch holds a reading of every reader of the tag's last epoch.
@@ -166,6 +198,11 @@ pub(super) fn expire_initial_readings<const N: usize>(
         let readings: Vec<AnchorReading> = track.epoch.iter().map(|(_, r)| *r).collect();
         let why = match solve::<N>(shared, &readings, None) {
             Err(reason) if !reason.is_empty() => format!(": {reason}"),
+            Ok(_) if tightly_coupled_awaits_line(shared, &readings) => {
+                ": their anchors lie on one line, and a fix from them alone may be the tag's mirror \
+                 image across it (the track waits up to 1 s for an anchor off the line)"
+                    .to_string()
+            }
             _ => String::new(),
         };
         let reason = format!("{expired} reading(s) expired before enough anchors could initialise the track{why}");

@@ -435,3 +435,91 @@ fn random_epochs_give_bounded_fixes_or_reasons() {
     eprintln!("random epochs: {solved} solved, {refused} refused with a reason");
     assert!(solved > 30 && refused > 30, "{solved} {refused}");
 }
+
+/// Three anchors along a wall (y ≈ 0) and one across the room.
+const WALL: [(&str, [f64; 3]); 4] = [
+    ("W1", [0.0, 0.0, 2.5]),
+    ("W2", [10.0, 0.05, 2.5]),
+    ("W3", [20.0, 0.0, 2.5]),
+    ("F", [10.0, 15.0, 2.5]),
+];
+
+/// A tag at rest at (12, 5) heard by the anchors of `WALL[..count]` in turn, one range per
+/// 50 ms, for `seconds`; W2's ranges are 0.09 m long, so the tag's mirror image across the
+/// wall, (12, −5.1), fits the three wall ranges better than the truth does.
+fn wall_records(count: usize, seconds: f64) -> Vec<Record> {
+    (0..(seconds * 20.0) as usize)
+        .map(|k| {
+            let (id, a) = WALL[k % count];
+            let error_m = if id == "W2" { 0.09 } else { 0.0 };
+            Record {
+                time_s: k as f64 * 0.05,
+                tag: "t".into(),
+                measurement: Measurement::Range {
+                    anchor: id.into(),
+                    range_m: slant([12.0, 5.0, 1.0], a) + error_m,
+                    std_m: None,
+                    anchor_position_m: None,
+                },
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn plan_spread_ratio_tells_a_line_from_a_spread() {
+    use crate::tracker::anchors::{on_a_line, plan_spread_ratio};
+    assert_eq!(plan_spread_ratio(&[[1.0, 1.0]]), 0.0);
+    assert_eq!(plan_spread_ratio(&[[0.0, 0.0], [3.0, 4.0], [6.0, 8.0]]), 0.0);
+    // a square spreads equally: √(λ₂/λ₁) = 1
+    let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    assert!((plan_spread_ratio(&square) - 1.0).abs() < 1e-12);
+    let wall: Vec<[f64; 2]> = WALL[..3].iter().map(|(_, p)| [p[0], p[1]]).collect();
+    assert!(on_a_line(&wall));
+    let room: Vec<[f64; 2]> = WALL.iter().map(|(_, p)| [p[0], p[1]]).collect();
+    assert!(!on_a_line(&room));
+}
+
+/// The first three anchors a tightly coupled track hears lie along a wall: a fix from them may
+/// be the tag's mirror image across it, 10 m off. The track waits for the anchor across the room
+/// (50 ms later) and starts where the tag is.
+#[test]
+fn a_tightly_coupled_track_does_not_start_from_a_line_of_anchors_when_the_site_has_more() {
+    let site = make_site(&WALL, "tightly-coupled", false);
+    let out = run(&site, wall_records(4, 3.0));
+    let first = out.fixes.first().expect("a track starts");
+    assert!(
+        first.time_s >= 0.15,
+        "started at {} s from the wall's anchors alone",
+        first.time_s
+    );
+    for update in out.updates.iter().filter(|u| !u.predicted) {
+        let error_m = (update.position_m[0] - 12.0).hypot(update.position_m[1] - 5.0);
+        assert!(error_m < 0.5, "{update:?}");
+    }
+    // a tag that hears only the wall still starts, after the wait (1 s)
+    let out = run(&site, wall_records(3, 3.0));
+    let first = out
+        .fixes
+        .first()
+        .expect("a track starts from the wall's anchors after the wait");
+    assert!(
+        first.time_s >= crate::tracker::epoch::SPANNING_WAIT_S,
+        "{}",
+        first.time_s
+    );
+    // a recording shorter than the wait says why it gave no track
+    let out = run(&site, wall_records(3, 0.5));
+    assert!(out.fixes.is_empty());
+    assert!(
+        out.events
+            .iter()
+            .any(|e| matches!(e, Event::Rejected { reason, .. } if reason.contains("lie on one line"))),
+        "{:?}",
+        out.events
+    );
+    // a site whose anchors all lie along the drift starts from them at once
+    let drift = make_site(&WALL[..3], "tightly-coupled", false);
+    let out = run(&drift, wall_records(3, 3.0));
+    assert!(out.fixes.first().expect("a track starts").time_s < 0.15);
+}
