@@ -90,17 +90,16 @@ impl AnchorReading {
 /// across it.
 const LINE_SPREAD_RATIO: f64 = 0.1;
 
-/// `√(λ₂ / λ₁)` of the scatter of `points` (plan positions, m): 0 for points on a line (or
-/// fewer than two distinct), 1 for a spread equal in every direction.
+/// `[λ₁, λ₂]`, `λ₁ ≥ λ₂`, of the scatter of `points` (plan positions, m):
 ///
 /// ```text
 /// S = Σ (p − p̄)(p − p̄)ᵀ,   λ₁,₂ = (sₓₓ + s_yy)/2 ± √(((sₓₓ − s_yy)/2)² + sₓ_y²)
 /// ```
-pub(crate) fn plan_spread_ratio(points: &[[f64; 2]]) -> f64 {
-    let n = points.len() as f64;
-    if points.len() < 2 {
-        return 0.0;
+fn plan_scatter(points: &[[f64; 2]]) -> [f64; 2] {
+    if points.is_empty() {
+        return [0.0, 0.0];
     }
+    let n = points.len() as f64;
     // p̄
     let mean = points
         .iter()
@@ -110,15 +109,44 @@ pub(crate) fn plan_spread_ratio(points: &[[f64; 2]]) -> f64 {
         let (dx, dy) = (p[0] - mean[0], p[1] - mean[1]);
         (xx + dx * dx, yy + dy * dy, xy + dx * dy)
     });
-    // λ₁ ≥ λ₂ of the 2 × 2 scatter
     let half_trace = 0.5 * (sxx + syy);
     let root = (0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy).sqrt();
-    let (largest, smallest) = (half_trace + root, (half_trace - root).max(0.0));
+    [half_trace + root, (half_trace - root).max(0.0)]
+}
+
+/// `√(λ₂ / λ₁)` of the scatter of `points` (plan positions, m; see [`plan_scatter`]): 0 for
+/// points on a line (or fewer than two distinct), 1 for a spread equal in every direction.
+pub(crate) fn plan_spread_ratio(points: &[[f64; 2]]) -> f64 {
+    let [largest, smallest] = plan_scatter(points);
     if largest > 0.0 {
         (smallest / largest).sqrt()
     } else {
         0.0
     }
+}
+
+/// How far below anchors that hang at one height a 3-D fix starts, m: only the side of their
+/// plane matters (the fix's two mirror images lie on either side), and tags are carried below
+/// the anchors.
+const BELOW_ANCHORS_M: f64 = 1.5;
+
+/// A start for a 3-D fix from anchors at `points` (m) when they hang at one height (their
+/// heights' spread `σ_z` below [`LINE_SPREAD_RATIO`] × their plan spread `√(λ₁/n)`): the
+/// anchors' plan centroid, [`BELOW_ANCHORS_M`] under their mean height. `None` when their
+/// heights spread enough to tell the sides apart, or for fewer than three.
+pub(crate) fn start_below_plane(points: &[[f64; 3]]) -> Option<[f64; 3]> {
+    if points.len() < 3 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let mean = points
+        .iter()
+        .fold([0.0; 3], |m, p| [m[0] + p[0] / n, m[1] + p[1] / n, m[2] + p[2] / n]);
+    // σ_z = √(Σ (z − z̄)² / n), plan spread √(λ₁ / n)
+    let z_std = (points.iter().map(|p| (p[2] - mean[2]).powi(2)).sum::<f64>() / n).sqrt();
+    let plan: Vec<[f64; 2]> = points.iter().map(|p| [p[0], p[1]]).collect();
+    let plan_std = (plan_scatter(&plan)[0] / n).sqrt();
+    (z_std < LINE_SPREAD_RATIO * plan_std).then(|| [mean[0], mean[1], mean[2] - BELOW_ANCHORS_M])
 }
 
 /// Whether plan positions lie (nearly) on one line ([`LINE_SPREAD_RATIO`]).
@@ -157,12 +185,17 @@ impl Anchors {
         self.working_on_a_line
     }
 
-    /// The plan position of `reading`'s anchor (the record's own for a moving anchor's range).
-    pub(crate) fn plan_position(&self, reading: &AnchorReading) -> [f64; 2] {
-        let position_m = match *reading {
+    /// The position of `reading`'s anchor, m (the record's own for a moving anchor's range).
+    pub(crate) fn position(&self, reading: &AnchorReading) -> [f64; 3] {
+        match *reading {
             AnchorReading::Range { position_m, .. } => position_m,
             other => self.list[other.anchor()].position_m,
-        };
+        }
+    }
+
+    /// The plan position of `reading`'s anchor (the record's own for a moving anchor's range).
+    pub(crate) fn plan_position(&self, reading: &AnchorReading) -> [f64; 2] {
+        let position_m = self.position(reading);
         [position_m[0], position_m[1]]
     }
 

@@ -147,7 +147,14 @@ pub(super) fn solve<const N: usize>(
     }
     let tag_height_m = shared.tag_height_m;
     if dimensions::<N>() == 3 {
-        let guess = guess.map(|g| SVector::<f64, 3>::new(g.mean()[0], g.mean()[2], g.mean()[4]));
+        // without a prediction, anchors at one height leave the fix two mirror images across
+        // their plane: start below it
+        let guess = guess
+            .map(|g| SVector::<f64, 3>::new(g.mean()[0], g.mean()[2], g.mean()[4]))
+            .or_else(|| {
+                let points: Vec<[f64; 3]> = readings.iter().map(|r| shared.anchors.position(r)).collect();
+                super::anchors::start_below_plane(&points).map(SVector::from)
+            });
         Ok(solve_epoch::<3>(&shared.anchors, readings, tag_height_m, guess)?
             .iter()
             .map(flatten)

@@ -523,3 +523,35 @@ fn a_tightly_coupled_track_does_not_start_from_a_line_of_anchors_when_the_site_h
     let out = run(&drift, wall_records(3, 3.0));
     assert!(out.fixes.first().expect("a track starts").time_s < 0.15);
 }
+
+/// Four anchors on a 20 m square ceiling, all at 3 m.
+const CEILING: [(&str, [f64; 3]); 4] = [
+    ("C1", [0.0, 0.0, 3.0]),
+    ("C2", [20.0, 0.0, 3.0]),
+    ("C3", [20.0, 20.0, 3.0]),
+    ("C4", [0.0, 20.0, 3.0]),
+];
+
+/// Anchors that all hang at one height leave a 3-D fix two mirror images, above and below their
+/// plane: the solver refused it ("coplanar"), so no 3-D track ever started on such a site (the
+/// usual one). A fix from them now starts below the anchors, where the tags are.
+#[test]
+fn a_3d_track_starts_below_anchors_that_hang_at_one_height() {
+    let site = make_site(&CEILING, "tightly-coupled", true);
+    let out = run(&site, records(&CEILING, [6.0, 4.0, 1.0], 5.0));
+    let last = out
+        .updates
+        .last()
+        .unwrap_or_else(|| panic!("no track: {:?}", out.events));
+    let error_m = slant(last.position_m, [6.0, 4.0, 1.0]);
+    assert!(error_m < 0.2, "{last:?}");
+    assert!(out.fixes.iter().all(|f| f.position_m[2] < 3.0), "{:?}", out.fixes);
+    // the start: the plan centroid 1.5 m under the anchors; none when their heights spread
+    use crate::tracker::anchors::start_below_plane;
+    let points: Vec<[f64; 3]> = CEILING.iter().map(|(_, p)| *p).collect();
+    assert_eq!(start_below_plane(&points), Some([10.0, 10.0, 1.5]));
+    let mut spread = points.clone();
+    spread[0][2] = 0.5;
+    assert_eq!(start_below_plane(&spread), None);
+    assert_eq!(start_below_plane(&points[..2]), None);
+}
