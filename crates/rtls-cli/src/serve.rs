@@ -123,6 +123,9 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
         (text, path.display().to_string(), Some(dir))
     };
     let site = Site::from_toml_str(&site_text, &site_name)?;
+    for line in site.advice() {
+        eprintln!("{site_name}: {line}");
+    }
     let floor_plans = match &site_dir {
         Some(dir) => FloorPlans::load(&site, dir).map_err(|e| anyhow::anyhow!("site file {site_name}: {e}"))?,
         None => FloorPlans::default(),

@@ -185,6 +185,9 @@ pub(crate) fn load_site_file(path: &Path) -> anyhow::Result<(Site, Option<RadioM
     let site_name = path.display().to_string();
     let text = read_text_file(path, MAX_SITE_BYTES, "site")?;
     let site = Site::from_toml_str(&text, &site_name)?;
+    for line in site.advice() {
+        eprintln!("{site_name}: {line}");
+    }
     let radio_map = match &site.fingerprints {
         Some(database) if database.format != FingerprintFormat::Csv => bail!(
             "{site_name}: [fingerprints] format {:?}: rtls track loads radio maps in the \"csv\" format \

@@ -12,6 +12,7 @@
 //! - Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking and
 //!   Navigation*, Wiley 2001: gates (§2.6), M-of-N track initiation and deletion.
 
+mod advice;
 mod consistency;
 mod keys;
 mod limits;
