@@ -6,7 +6,6 @@ use rtls_estimation::Gaussian;
 
 use super::alarms::{position_of, predict_entries};
 use super::output::{Event, Output, TrackUpdate, UpdateSource};
-use super::step::predict;
 use super::track::{dimensions, Shared, Track};
 use crate::error::Result;
 use crate::lifecycle::TrackStatus;
@@ -61,29 +60,27 @@ pub(super) fn report<const N: usize>(
     Ok(())
 }
 
-/// A coasting track's prediction at `now_s`, flagged as predicted (seed 000's gap filling).
+/// Outputs `predicted`, a coasting track's prediction at `now_s`, flagged as predicted (seed
+/// 000's gap filling).
 pub(super) fn coast<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
+    predicted: &Gaussian<N>,
     now_s: f64,
     monitor: &mut ZoneMonitor,
     out: &mut Output,
 ) -> Result<()> {
-    let Some(state) = track.state.as_ref() else {
-        return Ok(());
-    };
-    let predicted = predict(shared, track, state, now_s)?.state;
     out.updates.push(track_update(
         shared,
         track,
-        &predicted,
+        predicted,
         true,
         TrackStatus::Coasting,
         UpdateSource::Prediction,
     ));
     track.last_output_s = now_s;
     track.last_reported_s = track.last_reported_s.max(now_s);
-    zones_and_alarms(shared, track, &predicted, monitor, out)
+    zones_and_alarms(shared, track, predicted, monitor, out)
 }
 
 /// Zone events for the state's position, then the predictive alarms.

@@ -168,7 +168,8 @@ fn coast_if_sound<const N: usize>(
             reset(track, now_s, "track", &format!("coasting prediction: {reason}"), out);
             Ok(())
         }
-        None => coast(shared, track, now_s, monitor, out),
+        // the prediction just checked is the one output
+        None => coast(shared, track, &prior.state, now_s, monitor, out),
     }
 }
 
