@@ -201,7 +201,7 @@ pub fn carry_cross_covariance<const N: usize, const M: usize>(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use nalgebra::{DMatrix, DVector, SMatrix, Vector4};
 
     use super::*;
@@ -209,8 +209,8 @@ mod tests {
     use crate::measurement::{ComponentSelection, NoiseCovariance};
 
     /// A 4-state prior, a 2-parameter consider covariance and a cross-covariance that keep the
-    /// joint covariance positive definite.
-    fn setup() -> (Gaussian<4>, SMatrix<f64, 4, 2>, SMatrix<f64, 2, 2>) {
+    /// joint covariance positive definite (also the scalar form's test prior).
+    pub(in crate::filter) fn setup() -> (Gaussian<4>, SMatrix<f64, 4, 2>, SMatrix<f64, 2, 2>) {
         let p = Matrix::<4>::new(
             2.0, 0.3, 0.1, 0.0, //
             0.3, 1.0, 0.0, 0.2, //
