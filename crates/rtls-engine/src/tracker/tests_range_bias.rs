@@ -18,22 +18,28 @@ fn circle(t: f64) -> [f64; 2] {
 /// The anchors' true offsets beyond the site's `bias_m` (0.2 m), m.
 const OFFSETS_M: [f64; 4] = [0.25, 0.05, -0.15, 0.3];
 
-/// Round-robin ranges, one anchor per 25 ms, σ 0.1 m, with [`OFFSETS_M`].
-fn biased_ranges(seconds: f64, seed: u64) -> Vec<Record> {
+/// Round-robin ranges of the walker on [`circle`] for `seconds`, one anchor per `step_s`, noise
+/// σ `noise_std_m`, each anchor's `offsets_m` beyond the site's `bias_m` (0.2 m).
+fn circle_ranges(seconds: f64, step_s: f64, noise_std_m: f64, offsets_m: [f64; 4], seed: u64) -> Vec<Record> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, 0.1).unwrap();
-    (0..(seconds * 40.0) as usize)
+    let noise = Normal::new(0.0, noise_std_m).unwrap();
+    (0..(seconds / step_s) as usize)
         .map(|k| {
-            let t = k as f64 * 0.025;
+            let t = k as f64 * step_s;
             let (id, a) = ANCHORS[k % 4];
             range_record(
                 t,
                 "w1",
                 id,
-                slant(circle(t), a) + 0.2 + OFFSETS_M[k % 4] + noise.sample(&mut rng),
+                slant(circle(t), a) + 0.2 + offsets_m[k % 4] + noise.sample(&mut rng),
             )
         })
         .collect()
+}
+
+/// Round-robin ranges, one anchor per 25 ms, σ 0.1 m, with [`OFFSETS_M`].
+fn biased_ranges(seconds: f64, seed: u64) -> Vec<Record> {
+    circle_ranges(seconds, 0.025, 0.1, OFFSETS_M, seed)
 }
 
 /// RMSE after `after_s` and the share of truths inside the 95 % ellipse.
@@ -208,21 +214,8 @@ fn wifi_site(settings: &str) -> Site {
 /// (0.2 m, bound 1 m) clamps them and takes the rest as a position error.
 #[test]
 fn a_wifi_readers_offsets_of_metres_are_learnt_with_its_technologys_prior() {
-    let mut rng = ChaCha8Rng::seed_from_u64(11);
-    let noise = Normal::new(0.0, 0.3).unwrap();
-    // one range per 50 ms round robin (5 Hz per responder) for 180 s
-    let records: Vec<Record> = (0..3600usize)
-        .map(|k| {
-            let t = k as f64 * 0.05;
-            let (id, a) = ANCHORS[k % 4];
-            range_record(
-                t,
-                "w1",
-                id,
-                slant(circle(t), a) + 0.2 + WIFI_OFFSETS_M[k % 4] + noise.sample(&mut rng),
-            )
-        })
-        .collect();
+    // one range per 50 ms round robin (5 Hz per responder) for 180 s, σ 0.3 m
+    let records = circle_ranges(180.0, 0.05, 0.3, WIFI_OFFSETS_M, 11);
     let [(wifi_rmse, wifi_inside), (uwb_rmse, uwb_inside)] = ["", "prior_std_m = 0.2"].map(|settings| {
         let mut tracker = Tracker::new(&wifi_site(settings)).unwrap();
         let out = run(&mut tracker, records.clone());
