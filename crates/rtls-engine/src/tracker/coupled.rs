@@ -201,14 +201,18 @@ pub(super) fn coupled_update<const N: usize>(
                     || updated.innovation_covariance[(0, 0)] - reading_variance_m2 - offset_variance_m2,
                     |considered| considered.prediction_variance_m2,
                 );
-                let linear = second_order_range_error_m::<N>(&model, &prior.state, predicted_variance_m2)
-                    .is_some_and(|error_m| error_m <= 0.5 * variance_m2.sqrt());
                 let settled = predicted_variance_m2 <= reading_variance_m2 + offset_variance_m2;
+                // h(x⁻) = z − ν: the predicted range
+                let predicted_range_m = measured - updated.innovation[0];
+                let linear = || {
+                    second_order_range_error_m(&prior.state, predicted_range_m, predicted_variance_m2)
+                        .is_some_and(|error_m| error_m <= 0.5 * variance_m2.sqrt())
+                };
                 let correlation_s = shared.settings.adaptive_noise.correlation_s;
                 if outside_gate(shared, track, &updated) {
                     // the prediction this round is measured against is in doubt
                     track.range_bias.discard_round();
-                } else if is_gated(track) && linear && settled && track.range_bias.wants(time_s, correlation_s) {
+                } else if is_gated(track) && settled && track.range_bias.wants(time_s, correlation_s) && linear() {
                     // the reading's part in its round: ν, λ σ² (one look) and ∂h/∂p at the
                     // prediction
                     if let Ok(jacobian) = MeasurementModel::jacobian(&model, prior.state.mean()) {
@@ -330,15 +334,10 @@ fn considered_range<const N: usize>(
 }
 
 /// The expected second-order error of a range predicted from an uncertain position,
-/// `E[δ_⊥²] / (2 d) = (tr P⁻ₚₚ − H P⁻ Hᵀ) / (2 d)` (m), `d` the predicted slant distance,
-/// `P⁻ₚₚ` the position block and `H P⁻ Hᵀ` (`along_m2`) the variance along the range; `None`
-/// when it cannot be computed (a tag on its anchor).
-fn second_order_range_error_m<const N: usize>(
-    model: &AnchorMeasurement,
-    prior: &Gaussian<N>,
-    along_m2: f64,
-) -> Option<f64> {
-    let distance_m = MeasurementModel::<N>::predict(model, prior.mean()).ok()?[0];
+/// `E[δ_⊥²] / (2 d) = (tr P⁻ₚₚ − H P⁻ Hᵀ) / (2 d)` (m), `d` the predicted slant distance
+/// (`distance_m`), `P⁻ₚₚ` the position block and `H P⁻ Hᵀ` (`along_m2`) the variance along the
+/// range; `None` for a tag on its anchor.
+fn second_order_range_error_m<const N: usize>(prior: &Gaussian<N>, distance_m: f64, along_m2: f64) -> Option<f64> {
     // tr P⁻ₚₚ over the position entries (x, y[, z] at 0, 2[, 4])
     let trace_m2: f64 = (0..dimensions::<N>())
         .map(|axis| prior.covariance()[(2 * axis, 2 * axis)])
