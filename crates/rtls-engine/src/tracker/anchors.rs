@@ -162,6 +162,9 @@ pub(crate) struct Anchors {
     /// Whether the working anchors lie on one line in plan (a drift's, a corridor's): then no
     /// set of them resolves the mirror ambiguity, and a track starts from what it hears.
     working_on_a_line: bool,
+    /// The working anchors' RMS spread along their widest plan axis, `√(λ₁ / n)`, m (0 for
+    /// fewer than two distinct).
+    working_plan_spread_m: f64,
 }
 
 impl Anchors {
@@ -173,11 +176,23 @@ impl Anchors {
             .filter(|a| a.working)
             .map(|a| [a.position_m[0], a.position_m[1]])
             .collect();
+        let working_plan_spread_m = if working.is_empty() {
+            0.0
+        } else {
+            (plan_scatter(&working)[0] / working.len() as f64).sqrt()
+        };
         Self {
             by_id,
             list,
             working_on_a_line: on_a_line(&working),
+            working_plan_spread_m,
         }
+    }
+
+    /// The working anchors' RMS spread along their widest plan axis, `√(λ₁ / n)`, m: a fix
+    /// whose standard deviation exceeds it says no more than "among the anchors".
+    pub(crate) fn working_plan_spread_m(&self) -> f64 {
+        self.working_plan_spread_m
     }
 
     /// Whether the site's working anchors lie on one line in plan.

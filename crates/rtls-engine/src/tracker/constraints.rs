@@ -38,10 +38,10 @@ use rtls_estimation::Gaussian;
 
 use super::alarms::position_of;
 use super::constraint_model::Constraints;
-use super::epoch::solve;
 use super::models::{AnchorLaw, AnchorMeasurement};
 use super::output::epoch_raw_fix;
 use super::output::Output;
+use super::readings_fix::solve;
 use super::step::{carry_cross_covariances, predict, reacquire};
 use super::track::rejected;
 use super::track::{dimensions, Shared, Track};

@@ -1,17 +1,15 @@
 //! Anchor readings in epochs: buffering, solving an epoch into fixes (fix-then-filter), and
 //! initialising a tightly coupled track from its first readings.
 
-use nalgebra::SVector;
-use rtls_estimation::Gaussian;
-
 use super::anchors::AnchorReading;
+use super::check::check_reading;
 use super::coupled::coupled_update;
 use super::direct::apply_deferred;
 use super::gnss::close_due_gnss_epoch;
 use super::noise::NoiseClass;
 use super::output::{epoch_raw_fix, Output};
 use super::range_bias::RoundReading;
-use super::solve::{solve_epoch, EpochFix};
+use super::readings_fix::{corrected_range, solve, uninformative, FlatFix};
 use super::track::{dimensions, rejected, Shared, Track};
 use super::update::{fix_update, fix_update_as};
 use crate::error::Result;
@@ -29,7 +27,8 @@ pub(super) fn anchor_reading<const N: usize>(
 ) -> Result<()> {
     let coupled = shared.settings.pipeline == Pipeline::TightlyCoupled;
     if coupled && track.state.is_some() && !track.is_lost() {
-        return coupled_update(shared, track, time_s, reading, kind, out);
+        coupled_update(shared, track, time_s, reading, kind, out)?;
+        return check_reading(shared, track, time_s, reading, out);
     }
     if coupled {
         // (re-)initialising: a lost track's prior is too stale to linearise about, so like a
@@ -42,6 +41,9 @@ pub(super) fn anchor_reading<const N: usize>(
         }
         // a failure waits for more readings; its reason is reported if the readings expire
         if let Ok(fixes) = solve::<N>(shared, &readings, None) {
+            if awaits_informative_fix(shared, track, &fixes, time_s) {
+                return Ok(());
+            }
             track.epoch.clear();
             for (position, covariance, method) in fixes {
                 out.fixes
@@ -87,6 +89,14 @@ fn awaits_spanning_anchors<const N: usize>(
     time_s - first_s < SPANNING_WAIT_S && tightly_coupled_awaits_line(shared, readings)
 }
 
+/// Whether a tightly coupled track should wait for more readings before starting from
+/// `fixes`: one is [`uninformative`] and the first reading is less than [`SPANNING_WAIT_S`]
+/// old (more readings make the fix better; after that the track starts from what it has).
+fn awaits_informative_fix<const N: usize>(shared: &Shared, track: &Track<N>, fixes: &[FlatFix], time_s: f64) -> bool {
+    let first_s = track.epoch.first().map_or(time_s, |(t, _)| *t);
+    time_s - first_s < SPANNING_WAIT_S && fixes.iter().any(|fix| uninformative::<N>(shared, fix))
+}
+
 /// Whether `readings` come from anchors on one line in plan while the site has anchors off it
 /// (a tightly coupled track does not start from them before [`SPANNING_WAIT_S`]).
 fn tightly_coupled_awaits_line(shared: &Shared, readings: &[AnchorReading]) -> bool {
@@ -129,45 +139,6 @@ pub(super) fn opens_epoch<const N: usize>(shared: &Shared, track: &Track<N>, tim
         && (track.epoch.is_empty() || time_s - track.epoch_start_s > shared.settings.epoch_s)
 }
 
-/// A fix as `(position, row-major covariance, method)` on the tracked axes.
-pub(super) type FlatFix = (Vec<f64>, Vec<f64>, &'static str);
-
-/// Solves readings into fixes `(position, row-major covariance, method)` on the tracked axes.
-pub(super) fn solve<const N: usize>(
-    shared: &Shared,
-    readings: &[AnchorReading],
-    guess: Option<&Gaussian<N>>,
-) -> std::result::Result<Vec<FlatFix>, String> {
-    fn flatten<const D: usize>(fix: &EpochFix<D>) -> FlatFix {
-        (
-            fix.fix.position.iter().copied().collect(),
-            fix.fix.covariance.transpose().iter().copied().collect(),
-            fix.method,
-        )
-    }
-    let tag_height_m = shared.tag_height_m;
-    if dimensions::<N>() == 3 {
-        // without a prediction, anchors at one height leave the fix two mirror images across
-        // their plane: start below it
-        let guess = guess
-            .map(|g| SVector::<f64, 3>::new(g.mean()[0], g.mean()[2], g.mean()[4]))
-            .or_else(|| {
-                let points: Vec<[f64; 3]> = readings.iter().map(|r| shared.anchors.position(r)).collect();
-                super::anchors::start_below_plane(&points).map(SVector::from)
-            });
-        Ok(solve_epoch::<3>(&shared.anchors, readings, tag_height_m, guess)?
-            .iter()
-            .map(flatten)
-            .collect())
-    } else {
-        let guess = guess.map(|g| SVector::<f64, 2>::new(g.mean()[0], g.mean()[2]));
-        Ok(solve_epoch::<2>(&shared.anchors, readings, tag_height_m, guess)?
-            .iter()
-            .map(flatten)
-            .collect())
-    }
-}
-
 /// Closes the open epoch if `now_s` is past its window (fix-then-filter only), and the open
 /// GNSS epoch (either pipeline).
 pub(super) fn close_due_epoch<const N: usize>(
@@ -208,6 +179,11 @@ pub(super) fn expire_initial_readings<const N: usize>(
             Ok(_) if tightly_coupled_awaits_line(shared, &readings) => {
                 ": their anchors lie on one line, and a fix from them alone may be the tag's mirror \
                  image across it (the track waits up to 1 s for an anchor off the line)"
+                    .to_string()
+            }
+            Ok(fixes) if fixes.iter().any(|fix| uninformative::<N>(shared, fix)) => {
+                ": their fix's standard deviation exceeds the anchors' spread (the track waits up \
+                 to 1 s for readings that place it among them)"
                     .to_string()
             }
             _ => String::new(),
@@ -278,36 +254,6 @@ pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>,
 /// not, and its offsets are not learnt from them).
 fn is_confirmed<const N: usize>(track: &Track<N>) -> bool {
     matches!(track.status(), Some(crate::lifecycle::TrackStatus::Confirmed))
-}
-
-/// A range with the track's learnt offset of its anchor removed (`[tracker.range_bias]`):
-/// `r − b̂`, variance `σ² + P_b`. Other readings as they are.
-fn corrected_range<const N: usize>(
-    shared: &Shared,
-    track: &Track<N>,
-    reading: AnchorReading,
-    time_s: f64,
-) -> AnchorReading {
-    match (&shared.range_bias, reading) {
-        (
-            Some(model),
-            AnchorReading::Range {
-                anchor,
-                position_m,
-                range_m,
-                variance_m2,
-            },
-        ) => {
-            let (offset_m, offset_variance_m2) = track.range_bias.offset(model, anchor, time_s);
-            AnchorReading::Range {
-                anchor,
-                position_m,
-                range_m: range_m - offset_m,
-                variance_m2: variance_m2 + offset_variance_m2,
-            }
-        }
-        (_, other) => other,
-    }
 }
 
 /// Fix-then-filter: the epoch's ranges (`corrected`: offset-corrected; `stated`: as read, for

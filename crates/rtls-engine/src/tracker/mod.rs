@@ -139,6 +139,7 @@ mod alarms;
 mod anchors;
 mod anonymous;
 mod bounds;
+mod check;
 mod checkpoint;
 mod consider;
 mod constraint_model;
@@ -164,6 +165,7 @@ mod offset_cross;
 mod outcome;
 mod output;
 mod range_bias;
+mod readings_fix;
 mod report;
 mod rewind;
 mod schedule;
@@ -174,6 +176,8 @@ mod tag_index;
 mod tests;
 #[cfg(test)]
 mod tests_anonymous;
+#[cfg(test)]
+mod tests_check;
 #[cfg(test)]
 mod tests_checkpoint;
 #[cfg(test)]

@@ -192,6 +192,7 @@ pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.offset_cross = None;
     track.modes = None;
     track.epoch.clear();
+    track.check.clear();
     track.noise = Default::default();
     track.range_bias = Default::default();
     track.corrections = Default::default();

@@ -165,6 +165,9 @@ pub(crate) struct Track<const N: usize> {
     /// The position corrections of the open consistency window ([`CorrectionTest`]).
     #[serde(default)]
     pub(super) corrections: CorrectionWindow,
+    /// Tightly coupled: the readings since the last check fix ([`super::check`]).
+    #[serde(default)]
+    pub(super) check: Vec<(f64, AnchorReading)>,
     /// The covariance inflation the update being taken asked for, handed from
     /// [`super::step::accept`] to [`super::step::apply_fading`] (which runs once the update's
     /// cross-covariances are carried) within one record's processing; 1 between records, so
@@ -210,6 +213,7 @@ impl<const N: usize> Track<N> {
             jump: None,
             alternation: Alternation::default(),
             corrections: CorrectionWindow::default(),
+            check: Vec::new(),
             fading: 1.0,
         }
     }

@@ -76,7 +76,7 @@ pub(super) fn fix_update_as<const N: usize>(
         }
         // (a track the gate just re-initialised has no state to jump from)
         Verdict::OutsideGate if track.state.is_some() => {
-            jump_hypothesis(shared, track, (time_s, position, covariance), kind, out)?;
+            jump_hypothesis(shared, track, (time_s, position, covariance), kind, true, out)?;
             Ok(false)
         }
         Verdict::OutsideGate | Verdict::NotTaken => Ok(false),
@@ -94,14 +94,16 @@ fn gate_rejection<'a, const N: usize>(track: &Track<N>, time_s: f64, out: &'a mu
     }
 }
 
-/// A fix the track gated out goes to its jump hypothesis ([`super::jump`]); once the
-/// hypothesis is confirmed the track restarts at its state, with a `jumped` lifecycle event in
-/// place of the fix's rejection.
-fn jump_hypothesis<const N: usize>(
+/// A fix the track gated out (`gated`, its `rejected` event the last one out) or a check fix
+/// off the track ([`super::check`]) goes to its jump hypothesis ([`super::jump`]); once the
+/// hypothesis is confirmed the track restarts at its state, with a `jumped` lifecycle event
+/// (in place of a gated fix's rejection).
+pub(super) fn jump_hypothesis<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
     (time_s, position, covariance): (f64, &[f64], &[f64]),
     kind: &'static str,
+    gated: bool,
     out: &mut Output,
 ) -> Result<()> {
     if track.jump.is_none() && jump::returned(&mut track.alternation, shared, time_s, position, covariance) {
@@ -122,7 +124,7 @@ fn jump_hypothesis<const N: usize>(
         return Ok(());
     };
     if !jump::is_confirmed(&hypothesis, shared) {
-        if let Some(reason) = gate_rejection(track, time_s, out) {
+        if let Some(reason) = gate_rejection(track, time_s, out).filter(|_| gated) {
             reason.push_str(&format!(
                 "; held as a jump hypothesis ({} fixes agree so far)",
                 hypothesis.fixes
@@ -132,7 +134,7 @@ fn jump_hypothesis<const N: usize>(
         return Ok(());
     }
     // the fix is used: its rejection is withdrawn
-    if gate_rejection(track, time_s, out).is_some() {
+    if gated && gate_rejection(track, time_s, out).is_some() {
         out.events.pop();
     }
     let state = hypothesis.state;
