@@ -193,10 +193,19 @@ pub struct AdaptiveNoiseSettings {
     /// Electronics Letters 27(23), 1991), 1–3 s at walking pace. Default 2. On the BLE
     /// recording of docs/EVALUATION.md (9 tracks) 0.25 s left 74 % (path-loss fixes) and 82 %
     /// (fingerprints) of the truths inside the 95 % ellipses, 2 s gives 93 % and 92 % with the
-    /// same RMSE. Single RSSI readings (tightly coupled) keep `correlation_s`: inflating each
-    /// of them by 2 s cost the BLE tracks accuracy (2.95 → 3.52 m) and, on a simulation whose
-    /// shadowing is independent per scan, coverage.
+    /// same RMSE. Single RSSI readings (tightly coupled) take `rssi_reading_correlation_s`.
     pub rssi_correlation_s: f64,
+    /// The correlation time of single RSSI readings' errors (tightly coupled), s (≥ 0), used
+    /// as `correlation_s` is. The same shadowing as `rssi_correlation_s`'s, counted per
+    /// reading: at a scanner's ~2 readings per reader a second, `max(1, 2 τ_c / Δt)` with 1 s
+    /// gives a track the information per second that 1-s epoch fixes carry at 2 s (each fix
+    /// averages the epoch's two readings). Default 1. On the 9 BLE tracks of
+    /// docs/EVALUATION.md (tightly coupled, defaults) 0.25 s (`correlation_s`, the value
+    /// before) left 52–85 % of the truths inside the 95 % ellipses, 1 s 80–100 % on eight of
+    /// them, mean RMSE 2.54 → 2.53 m over those eight (the ninth, 25 s long, starts 10 m off
+    /// and lags more: 2.8 → 5.3 m).
+    #[serde(default = "default_rssi_reading_correlation_s")]
+    pub rssi_reading_correlation_s: f64,
     /// Whether each source's error correlation is also measured from its innovations (their
     /// lag-one correlation `ρ`, over `memory_s`) and its variances inflated by
     /// `(1 + ρ)/(1 − ρ)` when that is more than `correlation_s` gives (see
@@ -336,6 +345,10 @@ impl Default for HeadingSettings {
     }
 }
 
+fn default_rssi_reading_correlation_s() -> f64 {
+    1.0
+}
+
 impl Default for AdaptiveNoiseSettings {
     fn default() -> Self {
         Self {
@@ -344,6 +357,7 @@ impl Default for AdaptiveNoiseSettings {
             max_scale: 25.0,
             correlation_s: 0.25,
             rssi_correlation_s: 2.0,
+            rssi_reading_correlation_s: default_rssi_reading_correlation_s(),
             correlation_from_innovations: false,
         }
     }

@@ -482,6 +482,11 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
         adaptive.rssi_correlation_s,
         CORRELATION_S,
     ));
+    out.push(within(
+        at("adaptive_noise.rssi_reading_correlation_s"),
+        adaptive.rssi_reading_correlation_s,
+        CORRELATION_S,
+    ));
     let range_bias = &t.range_bias;
     if let Some(prior_std_m) = range_bias.prior_std_m {
         out.push(within(at("range_bias.prior_std_m"), prior_std_m, BIAS_PRIOR_STD_M));

@@ -64,12 +64,13 @@ impl NoiseClass {
     /// velocity; every other position update a fix).
     /// The correlation time of the class's errors, s: `rssi_correlation_s` for fixes made of
     /// received signal strength (fixes solved from RSSI alone, fingerprint scans),
-    /// `correlation_s` for everything else, single RSSI readings included (see
-    /// [`AdaptiveNoiseSettings`]).
+    /// `rssi_reading_correlation_s` for single RSSI readings, `correlation_s` for everything
+    /// else (see [`AdaptiveNoiseSettings`]).
     pub(super) fn correlation_s(self, settings: &AdaptiveNoiseSettings) -> f64 {
         match self {
             Self::RssiFix | Self::Fingerprint => settings.rssi_correlation_s,
-            Self::Range | Self::Rssi | Self::Tdoa | Self::Fix | Self::Velocity => settings.correlation_s,
+            Self::Rssi => settings.rssi_reading_correlation_s,
+            Self::Range | Self::Tdoa | Self::Fix | Self::Velocity => settings.correlation_s,
         }
     }
 
