@@ -198,10 +198,11 @@ fn with_speeds_the_heading_error_correlation_is_tried_too() {
 }
 
 #[test]
-fn truth_scales_the_noises_until_the_ellipses_hold_95_percent() {
+fn cautious_ellipses_are_not_narrowed() {
     // range errors that persist over ~50 readings of an anchor (ρ = 0.98): the truth's robust
     // per-reader fit takes much of the slow error for bias, and the tracks come out too
-    // cautious (≈ 99 % inside the 95 % ellipse)
+    // cautious (≈ 99 % inside the 95 % ellipse); a calibration part of correlated errors is
+    // too few independent looks to narrow them on
     let (site, records, truth) = correlated_recording(120.0, 0.98);
     let settings = TuningSettings {
         acceleration_grid_mps2: vec![0.02, 0.2, 5.0],
@@ -209,27 +210,9 @@ fn truth_scales_the_noises_until_the_ellipses_hold_95_percent() {
     };
     let tuned = tune(&site, None, &records, Some(&truth), &settings).unwrap();
     let chosen = &tuned.candidates[tuned.chosen];
-    let calibration = tuned.covariance.expect("a track 4 % off its coverage is rescaled");
     assert!(chosen.inside_95.unwrap() > 0.97, "{chosen:?}");
-    assert_eq!(calibration.inside_95_before, chosen.inside_95.unwrap());
-    assert!(calibration.std_factor < 1.0, "{calibration:?}");
-    assert!((0.90..=0.98).contains(&calibration.inside_95_after), "{calibration:?}");
-    // the track barely moves: every noise scaled alike keeps the gains
-    assert!(
-        calibration.rmse_after_m < 1.1 * calibration.rmse_before_m,
-        "{calibration:?}"
-    );
-    // what the tuned site will say is the scaled noise
-    let sigma_a = chosen.acceleration_noise_std_mps2 * calibration.std_factor;
-    assert!((tuned.acceleration_noise_std_mps2 - sigma_a).abs() < 1e-12);
-    let unscaled = readers::calibrate(&site, &records, &truth, settings.max_truth_gap_s);
-    for (fit, before) in tuned.readers.iter().zip(&unscaled) {
-        let (after, before) = (fit.range.unwrap().range_std_m, before.range.unwrap().range_std_m);
-        assert!(
-            (after - before * calibration.std_factor).abs() < 1e-12,
-            "{after} {before}"
-        );
-    }
+    assert_eq!(tuned.covariance, None);
+    assert_eq!(tuned.acceleration_noise_std_mps2, chosen.acceleration_noise_std_mps2);
 }
 
 #[test]
