@@ -211,7 +211,7 @@ fn tuned_site_text(
     });
     let how = if calibrated {
         if tuning.covariance.is_some() {
-            "readers calibrated on the ground truth, σ_a by RMSE, noises scaled for 95 % ellipses"
+            "readers calibrated on the ground truth, σ_a by RMSE, noises widened for 95 % ellipses"
         } else {
             "readers calibrated on the ground truth, σ_a by RMSE"
         }
