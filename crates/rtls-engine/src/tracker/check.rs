@@ -15,7 +15,15 @@
 //! with each other (`[tracker] initiation`: `M` of them over at least 1 s) the track restarts
 //! at them with a `jumped` event.
 //!
+//! Most windows need no solve: for a linear model the readings' cost at the track's
+//! predictions, `C = Σ νᵢ² / Rᵢ` (each against the prior it updated, with the variance the
+//! solver weights it by), exceeds the fix's own by `(p̂ − ẑ)ᵀ Σ_fix⁻¹ (p̂ − ẑ) ≥ d²`, so
+//! `C ≤ γ` means no fix of them falls outside the gate (for a moving tag, and to first order
+//! for ranges and RSSI, an approximation). On the tracker bench (1 000 tags, ranges at 10 Hz)
+//! solving every window cost a fifth of the tightly coupled throughput.
+//!
 //! ```text
+//! skip when:              C = Σ νᵢ² / Rᵢ ≤ γ
 //! readings over [t₀, t]:  ẑ, Σ_fix  (solved alone)
 //! motion blur:            Σ_blur = (t − t₀)²/4 · (v̂ v̂ᵀ + P_vv)   (a moving tag's readings span the window)
 //! distance:               d² = (ẑ − p̂)ᵀ (P_pp + Σ_fix + Σ_blur)⁻¹ (ẑ − p̂)
@@ -33,7 +41,7 @@ use super::anchors::AnchorReading;
 use super::output::Output;
 use super::readings_fix::{corrected_range, solve, uninformative};
 use super::step::{is_gated, predict};
-use super::track::{Shared, Track};
+use super::track::{dimensions, Shared, Track};
 use super::update::jump_hypothesis;
 use crate::error::Result;
 
@@ -55,15 +63,20 @@ pub(super) fn check_reading<const N: usize>(
     if time_s - first_s < CHECK_SPAN_S {
         return Ok(());
     }
-    let held = std::mem::take(&mut track.check);
-    // a new or re-initialising track's readings are not gated: nothing to check it against
-    if !is_gated(track) {
+    let cost = std::mem::take(&mut track.check_cost);
+    // a new or re-initialising track's readings are not gated: nothing to check it against;
+    // readings the track explains within the gate have no fix outside it (see above). The
+    // buffer keeps its capacity for the next window.
+    if !is_gated(track) || cost <= shared.gates[dimensions::<N>().min(3) - 1] {
+        track.check.clear();
         return Ok(());
     }
-    let readings: Vec<AnchorReading> = held
+    let readings: Vec<AnchorReading> = track
+        .check
         .iter()
         .map(|(t, r)| corrected_range(shared, track, *r, *t))
         .collect();
+    track.check.clear();
     let Ok(fixes) = solve::<N>(shared, &readings, None) else {
         return Ok(());
     };

@@ -173,6 +173,9 @@ pub(super) fn coupled_update<const N: usize>(
     match result {
         Ok((updated, modes)) => {
             let mut learning = Learning::Nothing;
+            // the check's bound: Σ νᵢ² / Rᵢ with the variance the solver weights the reading by
+            let solver_variance = stated_variance + bias_prior.map_or(0.0, |(_, variance_m2)| variance_m2);
+            track.check_cost += updated.innovation[0].powi(2) / solver_variance;
             out.innovations
                 .record(class, &updated, shared.gates[0], scale / inflation);
             track.noise.observe(

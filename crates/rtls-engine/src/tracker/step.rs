@@ -193,6 +193,7 @@ pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.modes = None;
     track.epoch.clear();
     track.check.clear();
+    track.check_cost = 0.0;
     track.noise = Default::default();
     track.range_bias = Default::default();
     track.corrections = Default::default();

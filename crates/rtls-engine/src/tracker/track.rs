@@ -168,6 +168,10 @@ pub(crate) struct Track<const N: usize> {
     /// Tightly coupled: the readings since the last check fix ([`super::check`]).
     #[serde(default)]
     pub(super) check: Vec<(f64, AnchorReading)>,
+    /// Their squared innovations over their stated variances, `Σ νᵢ² / Rᵢ`: when it is within
+    /// the gate, no fix of them can fall outside it ([`super::check`]).
+    #[serde(default)]
+    pub(super) check_cost: f64,
     /// The covariance inflation the update being taken asked for, handed from
     /// [`super::step::accept`] to [`super::step::apply_fading`] (which runs once the update's
     /// cross-covariances are carried) within one record's processing; 1 between records, so
@@ -214,6 +218,7 @@ impl<const N: usize> Track<N> {
             alternation: Alternation::default(),
             corrections: CorrectionWindow::default(),
             check: Vec::new(),
+            check_cost: 0.0,
             fading: 1.0,
         }
     }
