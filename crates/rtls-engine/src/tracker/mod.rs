@@ -7,7 +7,11 @@
 //!   for TDOA) which a linear KF on a CV state smooths.
 //! - **tightly coupled** (seeds 001, 003, 004): each raw reading updates an EKF or UKF directly,
 //!   one scalar measurement at a time (seed 003's one-observation update), with the slant
-//!   distance to anchors at other heights. A new track starts from a fix of its first readings.
+//!   distance to anchors at other heights. A new track starts from a fix of its first readings
+//!   (waiting up to 1 s for readings whose fix is surer than the anchors' spread and, when the
+//!   first anchors lie on one line, for one off it); every second a confirmed track checks
+//!   itself against a fix of the readings it took and jumps to such fixes when they agree with
+//!   each other outside its gate (`check`).
 //!
 //! In both, `fix` records and fingerprint scans (`rssi_vector`, located in the site's radio map)
 //! update the position, `velocity` and `odometry` (speed + heading) the velocity, and an
