@@ -85,16 +85,21 @@ fn awaits_spanning_anchors<const N: usize>(
     readings: &[AnchorReading],
     time_s: f64,
 ) -> bool {
+    still_waiting(track, time_s) && tightly_coupled_awaits_line(shared, readings)
+}
+
+/// Whether the track's first buffered reading is less than [`SPANNING_WAIT_S`] old at
+/// `time_s` (a start may still wait for better readings).
+fn still_waiting<const N: usize>(track: &Track<N>, time_s: f64) -> bool {
     let first_s = track.epoch.first().map_or(time_s, |(t, _)| *t);
-    time_s - first_s < SPANNING_WAIT_S && tightly_coupled_awaits_line(shared, readings)
+    time_s - first_s < SPANNING_WAIT_S
 }
 
 /// Whether a tightly coupled track should wait for more readings before starting from
 /// `fixes`: one is [`uninformative`] and the first reading is less than [`SPANNING_WAIT_S`]
 /// old (more readings make the fix better; after that the track starts from what it has).
 fn awaits_informative_fix<const N: usize>(shared: &Shared, track: &Track<N>, fixes: &[FlatFix], time_s: f64) -> bool {
-    let first_s = track.epoch.first().map_or(time_s, |(t, _)| *t);
-    time_s - first_s < SPANNING_WAIT_S && fixes.iter().any(|fix| uninformative::<N>(shared, fix))
+    still_waiting(track, time_s) && fixes.iter().any(|fix| uninformative::<N>(shared, fix))
 }
 
 /// Whether `readings` come from anchors on one line in plan while the site has anchors off it

@@ -127,6 +127,42 @@ pub(super) fn range_record(time_s: f64, tag: impl Into<String>, anchor: &str, ra
     }
 }
 
+/// RSSI readings `readings` (indices of a round robin over the four anchors, one every 50 ms
+/// from t = 0) of a tag standing at (8, 6): the site's law with `std_db` shadowing drawn from
+/// `seed`.
+pub(super) fn standing_rssi_records(seed: u64, std_db: f64, readings: std::ops::Range<usize>) -> Vec<Record> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let shadowing = Normal::new(0.0, std_db).unwrap();
+    readings
+        .map(|k| {
+            let (id, a) = ANCHORS[k % 4];
+            Record {
+                time_s: k as f64 * 0.05,
+                tag: "w1".into(),
+                measurement: Measurement::Rssi {
+                    anchor: id.into(),
+                    rssi_dbm: -40.0 - 25.0 * slant([8.0, 6.0], a).log10() + shadowing.sample(&mut rng),
+                },
+            }
+        })
+        .collect()
+}
+
+/// The times of `out`'s `jumped` lifecycle events.
+pub(super) fn jump_times(out: &Output) -> Vec<f64> {
+    out.events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Lifecycle {
+                event: crate::lifecycle::LifecycleEvent::Jumped,
+                time_s,
+                ..
+            } => Some(*time_s),
+            _ => None,
+        })
+        .collect()
+}
+
 pub(super) fn run(tracker: &mut Tracker, records: Vec<Record>) -> Output {
     let mut out = Output::default();
     for record in records {

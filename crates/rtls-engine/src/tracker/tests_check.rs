@@ -3,21 +3,14 @@
 //! where its readings' fixes agree; a track that follows its readings never jumps; and a track
 //! does not start from a fix that says no more than "among the anchors".
 
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
-
-use super::tests::{run, site, slant, ANCHORS};
+use super::tests::{jump_times, run, site, standing_rssi_records};
 use super::*;
-use crate::lifecycle::LifecycleEvent;
 use crate::record::Measurement;
 
 /// The tag stands at (8, 6); a first `fix` record (σ 0.5 m) puts it at `start`, then RSSI
 /// readings round robin over the four anchors every 50 ms (the site's law, 2 dB shadowing)
 /// for 20 s.
 fn records(start: [f64; 2]) -> Vec<Record> {
-    let mut rng = ChaCha8Rng::seed_from_u64(9);
-    let shadowing = Normal::new(0.0, 2.0).unwrap();
     let mut records = vec![Record {
         time_s: 0.0,
         tag: "w1".into(),
@@ -26,17 +19,7 @@ fn records(start: [f64; 2]) -> Vec<Record> {
             covariance_m2: vec![0.25, 0.0, 0.0, 0.25],
         },
     }];
-    records.extend((1..=400).map(|k| {
-        let (id, a) = ANCHORS[k % 4];
-        Record {
-            time_s: k as f64 * 0.05,
-            tag: "w1".into(),
-            measurement: Measurement::Rssi {
-                anchor: id.into(),
-                rssi_dbm: -40.0 - 25.0 * slant([8.0, 6.0], a).log10() + shadowing.sample(&mut rng),
-            },
-        }
-    }));
+    records.extend(standing_rssi_records(9, 2.0, 1..401));
     records
 }
 
@@ -44,20 +27,8 @@ fn records(start: [f64; 2]) -> Vec<Record> {
 fn tracked(start: [f64; 2]) -> (Vec<f64>, [f64; 3]) {
     let site = site("tightly-coupled", "ekf", "");
     let out = run(&mut Tracker::new(&site).unwrap(), records(start));
-    let jumps = out
-        .events
-        .iter()
-        .filter_map(|e| match e {
-            Event::Lifecycle {
-                event: LifecycleEvent::Jumped,
-                time_s,
-                ..
-            } => Some(*time_s),
-            _ => None,
-        })
-        .collect();
     let last = out.updates.iter().rev().find(|u| !u.predicted).unwrap().position_m;
-    (jumps, last)
+    (jump_times(&out), last)
 }
 
 #[test]
@@ -86,29 +57,15 @@ fn a_track_does_not_start_from_a_fix_that_says_only_among_the_anchors() {
     // (10 m along each axis of the 20 m square)
     let site = site("tightly-coupled", "ekf", "");
     for seed in 0..10 {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let shadowing = Normal::new(0.0, 10.0).unwrap();
-        let records: Vec<Record> = (0..100)
-            .map(|k| {
-                let (id, a) = ANCHORS[k % 4];
-                Record {
-                    time_s: k as f64 * 0.05,
-                    tag: "w1".into(),
-                    measurement: Measurement::Rssi {
-                        anchor: id.into(),
-                        rssi_dbm: -40.0 - 25.0 * slant([8.0, 6.0], a).log10() + shadowing.sample(&mut rng),
-                    },
-                }
-            })
-            .collect();
+        let records = standing_rssi_records(seed, 10.0, 0..100);
         let out = run(&mut Tracker::new(&site).unwrap(), records);
         let first = out.fixes.first().expect("a start fix");
-        let [xx, _, yy] = [first.covariance_m2[0], 0.0, first.covariance_m2[3]];
+        // √(σₓ² + σ_y²) of the 2 × 2 covariance
+        let sigma_m = (first.covariance_m2[0] + first.covariance_m2[3]).sqrt();
         assert!(
-            (xx + yy).sqrt() <= 10.0 || first.time_s >= super::epoch::SPANNING_WAIT_S,
-            "seed {seed}: started at {} s from a fix of σ {:.1} m",
-            first.time_s,
-            (xx + yy).sqrt()
+            sigma_m <= 10.0 || first.time_s >= super::epoch::SPANNING_WAIT_S,
+            "seed {seed}: started at {} s from a fix of σ {sigma_m:.1} m",
+            first.time_s
         );
     }
 }

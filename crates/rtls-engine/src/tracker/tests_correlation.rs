@@ -2,32 +2,13 @@
 //! fingerprint scans) take `adaptive_noise.rssi_correlation_s`, single RSSI readings
 //! `rssi_reading_correlation_s`, everything else `correlation_s`.
 
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
-
-use super::tests::{range_records, run, site, slant, ANCHORS};
+use super::tests::{range_records, run, site, standing_rssi_records};
 use super::*;
-use crate::record::Measurement;
 
 /// RSSI readings round robin over the four anchors every 50 ms (2 dB shadowing) of a tag
-/// standing at (8, 6).
+/// standing at (8, 6), for 20 s.
 fn rssi_records() -> Vec<Record> {
-    let mut rng = ChaCha8Rng::seed_from_u64(5);
-    let shadowing = Normal::new(0.0, 2.0).unwrap();
-    (0..400)
-        .map(|k| {
-            let (id, a) = ANCHORS[k % 4];
-            Record {
-                time_s: k as f64 * 0.05,
-                tag: "w1".into(),
-                measurement: Measurement::Rssi {
-                    anchor: id.into(),
-                    rssi_dbm: -40.0 - 25.0 * slant([8.0, 6.0], a).log10() + shadowing.sample(&mut rng),
-                },
-            }
-        })
-        .collect()
+    standing_rssi_records(5, 2.0, 0..400)
 }
 
 /// The last update's position covariance trace, m², and every update's position.

@@ -6,7 +6,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
-use super::tests::site;
+use super::tests::{jump_times, site};
 use super::*;
 use crate::lifecycle::LifecycleEvent;
 use crate::record::Measurement;
@@ -54,27 +54,13 @@ fn measured_from(out: &Output, from_s: f64) -> Vec<(f64, [f64; 3])> {
         .collect()
 }
 
-fn jumps(out: &Output) -> Vec<f64> {
-    out.events
-        .iter()
-        .filter_map(|e| match e {
-            Event::Lifecycle {
-                event: LifecycleEvent::Jumped,
-                time_s,
-                ..
-            } => Some(*time_s),
-            _ => None,
-        })
-        .collect()
-}
-
 #[test]
 fn a_tag_whose_fixes_move_285_m_is_followed_after_the_confirmation_evidence() {
     // from t = 20 s the fixes are 285 m north of the walk
     let out = track(fixes(40, |t| if t >= 20.0 { [0.0, 285.0] } else { [0.0, 0.0] }));
     // initiation: 3 fixes within 5 s, so the track jumps at the third displaced fix, t = 22 s
     // (the rejection rate alone took nine: t = 28 s)
-    assert_eq!(jumps(&out), vec![22.0]);
+    assert_eq!(jump_times(&out), vec![22.0]);
     let after = measured_from(&out, 22.0);
     assert!(!after.is_empty());
     for (t, p) in &after {
@@ -110,7 +96,7 @@ fn outliers_that_do_not_agree_never_move_the_track() {
         22 => [70.0, 30.0],
         _ => [0.0, 0.0],
     }));
-    assert!(jumps(&out).is_empty(), "{:?}", jumps(&out));
+    assert!(jump_times(&out).is_empty(), "{:?}", jump_times(&out));
     for (t, p) in measured_from(&out, 3.0) {
         assert!(p[1].abs() < 7.0 && (p[0] - 5.0 - t).abs() < 2.0, "t = {t}: {p:?}");
     }
@@ -136,7 +122,7 @@ fn a_burst_of_agreeing_outliers_shorter_than_the_span_does_not_move_a_fast_track
         })
         .collect();
     let out = track(records);
-    assert!(jumps(&out).is_empty(), "{:?}", jumps(&out));
+    assert!(jump_times(&out).is_empty(), "{:?}", jump_times(&out));
     for (t, p) in measured_from(&out, 1.0) {
         assert!((p[1] - 5.0).abs() < 0.5, "t = {t}: {p:?}");
     }
