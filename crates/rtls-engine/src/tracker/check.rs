@@ -15,6 +15,14 @@
 //! with each other (`[tracker] initiation`: `M` of them over at least 1 s) the track restarts
 //! at them with a `jumped` event.
 //!
+//! A track can also stay a few metres off while each check fix, metres uncertain itself (BLE
+//! RSSI), falls inside the gate: every fix alone is a passing disagreement, a run of them is
+//! not. The last [`CHECK_RUN`] consecutive fixes are tested together, `T = Σⱼ d²ⱼ`, against
+//! the `χ²(k · CHECK_RUN)` quantile at the gate probability (the fixes' readings are disjoint
+//! windows; each shares its readings with the track, which makes `d²` smaller, not larger);
+//! above it, the track restarts at the latest fix with a `jumped` event. A window the track
+//! explains (the skip below) ends the run.
+//!
 //! Most windows need no solve: for a linear model the readings' cost at the track's
 //! predictions, `C = Σ νᵢ² / Rᵢ` (each against the prior it updated, with the variance the
 //! solver weights it by), exceeds the fix's own by `(p̂ − ẑ)ᵀ Σ_fix⁻¹ (p̂ − ẑ) ≥ d²`, so
@@ -28,6 +36,7 @@
 //! motion blur:            Σ_blur = (t − t₀)²/4 · (v̂ v̂ᵀ + P_vv)   (a moving tag's readings span the window)
 //! distance:               d² = (ẑ − p̂)ᵀ (P_pp + Σ_fix + Σ_blur)⁻¹ (ẑ − p̂)
 //! d² ≤ γ: the track explains its readings;  d² > γ: a jump hypothesis at (ẑ, Σ_fix + Σ_blur)
+//! run:                    T = Σⱼ d²ⱼ over the last CHECK_RUN fixes > χ²(k · CHECK_RUN): restart at ẑ
 //! ```
 //!
 //! # References
@@ -42,12 +51,16 @@ use super::output::Output;
 use super::readings_fix::{corrected_range, solve, uninformative};
 use super::step::{is_gated, predict};
 use super::track::{dimensions, Shared, Track};
-use super::update::jump_hypothesis;
+use super::update::{jump_hypothesis, jump_to_fix};
 use crate::error::Result;
+use rtls_estimation::stats::chi_square_quantile;
 
 /// The span of readings a check fix is solved from, s: a round of every reader a tag hears
 /// (RSSI scanners report about twice a second; UWB round robins take tens of ms).
 pub(super) const CHECK_SPAN_S: f64 = 1.0;
+
+/// The consecutive check fixes whose distances are tested together (module documentation).
+pub(super) const CHECK_RUN: usize = 5;
 
 /// Keeps `reading` (taken by the track at `time_s`) for the next check, and checks the track
 /// once the readings span [`CHECK_SPAN_S`].
@@ -69,6 +82,7 @@ pub(super) fn check_reading<const N: usize>(
     // buffer keeps its capacity for the next window.
     if !is_gated(track) || cost <= shared.gates[dimensions::<N>().min(3) - 1] {
         track.check.clear();
+        track.check_distances.clear();
         return Ok(());
     }
     let readings: Vec<AnchorReading> = track
@@ -112,13 +126,36 @@ pub(super) fn check_reading<const N: usize>(
     if !distance2.is_finite() {
         return Ok(());
     }
-    if distance2 <= shared.gates[k.clamp(1, 3) - 1] {
-        // the track explains its readings: a hypothesis it held was a passing disagreement
-        if let Some(dropped) = track.jump.take() {
-            track.alternation.departed = Some(dropped);
-        }
-        return Ok(());
+    if track.check_distances.len() == CHECK_RUN {
+        track.check_distances.remove(0);
     }
+    track.check_distances.push(distance2);
     let flat: Vec<f64> = covariance.transpose().iter().copied().collect();
-    jump_hypothesis(shared, track, (time_s, position, &flat), "check", false, out)
+    if distance2 > shared.gates[k.clamp(1, 3) - 1] {
+        return jump_hypothesis(shared, track, (time_s, position, &flat), "check", false, out);
+    }
+    if run_disagrees(&track.check_distances, k, shared.settings.gate_probability)? {
+        return jump_to_fix(shared, track, (time_s, position, &flat), "check", out);
+    }
+    // the track explains its readings: a hypothesis it held was a passing disagreement
+    if let Some(dropped) = track.jump.take() {
+        track.alternation.departed = Some(dropped);
+    }
+    Ok(())
+}
+
+/// Whether a full run of [`CHECK_RUN`] consecutive check fixes, each inside the track's gate,
+/// together says the track does not explain its readings: `T = Σⱼ d²ⱼ ~ χ²(k · CHECK_RUN)`
+/// while it does (`k` position axes per fix), so `T` above that quantile at the gate
+/// probability. A shorter run says nothing yet.
+///
+/// # Errors
+/// A gate probability outside (0, 1).
+pub(super) fn run_disagrees(distances: &[f64], axes: usize, gate_probability: f64) -> Result<bool> {
+    if distances.len() < CHECK_RUN {
+        return Ok(false);
+    }
+    // T = Σⱼ d²ⱼ
+    let statistic: f64 = distances.iter().sum();
+    Ok(statistic > chi_square_quantile(gate_probability, (axes * CHECK_RUN) as f64)?)
 }

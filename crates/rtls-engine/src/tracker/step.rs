@@ -194,6 +194,7 @@ pub(super) fn reacquire<const N: usize>(track: &mut Track<N>) {
     track.epoch.clear();
     track.check.clear();
     track.check_cost = 0.0;
+    track.check_distances.clear();
     track.noise = Default::default();
     track.range_bias = Default::default();
     track.corrections = Default::default();

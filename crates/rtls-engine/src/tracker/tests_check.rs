@@ -69,3 +69,32 @@ fn a_track_does_not_start_from_a_fix_that_says_only_among_the_anchors() {
         );
     }
 }
+
+#[test]
+fn a_run_of_check_fixes_each_inside_the_gate_can_say_the_track_is_off() {
+    use super::check::{run_disagrees, CHECK_RUN};
+    let gate_2 = rtls_estimation::stats::chi_square_quantile(0.999, 2.0).unwrap();
+    // five fixes at d² = 6.5, each well inside the single fix's gate (13.8), together
+    // T = 32.5 > χ²₁₀(0.999) = 29.6
+    assert!(6.5 < gate_2);
+    assert!(run_disagrees(&[6.5; CHECK_RUN], 2, 0.999).unwrap());
+    // what a consistent track's fixes give (E d² = 2), and a run not yet complete
+    assert!(!run_disagrees(&[2.0; CHECK_RUN], 2, 0.999).unwrap());
+    assert!(!run_disagrees(&[13.0; CHECK_RUN - 1], 2, 0.999).unwrap());
+    // in 3-D the same distances are fewer standard deviations: T ~ χ²₁₅, quantile 37.7
+    assert!(!run_disagrees(&[6.5; CHECK_RUN], 3, 0.999).unwrap());
+}
+
+#[test]
+fn honest_readings_never_make_a_standing_track_jump() {
+    // the run test on a track that explains its readings: a false jump per run has the
+    // probability 1 − 0.999; 20 s of 20 readings a second, ten seeds
+    let site = site("tightly-coupled", "ekf", "");
+    for seed in 0..10 {
+        let out = run(
+            &mut Tracker::new(&site).unwrap(),
+            standing_rssi_records(seed, 2.0, 0..400),
+        );
+        assert!(jump_times(&out).is_empty(), "seed {seed}: {:?}", jump_times(&out));
+    }
+}

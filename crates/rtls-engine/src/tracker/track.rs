@@ -172,6 +172,10 @@ pub(crate) struct Track<const N: usize> {
     /// the gate, no fix of them can fall outside it ([`super::check`]).
     #[serde(default)]
     pub(super) check_cost: f64,
+    /// The distances `d²` of the last consecutive check fixes that were solved, newest last
+    /// (at most [`super::check::CHECK_RUN`]; [`super::check`]).
+    #[serde(default)]
+    pub(super) check_distances: Vec<f64>,
     /// The covariance inflation the update being taken asked for, handed from
     /// [`super::step::accept`] to [`super::step::apply_fading`] (which runs once the update's
     /// cross-covariances are carried) within one record's processing; 1 between records, so
@@ -219,6 +223,7 @@ impl<const N: usize> Track<N> {
             corrections: CorrectionWindow::default(),
             check: Vec::new(),
             check_cost: 0.0,
+            check_distances: Vec::new(),
             fading: 1.0,
         }
     }

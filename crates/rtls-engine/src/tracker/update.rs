@@ -151,6 +151,38 @@ pub(super) fn jump_hypothesis<const N: usize>(
     Ok(())
 }
 
+/// Restarts a track at a fix that the track has been shown not to explain (a run of check
+/// fixes off it, [`super::check`]): `x₀ = [p, 0]`, `P₀ = diag(Σ_fix, σ_v² I)`, with a
+/// `jumped` event. A fix that cannot start a state is refused with an event and the track
+/// keeps its state.
+pub(super) fn jump_to_fix<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    (time_s, position, covariance): (f64, &[f64], &[f64]),
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
+    let state = match state_from_fix(shared, time_s, position, covariance) {
+        Ok(state) => state,
+        Err(error) => {
+            let reason = format!("cannot restart the track at this fix: {error}");
+            out.events.push(rejected(&track.tag, time_s, kind, reason));
+            return Ok(());
+        }
+    };
+    reacquire(track);
+    start_at(shared, track, state, kind, out)?;
+    if let Some(state) = &track.state {
+        out.events.push(Event::Lifecycle {
+            tag: Arc::clone(&track.tag),
+            time_s,
+            event: LifecycleEvent::Jumped,
+            position_m: position_of(state, shared.tag_height_m).0,
+        });
+    }
+    Ok(())
+}
+
 /// (Re)starts a track at a fix: `x₀ = [p, 0]`, `P₀ = diag(Σ_fix, σ_v² I)`; a lost track
 /// recovers, a new one starts its lifecycle.
 pub(super) fn start_from_fix<const N: usize>(
