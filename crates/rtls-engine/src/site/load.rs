@@ -18,11 +18,13 @@ pub(super) fn load(text: &str, file: &str) -> Result<Site> {
         });
     }
     let mut site: Site = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
-    if site.tracker.platform.is_some() {
-        // the keys the file wrote win over the platform's defaults
-        let table: toml::Table = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
-        platform::apply(&mut site.tracker, table.get("tracker").and_then(toml::Value::as_table));
+    // the keys the file wrote win over the defaults that depend on the site
+    let table: toml::Table = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
+    let tracker_table = table.get("tracker").and_then(toml::Value::as_table);
+    if tracker_table.is_none_or(|t| !t.contains_key("pipeline")) {
+        site.tracker.pipeline = platform::pipeline_for_readers(&site.readers);
     }
+    platform::apply(&mut site.tracker, tracker_table);
     validate(&mut site, text, file)?;
     Ok(site)
 }
