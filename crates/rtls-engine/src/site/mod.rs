@@ -249,7 +249,7 @@ pub struct TrackerSettings {
     #[serde(default)]
     pub platform: Option<Platform>,
     /// Fix-then-filter or tightly coupled. Default tightly coupled; fix-then-filter when every
-    /// reader is `ble` ([`platform::pipeline_for_readers`]).
+    /// reader is `ble` (`platform::pipeline_for_readers`).
     #[serde(default = "platform::default_pipeline")]
     pub pipeline: Pipeline,
     /// Motion model. Default `cv` (`imm` for a vehicle).

@@ -12,7 +12,7 @@
 //!
 //! Generic defaults of the other keys: `pipeline = "tightly-coupled"` (every reading is used,
 //! also when fewer anchors than a fix needs answer an epoch) — `"fix-then-filter"` when every
-//! reader is `ble` ([`pipeline_for_readers`]) — `filter = "ekf"`,
+//! reader is `ble` (`pipeline_for_readers`) — `filter = "ekf"`,
 //! `gate_probability = 0.999`, `initiation = { confirm_updates = 3, within_s = 5.0 }`,
 //! `coast_timeout_s = 5`, `delete_timeout_s = 60`, `reorder_window_s = 0.5`.
 //!
