@@ -137,18 +137,7 @@ pub(super) fn jump_hypothesis<const N: usize>(
     if gated && gate_rejection(track, time_s, out).is_some() {
         out.events.pop();
     }
-    let state = hypothesis.state;
-    reacquire(track);
-    start_at(shared, track, state, kind, out)?;
-    if let Some(state) = &track.state {
-        out.events.push(Event::Lifecycle {
-            tag: Arc::clone(&track.tag),
-            time_s,
-            event: LifecycleEvent::Jumped,
-            position_m: position_of(state, shared.tag_height_m).0,
-        });
-    }
-    Ok(())
+    jump_to(shared, track, hypothesis.state, time_s, kind, out)
 }
 
 /// Restarts a track at a fix that the track has been shown not to explain (a run of check
@@ -170,6 +159,19 @@ pub(super) fn jump_to_fix<const N: usize>(
             return Ok(());
         }
     };
+    jump_to(shared, track, state, time_s, kind, out)
+}
+
+/// Restarts `track` at `state` (everything it learnt dropped, [`reacquire`]) with a `jumped`
+/// lifecycle event at `time_s`.
+fn jump_to<const N: usize>(
+    shared: &Shared,
+    track: &mut Track<N>,
+    state: Gaussian<N>,
+    time_s: f64,
+    kind: &'static str,
+    out: &mut Output,
+) -> Result<()> {
     reacquire(track);
     start_at(shared, track, state, kind, out)?;
     if let Some(state) = &track.state {
