@@ -53,7 +53,6 @@ use super::step::{is_gated, predict};
 use super::track::{dimensions, Shared, Track};
 use super::update::{jump_hypothesis, jump_to_fix};
 use crate::error::Result;
-use rtls_estimation::stats::chi_square_quantile;
 
 /// The span of readings a check fix is solved from, s: a round of every reader a tag hears
 /// (RSSI scanners report about twice a second; UWB round robins take tens of ms).
@@ -134,7 +133,7 @@ pub(super) fn check_reading<const N: usize>(
     if distance2 > shared.gates[k.clamp(1, 3) - 1] {
         return jump_hypothesis(shared, track, (time_s, position, &flat), "check", false, out);
     }
-    if run_disagrees(&track.check_distances, k, shared.settings.gate_probability)? {
+    if run_disagrees(&track.check_distances, shared.check_run_gates[k.clamp(1, 3) - 1]) {
         return jump_to_fix(shared, track, (time_s, position, &flat), "check", out);
     }
     // the track explains its readings: a hypothesis it held was a passing disagreement
@@ -146,16 +145,9 @@ pub(super) fn check_reading<const N: usize>(
 
 /// Whether a full run of [`CHECK_RUN`] consecutive check fixes, each inside the track's gate,
 /// together says the track does not explain its readings: `T = Σⱼ d²ⱼ ~ χ²(k · CHECK_RUN)`
-/// while it does (`k` position axes per fix), so `T` above that quantile at the gate
-/// probability. A shorter run says nothing yet.
-///
-/// # Errors
-/// A gate probability outside (0, 1).
-pub(super) fn run_disagrees(distances: &[f64], axes: usize, gate_probability: f64) -> Result<bool> {
-    if distances.len() < CHECK_RUN {
-        return Ok(false);
-    }
+/// while it does (`k` position axes per fix), so `T` above `threshold`, that quantile at the
+/// gate probability (`Shared::check_run_gates`). A shorter run says nothing yet.
+pub(super) fn run_disagrees(distances: &[f64], threshold: f64) -> bool {
     // T = Σⱼ d²ⱼ
-    let statistic: f64 = distances.iter().sum();
-    Ok(statistic > chi_square_quantile(gate_probability, (axes * CHECK_RUN) as f64)?)
+    distances.len() >= CHECK_RUN && distances.iter().sum::<f64>() > threshold
 }

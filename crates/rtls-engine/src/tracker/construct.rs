@@ -51,8 +51,11 @@ impl Tracker {
         let noise = ProcessNoise::continuous(settings.acceleration_noise_std_mps2.powi(2));
         let motion = ConstantVelocity::new(noise)?;
         let mut gates = [0.0; 3];
-        for (dof, gate) in gates.iter_mut().enumerate() {
+        let mut check_run_gates = [0.0; 3];
+        for (dof, (gate, run_gate)) in gates.iter_mut().zip(&mut check_run_gates).enumerate() {
             *gate = chi_square_quantile(settings.gate_probability, (dof + 1) as f64)?;
+            // a run of check fixes: χ²(k · CHECK_RUN)
+            *run_gate = chi_square_quantile(settings.gate_probability, ((dof + 1) * super::check::CHECK_RUN) as f64)?;
         }
         let no_coverage_zones: Vec<String> = site
             .zones
@@ -92,6 +95,7 @@ impl Tracker {
             ekf: ExtendedKalmanFilter::default(),
             ukf: UnscentedKalmanFilter::new(SigmaPointParameters::default()),
             gates,
+            check_run_gates,
             tag_height_m: settings.tag_height_m.unwrap_or(0.0),
             alarm_zones,
             no_coverage_zones,

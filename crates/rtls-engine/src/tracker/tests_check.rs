@@ -73,16 +73,23 @@ fn a_track_does_not_start_from_a_fix_that_says_only_among_the_anchors() {
 #[test]
 fn a_run_of_check_fixes_each_inside_the_gate_can_say_the_track_is_off() {
     use super::check::{run_disagrees, CHECK_RUN};
-    let gate_2 = rtls_estimation::stats::chi_square_quantile(0.999, 2.0).unwrap();
+    // the tracker's own thresholds at the test site's gate probability, 0.999
+    let tracker = Tracker::new(&site("tightly-coupled", "ekf", "")).unwrap();
+    let [_, gate_2, _] = tracker.shared().gates;
+    let [_, run_2, run_3] = tracker.shared().check_run_gates;
+    assert!(
+        (run_2 - 29.588).abs() < 1e-3 && (run_3 - 37.697).abs() < 1e-3,
+        "{run_2} {run_3}"
+    );
     // five fixes at d² = 6.5, each well inside the single fix's gate (13.8), together
     // T = 32.5 > χ²₁₀(0.999) = 29.6
     assert!(6.5 < gate_2);
-    assert!(run_disagrees(&[6.5; CHECK_RUN], 2, 0.999).unwrap());
+    assert!(run_disagrees(&[6.5; CHECK_RUN], run_2));
     // what a consistent track's fixes give (E d² = 2), and a run not yet complete
-    assert!(!run_disagrees(&[2.0; CHECK_RUN], 2, 0.999).unwrap());
-    assert!(!run_disagrees(&[13.0; CHECK_RUN - 1], 2, 0.999).unwrap());
+    assert!(!run_disagrees(&[2.0; CHECK_RUN], run_2));
+    assert!(!run_disagrees(&[13.0; CHECK_RUN - 1], run_2));
     // in 3-D the same distances are fewer standard deviations: T ~ χ²₁₅, quantile 37.7
-    assert!(!run_disagrees(&[6.5; CHECK_RUN], 3, 0.999).unwrap());
+    assert!(!run_disagrees(&[6.5; CHECK_RUN], run_3));
 }
 
 #[test]

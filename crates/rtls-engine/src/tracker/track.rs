@@ -55,6 +55,9 @@ pub(crate) struct Shared {
     pub(crate) ukf: UnscentedKalmanFilter,
     /// `χ²` gate thresholds for 1, 2 and 3 degrees of freedom (index = dof − 1).
     pub(crate) gates: [f64; 3],
+    /// The thresholds of a run of check fixes, `χ²(k · CHECK_RUN)` quantiles for `k` = 1, 2, 3
+    /// position axes at the gate probability ([`super::check::run_disagrees`]).
+    pub(crate) check_run_gates: [f64; 3],
     pub(crate) tag_height_m: f64,
     /// Hazard zones and zones without a working reader, checked by the predictive alarm.
     pub(crate) alarm_zones: Vec<Zone>,
