@@ -283,11 +283,24 @@ impl Lifecycle {
     /// An output tick at `time_s` with no update since the last tick or update at an earlier
     /// time: the status moves on with the silence `time_s − last update`.
     ///
+    /// A tick that changes nothing (no event) does not move the lifecycle's clock: an update
+    /// older than it but not older than the last update or event is still taken (a record of
+    /// a sender running behind another, whose records moved the tracker's clock).
+    ///
     /// # Errors
     /// [`EngineError::InvalidParameter`] (`time_s`) for a non-finite time or one before the
-    /// latest time seen.
+    /// latest update or event.
     pub fn tick(&mut self, time_s: f64) -> Result<Option<LifecycleEvent>> {
-        self.advance(time_s)?;
+        let event = self.status_at(time_s)?;
+        if event.is_some() {
+            self.now_s = time_s;
+        }
+        Ok(event)
+    }
+
+    /// What a tick at `time_s` does to the status.
+    fn status_at(&mut self, time_s: f64) -> Result<Option<LifecycleEvent>> {
+        self.check_order(time_s)?;
         let silence_s = time_s - self.last_update_s;
         let event = match self.status {
             TrackStatus::Tentative if time_s - self.started_s > self.settings.confirm_window_s => {
@@ -314,6 +327,13 @@ impl Lifecycle {
     }
 
     fn advance(&mut self, time_s: f64) -> Result<()> {
+        self.check_order(time_s)?;
+        self.now_s = time_s;
+        Ok(())
+    }
+
+    /// `time_s` is finite and not before the latest update or event.
+    fn check_order(&self, time_s: f64) -> Result<()> {
         finite_time(time_s)?;
         if time_s < self.now_s {
             return Err(EngineError::InvalidParameter {
@@ -321,7 +341,6 @@ impl Lifecycle {
                 reason: "time went backwards: ticks and updates must come in time order",
             });
         }
-        self.now_s = time_s;
         Ok(())
     }
 }

@@ -13,7 +13,7 @@ use super::output::{Event, Output};
 use super::range_bias::RangeOffset;
 use super::report::report;
 use super::tag_index::TagIndex;
-use super::tick::{tick_one, wake_s, TickMark};
+use super::tick::{likely_to_change, tick_one, wake_s, TickMark};
 use crate::error::{EngineError, Result};
 use crate::lifecycle::TrackStatus;
 use crate::record::Measurement;
@@ -244,11 +244,19 @@ impl<const N: usize> Core<N> {
         for (input_s, input) in inputs {
             let track = &mut self.tracks[index];
             let history = &mut self.histories[index];
-            let copy = history.copy_due(input_s, horizon_s).then(|| track.clone());
-            history.push(input_s, input.clone(), copy, horizon_s);
             match &input {
-                Input::Record(m) => apply_to_track(&self.shared, track, &mut self.monitor, input_s, m, out),
-                Input::Tick => deleted |= tick_one(&self.shared, track, &mut self.monitor, input_s, out),
+                Input::Record(m) => {
+                    let copy = history.copy_due(input_s, horizon_s).then(|| track.clone());
+                    history.push(input_s, input.clone(), copy, horizon_s);
+                    apply_to_track(&self.shared, track, &mut self.monitor, input_s, m, out);
+                }
+                Input::Tick => {
+                    // as in the live tick: the first tick after records keeps a copy
+                    let copy =
+                        (history.copy_due(input_s, horizon_s) || history.last_is_record()).then(|| track.clone());
+                    history.push_tick(input_s, copy, horizon_s);
+                    deleted |= tick_one(&self.shared, track, &mut self.monitor, input_s, out);
+                }
             }
         }
         let track = &mut self.tracks[index];
@@ -311,10 +319,12 @@ impl<const N: usize> Core<N> {
                     // (a late record re-filtered past this tick: its replay ran the ticks it
                     // needed)
                     let before = TickMark::of(track, now_s);
-                    let copy = history.copy_due(now_s, horizon_s).then(|| track.clone());
+                    let copy = (history.copy_due(now_s, horizon_s)
+                        || (history.last_is_record() && likely_to_change(shared, track, now_s)))
+                    .then(|| track.clone());
                     deleted |= tick_one(shared, track, &mut self.monitor, now_s, out);
                     if TickMark::of(track, now_s) != before {
-                        history.push(now_s, Input::Tick, copy, horizon_s);
+                        history.push_tick(now_s, copy, horizon_s);
                     }
                 }
             }

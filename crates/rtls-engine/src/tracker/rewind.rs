@@ -122,6 +122,31 @@ impl<const N: usize> History<N> {
         }
     }
 
+    /// Whether the newest input is a record (not a tick).
+    pub(super) fn last_is_record(&self) -> bool {
+        matches!(self.inputs.back(), Some((_, Input::Record(_))))
+    }
+
+    /// Records a tick at `time_s` that changed the track, after `copy` — the track before
+    /// the tick. The first tick after a record keeps its copy, dated at that record's time
+    /// (the copy holds every input up to it and none after): a record that arrives between
+    /// the two — another sender's records moved the clock past it — restores that copy and
+    /// re-applies the ticks only, not every record since the last periodic copy. Other
+    /// ticks keep `copy` only when one is due, as [`Self::push`] does.
+    pub(super) fn push_tick(&mut self, time_s: f64, copy: Option<Track<N>>, horizon_s: f64) {
+        match copy {
+            Some(track) if self.last_is_record() => {
+                self.snapshots.push_back(Snapshot {
+                    input_index: self.first_index + self.inputs.len() as u64,
+                    time_s: self.newest_s,
+                    track,
+                });
+                self.push(time_s, Input::Tick, None, horizon_s);
+            }
+            copy => self.push(time_s, Input::Tick, copy, horizon_s),
+        }
+    }
+
     /// Rewinds for a record at `time_s`: the newest copy taken at or before it, and the inputs
     /// since that copy (which the history forgets: re-applying them records them again).
     /// `None` when the history holds no copy that old (the record is beyond the horizon).

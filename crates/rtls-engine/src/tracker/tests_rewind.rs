@@ -254,3 +254,101 @@ fn an_epoch_closes_when_its_readers_have_reported_and_a_straggler_reopens_it() {
         }
     }
 }
+
+/// Fixes at 10 Hz of two walkers; `w2`'s sender runs `skew_s` ahead of `w1`'s, so its records
+/// move the clock past `w1`'s silence and `w1`'s track coasts before its records arrive.
+fn skewed_senders(seconds: f64, skew_s: f64) -> (Vec<Record>, Vec<Record>) {
+    let fix = |tag: &str, t: f64, offset: f64| Record {
+        time_s: t,
+        tag: tag.into(),
+        measurement: Measurement::Fix {
+            position_m: vec![2.0 + offset + 0.5 * t + 0.05 * (7.0 * t).sin(), 3.0 + 0.3 * t],
+            covariance_m2: vec![0.04, 0.0, 0.0, 0.04],
+        },
+    };
+    let mut in_order = Vec::new();
+    let mut arriving = Vec::new();
+    for k in 0..(seconds * 10.0) as usize {
+        let t = k as f64 * 0.1;
+        in_order.push(fix("w1", t, 0.0));
+        in_order.push(fix("w2", t, 4.0));
+        arriving.push((t + skew_s, fix("w1", t, 0.0)));
+        arriving.push((t, fix("w2", t, 4.0)));
+    }
+    arriving.sort_by(|a, b| a.0.total_cmp(&b.0));
+    (in_order, arriving.into_iter().map(|(_, r)| r).collect())
+}
+
+#[test]
+fn a_sender_behind_another_gives_the_tracks_of_the_records_in_order() {
+    // w1's records arrive 1.5 s after w2's of the same time: beyond the output interval, so
+    // w1's track is ticked (it coasts) before each of its records, within the horizon (2 s)
+    let (in_order, skewed) = skewed_senders(20.0, 1.5);
+    let expected = run(rewinding("fix-then-filter"), in_order);
+    let got = run(rewinding("fix-then-filter"), skewed);
+    assert!(
+        got.events.iter().all(|e| !matches!(e, Event::Late { .. })),
+        "within the horizon nothing is late"
+    );
+    let (expected, got) = (final_revisions(&expected), final_revisions(&got));
+    let missing: Vec<_> = expected.keys().filter(|k| !got.contains_key(*k)).collect();
+    assert!(missing.is_empty(), "(tag, time)s not reported: {missing:?}");
+    assert_eq!(expected.len(), got.len(), "the same (tag, time)s are reported");
+    for (key, (position, covariance)) in &expected {
+        let (p, c) = &got[key];
+        for axis in 0..3 {
+            assert!(
+                (p[axis] - position[axis]).abs() < 1e-9,
+                "{key:?}: {p:?} vs {position:?}"
+            );
+        }
+        for k in 0..9 {
+            assert!((c[k] - covariance[k]).abs() < 1e-12, "{key:?}: covariance");
+        }
+    }
+}
+
+#[test]
+fn a_record_behind_a_tick_rewinds_over_the_ticks_only() {
+    use super::rewind::{History, Input};
+    use super::track::Track;
+    let horizon_s = 2.0;
+    let track = Track::<4>::new(std::sync::Arc::from("w1"), 0);
+    let record = || {
+        Input::Record(Measurement::Fix {
+            position_m: vec![1.0, 2.0],
+            covariance_m2: vec![0.04, 0.0, 0.0, 0.04],
+        })
+    };
+    let mut history = History::new(&track);
+    // records every 10 ms for 0.4 s: copies only every quarter horizon (0.5 s)
+    for k in 0..40 {
+        let t = k as f64 * 0.01;
+        let copy = history.copy_due(t, horizon_s).then(|| track.clone());
+        history.push(t, record(), copy, horizon_s);
+    }
+    assert!(history.last_is_record());
+    // two ticks that changed the track (it coasts): the first after the records keeps a copy
+    history.push_tick(0.9, Some(track.clone()), horizon_s);
+    assert!(!history.last_is_record());
+    history.push_tick(1.15, Some(track.clone()), horizon_s);
+    // a record between the last record (0.39 s) and the ticks re-applies the ticks only
+    let rewind = history.rewind(0.5).expect("within the horizon");
+    let replayed: Vec<f64> = rewind.inputs.iter().map(|(t, _)| *t).collect();
+    assert_eq!(replayed, vec![0.9, 1.15]);
+    assert!(rewind.inputs.iter().all(|(_, i)| matches!(i, Input::Tick)));
+    // a record before the last record rewinds to the periodic copy, as before
+    let mut history = History::new(&track);
+    for k in 0..40 {
+        let t = k as f64 * 0.01;
+        let copy = history.copy_due(t, horizon_s).then(|| track.clone());
+        history.push(t, record(), copy, horizon_s);
+    }
+    history.push_tick(0.9, Some(track.clone()), horizon_s);
+    let rewind = history.rewind(0.2).expect("within the horizon");
+    assert_eq!(
+        rewind.inputs.len(),
+        40 + 1,
+        "every record since the copy at 0 s, and the tick"
+    );
+}

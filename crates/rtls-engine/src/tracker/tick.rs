@@ -72,6 +72,21 @@ impl TickMark {
     }
 }
 
+/// Whether a tick at `now_s` is likely to change the track (what [`TickMark`] detects): it
+/// holds an open epoch, deferred records or GNSS readings, is tentative, or has been silent
+/// longer than the output interval (it coasts, is lost or deleted). A hint for taking a copy
+/// of the track before the tick ([`super::rewind::History::push_tick`]); nothing depends on
+/// it being right.
+pub(super) fn likely_to_change<const N: usize>(shared: &Shared, track: &Track<N>, now_s: f64) -> bool {
+    !track.epoch.is_empty()
+        || !track.deferred.is_empty()
+        || track.gnss.holds_readings_before(f64::INFINITY)
+        || track.lifecycle.as_ref().is_some_and(|lifecycle| {
+            lifecycle.status() == TrackStatus::Tentative
+                || now_s - lifecycle.last_update_s() > shared.settings.output_interval_s
+        })
+}
+
 /// One track's part of [`Core::tick`](super::core::Core::tick); returns `true` when the track was deleted.
 fn tick_track<const N: usize>(
     shared: &Shared,
