@@ -83,6 +83,8 @@ pub fn start(
             .filter(|_| !bound.tls)
             .map(|address| connect(address, &client_id, &name, &write_token));
         let mut tick = tokio::time::interval(PERIOD);
+        // each payload is awaited before the next: the order holds by itself
+        let mut order = crate::sink::IngestOrder::default();
         tracing::info!(
             feed = %name,
             via = if publisher.is_some() { "mqtt" } else { "sink" },
@@ -108,7 +110,7 @@ pub fn start(
                     .await
                     .map_err(|e| e.to_string()),
                 None => pipeline
-                    .ingest(&name, payload.into())
+                    .ingest(&name, payload.into(), &mut order)
                     .await
                     .map(|_| ())
                     .map_err(|e| e.to_string()),

@@ -38,7 +38,80 @@ pub trait MeasurementSink: Send + Sync + 'static {
     /// # Errors
     /// [`IngestError::Invalid`] when a line does not parse (nothing of the payload is stored),
     /// [`IngestError::Unavailable`] when it could not be stored.
-    fn ingest(&self, source: &str, payload: bytes::Bytes) -> IngestFuture;
+    ///
+    /// `order` is the sender's (one per MQTT connection): payloads ingested through one
+    /// [`IngestOrder`] are queued for tracking in the order of these calls, however their
+    /// futures are polled. A connection keeps many payloads in flight, and an MQTT client's
+    /// records of one tag arrive in time order; queued out of order, each would make its
+    /// track rewind and re-filter.
+    fn ingest(&self, source: &str, payload: bytes::Bytes, order: &mut IngestOrder) -> IngestFuture;
+}
+
+/// The order of one sender's payloads: each call to [`IngestOrder::next_turn`] gives a
+/// [`Turn`] that waits for the previous one's.
+///
+/// A sink's future does what can run in parallel (parsing, checking) first, then
+/// [`Turn::wait`]s, queues its records and lets the next payload go ([`Turn::done`], or
+/// by dropping the turn — a payload refused or failed does not hold the others).
+///
+/// # Example
+/// ```
+/// # tokio::runtime::Builder::new_current_thread().build().unwrap().block_on(async {
+/// use rtls_server::sink::IngestOrder;
+/// let mut order = IngestOrder::default();
+/// let (mut first, mut second) = (order.next_turn(), order.next_turn());
+/// first.wait().await; // the first has no one to wait for
+/// first.done();
+/// second.wait().await; // returns once the first is done (or dropped)
+/// # });
+/// ```
+#[derive(Debug, Default)]
+pub struct IngestOrder {
+    /// Resolves when the latest turn given out is done.
+    latest: Option<tokio::sync::oneshot::Receiver<()>>,
+}
+
+impl IngestOrder {
+    /// The next payload's turn, after every turn given out before.
+    pub fn next_turn(&mut self) -> Turn {
+        let (done, finished) = tokio::sync::oneshot::channel();
+        Turn {
+            previous: self.latest.replace(finished),
+            done: Some(done),
+        }
+    }
+}
+
+/// One payload's place in its sender's [`IngestOrder`].
+#[derive(Debug)]
+pub struct Turn {
+    previous: Option<tokio::sync::oneshot::Receiver<()>>,
+    done: Option<tokio::sync::oneshot::Sender<()>>,
+}
+
+impl Turn {
+    /// A turn that waits for nobody (a payload whose order does not matter).
+    pub fn alone() -> Self {
+        Self {
+            previous: None,
+            done: None,
+        }
+    }
+
+    /// Waits until the previous payload's turn is done or dropped.
+    pub async fn wait(&mut self) {
+        if let Some(previous) = self.previous.take() {
+            // an error is a dropped turn: the payload before gave up its place
+            let _ = previous.await;
+        }
+    }
+
+    /// Lets the next payload go (dropping the turn does the same).
+    pub fn done(&mut self) {
+        if let Some(done) = self.done.take() {
+            let _ = done.send(());
+        }
+    }
 }
 
 /// One outgoing message: a topic (MQTT topic name) and its payload (JSON).

@@ -10,7 +10,7 @@ use std::time::Duration;
 use axum::http::{Method, StatusCode};
 use bytes::Bytes;
 use common::{call, eventually, metric_value, state, READ, WRITE};
-use rtls_server::sink::MeasurementSink;
+use rtls_server::sink::{IngestOrder, MeasurementSink};
 use serde_json::json;
 
 /// Sewio RTLS Studio's WebSockets connector documentation: tag 18's position.
@@ -93,13 +93,18 @@ async fn vendor_messages_are_authorised_parsed_counted_and_tracked() {
         .ingest(
             "mqtt:rtls/v1/adapters/quuppa/qpe-1",
             Bytes::from_static(QUUPPA.as_bytes()),
+            &mut IngestOrder::default(),
         )
         .await;
     assert_eq!(stored, Ok(1));
     assert_eq!(state.query(|s| s.record_count()).await.unwrap(), 3);
     let presence = QUUPPA.replace(r#""locationType": "position""#, r#""locationType": "presence""#);
     let stored = sink
-        .ingest("mqtt:rtls/v1/adapters/quuppa/qpe-1", Bytes::from(presence))
+        .ingest(
+            "mqtt:rtls/v1/adapters/quuppa/qpe-1",
+            Bytes::from(presence),
+            &mut IngestOrder::default(),
+        )
         .await;
     assert_eq!(stored, Ok(0));
 

@@ -19,7 +19,7 @@ use tokio::sync::{broadcast, watch, Notify};
 use tokio::time::{timeout, timeout_at, Instant};
 
 use crate::auth::Access;
-use crate::sink::{IngestError, Publication};
+use crate::sink::{IngestError, IngestOrder, Publication};
 
 use super::error_topic;
 use super::frame::{self, Next};
@@ -114,6 +114,8 @@ pub(crate) struct Session {
     publications: Option<broadcast::Receiver<Publication>>,
     /// Payloads in the sink, in arrival order (so acknowledgements keep that order).
     pending: FuturesOrdered<PendingIngest>,
+    /// The order the connection's payloads are queued in: the order they arrived.
+    order: IngestOrder,
     /// When the last packet arrived (or reading resumed after back-pressure).
     last_activity: Instant,
 }
@@ -149,6 +151,7 @@ impl Session {
             filters: Vec::new(),
             publications: None,
             pending: FuturesOrdered::new(),
+            order: IngestOrder::default(),
             last_activity: Instant::now(),
         };
         session.queue(&Packet::ConnAck(ConnAck::new(ConnectReturnCode::Success, false)));
@@ -296,7 +299,10 @@ impl Session {
             )));
         }
         add(&self.shared.counters.publishes_received, 1);
-        let ingest = self.shared.sink.ingest(&format!("mqtt:{topic}"), publish.payload);
+        let ingest = self
+            .shared
+            .sink
+            .ingest(&format!("mqtt:{topic}"), publish.payload, &mut self.order);
         let packet_id = (publish.qos == QoS::AtLeastOnce).then_some(publish.pkid);
         let topic = publish.topic;
         self.pending.push_back(Box::pin(async move {

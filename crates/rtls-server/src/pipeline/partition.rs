@@ -27,7 +27,8 @@ use crate::omlox::ProviderType;
 use crate::sink::Publication;
 use crate::store::{EventRow, LocationRow};
 
-/// How often an idle partition advances its tracker with the wall clock.
+/// How often an idle partition advances its tracker with the wall clock, and how long it must
+/// have been without records to count as idle.
 const CLOCK_TICK: Duration = Duration::from_millis(250);
 
 pub(super) struct PartitionWorker {
@@ -70,6 +71,12 @@ impl PartitionWorker {
     pub fn run(mut self) {
         let mut out = Output::default();
         let mut last_clock = Instant::now();
+        // whether the partition has caught up with its input: the wall clock moves a tracker
+        // only then. While batches keep coming their records move it (event time); a clock
+        // run ahead of a backlog would make each queued record older than ticks its track
+        // was given, so every one would rewind and re-filter (the cost grows with the backlog
+        // it causes) or, without a rewind horizon, be reported late
+        let mut caught_up;
         loop {
             let mut processed = None;
             let mut quarantined = Vec::new();
@@ -77,6 +84,7 @@ impl PartitionWorker {
             self.follow_zone_edits();
             match self.rx.recv_timeout(CLOCK_TICK) {
                 Ok(PartitionInput::Records(batch)) => {
+                    caught_up = false;
                     // an edit made while this batch waited applies to it
                     self.follow_zone_edits();
                     let started = Instant::now();
@@ -112,7 +120,7 @@ impl PartitionWorker {
                     let _ = reply.send(self.restore(&bytes, &mut out));
                     continue;
                 }
-                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Timeout) => caught_up = true,
                 Err(RecvTimeoutError::Disconnected) => {
                     if let Err(e) = self.tracker.finish(&mut out) {
                         tracing::warn!(partition = self.index, error = %e, "flushing the tracker failed");
@@ -121,7 +129,7 @@ impl PartitionWorker {
                     return;
                 }
             }
-            if self.live_clock && last_clock.elapsed() >= CLOCK_TICK {
+            if self.live_clock && caught_up && last_clock.elapsed() >= CLOCK_TICK {
                 last_clock = Instant::now();
                 if let Err(e) = self.tracker.advance_to(unix_s() - self.clock_lag_s, &mut out) {
                     tracing::warn!(partition = self.index, error = %e, "advancing the clock failed");

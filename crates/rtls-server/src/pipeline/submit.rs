@@ -7,7 +7,7 @@ use tokio::sync::oneshot;
 use super::fanout::PeerMessage;
 use super::readers::ReaderMonitor;
 use super::{partition_of, unix_ms, unix_s, IngestBatch, Pipeline};
-use crate::sink::{IngestError, IngestFuture, MeasurementSink};
+use crate::sink::{IngestError, IngestFuture, IngestOrder, MeasurementSink, Turn};
 use crate::store::NewRecord;
 
 impl Pipeline {
@@ -18,6 +18,12 @@ impl Pipeline {
     /// [`IngestError::Invalid`] naming `source:line: field` for the first bad line;
     /// [`IngestError::Unavailable`] when the payload could not be stored.
     pub async fn submit_lines(&self, source: &str, payload: &[u8]) -> Result<usize, IngestError> {
+        self.submit_lines_in_turn(source, payload, Turn::alone()).await
+    }
+
+    /// [`Pipeline::submit_lines`], queued after the payloads before `turn` in its sender's
+    /// order (parsing and checking do not wait).
+    async fn submit_lines_in_turn(&self, source: &str, payload: &[u8], turn: Turn) -> Result<usize, IngestError> {
         let text = std::str::from_utf8(payload).map_err(|e| {
             let line = 1 + payload[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
             IngestError::Invalid(format!("{source}:{line}: not UTF-8 text"))
@@ -36,7 +42,7 @@ impl Pipeline {
             let record = parse_json_line(line, source, index + 1).map_err(|e| self.refused("format", e.to_string()))?;
             records.push((index + 1, record));
         }
-        self.submit_numbered(source, records).await
+        self.submit_numbered(source, records, turn).await
     }
 
     /// Stores and queues records built elsewhere (the omlox location ingest); `source` names
@@ -45,11 +51,27 @@ impl Pipeline {
     /// # Errors
     /// As [`Pipeline::submit_lines`].
     pub async fn submit_records(&self, source: &str, records: Vec<Record>) -> Result<usize, IngestError> {
-        let numbered = records.into_iter().enumerate().map(|(i, r)| (i + 1, r)).collect();
-        self.submit_numbered(source, numbered).await
+        self.submit_records_in_turn(source, records, Turn::alone()).await
     }
 
-    async fn submit_numbered(&self, source: &str, records: Vec<(usize, Record)>) -> Result<usize, IngestError> {
+    async fn submit_records_in_turn(
+        &self,
+        source: &str,
+        records: Vec<Record>,
+        turn: Turn,
+    ) -> Result<usize, IngestError> {
+        let numbered = records.into_iter().enumerate().map(|(i, r)| (i + 1, r)).collect();
+        self.submit_numbered(source, numbered, turn).await
+    }
+
+    /// Checks, stores and queues the records; the queueing waits for `turn` (a cluster's
+    /// stream is not ordered by it: its partitions re-filter a record that overtook another).
+    async fn submit_numbered(
+        &self,
+        source: &str,
+        records: Vec<(usize, Record)>,
+        mut turn: Turn,
+    ) -> Result<usize, IngestError> {
         if records.is_empty() {
             return Ok(0);
         }
@@ -115,7 +137,14 @@ impl Pipeline {
         };
         let sender = self.ingest_sender()?;
         let started = std::time::Instant::now();
-        match tokio::time::timeout(self.inner.config.submit_timeout, sender.send(batch)).await {
+        let queued = async {
+            turn.wait().await;
+            sender.send(batch).await
+        };
+        let queued = tokio::time::timeout(self.inner.config.submit_timeout, queued).await;
+        // queued or not, the sender's next payload may go
+        turn.done();
+        match queued {
             Ok(Ok(())) => {}
             Ok(Err(_)) => return Err(IngestError::Unavailable("the server is shutting down".into())),
             Err(_) => {
@@ -150,6 +179,18 @@ impl Pipeline {
         source: &str,
         payload: &[u8],
     ) -> Result<AdapterOutcome, IngestError> {
+        self.submit_adapter_in_turn(vendor, source, payload, Turn::alone())
+            .await
+    }
+
+    /// [`Pipeline::submit_adapter`], queued in `turn`.
+    async fn submit_adapter_in_turn(
+        &self,
+        vendor: crate::adapters::Vendor,
+        source: &str,
+        payload: &[u8],
+        turn: Turn,
+    ) -> Result<AdapterOutcome, IngestError> {
         let default_accuracy_m = self.inner.config.default_accuracy_m;
         let parsed = match (vendor, &self.inner.config.generic_adapter) {
             (crate::adapters::Vendor::Generic, Some(generic)) => generic.parse(payload, default_accuracy_m),
@@ -166,7 +207,7 @@ impl Pipeline {
             tracing::debug!(%source, at = %refusal.at, tag = ?refusal.tag, reason = refusal.reason,
                 detail = %refusal.detail, "adapter: message without a position refused");
         }
-        let accepted = self.submit_records(source, parsed.records).await?;
+        let accepted = self.submit_records_in_turn(source, parsed.records, turn).await?;
         Ok(AdapterOutcome {
             accepted,
             refusals: parsed.refusals,
@@ -196,19 +237,20 @@ pub struct AdapterOutcome {
 impl MeasurementSink for Pipeline {
     /// JSON lines of our format, or — from an MQTT topic `rtls/v1/adapters/{vendor}/…` — a
     /// vendor's message through its adapter (refused messages are counted and logged).
-    fn ingest(&self, source: &str, payload: bytes::Bytes) -> IngestFuture {
+    fn ingest(&self, source: &str, payload: bytes::Bytes, order: &mut IngestOrder) -> IngestFuture {
         let pipeline = self.clone();
         let source = source.to_string();
         let vendor = source
             .strip_prefix("mqtt:")
             .and_then(crate::adapters::Vendor::from_topic);
+        let turn = order.next_turn();
         Box::pin(async move {
             match vendor {
                 Some(vendor) => pipeline
-                    .submit_adapter(vendor, &source, &payload)
+                    .submit_adapter_in_turn(vendor, &source, &payload, turn)
                     .await
                     .map(|outcome| outcome.accepted),
-                None => pipeline.submit_lines(&source, &payload).await,
+                None => pipeline.submit_lines_in_turn(&source, &payload, turn).await,
             }
         })
     }

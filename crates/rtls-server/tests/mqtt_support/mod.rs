@@ -10,7 +10,7 @@ use std::time::Duration;
 use bytes::{Bytes, BytesMut};
 use rtls_server::auth::Tokens;
 use rtls_server::mqtt::{BrokerConfig, BrokerStatsHandle, EmbeddedBroker};
-use rtls_server::sink::{IngestError, IngestFuture, MeasurementSink, Publication};
+use rtls_server::sink::{IngestError, IngestFuture, IngestOrder, MeasurementSink, Publication};
 use rumqttc::mqttbytes::v4::Connect;
 use rumqttc::{AsyncClient, ConnectionError, Event, MqttOptions, Packet};
 use tokio::io::AsyncReadExt;
@@ -136,7 +136,7 @@ fn parse_records(payload: &[u8]) -> Result<usize, IngestError> {
 }
 
 impl MeasurementSink for TestSink {
-    fn ingest(&self, source: &str, payload: Bytes) -> IngestFuture {
+    fn ingest(&self, source: &str, payload: Bytes, _order: &mut IngestOrder) -> IngestFuture {
         let (delay, unavailable) = {
             let mut state = self.lock();
             let jitter = if state.jitter_ms == 0 {

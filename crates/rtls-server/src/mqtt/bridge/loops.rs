@@ -14,7 +14,7 @@ use tokio::sync::broadcast::error::RecvError;
 use tokio::sync::{broadcast, mpsc, watch, Notify};
 use tokio::time::{sleep, timeout, Instant};
 
-use crate::sink::{IngestError, MeasurementSink, Publication};
+use crate::sink::{IngestError, IngestOrder, MeasurementSink, Publication};
 
 use super::{add, Counters, ExternalBroker};
 
@@ -61,6 +61,7 @@ pub(super) async fn run(bridge: ExternalBroker, shutdown: impl Future<Output = (
         reconnect: &reconnect,
         generation: &generation,
         counters: &counters,
+        order: IngestOrder::default(),
     };
     let signal = async move {
         shutdown.await;
@@ -187,13 +188,15 @@ struct IngestLoop<'a> {
     reconnect: &'a Notify,
     generation: &'a AtomicU64,
     counters: &'a Counters,
+    /// The order the messages are queued in: the order they were delivered.
+    order: IngestOrder,
 }
 
 /// A message in the sink.
 type PendingIngest = std::pin::Pin<Box<dyn Future<Output = (Publish, Result<usize, IngestError>)> + Send>>;
 
 impl IngestLoop<'_> {
-    async fn run(self, mut deliveries: mpsc::UnboundedReceiver<Delivery>, mut stop: watch::Receiver<bool>) {
+    async fn run(mut self, mut deliveries: mpsc::UnboundedReceiver<Delivery>, mut stop: watch::Receiver<bool>) {
         let mut pending: FuturesOrdered<PendingIngest> = FuturesOrdered::new();
         // Messages of connections up to this number are left for the broker to redeliver.
         let mut abandoned_generation = 0u64;
@@ -241,7 +244,7 @@ impl IngestLoop<'_> {
     /// Starts storing a message; acknowledges at once (and returns `None`) a message outside
     /// the measurement filter, which a persistent session may still deliver from an older
     /// subscription.
-    async fn start(&self, publish: Publish) -> Option<PendingIngest> {
+    async fn start(&mut self, publish: Publish) -> Option<PendingIngest> {
         if !matches(&publish.topic, unshared(&self.measurement_filter))
             && !matches(&publish.topic, crate::mqtt::ADAPTER_FILTER)
         {
@@ -250,9 +253,11 @@ impl IngestLoop<'_> {
             self.acknowledge(&publish).await;
             return None;
         }
-        let ingest = self
-            .sink
-            .ingest(&format!("mqtt:{}", publish.topic), publish.payload.clone());
+        let ingest = self.sink.ingest(
+            &format!("mqtt:{}", publish.topic),
+            publish.payload.clone(),
+            &mut self.order,
+        );
         Some(Box::pin(async move { (publish, ingest.await) }))
     }
 

@@ -1,0 +1,83 @@
+//! Order and time of what is tracked: one sender's payloads are queued in the order they
+//! arrived however their futures are polled (`rtls_server::sink::IngestOrder`: an MQTT
+//! connection keeps many payloads in flight, and a tag's records queued out of order would
+//! each make its track re-filter), and the wall clock does not run ahead of a stream of
+//! records that keeps coming behind it.
+
+mod common;
+
+use std::time::Duration;
+
+use axum::http::Method;
+use bytes::Bytes;
+use common::{call, eventually, metric_value, state, state_on, READ};
+use rtls_server::pipeline::PipelineConfig;
+use rtls_server::sink::{IngestOrder, MeasurementSink};
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn payloads_of_one_sender_are_logged_in_arrival_order_whatever_the_polling_order() {
+    let state = state("ingest-order");
+    let sink: &dyn MeasurementSink = &state.pipeline;
+    let mut order = IngestOrder::default();
+    let payloads = 40;
+    let futures: Vec<_> = (0..payloads)
+        .map(|k| {
+            let line = format!(
+                r#"{{"t": {}, "tag": "T1", "kind": "fix", "position_m": [1.0, 2.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#,
+                100.0 + 0.1 * k as f64
+            );
+            sink.ingest("mqtt:rtls/v1/measurements/r1", Bytes::from(line), &mut order)
+        })
+        .collect();
+    // polled last first: each would queue its payload at once, the newest first
+    let results = futures_util::future::join_all(futures.into_iter().rev()).await;
+    assert!(results.iter().all(|r| r == &Ok(1)), "{results:?}");
+    let stored = state.query(move |s| s.records_after(0, 100)).await.unwrap();
+    let times: Vec<f64> = stored.iter().map(|r| r.time_s).collect();
+    assert_eq!(times.len(), payloads);
+    assert!(
+        times.windows(2).all(|pair| pair[0] < pair[1]),
+        "logged in another order than they arrived: {times:?}"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn records_that_keep_coming_behind_the_wall_clock_are_tracked_not_reported_late() {
+    // the live clock 0.5 s behind the wall, and a gateway that delivers each record 1.5 s
+    // after its time, every 50 ms: a clock advanced while records keep coming would pass
+    // each one before it is tracked (the test site re-filters nothing)
+    let state = state_on(
+        "ingest-behind-clock",
+        PipelineConfig {
+            partitions: 1,
+            live_clock: true,
+            clock_lag_s: 0.5,
+            ..PipelineConfig::default()
+        },
+    );
+    let app = rtls_server::http::router(state.clone());
+    let unix_s = || {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64()
+    };
+    for k in 0..40 {
+        let line = format!(
+            r#"{{"t": {}, "tag": "D1", "kind": "fix", "position_m": [{}, 2.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#,
+            unix_s() - 1.5,
+            1.0 + 0.02 * k as f64
+        );
+        assert_eq!(state.pipeline.submit_lines("http", line.as_bytes()).await, Ok(1));
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let live = state.pipeline.live().clone();
+    assert!(
+        eventually(Duration::from_secs(10), || live.tag("D1").is_some()).await,
+        "D1 was not tracked"
+    );
+    let metrics = call(&app, Method::GET, "/metrics", Some(READ), "").await.text();
+    let late = metric_value(&metrics, "rtls_records_unused_total{event=\"late\",kind=\"fix\"}");
+    assert_eq!(late, 0.0, "records reported late while the stream kept coming");
+    state.pipeline.shutdown();
+}
