@@ -291,15 +291,15 @@ impl Lifecycle {
     /// [`EngineError::InvalidParameter`] (`time_s`) for a non-finite time or one before the
     /// latest update or event.
     pub fn tick(&mut self, time_s: f64) -> Result<Option<LifecycleEvent>> {
-        let event = self.status_at(time_s)?;
+        let event = self.tick_status(time_s)?;
         if event.is_some() {
             self.now_s = time_s;
         }
         Ok(event)
     }
 
-    /// What a tick at `time_s` does to the status.
-    fn status_at(&mut self, time_s: f64) -> Result<Option<LifecycleEvent>> {
+    /// Moves the status on for a tick at `time_s`; the event it raises, if any.
+    fn tick_status(&mut self, time_s: f64) -> Result<Option<LifecycleEvent>> {
         self.check_order(time_s)?;
         let silence_s = time_s - self.last_update_s;
         let event = match self.status {

@@ -251,9 +251,10 @@ impl<const N: usize> Core<N> {
                     apply_to_track(&self.shared, track, &mut self.monitor, input_s, m, out);
                 }
                 Input::Tick => {
-                    // as in the live tick: the first tick after records keeps a copy
-                    let copy =
-                        (history.copy_due(input_s, horizon_s) || history.last_is_record()).then(|| track.clone());
+                    // a recorded tick changed the track: the first after records keeps a copy
+                    let copy = history
+                        .copy_before_tick(input_s, horizon_s, || true)
+                        .then(|| track.clone());
                     history.push_tick(input_s, copy, horizon_s);
                     deleted |= tick_one(&self.shared, track, &mut self.monitor, input_s, out);
                 }
@@ -319,9 +320,9 @@ impl<const N: usize> Core<N> {
                     // (a late record re-filtered past this tick: its replay ran the ticks it
                     // needed)
                     let before = TickMark::of(track, now_s);
-                    let copy = (history.copy_due(now_s, horizon_s)
-                        || (history.last_is_record() && likely_to_change(shared, track, now_s)))
-                    .then(|| track.clone());
+                    let copy = history
+                        .copy_before_tick(now_s, horizon_s, || likely_to_change(shared, track, now_s))
+                        .then(|| track.clone());
                     deleted |= tick_one(shared, track, &mut self.monitor, now_s, out);
                     if TickMark::of(track, now_s) != before {
                         history.push_tick(now_s, copy, horizon_s);

@@ -127,6 +127,13 @@ impl<const N: usize> History<N> {
         matches!(self.inputs.back(), Some((_, Input::Record(_))))
     }
 
+    /// Whether a tick at `time_s` is to be preceded by a copy of the track: one is due, or
+    /// the tick is the first after a record and may change the track (`may_change`, asked
+    /// only then; see [`Self::push_tick`]).
+    pub(super) fn copy_before_tick(&self, time_s: f64, horizon_s: f64, may_change: impl FnOnce() -> bool) -> bool {
+        self.copy_due(time_s, horizon_s) || (self.last_is_record() && may_change())
+    }
+
     /// Records a tick at `time_s` that changed the track, after `copy` — the track before
     /// the tick. The first tick after a record keeps its copy, dated at that record's time
     /// (the copy holds every input up to it and none after): a record that arrives between

@@ -70,6 +70,27 @@ fn final_revisions(out: &Output) -> BTreeMap<(String, i64), ([f64; 3], [f64; 9])
         .collect()
 }
 
+/// `got` reports every (tag, time) `expected` does, and nothing else, with the same final
+/// position (1e-9 m) and covariance (1e-12 m²).
+fn assert_same_final_revisions(expected: &Output, got: &Output, label: &str) {
+    let (expected, got) = (final_revisions(expected), final_revisions(got));
+    let missing: Vec<_> = expected.keys().filter(|k| !got.contains_key(*k)).collect();
+    assert!(missing.is_empty(), "{label}: (tag, time)s not reported: {missing:?}");
+    assert_eq!(expected.len(), got.len(), "{label}: the same (tag, time)s are reported");
+    for (key, (position, covariance)) in &expected {
+        let (p, c) = &got[key];
+        for axis in 0..3 {
+            assert!(
+                (p[axis] - position[axis]).abs() < 1e-9,
+                "{label} {key:?}: {p:?} vs {position:?}"
+            );
+        }
+        for k in 0..9 {
+            assert!((c[k] - covariance[k]).abs() < 1e-12, "{label} {key:?}: covariance");
+        }
+    }
+}
+
 #[test]
 fn late_records_within_the_horizon_give_the_tracks_of_the_records_in_order() {
     for pipeline in ["tightly-coupled", "fix-then-filter"] {
@@ -102,24 +123,7 @@ fn late_records_within_the_horizon_give_the_tracks_of_the_records_in_order() {
         );
         let revised = late.updates.iter().filter(|u| u.revised).count();
         assert!(revised > 0, "{pipeline}: no update flagged revised");
-        let (expected, got) = (final_revisions(&in_order), final_revisions(&late));
-        assert_eq!(
-            expected.len(),
-            got.len(),
-            "{pipeline}: the same (tag, time)s are reported"
-        );
-        for (key, (position, covariance)) in &expected {
-            let (p, c) = &got[key];
-            for axis in 0..3 {
-                assert!(
-                    (p[axis] - position[axis]).abs() < 1e-9,
-                    "{pipeline} {key:?}: {p:?} vs {position:?}"
-                );
-            }
-            for k in 0..9 {
-                assert!((c[k] - covariance[k]).abs() < 1e-12, "{pipeline} {key:?}: covariance");
-            }
-        }
+        assert_same_final_revisions(&in_order, &late, pipeline);
     }
 }
 
@@ -290,22 +294,7 @@ fn a_sender_behind_another_gives_the_tracks_of_the_records_in_order() {
         got.events.iter().all(|e| !matches!(e, Event::Late { .. })),
         "within the horizon nothing is late"
     );
-    let (expected, got) = (final_revisions(&expected), final_revisions(&got));
-    let missing: Vec<_> = expected.keys().filter(|k| !got.contains_key(*k)).collect();
-    assert!(missing.is_empty(), "(tag, time)s not reported: {missing:?}");
-    assert_eq!(expected.len(), got.len(), "the same (tag, time)s are reported");
-    for (key, (position, covariance)) in &expected {
-        let (p, c) = &got[key];
-        for axis in 0..3 {
-            assert!(
-                (p[axis] - position[axis]).abs() < 1e-9,
-                "{key:?}: {p:?} vs {position:?}"
-            );
-        }
-        for k in 0..9 {
-            assert!((c[k] - covariance[k]).abs() < 1e-12, "{key:?}: covariance");
-        }
-    }
+    assert_same_final_revisions(&expected, &got, "fix-then-filter");
 }
 
 #[test]
