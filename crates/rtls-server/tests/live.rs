@@ -292,9 +292,16 @@ async fn postgresql_storage_serves_history() {
     stop(running).await;
     tokio::task::spawn_blocking(move || {
         let mut client = postgres::Client::connect(&url, postgres::NoTls).unwrap();
-        client
-            .batch_execute(&format!("DROP DATABASE IF EXISTS {database} WITH (FORCE)"))
-            .unwrap();
+        // clean-up, not the test: FORCE cannot end a backend of another role (an autovacuum
+        // worker on the fresh database refuses it for a moment), so try again for a while
+        let drop = format!("DROP DATABASE IF EXISTS {database} WITH (FORCE)");
+        for attempt in 1..=20 {
+            match client.batch_execute(&drop) {
+                Ok(()) => return,
+                Err(e) if attempt == 20 => eprintln!("test database {database} left behind: {e}"),
+                Err(_) => std::thread::sleep(std::time::Duration::from_millis(250)),
+            }
+        }
     })
     .await
     .unwrap();
