@@ -68,6 +68,8 @@ for run in fast mid; do
   track "$d" tc-ukf measurements.jsonl --pipeline tightly-coupled --filter ukf
   track "$d" tc-imm measurements.jsonl --pipeline tightly-coupled --filter ekf --motion-model imm
   track "$d" ftf measurements.jsonl --pipeline fix-then-filter --filter kf
+  track "$d" tc-ekf-smooth measurements.jsonl --pipeline tightly-coupled --filter ekf --smooth
+  track "$d" ftf-smooth measurements.jsonl --pipeline fix-then-filter --filter kf --smooth
   track "$d" raw-tc-ekf measurements-raw.jsonl --pipeline tightly-coupled --filter ekf
   track "$d" raw-ftf measurements-raw.jsonl --pipeline fix-then-filter --filter kf
   score uwb-lias "$run" "tightly coupled EKF, calibrated" "$d/truth.csv" "$d/tc-ekf.tracks.jsonl" --skip-initial 1
@@ -75,6 +77,8 @@ for run in fast mid; do
   score uwb-lias "$run" "tightly coupled EKF IMM, calibrated" "$d/truth.csv" "$d/tc-imm.tracks.jsonl" --skip-initial 1
   score uwb-lias "$run" "fix-then-filter KF, calibrated" "$d/truth.csv" "$d/ftf.tracks.jsonl" --skip-initial 1
   score uwb-lias "$run" "raw fixes (Gauss-Newton), calibrated" "$d/truth.csv" "$d/ftf.fixes.jsonl" --skip-initial 1
+  score uwb-lias "$run" "tightly coupled EKF, calibrated, smoothed" "$d/truth.csv" "$d/tc-ekf-smooth.tracks.jsonl" --skip-initial 1
+  score uwb-lias "$run" "fix-then-filter KF, calibrated, smoothed" "$d/truth.csv" "$d/ftf-smooth.tracks.jsonl" --skip-initial 1
   score uwb-lias "$run" "tightly coupled EKF, raw ranges" "$d/truth.csv" "$d/raw-tc-ekf.tracks.jsonl" --skip-initial 1
   score uwb-lias "$run" "fix-then-filter KF, raw ranges" "$d/truth.csv" "$d/raw-ftf.tracks.jsonl" --skip-initial 1
   score uwb-lias "$run" "raw fixes, raw ranges" "$d/truth.csv" "$d/raw-ftf.fixes.jsonl" --skip-initial 1
@@ -86,24 +90,34 @@ for d in "$OUT"/ble/*/; do
   track "$d" pl-tc measurements.jsonl --pipeline tightly-coupled --filter ekf
   track "$d" pl-ftf measurements.jsonl --pipeline fix-then-filter --filter kf
   track "$d" fp-ftf measurements-vectors.jsonl --pipeline fix-then-filter --filter kf
+  track "$d" pl-tc-smooth measurements.jsonl --pipeline tightly-coupled --filter ekf --smooth
+  track "$d" pl-ftf-smooth measurements.jsonl --pipeline fix-then-filter --filter kf --smooth
+  track "$d" fp-ftf-smooth measurements-vectors.jsonl --pipeline fix-then-filter --filter kf --smooth
   score ble "$run" "path loss, tightly coupled EKF" "$d/truth.csv" "$d/pl-tc.tracks.jsonl" --skip-initial 2 --max-gap 1
   score ble "$run" "path loss, fix-then-filter KF (1 s epochs)" "$d/truth.csv" "$d/pl-ftf.tracks.jsonl" --skip-initial 2 --max-gap 1
   score ble "$run" "path loss, raw fixes" "$d/truth.csv" "$d/pl-ftf.fixes.jsonl" --skip-initial 2 --max-gap 1
   score ble "$run" "fingerprint WKNN, fix-then-filter KF" "$d/truth.csv" "$d/fp-ftf.tracks.jsonl" --skip-initial 2 --max-gap 1
   score ble "$run" "fingerprint WKNN, raw fixes" "$d/truth.csv" "$d/fp-ftf.fixes.jsonl" --skip-initial 2 --max-gap 1
+  score ble "$run" "path loss, tightly coupled EKF, smoothed" "$d/truth.csv" "$d/pl-tc-smooth.tracks.jsonl" --skip-initial 2 --max-gap 1
+  score ble "$run" "path loss, fix-then-filter KF, smoothed" "$d/truth.csv" "$d/pl-ftf-smooth.tracks.jsonl" --skip-initial 2 --max-gap 1
+  score ble "$run" "fingerprint WKNN, fix-then-filter, smoothed" "$d/truth.csv" "$d/fp-ftf-smooth.tracks.jsonl" --skip-initial 2 --max-gap 1
 done
 
 # UWB + wheel odometry, labyrinth robot (4 anchors, one range per step)
 d=$OUT/labyrinth/labyrinth
 track "$d" uwb-odo measurements.jsonl --pipeline tightly-coupled --filter ekf
 track "$d" uwb measurements-uwb-only.jsonl --pipeline tightly-coupled --filter ekf
+track "$d" uwb-odo-smooth measurements.jsonl --pipeline tightly-coupled --filter ekf --smooth
 score labyrinth labyrinth "UWB + odometry, tightly coupled EKF" "$d/truth.csv" "$d/uwb-odo.tracks.jsonl" --skip-initial 1
+score labyrinth labyrinth "UWB + odometry, tightly coupled, smoothed" "$d/truth.csv" "$d/uwb-odo-smooth.tracks.jsonl" --skip-initial 1
 score labyrinth labyrinth "UWB only, tightly coupled EKF" "$d/truth.csv" "$d/uwb.tracks.jsonl" --skip-initial 1
 
 # UJIIndoorLoc validation scans located in the training radio map
 d=$OUT/uji/validation
 track "$d" fp measurements.jsonl
+track "$d" fp-smooth measurements.jsonl --smooth
 score uji validation "fingerprint WKNN, fix-then-filter KF" "$d/truth.csv" "$d/fp.tracks.jsonl" --max-gap 0
+score uji validation "fingerprint WKNN, KF, smoothed" "$d/truth.csv" "$d/fp-smooth.tracks.jsonl" --max-gap 0
 score uji validation "fingerprint WKNN, raw fixes" "$d/truth.csv" "$d/fp.fixes.jsonl" --max-gap 0
 
 # rtls tune with ground truth on the first half of each recording, scored on the second half
@@ -119,9 +133,11 @@ for d in "$OUT"/ble/*/; do
   d=${d%/}; run=$(basename "$d")
   tuned "$d" tuned-tc measurements.jsonl --pipeline tightly-coupled --filter ekf
   tuned "$d" tuned-ftf measurements.jsonl --pipeline fix-then-filter --filter kf
+  SITE="$d/tuned-ftf.tuned.toml" track "$d" tuned-ftf-smooth measurements.jsonl --pipeline fix-then-filter --filter kf --smooth
   score ble "$run" "tuned path loss, tightly coupled EKF" "$d/truth-late.csv" "$d/tuned-tc.tracks.jsonl" --max-gap 1
   score ble "$run" "tuned path loss, fix-then-filter KF" "$d/truth-late.csv" "$d/tuned-ftf.tracks.jsonl" --max-gap 1
   score ble "$run" "tuned path loss, raw fixes" "$d/truth-late.csv" "$d/tuned-ftf.fixes.jsonl" --max-gap 1
+  score ble "$run" "tuned path loss, fix-then-filter, smoothed" "$d/truth-late.csv" "$d/tuned-ftf-smooth.tracks.jsonl" --max-gap 1
 done
 d=$OUT/labyrinth/labyrinth
 tuned "$d" tuned-odo measurements.jsonl --pipeline tightly-coupled --filter ekf

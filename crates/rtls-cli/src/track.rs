@@ -34,7 +34,7 @@ use rtls_engine::site::{
     read_text_file, FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site, MAX_RADIO_MAP_BYTES, MAX_SITE_BYTES,
 };
 use rtls_engine::survey::{SurveyMap, SurveySettings};
-use rtls_engine::tracker::{Event, Output, Tracker, ANONYMOUS_TAG};
+use rtls_engine::tracker::{Event, Output, Smoother, Tracker, ANONYMOUS_TAG};
 
 /// A pipeline named on the command line.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -101,6 +101,12 @@ pub struct TrackArgs {
     /// The readers CSV of the same survey (`rtls survey --readers-out`).
     #[arg(long, requires = "correct")]
     pub correct_readers: Option<PathBuf>,
+    /// Write the tracks smoothed over the whole recording (a Rauch–Tung–Striebel fixed-interval
+    /// smoother over each track's filtered states): each update also knows the measurements
+    /// after it, and carries `"smoothed": true`. For replays, reports and evaluation, not for
+    /// what a live tracker knew; the history is held until the end (~0.5 kB per update).
+    #[arg(long)]
+    pub smooth: bool,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -375,7 +381,13 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     let positions: RefCell<HashMap<String, [f64; 2]>> = RefCell::new(HashMap::new());
 
     let mut counts = Counts::default();
-    let mut out = Output::default();
+    // --smooth: the updates are kept with their states and written smoothed at the end
+    let mut smoother = args.smooth.then(|| tracker.smoother());
+    let mut out = if args.smooth {
+        Output::keeping_states()
+    } else {
+        Output::default()
+    };
     let mut write = |out: &mut Output, counts: &mut Counts| -> anyhow::Result<()> {
         if correction.is_some() {
             let mut positions = positions.borrow_mut();
@@ -383,8 +395,13 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
                 positions.insert(update.tag.to_string(), [update.position_m[0], update.position_m[1]]);
             }
         }
+        if let Some(smoother) = smoother.as_mut() {
+            smoother.take(out);
+        }
         for update in &out.updates {
-            writeln!(updates_out, "{}", update.to_json_line()).context("writing track updates")?;
+            if smoother.is_none() {
+                writeln!(updates_out, "{}", update.to_json_line()).context("writing track updates")?;
+            }
             counts.updates += 1;
             counts.predicted += usize::from(update.predicted);
             if let Some(tag) = counts.tags.get_mut(&*update.tag) {
@@ -461,6 +478,9 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     tracker.finish(&mut out)?;
     write(&mut out, &mut counts)?;
     bar.finish_and_clear();
+    if let Some(smoother) = smoother {
+        write_smoothed(smoother, &mut updates_out)?;
+    }
     updates_out.flush().context("writing track updates")?;
     if let Some(w) = events_out.as_mut() {
         w.flush().context("writing events")?;
@@ -495,6 +515,24 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
         eprintln!("{}", range_offsets_line(&offsets));
     }
     untracked_tags(&counts)
+}
+
+/// Smooths the kept tracks and writes them; names each segment the backward pass failed on
+/// (its filtered updates are written instead).
+fn write_smoothed(smoother: Smoother, updates_out: &mut dyn Write) -> anyhow::Result<()> {
+    let smoothed = smoother.finish();
+    for update in &smoothed.updates {
+        writeln!(updates_out, "{}", update.to_json_line()).context("writing track updates")?;
+    }
+    let count = smoothed.updates.iter().filter(|u| u.smoothed).count();
+    eprintln!("smoothed {count} of {} track updates", smoothed.updates.len());
+    for failure in &smoothed.failures {
+        eprintln!(
+            "tag {}: not smoothed from {:.3} s to {:.3} s (its filtered updates are written): {}",
+            failure.tag, failure.from_s, failure.to_s, failure.reason
+        );
+    }
+    Ok(())
 }
 
 /// The range offsets the tracks learnt (`[tracker.range_bias]`), per anchor: `A1 +0.123 ± 0.010 m`

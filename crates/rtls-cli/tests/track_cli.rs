@@ -267,3 +267,85 @@ fn fix_then_filter_with_odometry_and_an_imm_tracks_the_whole_file() {
         );
     }
 }
+
+/// Scores `tracks` against `truth` with `rtls eval --json`: (RMSE m, share inside the 95 %
+/// ellipse).
+fn scored(truth: &str, tracks: &str) -> (f64, f64) {
+    let output = rtls(&[
+        "eval",
+        "--truth",
+        truth,
+        "--tracks",
+        tracks,
+        "--skip-initial",
+        "2",
+        "--json",
+    ]);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    (
+        report["overall"]["rmse_m"].as_f64().unwrap(),
+        report["consistency"]["inside_95"].as_f64().unwrap(),
+    )
+}
+
+#[test]
+fn track_smooth_writes_every_update_smoothed_with_a_lower_error() {
+    let dir = temp_dir("smooth");
+    let (site, _, truth) = inputs(&dir);
+    // the walker's ranges with ±0.3 m of (deterministic, white-looking) noise
+    let noisy: String = (0..150)
+        .map(|k| {
+            let t = k as f64 * 0.1;
+            let anchors = [[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]];
+            let a: [f64; 2] = anchors[k % 4];
+            let range = ((2.0 + t - a[0]).powi(2) + (10.0 - a[1]).powi(2)).sqrt();
+            let noise = ((k * 7919 % 13) as f64 / 12.0 - 0.5) * 0.6;
+            format!(
+                "{{\"t\": {t}, \"tag\": \"w\", \"kind\": \"range\", \"anchor\": \"A{}\", \"range_m\": {}, \"std_m\": 0.2}}\n",
+                k % 4 + 1,
+                range + noise
+            )
+        })
+        .collect();
+    let input = dir.join("noisy.jsonl");
+    std::fs::write(&input, noisy).unwrap();
+    let input = input.display().to_string();
+    let run = |name: &str, extra: &[&str]| -> Vec<serde_json::Value> {
+        let tracks = dir.join(name).display().to_string();
+        let mut args = vec![
+            "track", "--site", &site, "--input", &input, "--output", &tracks, "--quiet",
+        ];
+        args.extend_from_slice(extra);
+        let output = rtls(&args);
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        if !extra.is_empty() {
+            let summary = String::from_utf8_lossy(&output.stderr);
+            assert!(summary.contains("smoothed 148 of 148 track updates"), "{summary}");
+        }
+        std::fs::read_to_string(&tracks)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect()
+    };
+    let filtered = run("filtered.jsonl", &[]);
+    let smoothed = run("smoothed.jsonl", &["--smooth"]);
+    assert_eq!(filtered.len(), smoothed.len());
+    assert!(smoothed.iter().all(|u| u["smoothed"] == true));
+    assert!(filtered.iter().all(|u| u.get("smoothed").is_none()));
+    // the newest update is the filter's own
+    let (f, s) = (filtered.last().unwrap(), smoothed.last().unwrap());
+    assert!(
+        (f["x"].as_f64().unwrap() - s["x"].as_f64().unwrap()).abs() < 1e-9,
+        "{f} {s}"
+    );
+    let path = |name: &str| dir.join(name).display().to_string();
+    let (filtered_rmse, _) = scored(&truth, &path("filtered.jsonl"));
+    let (smoothed_rmse, smoothed_inside) = scored(&truth, &path("smoothed.jsonl"));
+    assert!(
+        smoothed_rmse < filtered_rmse,
+        "smoothed {smoothed_rmse} m, filtered {filtered_rmse} m"
+    );
+    assert!(smoothed_inside >= 0.9, "{smoothed_inside}");
+}

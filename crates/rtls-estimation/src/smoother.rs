@@ -19,6 +19,8 @@
 
 use alloc::vec::Vec;
 
+use nalgebra::DMatrix;
+
 use crate::error::{EstimationError, Result};
 use crate::filter::{sigma_points, weighted_moments};
 use crate::filter::{ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter};
@@ -44,6 +46,106 @@ fn backward_step<const N: usize>(
     // Pₖ|ₙ = Pₖ|ₖ + G (Pₖ₊₁|ₙ − P⁻ₖ₊₁) Gᵀ
     let covariance = filtered.covariance() + gain * (next_smoothed.covariance() - predicted_cov) * gain.transpose();
     Gaussian::from_step(mean, covariance, filtered.time_s(), "smoothed state")
+}
+
+/// A covariance for a smoothed mean that holds whatever the correlation between the errors
+/// of what the past and what the future measurements say (covariance intersection).
+///
+/// The RTS mean fuses the filtered estimate (past measurements, `P_f`) with the information
+/// the future measurements add, `I_b = P_s⁻¹ − P_f⁻¹`:
+/// `x̂_s = A x̂_f + B x̂_b` with `A = P_s P_f⁻¹`, `B = P_s I_b`, `A + B = I`. `P_s` is its error
+/// covariance only if the two errors are independent; measurement errors that persist for
+/// seconds (multipath, a BLE fade) make them correlated, and `P_s` overconfident. For any
+/// correlation, `(a + b)(a + b)ᵀ ≼ aaᵀ/ω + bbᵀ/(1 − ω)` bounds it:
+/// ```text
+/// M_f = A P_f Aᵀ = P_s P_f⁻¹ P_s          M_b = B I_b⁻¹ Bᵀ = P_s I_b P_s = P_s − M_f
+/// P_ci(ω) = M_f / ω + M_b / (1 − ω)
+/// ω* = √a / (√a + √b),  a = tr_S(M_f), b = tr_S(M_b)      (minimises tr_S P_ci = (√a + √b)²)
+/// ```
+/// where `tr_S` sums the diagonal entries listed in `components` (the reported ones, e.g.
+/// the position axes). `P_s ≼ P_ci ≼` roughly `P_f`: equal to `P_s` where the future adds
+/// nothing (`P_s = P_f`, the newest state) and to `P_f` where past and future weigh the same
+/// (the worst case: fully correlated errors add nothing).
+///
+/// `P_f⁻¹` is its pseudo-inverse where `P_f` is singular (eigenvalues below `10⁻¹²` of the
+/// largest).
+///
+/// # Errors
+/// [`EstimationError::NotPositiveDefinite`] if `P_f` is zero or not finite, or the bound is
+/// not positive semi-definite.
+///
+/// # Example
+/// ```
+/// use rtls_estimation::smoother::intersection_bound;
+/// use rtls_estimation::{Gaussian, Matrix, Vector};
+/// // past and future say as much (P_f = P_b = 1, so P_s = 1/2): with correlation unknown,
+/// // the smoothed mean is only as sure as the filtered one
+/// let filtered = Gaussian::new(Vector::<1>::new(0.0), Matrix::<1>::new(1.0), 0.0)?;
+/// let smoothed = Gaussian::new(Vector::<1>::new(0.0), Matrix::<1>::new(0.5), 0.0)?;
+/// let bound = intersection_bound(&filtered, &smoothed, &[0])?;
+/// assert!((bound[(0, 0)] - 1.0).abs() < 1e-12);
+/// # Ok::<(), rtls_estimation::EstimationError>(())
+/// ```
+///
+/// # References
+/// S. J. Julier, J. K. Uhlmann, "A non-divergent estimation algorithm in the presence of
+/// unknown correlations", Proc. American Control Conference 1997; D. C. Fraser, J. E. Potter,
+/// "The optimum linear smoother as a combination of two optimum linear filters", IEEE TAC
+/// 14(4), 1969 (the smoother as a fusion of a forward and a backward filter).
+pub fn intersection_bound<const N: usize>(
+    filtered: &Gaussian<N>,
+    smoothed: &Gaussian<N>,
+    components: &[usize],
+) -> Result<Matrix<N>> {
+    let p_s = smoothed.covariance();
+    // P_f⁺ by its eigenvalues: a filtered covariance may be singular along a direction a
+    // measurement fixed (a speed of exactly known heading); P_s ≼ P_f is then as certain there,
+    // and the pseudo-inverse is the limit of P_f⁻¹ on the rest
+    let eigen = DMatrix::from_column_slice(N, N, filtered.covariance().as_slice()).symmetric_eigen();
+    let largest = eigen.eigenvalues.max();
+    if !(largest.is_finite() && largest > 0.0) {
+        return Err(EstimationError::NotPositiveDefinite {
+            what: "filtered covariance (smoothed covariance bound)",
+        });
+    }
+    let inverted = eigen
+        .eigenvalues
+        .map(|lambda| if lambda > 1e-12 * largest { 1.0 / lambda } else { 0.0 });
+    let pinv = &eigen.eigenvectors * DMatrix::from_diagonal(&inverted) * eigen.eigenvectors.transpose();
+    let pinv = Matrix::<N>::from_column_slice(pinv.as_slice());
+    // M_f = P_s P_f⁺ P_s
+    let m_f = p_s * pinv * p_s;
+    let m_f = (m_f + m_f.transpose()) * 0.5;
+    // M_b = P_s I_b P_s = P_s − M_f
+    let m_b = p_s - m_f;
+    // a = tr_S(M_f), b = tr_S(M_b) (b ≥ 0 unless the future lost information: then none is
+    // taken from it)
+    let a: f64 = components.iter().map(|&i| m_f[(i, i)]).sum();
+    let b: f64 = components.iter().map(|&i| m_b[(i, i)]).sum();
+    if !(a.is_finite() && a > 0.0 && b.is_finite()) {
+        return Err(EstimationError::NotPositiveDefinite {
+            what: "smoothed covariance bound",
+        });
+    }
+    // (b within rounding of 0: the future added nothing, and the bound is P_s itself)
+    let bound = if b <= 1e-12 * a {
+        *p_s
+    } else {
+        // ω* = √a / (√a + √b);  P_ci = M_f/ω + M_b/(1 − ω)
+        let omega = a.sqrt() / (a.sqrt() + b.sqrt());
+        m_f / omega + m_b / (1.0 - omega)
+    };
+    // (semi-definite, like the P_s it bounds where a direction is known exactly)
+    let least = DMatrix::from_column_slice(N, N, bound.as_slice())
+        .symmetric_eigenvalues()
+        .min();
+    if least.is_finite() && least >= -1e-9 * largest {
+        Ok(bound)
+    } else {
+        Err(EstimationError::NotPositiveDefinite {
+            what: "smoothed covariance bound",
+        })
+    }
 }
 
 /// Runs the backward pass with a per-step prediction function returning `(x⁻, P⁻, C)`.
@@ -145,5 +247,65 @@ impl UnscentedKalmanFilter {
             }
             Ok((xp, pp, c))
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// A random symmetric positive definite 4 × 4 matrix `L Lᵀ + 0.1 I`.
+    fn random_spd(rng: &mut ChaCha8Rng) -> Matrix<4> {
+        let l = Matrix::<4>::from_fn(|_, _| rng.gen_range(-1.0..1.0));
+        l * l.transpose() + Matrix::<4>::identity() * 0.1
+    }
+
+    /// The bound's traced components hold the smoothed mean's true error covariance
+    /// `A P_f Aᵀ + B P_b Bᵀ + A X Bᵀ + B Xᵀ Aᵀ` for past/future errors with any valid
+    /// cross-covariance `X`, and the bound is never below `P_s`.
+    #[test]
+    fn the_intersection_bound_holds_for_any_correlation_of_past_and_future() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let components = [0, 2];
+        for _ in 0..200 {
+            let p_f = random_spd(&mut rng);
+            let p_b = random_spd(&mut rng);
+            // P_s = (P_f⁻¹ + P_b⁻¹)⁻¹, A = P_s P_f⁻¹, B = P_s P_b⁻¹
+            let info_f = p_f.try_inverse().unwrap();
+            let info_b = p_b.try_inverse().unwrap();
+            let p_s = (info_f + info_b).try_inverse().unwrap();
+            let p_s = (p_s + p_s.transpose()) * 0.5;
+            let (a, b) = (p_s * info_f, p_s * info_b);
+            let filtered = Gaussian::new(Vector::<4>::zeros(), p_f, 0.0).unwrap();
+            let smoothed = Gaussian::new(Vector::<4>::zeros(), p_s, 0.0).unwrap();
+            let bound = intersection_bound(&filtered, &smoothed, &components).unwrap();
+            // P_ci − P_s ≽ 0
+            let least = (bound - p_s).symmetric_eigenvalues().min();
+            assert!(least > -1e-9, "P_ci − P_s has eigenvalue {least}");
+            for _ in 0..20 {
+                // X = L_f K L_bᵀ with ‖K‖ ≤ 1 (a valid joint covariance of past and future errors)
+                let k = Matrix::<4>::from_fn(|_, _| rng.gen_range(-1.0..1.0));
+                let k = k / k.norm().max(1.0);
+                let l_f = p_f.cholesky().unwrap().l();
+                let l_b = p_b.cholesky().unwrap().l();
+                let x = l_f * k * l_b.transpose();
+                let actual = a * p_f * a.transpose()
+                    + b * p_b * b.transpose()
+                    + a * x * b.transpose()
+                    + b * x.transpose() * a.transpose();
+                let traced = |m: &Matrix<4>| components.iter().map(|&i| m[(i, i)]).sum::<f64>();
+                assert!(traced(&actual) <= traced(&bound) + 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn the_newest_state_keeps_its_filtered_covariance() {
+        let p = Matrix::<2>::new(2.0, 0.3, 0.3, 1.0);
+        let state = Gaussian::new(Vector::<2>::zeros(), p, 0.0).unwrap();
+        let bound = intersection_bound(&state, &state, &[0]).unwrap();
+        assert!((bound - p).norm() < 1e-12);
     }
 }

@@ -64,6 +64,7 @@ fn update() -> TrackUpdate {
         source: UpdateSource::Prediction,
         mode: Some("CV"),
         revised: false,
+        smoothed: false,
     }
 }
 
@@ -117,6 +118,7 @@ fn location_from_update_matches_schema_and_hand_values() {
     assert!(value["properties"].get("rtls:revised").is_none());
     let revised = TrackUpdate {
         revised: true,
+        smoothed: false,
         ..update()
     };
     let revised = serde_json::to_value(location_from_update(&revised, "site-a", ProviderType::Uwb).unwrap()).unwrap();

@@ -240,7 +240,7 @@ pub fn residuals(
 ///     position_m: [1.0, 2.0, 1.2], velocity_mps: [0.5, 0.0, 0.0],
 ///     position_covariance_m2: [0.04, 0.0, 0.0, 0.04, 0.0, 0.0, 0.0, 0.0, 0.0],
 ///     predicted: true, status: TrackStatus::Coasting, source: UpdateSource::Prediction,
-///     mode: None, revised: false,
+///     mode: None, revised: false, smoothed: false,
 /// };
 /// let samples = samples_from_updates(&[update]);
 /// assert!(samples[0].predicted && !samples[0].has_z);

@@ -187,6 +187,7 @@ impl AnonymousFront {
                 },
                 mode: None,
                 revised: false,
+                smoothed: false,
             });
         }
         for event in &report.events {

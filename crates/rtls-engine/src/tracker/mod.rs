@@ -173,6 +173,7 @@ mod readings_fix;
 mod report;
 mod rewind;
 mod schedule;
+mod smoothing;
 mod solve;
 mod step;
 mod tag_index;
@@ -211,6 +212,8 @@ mod tests_robust;
 #[cfg(test)]
 mod tests_schedule;
 #[cfg(test)]
+mod tests_smoothing;
+#[cfg(test)]
 mod tests_timing;
 mod tick;
 mod track;
@@ -219,9 +222,10 @@ mod update;
 pub use anonymous::ANONYMOUS_TAG;
 pub use checkpoint::TrackerState;
 pub use noise::{InnovationTotals, Innovations, NoiseClass};
-pub use output::{status_name, Event, Output, RawFix, TrackUpdate, UpdateSource};
+pub use output::{status_name, Event, Output, RawFix, ReportedState, TrackUpdate, UpdateSource};
 pub use range_bias::{AnchorOffsetSummary, RangeOffset};
 pub(crate) use schedule::scheduling_layout;
+pub use smoothing::{SmoothedTracks, Smoother, SmoothingFailure};
 
 use self::anonymous::AnonymousFront;
 use self::core::Core;
@@ -521,6 +525,14 @@ impl Tracker {
             Tracks::Planar(core) => core.flush(out),
             Tracks::Spatial(core) => core.flush(out),
         }
+    }
+
+    /// A smoother for this tracker's track updates ([`Smoother`]): the site's CV model and
+    /// tag height. Feed it outputs made by [`Output::keeping_states`].
+    #[must_use]
+    pub fn smoother(&self) -> Smoother {
+        let shared = self.shared();
+        Smoother::new(shared.kf, shared.motion, shared.tag_height_m)
     }
 
     /// The anchors' range offsets the tracks have learnt (`[tracker.range_bias]`), by tag then

@@ -66,6 +66,9 @@ pub struct TrackUpdate {
     /// a late record was re-filtered (`tracker.rewind_horizon_s`), or a record with the time
     /// of an update already published arrived after it.
     pub revised: bool,
+    /// `true` when the state was smoothed over the later measurements of its track
+    /// ([`super::Smoother`], `rtls track --smooth`): not what a live tracker knew at the time.
+    pub smoothed: bool,
 }
 
 /// The name of a track status as written in JSON.
@@ -95,7 +98,7 @@ fn lifecycle_name(event: LifecycleEvent) -> &'static str {
 
 impl TrackUpdate {
     /// The update as one JSON object on one line:
-    /// `{"t","tag","x","y"[,"z"],"vx","vy"[,"vz"],"cov":[D² entries],"predicted","status","source"[,"mode"][,"revised"]}`.
+    /// `{"t","tag","x","y"[,"z"],"vx","vy"[,"vz"],"cov":[D² entries],"predicted","status","source"[,"mode"][,"revised"][,"smoothed"]}`.
     ///
     /// # Examples
     /// ```
@@ -106,7 +109,7 @@ impl TrackUpdate {
     ///     position_m: [1.0, 2.0, 0.0], velocity_mps: [0.5, 0.0, 0.0],
     ///     position_covariance_m2: [0.04, 0.0, 0.0, 0.04, 0.0, 0.0, 0.0, 0.0, 0.0],
     ///     predicted: false, status: TrackStatus::Confirmed, source: UpdateSource::Fix,
-    ///     mode: None, revised: false,
+    ///     mode: None, revised: false, smoothed: false,
     /// };
     /// let value: serde_json::Value = serde_json::from_str(&update.to_json_line()).unwrap();
     /// assert_eq!(value["cov"].as_array().unwrap().len(), 4);
@@ -122,6 +125,7 @@ impl TrackUpdate {
             mode: self.mode,
             predicted: self.predicted,
             revised: self.revised.then_some(true),
+            smoothed: self.smoothed.then_some(true),
             source: self.source.name(),
             status: status_name(self.status),
             t: self.time_s,
@@ -146,6 +150,8 @@ struct TrackLine<'a> {
     predicted: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     revised: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    smoothed: Option<bool>,
     source: &'static str,
     status: &'static str,
     t: f64,
@@ -429,14 +435,53 @@ pub struct Output {
     /// Innovation totals per measurement class of the updates computed since the last
     /// [`Output::clear`] (a consumer that clears adds them up with [`Innovations::merge`]).
     pub innovations: Innovations,
+    /// The whole filtered state behind each track update, for a smoother
+    /// ([`super::Smoother`]); `None` (nothing kept, nothing copied) unless the output was
+    /// made by [`Output::keeping_states`].
+    pub states: Option<Vec<ReportedState>>,
+}
+
+/// The whole filtered state (CV layout `[x, vx, y, vy(, z, vz)]`) behind one track update of
+/// an [`Output`], kept for the smoother ([`super::Smoother`]).
+///
+/// # Units
+/// Means in m and m/s, covariance entries in m², m²/s and m²/s².
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReportedState {
+    /// Index of its update in [`Output::updates`].
+    pub update: usize,
+    /// Which start of the track it descends from: every (re)start of a track from a fix (its
+    /// first, a re-acquisition, a jump) begins a new segment, and a smoother does not cross
+    /// one.
+    pub segment: u32,
+    /// State size `N` (4 in 2-D, 6 in 3-D).
+    pub size: usize,
+    /// The mean, first `N` entries.
+    pub mean: [f64; 6],
+    /// The covariance, `N × N` row-major in the first `N²` entries.
+    pub covariance: [f64; 36],
 }
 
 impl Output {
-    /// Empties all three lists, keeping their capacity, and zeroes the innovation totals.
+    /// An empty output that also keeps the whole state behind each track update
+    /// ([`Output::states`]), for [`super::Smoother`].
+    #[must_use]
+    pub fn keeping_states() -> Self {
+        Self {
+            states: Some(Vec::new()),
+            ..Self::default()
+        }
+    }
+
+    /// Empties all lists, keeping their capacity (and whether states are kept), and zeroes
+    /// the innovation totals.
     pub fn clear(&mut self) {
         self.updates.clear();
         self.events.clear();
         self.fixes.clear();
+        if let Some(states) = self.states.as_mut() {
+            states.clear();
+        }
         self.innovations = Innovations::default();
     }
 

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use rtls_estimation::Gaussian;
 
 use super::alarms::{position_of, predict_entries};
-use super::output::{Event, Output, TrackUpdate, UpdateSource};
+use super::output::{Event, Output, ReportedState, TrackUpdate, UpdateSource};
 use super::track::{dimensions, Shared, Track};
 use crate::error::Result;
 use crate::lifecycle::TrackStatus;
@@ -37,7 +37,31 @@ pub(super) fn track_update<const N: usize>(
         source,
         mode: shared.manoeuvres.as_ref().map(|m| m.name(track.mode)),
         revised: state.time_s() <= track.last_reported_s,
+        smoothed: false,
     }
+}
+
+/// Appends `update` to the output and, when the output keeps states
+/// ([`Output::keeping_states`]), the whole `state` behind it.
+fn push_update<const N: usize>(out: &mut Output, update: TrackUpdate, state: &Gaussian<N>, segment: u32) {
+    if let Some(states) = out.states.as_mut() {
+        let mut mean = [0.0; 6];
+        let mut covariance = [0.0; 36];
+        mean[..N].copy_from_slice(state.mean().as_slice());
+        for i in 0..N {
+            for j in 0..N {
+                covariance[i * N + j] = state.covariance()[(i, j)];
+            }
+        }
+        states.push(ReportedState {
+            update: out.updates.len(),
+            segment,
+            size: N,
+            mean,
+            covariance,
+        });
+    }
+    out.updates.push(update);
 }
 
 /// Reports the track's latest update, then its zones and alarms.
@@ -50,8 +74,12 @@ pub(super) fn report<const N: usize>(
     let (Some(source), Some(state), Some(status)) = (track.unreported.take(), track.state, track.status()) else {
         return Ok(());
     };
-    out.updates
-        .push(track_update(shared, track, &state, false, status, source));
+    push_update(
+        out,
+        track_update(shared, track, &state, false, status, source),
+        &state,
+        track.segment,
+    );
     track.last_output_s = state.time_s();
     track.last_reported_s = track.last_reported_s.max(state.time_s());
     if matches!(status, TrackStatus::Confirmed | TrackStatus::Coasting) {
@@ -70,14 +98,15 @@ pub(super) fn coast<const N: usize>(
     monitor: &mut ZoneMonitor,
     out: &mut Output,
 ) -> Result<()> {
-    out.updates.push(track_update(
+    let update = track_update(
         shared,
         track,
         predicted,
         true,
         TrackStatus::Coasting,
         UpdateSource::Prediction,
-    ));
+    );
+    push_update(out, update, predicted, track.segment);
     track.last_output_s = now_s;
     track.last_reported_s = track.last_reported_s.max(now_s);
     zones_and_alarms(shared, track, predicted, monitor, out)

@@ -201,6 +201,7 @@ fn the_horizontal_nees_reads_the_covariance_of_either_dimension() {
         source: UpdateSource::Fix,
         mode: None,
         revised: false,
+        smoothed: false,
     };
     // P = diag(4, 1): e = (2, 1) is 1 + 1
     assert!((horizontal_nees(&update, [2.0, 1.0]) - 2.0).abs() < 1e-12);

@@ -185,6 +185,10 @@ pub(crate) struct Track<const N: usize> {
     /// not part of a checkpoint.
     #[serde(skip, default = "no_fading")]
     pub(super) fading: f64,
+    /// How often the track has (re)started from a fix: the segment its reported states belong
+    /// to ([`super::ReportedState::segment`]).
+    #[serde(default)]
+    pub(super) segment: u32,
 }
 
 fn no_fading() -> f64 {
@@ -228,6 +232,7 @@ impl<const N: usize> Track<N> {
             check_cost: 0.0,
             check_distances: Vec::new(),
             fading: 1.0,
+            segment: 0,
         }
     }
 

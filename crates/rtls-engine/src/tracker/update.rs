@@ -235,6 +235,7 @@ fn start_at<const N: usize>(
     }
     let position_m = position_of(&state, shared.tag_height_m).0;
     track.state = Some(state);
+    track.segment = track.segment.wrapping_add(1);
     track.heading_cross = None;
     track.offset_cross = None;
     track.lost_state = None;

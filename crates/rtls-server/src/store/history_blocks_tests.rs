@@ -34,6 +34,7 @@ fn walk(tag: &str, n: usize, dimensions: usize) -> Vec<LocationRow> {
                 source: UpdateSource::Fix,
                 mode: (k % 2 == 0).then_some("CV"),
                 revised: k == 5,
+                smoothed: false,
             };
             LocationRow {
                 received_ms: 1_795_697_831_000 + 1000 * k as i64 + (k as i64 % 3),

@@ -141,6 +141,7 @@ pub(crate) fn track_state(received_ms: i64, time_s: f64, tag: &str) -> LocationR
         source: UpdateSource::Fix,
         mode: None,
         revised: false,
+        smoothed: false,
     };
     LocationRow {
         received_ms,

@@ -1,0 +1,256 @@
+//! The smoothed history ([`super::Smoother`]): it lowers the error of a noisy walk, its 95 %
+//! ellipses still hold the truth about 95 % of the time, its newest state is the filter's,
+//! it never crosses a restart of the track, and a revised update replaces the kept ones.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+use super::tests::site;
+use super::*;
+use crate::lifecycle::TrackStatus;
+use crate::record::Measurement;
+
+/// A tag walking a circle of radius 8 m about (10, 10) at 1 m/s: not a constant velocity.
+fn circle(t: f64) -> [f64; 2] {
+    let angle = t / 8.0;
+    [10.0 + 8.0 * angle.cos(), 10.0 + 8.0 * angle.sin()]
+}
+
+/// Fixes of `tags` tags every 0.5 s for `seconds`, σ = 1 m per axis, each tag with its own
+/// noise; `truth(tag, t)` is where the tag is.
+fn fixes(tags: usize, seconds: f64, truth: impl Fn(usize, f64) -> [f64; 2]) -> Vec<Record> {
+    let mut rng = ChaCha8Rng::seed_from_u64(2026);
+    let noise = Normal::new(0.0, 1.0).unwrap();
+    let mut records = Vec::new();
+    let mut t = 0.0;
+    while t < seconds {
+        for tag in 0..tags {
+            let p = truth(tag, t);
+            records.push(Record {
+                time_s: t,
+                tag: format!("w{tag}"),
+                measurement: Measurement::Fix {
+                    position_m: vec![p[0] + noise.sample(&mut rng), p[1] + noise.sample(&mut rng)],
+                    covariance_m2: vec![1.0, 0.0, 0.0, 1.0],
+                },
+            });
+        }
+        t += 0.5;
+    }
+    records
+}
+
+/// Tracks `records` keeping states; returns the filtered updates and the smoothed ones.
+fn track_and_smooth(records: Vec<Record>) -> (Vec<TrackUpdate>, SmoothedTracks) {
+    let mut tracker = Tracker::new(&site("fix-then-filter", "kf", "")).unwrap();
+    let mut smoother = tracker.smoother();
+    let mut out = Output::keeping_states();
+    let mut filtered = Vec::new();
+    for record in records {
+        tracker.push(record, &mut out).unwrap();
+        smoother.take(&out);
+        filtered.append(&mut out.updates);
+        out.clear();
+    }
+    tracker.finish(&mut out).unwrap();
+    smoother.take(&out);
+    filtered.append(&mut out.updates);
+    (filtered, smoother.finish())
+}
+
+/// Squared position error and its Mahalanobis distance `d² = eᵀ P⁻¹ e` (2-D).
+fn error_and_distance(update: &TrackUpdate, truth: [f64; 2]) -> (f64, f64) {
+    let e = [update.position_m[0] - truth[0], update.position_m[1] - truth[1]];
+    let p = &update.position_covariance_m2;
+    let det = p[0] * p[3] - p[1] * p[2];
+    // d² = (p₁₁ e₀² − 2 p₀₁ e₀ e₁ + p₀₀ e₁²) / det P
+    let d2 = (p[3] * e[0] * e[0] - 2.0 * p[1] * e[0] * e[1] + p[0] * e[1] * e[1]) / det;
+    (e[0] * e[0] + e[1] * e[1], d2)
+}
+
+/// RMSE (m) and the share of 95 % ellipses holding the truth, over the measured updates after
+/// the first 5 s of each tag.
+fn score(updates: &[TrackUpdate], truth: impl Fn(usize, f64) -> [f64; 2]) -> (f64, f64, usize) {
+    let scored: Vec<(f64, f64)> = updates
+        .iter()
+        .filter(|u| !u.predicted && u.time_s >= 5.0)
+        .map(|u| {
+            let tag: usize = u.tag[1..].parse().unwrap();
+            error_and_distance(u, truth(tag, u.time_s))
+        })
+        .collect();
+    let n = scored.len();
+    let rmse = (scored.iter().map(|s| s.0).sum::<f64>() / n as f64).sqrt();
+    // χ²₂(0.95) = 5.991
+    let coverage = scored.iter().filter(|s| s.1 <= 5.991).count() as f64 / n as f64;
+    (rmse, coverage, n)
+}
+
+#[test]
+fn smoothing_a_noisy_walk_lowers_its_error_and_its_ellipses_still_hold_the_truth() {
+    let truth = |tag: usize, t: f64| circle(t + 7.0 * tag as f64);
+    let (filtered, smoothed) = track_and_smooth(fixes(12, 120.0, truth));
+    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
+    assert_eq!(smoothed.updates.len(), filtered.len());
+    assert!(smoothed.updates.iter().all(|u| u.smoothed));
+
+    let (filtered_rmse, filtered_coverage, n) = score(&filtered, truth);
+    let (smoothed_rmse, smoothed_coverage, _) = score(&smoothed.updates, truth);
+    println!(
+        "{n} updates: filtered RMSE {filtered_rmse:.3} m, 95 % coverage {filtered_coverage:.3}; \
+         smoothed {smoothed_rmse:.3} m, {smoothed_coverage:.3}"
+    );
+    assert!(
+        smoothed_rmse < 0.85 * filtered_rmse,
+        "smoothed {smoothed_rmse} m against filtered {filtered_rmse} m"
+    );
+    // the reported covariance is a bound for any correlation of past and future errors: with
+    // white errors (as here) it is conservative
+    assert!(
+        smoothed_coverage >= 0.95,
+        "smoothed 95 % ellipses hold the truth {smoothed_coverage:.3} of the time"
+    );
+}
+
+#[test]
+fn with_fix_errors_that_persist_for_seconds_the_smoothed_ellipses_keep_the_filters_calibration() {
+    // each tag's fix errors are AR(1): e_k = ρ e_{k−1} + √(1 − ρ²) w_k, ρ = 0.8 per 0.5 s
+    // (a correlation time of 2.2 s: a multipath or a fade that stays), σ = 1 m
+    let truth = |tag: usize, t: f64| circle(t + 7.0 * tag as f64);
+    let rho: f64 = 0.8;
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let noise = Normal::new(0.0, 1.0).unwrap();
+    let mut errors = [[0.0, 0.0]; 12];
+    let mut records = Vec::new();
+    for k in 0..240 {
+        let t = 0.5 * f64::from(k);
+        for (tag, error) in errors.iter_mut().enumerate() {
+            for e in error.iter_mut() {
+                *e = if k == 0 {
+                    noise.sample(&mut rng)
+                } else {
+                    rho * *e + (1.0 - rho * rho).sqrt() * noise.sample(&mut rng)
+                };
+            }
+            let p = truth(tag, t);
+            records.push(Record {
+                time_s: t,
+                tag: format!("w{tag}"),
+                measurement: Measurement::Fix {
+                    position_m: vec![p[0] + error[0], p[1] + error[1]],
+                    covariance_m2: vec![1.0, 0.0, 0.0, 1.0],
+                },
+            });
+        }
+    }
+    let (filtered, smoothed) = track_and_smooth(records);
+    let (filtered_rmse, filtered_coverage, n) = score(&filtered, truth);
+    let (smoothed_rmse, smoothed_coverage, _) = score(&smoothed.updates, truth);
+    println!(
+        "{n} updates: filtered RMSE {filtered_rmse:.3} m, 95 % coverage {filtered_coverage:.3}; \
+         smoothed {smoothed_rmse:.3} m, {smoothed_coverage:.3}"
+    );
+    assert!(smoothed_rmse < 0.9 * filtered_rmse);
+    // the smoother keeps the filter's calibration (the filter's own, under errors it takes as
+    // white, is short of 95 %: 0.79); the smoother's own covariance Pₖ|ₙ would lose it
+    assert!(
+        smoothed_coverage >= filtered_coverage - 0.02,
+        "smoothed 95 % ellipses hold the truth {smoothed_coverage:.3} of the time, filtered {filtered_coverage:.3}"
+    );
+}
+
+#[test]
+fn the_newest_smoothed_state_of_a_track_is_its_filtered_state() {
+    let (filtered, smoothed) = track_and_smooth(fixes(1, 30.0, |_, t| circle(t)));
+    let last_filtered = filtered.last().unwrap();
+    let last_smoothed = smoothed.updates.last().unwrap();
+    assert_eq!(last_filtered.time_s, last_smoothed.time_s);
+    for axis in 0..2 {
+        assert!((last_filtered.position_m[axis] - last_smoothed.position_m[axis]).abs() < 1e-9);
+        assert!((last_filtered.velocity_mps[axis] - last_smoothed.velocity_mps[axis]).abs() < 1e-9);
+    }
+    for (a, b) in last_filtered
+        .position_covariance_m2
+        .iter()
+        .zip(&last_smoothed.position_covariance_m2)
+    {
+        assert!((a - b).abs() < 1e-9);
+    }
+    // and an earlier one moved: the smoother did something
+    let k = filtered.len() / 2;
+    assert!((filtered[k].position_m[0] - smoothed.updates[k].position_m[0]).abs() > 1e-6);
+}
+
+#[test]
+fn the_smoother_never_crosses_a_restart_of_the_track() {
+    // from t = 40 s the tag's fixes are 285 m north: the track jumps (a new segment)
+    let truth = |_: usize, t: f64| {
+        let p = circle(t);
+        if t >= 40.0 {
+            [p[0], p[1] + 285.0]
+        } else {
+            p
+        }
+    };
+    let (_, smoothed) = track_and_smooth(fixes(1, 80.0, truth));
+    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
+    // every smoothed update before the jump stays with the walk, none is pulled north
+    let before: Vec<&TrackUpdate> = smoothed
+        .updates
+        .iter()
+        .filter(|u| u.time_s < 40.0 && u.status != TrackStatus::Lost)
+        .collect();
+    assert!(before.len() > 60);
+    for update in before {
+        let p = circle(update.time_s);
+        let error_m = (update.position_m[0] - p[0]).hypot(update.position_m[1] - p[1]);
+        assert!(
+            error_m < 4.0,
+            "at {} s the smoothed track is {error_m:.1} m off",
+            update.time_s
+        );
+    }
+    // and the updates after it follow the tag there
+    let last = smoothed.updates.last().unwrap();
+    assert!(last.position_m[1] > 250.0);
+}
+
+#[test]
+fn a_revised_update_replaces_the_kept_updates_at_and_after_its_time() {
+    let tracker = Tracker::new(&site("fix-then-filter", "kf", "")).unwrap();
+    let mut smoother = tracker.smoother();
+    let update = |time_s: f64, x: f64, revised: bool| TrackUpdate {
+        time_s,
+        tag: "a".into(),
+        dimensions: 2,
+        position_m: [x, 0.0, 0.0],
+        velocity_mps: [0.0; 3],
+        position_covariance_m2: [1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        predicted: false,
+        status: TrackStatus::Confirmed,
+        source: UpdateSource::Fix,
+        mode: None,
+        revised,
+        smoothed: false,
+    };
+    let mut out = Output {
+        updates: vec![
+            update(1.0, 1.0, false),
+            update(2.0, 2.0, false),
+            update(3.0, 3.0, false),
+        ],
+        ..Output::default()
+    };
+    smoother.take(&out);
+    out.updates = vec![update(2.0, 20.0, true)];
+    smoother.take(&out);
+    let smoothed = smoother.finish();
+    // updates without their states pass unchanged
+    let kept: Vec<(f64, f64, bool)> = smoothed
+        .updates
+        .iter()
+        .map(|u| (u.time_s, u.position_m[0], u.smoothed))
+        .collect();
+    assert_eq!(kept, vec![(1.0, 1.0, false), (2.0, 20.0, false)]);
+}
