@@ -247,6 +247,50 @@ impl CorridorMap {
         })
     }
 
+    /// The point of a corridor centreline within `radius_m` of `p` that the most of `readers`
+    /// see ([`CorridorMap::line_of_sight`]), the nearest to `p` among equals; `None` when no
+    /// centreline comes that near.
+    ///
+    /// Candidates are `p`'s foot on each segment, `a + clamp(u·(p − a), 0, L) u`: where a fix
+    /// made of readings heard through the corridors can lie. On a map of `S` segments it costs
+    /// `S` candidates, each `readers` lines of sight.
+    ///
+    /// # Example
+    /// ```
+    /// use rtls_engine::corridors::CorridorMap;
+    /// use rtls_engine::site::Corridor;
+    /// let drift = |id: &str, y: f64| Corridor {
+    ///     id: id.into(), points_m: vec![[0.0, y], [100.0, y]], heights_m: None, half_width_m: 2.0,
+    /// };
+    /// // two parallel drifts 10 m apart; a fix between them, nearer the lower one, of readings
+    /// // heard by two readers of the upper one
+    /// let map = CorridorMap::new(&[drift("lower", 0.0), drift("upper", 10.0)]);
+    /// let point = map.visible_point_near([50.0, 4.0], &[[40.0, 10.0], [60.0, 10.0]], 20.0).unwrap();
+    /// assert_eq!(point, [50.0, 10.0]);
+    /// ```
+    #[must_use]
+    pub fn visible_point_near(&self, p: [f64; 2], readers: &[[f64; 2]], radius_m: f64) -> Option<[f64; 2]> {
+        let mut best: Option<(usize, f64, [f64; 2])> = None;
+        for segment in &self.segments {
+            if segment.distance_m(p) > radius_m {
+                continue;
+            }
+            // foot of p: a + clamp(s, 0, L) u
+            let (along_m, _) = segment.coordinates(p);
+            let along_m = along_m.clamp(0.0, segment.length_m);
+            let foot = [
+                segment.start_m[0] + along_m * segment.direction[0],
+                segment.start_m[1] + along_m * segment.direction[1],
+            ];
+            let seen = readers.iter().filter(|&&r| self.line_of_sight(foot, r)).count();
+            let distance_m = (foot[0] - p[0]).hypot(foot[1] - p[1]);
+            if best.is_none_or(|(most, nearest_m, _)| seen > most || (seen == most && distance_m < nearest_m)) {
+                best = Some((seen, distance_m, foot));
+            }
+        }
+        best.map(|(_, _, foot)| foot)
+    }
+
     /// Whether a junction (a bend, a crossing, a T) lies within `radius_m` of `p`.
     #[must_use]
     pub fn junction_within(&self, p: [f64; 2], radius_m: f64) -> bool {

@@ -92,11 +92,18 @@ pub(super) fn close_epoch_if_due<const N: usize>(
         // track` → `rtls eval`: RMSE 6.30 m against 2.14 m)
         if heard.len() >= 2 && 2 * blocked > heard.len() {
             let time_s = track.state.as_ref().map_or(open_s, Gaussian::time_s);
+            let readers: Vec<[f64; 2]> = heard
+                .iter()
+                .map(|&i| {
+                    let a = shared.anchors.get(i).position_m;
+                    [a[0], a[1]]
+                })
+                .collect();
             let fixes = solve::<N>(shared, &readings, None).ok();
             let what = if fixes.is_some() {
-                "restarts at the fix of this epoch's readings"
+                "restarts at the fix of this epoch's readings, on the corridor nearest it that they can see"
             } else {
-                "is not held to the map this epoch (its readings give no fix to restart at)"
+                "(its readings give no fix to restart at) moves to the corridor nearest it that they can see"
             };
             let reason = format!(
                 "{blocked} of the {} readers that heard the tag cannot see the estimate through the corridors: \
@@ -104,12 +111,37 @@ pub(super) fn close_epoch_if_due<const N: usize>(
                 heard.len()
             );
             out.events.push(rejected(&track.tag, time_s, "epoch", reason));
-            if let Some(fixes) = fixes {
-                reacquire(track);
-                for (position, covariance, method) in fixes {
-                    out.fixes
-                        .push(epoch_raw_fix(&track.tag, time_s, &position, &covariance, method));
-                    fix_update(shared, track, time_s, &position, &covariance, "epoch", out)?;
+            match fixes {
+                Some(fixes) => {
+                    reacquire(track);
+                    for (position, covariance, method) in fixes {
+                        out.fixes
+                            .push(epoch_raw_fix(&track.tag, time_s, &position, &covariance, method));
+                        // the fix's readings came through the corridors: start where the readers
+                        // that heard them can see, within 3σ of it (a fix between two drifts
+                        // sits in the rock, and a start there is refused again next epoch)
+                        let d = position.len().min(3);
+                        let radius_m = 3.0 * covariance[0].max(covariance[d + 1]).sqrt();
+                        let mut start = position.clone();
+                        if let Some(foot) = visible_foot(constraints, [position[0], position[1]], &readers, radius_m) {
+                            start[..2].copy_from_slice(&foot);
+                        }
+                        fix_update(shared, track, time_s, &start, &covariance, "epoch", out)?;
+                    }
+                }
+                None => {
+                    // no fix: the estimate itself moves there (its covariance kept: projecting
+                    // the mean onto the constraint, Simon 2010 §2.3)
+                    if let Some(state) = track.state {
+                        let p = state.covariance();
+                        let radius_m = 3.0 * p[(0, 0)].max(p[(2, 2)]).sqrt();
+                        if let Some(foot) = visible_foot(constraints, plan, &readers, radius_m) {
+                            let mut mean = *state.mean();
+                            mean[0] = foot[0];
+                            mean[2] = foot[1];
+                            track.state = Some(Gaussian::new(mean, *p, state.time_s())?);
+                        }
+                    }
                 }
             }
             return Ok(());
@@ -159,6 +191,17 @@ fn constrain<const N: usize>(
 }
 
 /// The tag position `[x, y, z]` of the track's state.
+/// The corridor point within `radius_m` (at least 5 m) of `p` that the most of `readers` see
+/// ([`crate::corridors::CorridorMap::visible_point_near`]).
+fn visible_foot(constraints: &Constraints, p: [f64; 2], readers: &[[f64; 2]], radius_m: f64) -> Option<[f64; 2]> {
+    constraints
+        .map
+        .visible_point_near(p, readers, radius_m.max(MIN_VISIBLE_RADIUS_M))
+}
+
+/// The least distance searched for a corridor point the readers see, m.
+const MIN_VISIBLE_RADIUS_M: f64 = 5.0;
+
 fn position<const N: usize>(shared: &Shared, track: &Track<N>) -> Option<[f64; 3]> {
     track.state.as_ref().map(|s| position_of(s, shared.tag_height_m).0)
 }
