@@ -21,6 +21,8 @@ use alloc::vec::Vec;
 
 use nalgebra::DMatrix;
 
+use crate::math::sqrt;
+
 use crate::error::{EstimationError, Result};
 use crate::filter::{sigma_points, weighted_moments};
 use crate::filter::{ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter};
@@ -132,7 +134,7 @@ pub fn intersection_bound<const N: usize>(
         *p_s
     } else {
         // ω* = √a / (√a + √b);  P_ci = M_f/ω + M_b/(1 − ω)
-        let omega = a.sqrt() / (a.sqrt() + b.sqrt());
+        let omega = sqrt(a) / (sqrt(a) + sqrt(b));
         m_f / omega + m_b / (1.0 - omega)
     };
     // (semi-definite, like the P_s it bounds where a direction is known exactly)
