@@ -101,9 +101,11 @@ pub(super) fn close_epoch_if_due<const N: usize>(
                 .collect();
             let fixes = solve::<N>(shared, &readings, None).ok();
             let what = if fixes.is_some() {
-                "restarts at the fix of this epoch's readings, on the corridor nearest it that they can see"
+                "restarts at the fix of this epoch's readings, moved onto the corridor nearest it that they \
+                 can see when one lies within 3σ"
             } else {
-                "(its readings give no fix to restart at) moves to the corridor nearest it that they can see"
+                "(its readings give no fix to restart at) moves onto the corridor nearest it that they can \
+                 see when one lies within 3σ"
             };
             let reason = format!(
                 "{blocked} of the {} readers that heard the tag cannot see the estimate through the corridors: \

@@ -454,11 +454,11 @@ pub struct ReportedState {
     /// first, a re-acquisition, a jump) begins a new segment, and a smoother does not cross
     /// one.
     pub segment: u32,
-    /// State size `N` (4 in 2-D, 6 in 3-D).
-    pub size: usize,
-    /// The mean, first `N` entries.
+    /// The mean, first `N` entries (`N` = 2 × the update's
+    /// [`dimensions`](TrackUpdate::dimensions)).
     pub mean: [f64; 6],
-    /// The covariance, `N × N` row-major in the first `N²` entries.
+    /// The covariance, `N × N` in the first `N²` entries (symmetric: row- and column-major
+    /// agree).
     pub covariance: [f64; 36],
 }
 

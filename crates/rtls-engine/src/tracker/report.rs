@@ -48,15 +48,11 @@ fn push_update<const N: usize>(out: &mut Output, update: TrackUpdate, state: &Ga
         let mut mean = [0.0; 6];
         let mut covariance = [0.0; 36];
         mean[..N].copy_from_slice(state.mean().as_slice());
-        for i in 0..N {
-            for j in 0..N {
-                covariance[i * N + j] = state.covariance()[(i, j)];
-            }
-        }
+        // (column-major storage of a symmetric matrix: its row-major entries too)
+        covariance[..N * N].copy_from_slice(state.covariance().as_slice());
         states.push(ReportedState {
             update: out.updates.len(),
             segment,
-            size: N,
             mean,
             covariance,
         });

@@ -13,11 +13,12 @@
 //! `rts_smoother`). `Pₖ|ₙ` is the error covariance only if what the past and the future
 //! measurements say have independent errors; recorded fixes have errors that persist for
 //! seconds (multipath, a BLE fade), and on the shared recordings `Pₖ|ₙ`'s 95 % ellipses held the
-//! truth 67–93 % of the time. The covariance reported is therefore the covariance-intersection
-//! bound of the smoothed mean ([`rtls_estimation::smoother::intersection_bound`]): it holds for
-//! any correlation between the two, lies between `Pₖ|ₙ` and about `Pₖ|ₖ`, and equals `Pₖ|ₙ = Pₖ|ₖ`
-//! at a track's newest state. The filtered states `x̂ₖ|ₖ, Pₖ|ₖ` are the tracker's own, as reported: after
-//! its adaptive measurement noise, gating, constraints and covariance fading. The prediction
+//! truth 67–90 % of the time (means per configuration, docs/EVALUATION.md). The covariance
+//! reported is therefore the covariance-intersection bound of the smoothed mean
+//! ([`rtls_estimation::smoother::intersection_bound`]): it holds for any correlation between
+//! the two, lies between `Pₖ|ₙ` and about `Pₖ|ₖ`, and equals `Pₖ|ₙ = Pₖ|ₖ` at a track's newest
+//! state. The filtered states `x̂ₖ|ₖ, Pₖ|ₖ` are the tracker's own, as reported: after its
+//! adaptive measurement noise, gating, constraints and covariance fading. The prediction
 //! between them is the site's constant-velocity model; where the tracker predicted otherwise
 //! (an accelerometer's control input, the IMM's mode mixing) the smoother is an approximation
 //! of the exact one, never of a different track.
@@ -105,7 +106,7 @@ pub struct SmoothedTracks {
 pub struct SmoothingFailure {
     /// Tag id.
     pub tag: Arc<str>,
-    /// First and last time of the segment, s.
+    /// First time of the segment, s.
     pub from_s: f64,
     /// Last time of the segment, s.
     pub to_s: f64,
@@ -172,12 +173,13 @@ impl Smoother {
         result
     }
 
-    /// Smooths the updates `run` (indices into `kept`, one segment, time order) in place.
+    /// Smooths the updates `run` (indices into `kept`, one segment, time order) in place; on an
+    /// error none of them is changed.
     fn smooth_run(&self, kept: &mut [(TrackUpdate, Option<ReportedState>)], run: &[usize]) -> Result<(), String> {
-        match kept[run[0]].1.map(|s| s.size) {
-            Some(4) => self.smooth_sized::<4>(kept, run),
-            Some(6) => self.smooth_sized::<6>(kept, run),
-            other => Err(format!("a state of size {other:?} (2-D and 3-D CV states are 4 and 6)")),
+        match kept[run[0]].0.dimensions {
+            2 => self.smooth_sized::<4>(kept, run),
+            3 => self.smooth_sized::<6>(kept, run),
+            other => Err(format!("a track of {other} dimensions (2-D and 3-D are tracked)")),
         }
     }
 
@@ -200,11 +202,17 @@ impl Smoother {
         // the reported covariance: Pₖ|ₙ's bound for correlated past and future errors, traced
         // over the position axes
         let positions: Vec<usize> = (0..N / 2).map(|axis| 2 * axis).collect();
-        for ((&i, state), past) in run.iter().zip(&smoothed).zip(&filtered) {
-            let bound = intersection_bound(past, state, &positions).map_err(|e| e.to_string())?;
-            let state = Gaussian::new(*state.mean(), bound, state.time_s()).map_err(|e| e.to_string())?;
+        let reported = smoothed
+            .iter()
+            .zip(&filtered)
+            .map(|(state, past)| {
+                let bound = intersection_bound(past, state, &positions).map_err(|e| e.to_string())?;
+                Gaussian::new(*state.mean(), bound, state.time_s()).map_err(|e| e.to_string())
+            })
+            .collect::<Result<Vec<Gaussian<N>>, String>>()?;
+        for (&i, state) in run.iter().zip(&reported) {
             let update = &mut kept[i].0;
-            let (position_m, covariance_m2) = position_of(&state, self.tag_height_m);
+            let (position_m, covariance_m2) = position_of(state, self.tag_height_m);
             update.position_m = position_m;
             update.position_covariance_m2 = covariance_m2;
             for axis in 0..N / 2 {

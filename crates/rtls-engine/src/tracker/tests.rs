@@ -187,22 +187,28 @@ pub(super) fn horizontal_nees(update: &TrackUpdate, e: [f64; 2]) -> f64 {
     (d * e[0] * e[0] - 2.0 * b * e[0] * e[1] + a * e[1] * e[1]) / (a * d - b * b)
 }
 
-#[test]
-fn the_horizontal_nees_reads_the_covariance_of_either_dimension() {
-    let mut update = TrackUpdate {
-        time_s: 0.0,
-        tag: "t".into(),
+/// A confirmed 2-D fix update of `tag` at `time_s`, at `(x_m, 0)`, at rest, with the position
+/// covariance `P = diag(σx², σy²)`.
+pub(super) fn fix_update_at(tag: &str, time_s: f64, x_m: f64, [var_x_m2, var_y_m2]: [f64; 2]) -> TrackUpdate {
+    TrackUpdate {
+        time_s,
+        tag: tag.into(),
         dimensions: 2,
-        position_m: [0.0; 3],
+        position_m: [x_m, 0.0, 0.0],
         velocity_mps: [0.0; 3],
-        position_covariance_m2: [4.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        position_covariance_m2: [var_x_m2, 0.0, 0.0, var_y_m2, 0.0, 0.0, 0.0, 0.0, 0.0],
         predicted: false,
         status: TrackStatus::Confirmed,
         source: UpdateSource::Fix,
         mode: None,
         revised: false,
         smoothed: false,
-    };
+    }
+}
+
+#[test]
+fn the_horizontal_nees_reads_the_covariance_of_either_dimension() {
+    let mut update = fix_update_at("t", 0.0, 0.0, [4.0, 1.0]);
     // P = diag(4, 1): e = (2, 1) is 1 + 1
     assert!((horizontal_nees(&update, [2.0, 1.0]) - 2.0).abs() < 1e-12);
     update.dimensions = 3;

@@ -6,7 +6,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
-use super::tests::site;
+use super::tests::{fix_update_at, horizontal_nees, site};
 use super::*;
 use crate::lifecycle::TrackStatus;
 use crate::record::Measurement;
@@ -62,11 +62,7 @@ fn track_and_smooth(records: Vec<Record>) -> (Vec<TrackUpdate>, SmoothedTracks) 
 /// Squared position error and its Mahalanobis distance `d² = eᵀ P⁻¹ e` (2-D).
 fn error_and_distance(update: &TrackUpdate, truth: [f64; 2]) -> (f64, f64) {
     let e = [update.position_m[0] - truth[0], update.position_m[1] - truth[1]];
-    let p = &update.position_covariance_m2;
-    let det = p[0] * p[3] - p[1] * p[2];
-    // d² = (p₁₁ e₀² − 2 p₀₁ e₀ e₁ + p₀₀ e₁²) / det P
-    let d2 = (p[3] * e[0] * e[0] - 2.0 * p[1] * e[0] * e[1] + p[0] * e[1] * e[1]) / det;
-    (e[0] * e[0] + e[1] * e[1], d2)
+    (e[0] * e[0] + e[1] * e[1], horizontal_nees(update, e))
 }
 
 /// RMSE (m) and the share of 95 % ellipses holding the truth, over the measured updates after
@@ -221,18 +217,8 @@ fn a_revised_update_replaces_the_kept_updates_at_and_after_its_time() {
     let tracker = Tracker::new(&site("fix-then-filter", "kf", "")).unwrap();
     let mut smoother = tracker.smoother();
     let update = |time_s: f64, x: f64, revised: bool| TrackUpdate {
-        time_s,
-        tag: "a".into(),
-        dimensions: 2,
-        position_m: [x, 0.0, 0.0],
-        velocity_mps: [0.0; 3],
-        position_covariance_m2: [1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-        predicted: false,
-        status: TrackStatus::Confirmed,
-        source: UpdateSource::Fix,
-        mode: None,
         revised,
-        smoothed: false,
+        ..fix_update_at("a", time_s, x, [1.0, 1.0])
     };
     let mut out = Output {
         updates: vec![
