@@ -34,7 +34,7 @@ use rtls_engine::site::{
     read_text_file, FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site, MAX_RADIO_MAP_BYTES, MAX_SITE_BYTES,
 };
 use rtls_engine::survey::{SurveyMap, SurveySettings};
-use rtls_engine::tracker::{Event, Output, Smoother, Tracker, ANONYMOUS_TAG};
+use rtls_engine::tracker::{Event, Output, SegmentFit, Smoother, Tracker, ANONYMOUS_TAG, FIT_STATES_MIN};
 
 /// A pipeline named on the command line.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -101,10 +101,11 @@ pub struct TrackArgs {
     /// The readers CSV of the same survey (`rtls survey --readers-out`).
     #[arg(long, requires = "correct")]
     pub correct_readers: Option<PathBuf>,
-    /// Write the tracks smoothed over the whole recording (a Rauch–Tung–Striebel fixed-interval
-    /// smoother over each track's filtered states): each update also knows the measurements
-    /// after it, and carries `"smoothed": true`. For replays, reports and evaluation, not for
-    /// what a live tracker knew; the history is held until the end (~0.5 kB per update).
+    /// Write the tracks smoothed over the whole recording: each segment of a track re-filtered
+    /// with the process noise and noise scale that fit it best (maximum likelihood), then a
+    /// Rauch–Tung–Striebel smoother; each update also knows the measurements after it, and
+    /// carries `"smoothed": true`. For replays, reports and evaluation, not for what a live
+    /// tracker knew; the history is held until the end (~0.9 kB per update).
     #[arg(long)]
     pub smooth: bool,
     /// No progress bar.
@@ -526,6 +527,28 @@ fn write_smoothed(smoother: Smoother, updates_out: &mut dyn Write) -> anyhow::Re
     }
     let count = smoothed.updates.iter().filter(|u| u.smoothed).count();
     eprintln!("smoothed {count} of {} track updates", smoothed.updates.len());
+    let fitted = smoothed.fits.iter().filter(|f| f.fit.is_some()).count();
+    eprintln!(
+        "{fitted} of {} segments smoothed with their own fitted noise (the others — fewer than \
+         {FIT_STATES_MIN} measured states, or a velocity, odometry or offset update — with the site's)",
+        smoothed.fits.len()
+    );
+    // each tag's longest fitted segment
+    let mut longest: BTreeMap<&str, &SegmentFit> = BTreeMap::new();
+    for segment in smoothed.fits.iter().filter(|f| f.fit.is_some()) {
+        let entry = longest.entry(&*segment.tag).or_insert(segment);
+        if segment.to_s - segment.from_s > entry.to_s - entry.from_s {
+            *entry = segment;
+        }
+    }
+    for (tag, segment) in longest {
+        if let Some(fit) = segment.fit {
+            eprintln!(
+                "tag {tag}: smoothed with q {:.4} m²/s³ and the noise × {:.1} ({:.1}–{:.1} s)",
+                fit.acceleration_psd_m2ps3, fit.noise_scale, segment.from_s, segment.to_s
+            );
+        }
+    }
     for failure in &smoothed.failures {
         eprintln!(
             "tag {}: not smoothed from {:.3} s to {:.3} s (its filtered updates are written): {}",

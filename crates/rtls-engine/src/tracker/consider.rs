@@ -106,7 +106,15 @@ pub(super) fn speed_update<const N: usize>(
             track
                 .noise
                 .observe_correlation(shared.error_correlation.as_ref(), noise_source, &updated);
-            let taken = accept(shared, track, updated, None, kind, UpdateSource::Velocity, out)? == Verdict::Taken;
+            let taken = accept(
+                shared,
+                track,
+                (&prior.state, updated),
+                None,
+                kind,
+                UpdateSource::Velocity,
+                out,
+            )? == Verdict::Taken;
             if taken {
                 track.heading_cross = Some(HeadingCross::new(time_s, result.cross_covariance));
                 // X_b ← (I − K H) F X_b: the speed does not involve the offsets

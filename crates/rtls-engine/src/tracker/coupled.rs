@@ -239,7 +239,16 @@ pub(super) fn coupled_update<const N: usize>(
                     }
                 }
             }
-            if accept(shared, track, updated, modes, kind, UpdateSource::Anchors, out)? == Verdict::Taken {
+            if accept(
+                shared,
+                track,
+                (&prior.state, updated),
+                modes,
+                kind,
+                UpdateSource::Anchors,
+                out,
+            )? == Verdict::Taken
+            {
                 match considered {
                     Some(considered) => {
                         // X_b from the considered update; X_h ← A F X_h (P⁺ ≠ A P⁻ here)

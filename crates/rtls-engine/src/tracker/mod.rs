@@ -225,7 +225,7 @@ pub use noise::{InnovationTotals, Innovations, NoiseClass};
 pub use output::{status_name, Event, Output, RawFix, ReportedState, TrackUpdate, UpdateSource};
 pub use range_bias::{AnchorOffsetSummary, RangeOffset};
 pub(crate) use schedule::scheduling_layout;
-pub use smoothing::{SmoothedTracks, Smoother, SmoothingFailure};
+pub use smoothing::{SegmentFit, SmoothedTracks, Smoother, SmoothingFailure, FIT_STATES_MIN};
 
 use self::anonymous::AnonymousFront;
 use self::core::Core;
@@ -532,7 +532,12 @@ impl Tracker {
     #[must_use]
     pub fn smoother(&self) -> Smoother {
         let shared = self.shared();
-        Smoother::new(shared.kf, shared.motion, shared.tag_height_m)
+        Smoother::new(
+            shared.kf,
+            shared.motion,
+            shared.settings.acceleration_noise_std_mps2.powi(2),
+            shared.tag_height_m,
+        )
     }
 
     /// The anchors' range offsets the tracks have learnt (`[tracker.range_bias]`), by tag then

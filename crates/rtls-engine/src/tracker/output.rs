@@ -453,13 +453,23 @@ pub struct ReportedState {
     /// Which start of the track it descends from: every (re)start of a track from a fix (its
     /// first, a re-acquisition, a jump) begins a new segment, and a smoother does not cross
     /// one.
-    pub segment: u32,
+    pub segment: u64,
     /// The mean, first `N` entries (`N` = 2 × the update's
     /// [`dimensions`](TrackUpdate::dimensions)).
     pub mean: [f64; 6],
     /// The covariance, `N × N` in the first `N²` entries (symmetric: row- and column-major
     /// agree).
     pub covariance: [f64; 36],
+    /// What the measurements since the track's previous reported state added, in information
+    /// form: `J = P⁺⁻¹ − P⁻⁻¹` (`N × N` in the first `N²` entries; 0 for a prediction or a
+    /// track's first state) …
+    pub information: [f64; 36],
+    /// … and `j = P⁺⁻¹ x⁺ − P⁻⁻¹ x⁻` (first `N` entries), summed over those updates.
+    pub information_vector: [f64; 6],
+    /// Whether one of those updates told more than `information` says (a velocity or odometry
+    /// update, or one correlated with states outside the CV layout: the heading's drift, a
+    /// range offset, a receiver clock).
+    pub partial_information: bool,
 }
 
 impl Output {

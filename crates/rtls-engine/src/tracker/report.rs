@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use rtls_estimation::smoother::InformationStep;
 use rtls_estimation::Gaussian;
 
 use super::alarms::{position_of, predict_entries};
@@ -42,20 +43,34 @@ pub(super) fn track_update<const N: usize>(
 }
 
 /// Appends `update` to the output and, when the output keeps states
-/// ([`Output::keeping_states`]), the whole `state` behind it.
-fn push_update<const N: usize>(out: &mut Output, update: TrackUpdate, state: &Gaussian<N>, segment: u32) {
+/// ([`Output::keeping_states`]), the whole `state` behind it with what its measurements added
+/// (`information`: none for a prediction).
+fn push_update<const N: usize>(
+    out: &mut Output,
+    update: TrackUpdate,
+    state: &Gaussian<N>,
+    segment: u64,
+    information: Option<InformationStep<N>>,
+    partial_information: bool,
+) {
     if let Some(states) = out.states.as_mut() {
-        let mut mean = [0.0; 6];
-        let mut covariance = [0.0; 36];
-        mean[..N].copy_from_slice(state.mean().as_slice());
-        // (column-major storage of a symmetric matrix: its row-major entries too)
-        covariance[..N * N].copy_from_slice(state.covariance().as_slice());
-        states.push(ReportedState {
+        let mut kept = ReportedState {
             update: out.updates.len(),
             segment,
-            mean,
-            covariance,
-        });
+            mean: [0.0; 6],
+            covariance: [0.0; 36],
+            information: [0.0; 36],
+            information_vector: [0.0; 6],
+            partial_information,
+        };
+        kept.mean[..N].copy_from_slice(state.mean().as_slice());
+        // (column-major storage of a symmetric matrix: its row-major entries too)
+        kept.covariance[..N * N].copy_from_slice(state.covariance().as_slice());
+        if let Some(information) = information {
+            kept.information[..N * N].copy_from_slice(information.information.as_slice());
+            kept.information_vector[..N].copy_from_slice(information.information_vector.as_slice());
+        }
+        states.push(kept);
     }
     out.updates.push(update);
 }
@@ -75,6 +90,8 @@ pub(super) fn report<const N: usize>(
         track_update(shared, track, &state, false, status, source),
         &state,
         track.segment,
+        track.information.take(),
+        std::mem::take(&mut track.information_partial),
     );
     track.last_output_s = state.time_s();
     track.last_reported_s = track.last_reported_s.max(state.time_s());
@@ -102,7 +119,7 @@ pub(super) fn coast<const N: usize>(
         TrackStatus::Coasting,
         UpdateSource::Prediction,
     );
-    push_update(out, update, predicted, track.segment);
+    push_update(out, update, predicted, track.segment, None, false);
     track.last_output_s = now_s;
     track.last_reported_s = track.last_reported_s.max(now_s);
     zones_and_alarms(shared, track, predicted, monitor, out)

@@ -23,14 +23,29 @@
 //! (an accelerometer's control input, the IMM's mode mixing) the smoother is an approximation
 //! of the exact one, never of a different track.
 //!
+//! The smoothed *means* come from a smoother that fits its own noise to each segment
+//! ([`rtls_estimation::smoother::tuned_smooth`]): what each tracker update added is kept in
+//! information form (`J = P⁺⁻¹ − P⁻⁻¹`, `j = P⁺⁻¹ x⁺ − P⁻⁻¹ x⁻`, [`ReportedState::information`]),
+//! and the segment is re-filtered from it with the CV intensity `q` and the noise scale `c` of
+//! the largest innovation likelihood (a grid around the site's `q`), then smoothed. A tracker's
+//! `σ_a` is set to follow a turn now; a smoother can average over a longer window where the
+//! track shows a steady walk (BLE path loss: 1.82 → 1.65 m, docs/EVALUATION.md). Segments of
+//! fewer than [`FIT_STATES_MIN`] measured states, and those whose updates told more than their
+//! information in the CV layout says (odometry, velocities, states correlated with the
+//! heading's drift or a range offset: [`ReportedState::partial_information`]), are smoothed
+//! with the site's model over the tracker's states as above. The reported covariance is the
+//! bound above either way: the fitted model assumes white errors and its own covariances are
+//! overconfident on recorded data.
+//!
 //! A smoother does not cross a (re)start of the track from a fix (first fix, re-acquisition,
-//! a jump: a new [`ReportedState::segment`]); a revised update replaces the updates of its
+//! a jump) nor a track created again after its deletion (each a new
+//! [`ReportedState::segment`]); a revised update replaces the updates of its
 //! tag at and after its time; updates without a state behind them (a lost track's frozen
 //! position, anonymous tracks) pass unchanged. A segment whose backward pass fails numerically
 //! keeps its filtered updates and is reported in [`SmoothedTracks::failures`].
 //!
 //! # Memory
-//! The whole history is held until [`Smoother::finish`]: about 0.5 kB per track update.
+//! The whole history is held until [`Smoother::finish`]: about 0.9 kB per track update.
 //!
 //! # References
 //! Rauch, Tung, Striebel (1965), "Maximum likelihood estimates of linear dynamic systems",
@@ -41,7 +56,7 @@ use std::sync::Arc;
 
 use rtls_estimation::filter::KalmanFilter;
 use rtls_estimation::motion::ConstantVelocity;
-use rtls_estimation::smoother::intersection_bound;
+use rtls_estimation::smoother::{intersection_bound, tuned_smooth, InformationStep, NoiseFit};
 use rtls_estimation::{Gaussian, Matrix, Vector};
 
 use super::alarms::position_of;
@@ -86,6 +101,8 @@ use super::output::{Output, ReportedState, TrackUpdate};
 pub struct Smoother {
     kf: KalmanFilter,
     motion: ConstantVelocity,
+    /// The site's `q = σ_a²`, m²/s³: the centre of the tuned smoother's grid.
+    q_mps2: f64,
     tag_height_m: f64,
     /// Each tag's updates in time order, with the state behind each (when there is one).
     tags: HashMap<Arc<str>, Vec<(TrackUpdate, Option<ReportedState>)>>,
@@ -99,7 +116,27 @@ pub struct SmoothedTracks {
     pub updates: Vec<TrackUpdate>,
     /// The segments the backward pass failed on (their filtered updates are kept).
     pub failures: Vec<SmoothingFailure>,
+    /// The noise model each smoothed segment was fitted with.
+    pub fits: Vec<SegmentFit>,
 }
+
+/// The noise model a segment of a track was smoothed with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SegmentFit {
+    /// Tag id.
+    pub tag: Arc<str>,
+    /// First time of the segment, s.
+    pub from_s: f64,
+    /// Last time of the segment, s.
+    pub to_s: f64,
+    /// The maximum-likelihood model ([`tuned_smooth`]), or `None` where the segment was too
+    /// short to fit (fewer than [`FIT_STATES_MIN`] states with a measurement) or the fit
+    /// failed numerically: then the site's CV model smoothed the tracker's own states.
+    pub fit: Option<NoiseFit>,
+}
+
+/// The fewest states with a measurement a segment needs for its noise model to be fitted.
+pub const FIT_STATES_MIN: usize = 10;
 
 /// A segment of a track the smoother could not smooth.
 #[derive(Debug, Clone, PartialEq)]
@@ -115,10 +152,11 @@ pub struct SmoothingFailure {
 }
 
 impl Smoother {
-    pub(super) fn new(kf: KalmanFilter, motion: ConstantVelocity, tag_height_m: f64) -> Self {
+    pub(super) fn new(kf: KalmanFilter, motion: ConstantVelocity, q_mps2: f64, tag_height_m: f64) -> Self {
         Self {
             kf,
             motion,
+            q_mps2,
             tag_height_m,
             tags: HashMap::new(),
         }
@@ -149,20 +187,27 @@ impl Smoother {
         for (tag, mut kept) in tags {
             // runs of consecutive states of one segment (updates without a state between them
             // are skipped over, not a break: a lost track restarts in a new segment anyway)
-            let with_state: Vec<(usize, u32)> = kept
+            let with_state: Vec<(usize, u64)> = kept
                 .iter()
                 .enumerate()
                 .filter_map(|(i, (_, state))| state.map(|s| (i, s.segment)))
                 .collect();
             for run in with_state.chunk_by(|a, b| a.1 == b.1) {
                 let run: Vec<usize> = run.iter().map(|&(i, _)| i).collect();
-                if let Err(reason) = self.smooth_run(&mut kept, &run) {
-                    result.failures.push(SmoothingFailure {
+                let (from_s, to_s) = (kept[run[0]].0.time_s, kept[run[run.len() - 1]].0.time_s);
+                match self.smooth_run(&mut kept, &run) {
+                    Ok(fit) => result.fits.push(SegmentFit {
                         tag: Arc::clone(&tag),
-                        from_s: kept[run[0]].0.time_s,
-                        to_s: kept[run[run.len() - 1]].0.time_s,
+                        from_s,
+                        to_s,
+                        fit,
+                    }),
+                    Err(reason) => result.failures.push(SmoothingFailure {
+                        tag: Arc::clone(&tag),
+                        from_s,
+                        to_s,
                         reason,
-                    });
+                    }),
                 }
             }
             result.updates.extend(kept.into_iter().map(|(update, _)| update));
@@ -173,9 +218,13 @@ impl Smoother {
         result
     }
 
-    /// Smooths the updates `run` (indices into `kept`, one segment, time order) in place; on an
-    /// error none of them is changed.
-    fn smooth_run(&self, kept: &mut [(TrackUpdate, Option<ReportedState>)], run: &[usize]) -> Result<(), String> {
+    /// Smooths the updates `run` (indices into `kept`, one segment, time order) in place and
+    /// returns the fitted noise model; on an error none of them is changed.
+    fn smooth_run(
+        &self,
+        kept: &mut [(TrackUpdate, Option<ReportedState>)],
+        run: &[usize],
+    ) -> Result<Option<NoiseFit>, String> {
         match kept[run[0]].0.dimensions {
             2 => self.smooth_sized::<4>(kept, run),
             3 => self.smooth_sized::<6>(kept, run),
@@ -187,7 +236,7 @@ impl Smoother {
         &self,
         kept: &mut [(TrackUpdate, Option<ReportedState>)],
         run: &[usize],
-    ) -> Result<(), String> {
+    ) -> Result<Option<NoiseFit>, String> {
         let filtered = run
             .iter()
             .map(|&i| {
@@ -197,12 +246,22 @@ impl Smoother {
                 Gaussian::new(mean, covariance, kept[i].0.time_s).map_err(|e| e.to_string())
             })
             .collect::<Result<Vec<Gaussian<N>>, String>>()?;
-        // x̂ₖ|ₙ, Pₖ|ₙ by the backward pass
+        let steps: Vec<InformationStep<N>> = run
+            .iter()
+            .filter_map(|&i| kept[i].1.map(|state| (kept[i].0.time_s, state)))
+            .map(|(time_s, state)| InformationStep {
+                time_s,
+                information: Matrix::<N>::from_column_slice(&state.information[..N * N]),
+                information_vector: Vector::<N>::from_column_slice(&state.information_vector[..N]),
+            })
+            .collect();
+        // Pₖ|ₙ's bound for correlated past and future errors (traced over the position axes),
+        // from the backward pass of the site's model over the tracker's own states: the
+        // tracker's covariances are calibrated online (adaptive noise, correlated errors'
+        // inflation), the tuned model's are not
         let smoothed = self.kf.smooth(&filtered, &self.motion).map_err(|e| e.to_string())?;
-        // the reported covariance: Pₖ|ₙ's bound for correlated past and future errors, traced
-        // over the position axes
         let positions: Vec<usize> = (0..N / 2).map(|axis| 2 * axis).collect();
-        let reported = smoothed
+        let mut reported = smoothed
             .iter()
             .zip(&filtered)
             .map(|(state, past)| {
@@ -210,6 +269,22 @@ impl Smoother {
                 Gaussian::new(*state.mean(), bound, state.time_s()).map_err(|e| e.to_string())
             })
             .collect::<Result<Vec<Gaussian<N>>, String>>()?;
+        // x̂ₖ|ₙ from the smoother tuned to the segment, where the segment's updates say all
+        // they told in their information (no velocity or odometry update, no state outside the
+        // CV layout) and enough of them measured
+        let complete = run.iter().all(|&i| kept[i].1.is_some_and(|s| !s.partial_information));
+        let measured = steps.iter().skip(1).filter(|s| s.information.norm() > 0.0).count();
+        let tuned = (complete && measured >= FIT_STATES_MIN)
+            .then(|| tuned_smooth(&filtered[0], &steps, self.q_mps2).ok())
+            .flatten();
+        let fit = tuned.map(|tuned| {
+            for (state, better) in reported.iter_mut().zip(&tuned.smoothed) {
+                if let Ok(moved) = Gaussian::new(*better.mean(), *state.covariance(), state.time_s()) {
+                    *state = moved;
+                }
+            }
+            tuned.fit
+        });
         for (&i, state) in run.iter().zip(&reported) {
             let update = &mut kept[i].0;
             let (position_m, covariance_m2) = position_of(state, self.tag_height_m);
@@ -220,6 +295,6 @@ impl Smoother {
             }
             update.smoothed = true;
         }
-        Ok(())
+        Ok(fit)
     }
 }

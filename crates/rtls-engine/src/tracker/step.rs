@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use nalgebra::DVector;
 use rtls_estimation::imm::ImmState;
+use rtls_estimation::smoother::InformationStep;
 use rtls_estimation::Gaussian;
 
 use super::aided::AidedMotion;
@@ -63,13 +64,39 @@ pub(super) fn predict<const N: usize>(
     Ok(Prior { state, modes: None })
 }
 
-/// Accepts an update unless the track is confirmed and the NIS is outside the χ² gate; then
-/// advances the lifecycle. Returns [`Verdict::Taken`], or [`Verdict::OutsideGate`] with a
+/// Adds what the update from `prior` to `posterior` told (`J = P⁺⁻¹ − P⁻⁻¹`,
+/// `j = P⁺⁻¹ x⁺ − P⁻⁻¹ x⁻`) to the track's information since its last reported state, for a
+/// smoother ([`super::Smoother`]). A velocity update, or one correlated with states outside
+/// the CV layout, marks it partial; one whose covariances cannot be inverted marks it partial
+/// too.
+fn keep_information<const N: usize>(
+    track: &mut Track<N>,
+    prior: &Gaussian<N>,
+    posterior: &Gaussian<N>,
+    source: UpdateSource,
+) {
+    if source == UpdateSource::Velocity || track.heading_cross.is_some() || track.offset_cross.is_some() {
+        track.information_partial = true;
+    }
+    let Ok(step) = InformationStep::between(prior, posterior) else {
+        track.information_partial = true;
+        return;
+    };
+    {
+        match track.information.as_mut() {
+            Some(kept) => kept.add(&step),
+            None => track.information = Some(step),
+        }
+    }
+}
+
+/// Accepts an update (computed from `prior`) unless the track is confirmed and the NIS is
+/// outside the χ² gate; then advances the lifecycle. Returns [`Verdict::Taken`], or [`Verdict::OutsideGate`] with a
 /// `rejected` event (the last event it pushes).
 pub(super) fn accept<const N: usize, U: UpdateOutcome<N>>(
     shared: &Shared,
     track: &mut Track<N>,
-    updated: U,
+    (prior, updated): (&Gaussian<N>, U),
     modes: Option<ImmState>,
     kind: &'static str,
     source: UpdateSource,
@@ -136,6 +163,9 @@ pub(super) fn accept<const N: usize, U: UpdateOutcome<N>>(
             .ok()
             .flatten()
             .unwrap_or(1.0);
+    }
+    if out.states.is_some() {
+        keep_information(track, prior, updated.state(), source);
     }
     track.state = Some(updated.into_state());
     track.lost_state = None;

@@ -1,6 +1,8 @@
 //! The smoothed history ([`super::Smoother`]): it lowers the error of a noisy walk, its 95 %
-//! ellipses still hold the truth about 95 % of the time, its newest state is the filter's,
-//! it never crosses a restart of the track, and a revised update replaces the kept ones.
+//! ellipses still hold the truth about 95 % of the time, its newest state keeps the filter's
+//! covariance, each segment of fixes is smoothed with its own fitted noise (odometry with the
+//! site's), it never crosses a restart or a re-creation of the track, and a revised update
+//! replaces the kept ones.
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -157,15 +159,11 @@ fn with_fix_errors_that_persist_for_seconds_the_smoothed_ellipses_keep_the_filte
 }
 
 #[test]
-fn the_newest_smoothed_state_of_a_track_is_its_filtered_state() {
+fn the_newest_smoothed_state_keeps_the_filters_covariance_and_lies_in_its_ellipse() {
     let (filtered, smoothed) = track_and_smooth(fixes(1, 30.0, |_, t| circle(t)));
     let last_filtered = filtered.last().unwrap();
     let last_smoothed = smoothed.updates.last().unwrap();
     assert_eq!(last_filtered.time_s, last_smoothed.time_s);
-    for axis in 0..2 {
-        assert!((last_filtered.position_m[axis] - last_smoothed.position_m[axis]).abs() < 1e-9);
-        assert!((last_filtered.velocity_mps[axis] - last_smoothed.velocity_mps[axis]).abs() < 1e-9);
-    }
     for (a, b) in last_filtered
         .position_covariance_m2
         .iter()
@@ -173,9 +171,91 @@ fn the_newest_smoothed_state_of_a_track_is_its_filtered_state() {
     {
         assert!((a - b).abs() < 1e-9);
     }
+    // the mean is the fitted model's filter at that time, not the tracker's: within the
+    // tracker's 95 % ellipse (χ²(2) 5.99)
+    let e = [
+        last_smoothed.position_m[0] - last_filtered.position_m[0],
+        last_smoothed.position_m[1] - last_filtered.position_m[1],
+    ];
+    assert!(horizontal_nees(last_filtered, e) < 5.99);
     // and an earlier one moved: the smoother did something
     let k = filtered.len() / 2;
     assert!((filtered[k].position_m[0] - smoothed.updates[k].position_m[0]).abs() > 1e-6);
+}
+
+/// Each segment of fixes is smoothed with its own fitted noise; a steady walk is given a
+/// smaller `q` than the site's (σ_a = 0.5 m/s²: 0.25 m²/s³). A track that took odometry is
+/// not: its updates tell more than their information in the CV layout says.
+#[test]
+fn fixes_are_smoothed_with_their_own_fitted_noise_and_odometry_with_the_sites() {
+    let (_, smoothed) = track_and_smooth(fixes(3, 120.0, |tag, t| [1.0 * t, 3.0 * tag as f64]));
+    assert_eq!(smoothed.fits.len(), 3, "{:?}", smoothed.fits);
+    for segment in &smoothed.fits {
+        let fit = segment.fit.expect("a fitted segment");
+        assert!(fit.acceleration_psd_m2ps3 < 0.25, "{fit:?}");
+    }
+
+    let mut tracker = Tracker::new(&site("fix-then-filter", "kf", "")).unwrap();
+    let mut smoother = tracker.smoother();
+    let mut out = Output::keeping_states();
+    for k in 0..100 {
+        let t = f64::from(k) * 0.5;
+        let fix = Measurement::Fix {
+            position_m: vec![0.8 * t, 0.5 * t],
+            covariance_m2: vec![0.25, 0.0, 0.0, 0.25],
+        };
+        let odometry = Measurement::Odometry {
+            speed_mps: (0.8f64 * 0.8 + 0.5 * 0.5).sqrt(),
+            heading_rad: Some(0.5f64.atan2(0.8)),
+            speed_std_mps: Some(0.02),
+            heading_std_rad: Some(0.02),
+        };
+        for (dt_s, measurement) in [(0.0, fix), (0.25, odometry)] {
+            let record = Record {
+                time_s: t + dt_s,
+                tag: "r1".into(),
+                measurement,
+            };
+            tracker.push(record, &mut out).unwrap();
+            smoother.take(&out);
+            out.clear();
+        }
+    }
+    tracker.finish(&mut out).unwrap();
+    smoother.take(&out);
+    let smoothed = smoother.finish();
+    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
+    assert!(!smoothed.fits.is_empty());
+    assert!(
+        smoothed.fits.iter().all(|segment| segment.fit.is_none()),
+        "{:?}",
+        smoothed.fits
+    );
+    assert!(smoothed.updates.iter().all(|u| u.smoothed));
+}
+
+/// A tag whose track was deleted and created again starts a segment of its own: the smoother
+/// does not join the two tracks.
+#[test]
+fn a_track_created_again_after_its_deletion_is_a_new_segment() {
+    let mut records = fixes(1, 20.0, |_, t| circle(t));
+    // silent past the delete timeout, then back 200 m away
+    records.extend(fixes(1, 20.0, |_, t| circle(t)).into_iter().map(|mut r| {
+        r.time_s += 1_000.0;
+        if let Measurement::Fix { position_m, .. } = &mut r.measurement {
+            position_m[0] += 200.0;
+        }
+        r
+    }));
+    let (_, smoothed) = track_and_smooth(records);
+    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
+    assert_eq!(smoothed.fits.len(), 2, "{:?}", smoothed.fits);
+    // (the first segment ends with its coasting predictions)
+    assert!(
+        smoothed.fits[0].to_s < 100.0 && smoothed.fits[1].from_s >= 1_000.0,
+        "{:?}",
+        smoothed.fits
+    );
 }
 
 #[test]

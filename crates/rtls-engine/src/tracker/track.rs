@@ -3,6 +3,7 @@
 //! of the tracker uses. The lowest file of the tracker: it imports the channels' state types,
 //! never their logic.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use rtls_estimation::adaptive::corrections::{CorrectionTest, CorrectionWindow};
@@ -12,6 +13,7 @@ use rtls_estimation::aided::HeadingModel;
 use rtls_estimation::filter::{ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter};
 use rtls_estimation::imm::ImmState;
 use rtls_estimation::motion::ConstantVelocity;
+use rtls_estimation::smoother::InformationStep;
 use rtls_estimation::Gaussian;
 
 use super::aided::HeldAcceleration;
@@ -185,11 +187,27 @@ pub(crate) struct Track<const N: usize> {
     /// not part of a checkpoint.
     #[serde(skip, default = "no_fading")]
     pub(super) fading: f64,
-    /// How often the track has (re)started from a fix: the segment its reported states belong
-    /// to ([`super::ReportedState::segment`]).
+    /// The segment its reported states belong to ([`super::ReportedState::segment`]): the
+    /// track's creation number (unique in the process, [`TRACKS_CREATED`]) in the high 32
+    /// bits, how often it has (re)started from a fix in the low ones — so a tag whose track
+    /// was deleted and created again never continues the old track's segment.
     #[serde(default)]
-    pub(super) segment: u32,
+    pub(super) segment: u64,
+    /// What the updates since the last reported state added (`J = P⁺⁻¹ − P⁻⁻¹`, `j`), kept
+    /// only when the output keeps states, for [`super::Smoother`]; handed to the next reported
+    /// state, so not part of a checkpoint.
+    #[serde(skip)]
+    pub(super) information: Option<InformationStep<N>>,
+    /// Whether an update since the last reported state told more than its `information`
+    /// says: a velocity or odometry update, or one correlated with states outside the CV
+    /// layout (the heading's drift, a range offset, a receiver clock).
+    #[serde(skip)]
+    pub(super) information_partial: bool,
 }
+
+/// Tracks created in this process: each track's segments are numbered from its own creation
+/// number (only their equality matters).
+static TRACKS_CREATED: AtomicU64 = AtomicU64::new(0);
 
 fn no_fading() -> f64 {
     1.0
@@ -232,7 +250,9 @@ impl<const N: usize> Track<N> {
             check_cost: 0.0,
             check_distances: Vec::new(),
             fading: 1.0,
-            segment: 0,
+            segment: TRACKS_CREATED.fetch_add(1, Ordering::Relaxed) << 32,
+            information: None,
+            information_partial: false,
         }
     }
 

@@ -235,7 +235,10 @@ fn start_at<const N: usize>(
     }
     let position_m = position_of(&state, shared.tag_height_m).0;
     track.state = Some(state);
-    track.segment = track.segment.wrapping_add(1);
+    // (the restarts count in the low 32 bits; the creation number stays)
+    track.segment = (track.segment & !0xffff_ffff) | u64::from((track.segment as u32).wrapping_add(1));
+    track.information = None;
+    track.information_partial = false;
     track.heading_cross = None;
     track.offset_cross = None;
     track.lost_state = None;
@@ -422,7 +425,7 @@ fn conclude<const N: usize, U: UpdateOutcome<N>>(
     track
         .noise
         .observe_correlation(shared.error_correlation.as_ref(), noise_source, &updated);
-    let verdict = accept(shared, track, updated, modes, kind, source, out)?;
+    let verdict = accept(shared, track, (prior, updated), modes, kind, source, out)?;
     if verdict == Verdict::Taken {
         carry_heading_cross(track, prior)?;
     }

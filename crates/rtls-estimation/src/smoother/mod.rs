@@ -17,6 +17,10 @@
 //! Rauch, Tung, Striebel (1965); Bar-Shalom, Li, Kirubarajan (2001) §8.6; Särkkä (2008),
 //! "Unscented Rauch–Tung–Striebel smoother", IEEE TAC 53(3).
 
+mod tuned;
+
+pub use tuned::{tuned_smooth, InformationStep, NoiseFit, TunedSmoothing, FIT_STEPS_MAX};
+
 use alloc::vec::Vec;
 
 use nalgebra::DMatrix;
