@@ -467,8 +467,8 @@ pub struct ReportedState {
     /// … and `j = P⁺⁻¹ x⁺ − P⁻⁻¹ x⁻` (first `N` entries), summed over those updates.
     pub information_vector: [f64; 6],
     /// Whether one of those updates told more than `information` says (a velocity or odometry
-    /// update, or one correlated with states outside the CV layout: the heading's drift, a
-    /// range offset, a receiver clock).
+    /// update, one correlated with states outside the CV layout — the heading's drift, a
+    /// range offset — or the IMM's mixture).
     pub partial_information: bool,
 }
 

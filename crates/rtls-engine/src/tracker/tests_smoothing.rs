@@ -12,6 +12,7 @@ use super::tests::{fix_update_at, horizontal_nees, site};
 use super::*;
 use crate::lifecycle::TrackStatus;
 use crate::record::Measurement;
+use crate::site::Site;
 
 /// A tag walking a circle of radius 8 m about (10, 10) at 1 m/s: not a constant velocity.
 fn circle(t: f64) -> [f64; 2] {
@@ -45,7 +46,12 @@ fn fixes(tags: usize, seconds: f64, truth: impl Fn(usize, f64) -> [f64; 2]) -> V
 
 /// Tracks `records` keeping states; returns the filtered updates and the smoothed ones.
 fn track_and_smooth(records: Vec<Record>) -> (Vec<TrackUpdate>, SmoothedTracks) {
-    let mut tracker = Tracker::new(&site("fix-then-filter", "kf", "")).unwrap();
+    track_and_smooth_on(&site("fix-then-filter", "kf", ""), records)
+}
+
+/// [`track_and_smooth`] on `site`.
+fn track_and_smooth_on(site: &Site, records: Vec<Record>) -> (Vec<TrackUpdate>, SmoothedTracks) {
+    let mut tracker = Tracker::new(site).unwrap();
     let mut smoother = tracker.smoother();
     let mut out = Output::keeping_states();
     let mut filtered = Vec::new();
@@ -232,6 +238,23 @@ fn fixes_are_smoothed_with_their_own_fitted_noise_and_odometry_with_the_sites() 
         smoothed.fits
     );
     assert!(smoothed.updates.iter().all(|u| u.smoothed));
+}
+
+/// Under the IMM a track's combined prior and posterior are mixtures, not one linear update:
+/// its segments are smoothed with the site's model.
+#[test]
+fn imm_tracks_are_smoothed_with_the_sites_model() {
+    let text =
+        super::tests::site_text("fix-then-filter", "kf", "").replace("motion_model = \"cv\"", "motion_model = \"imm\"");
+    let imm = Site::from_toml_str(&text, "imm.toml").unwrap();
+    let (_, smoothed) = track_and_smooth_on(&imm, fixes(1, 60.0, |_, t| circle(t)));
+    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
+    assert!(!smoothed.fits.is_empty());
+    assert!(
+        smoothed.fits.iter().all(|segment| segment.fit.is_none()),
+        "{:?}",
+        smoothed.fits
+    );
 }
 
 /// A tag whose track was deleted and created again starts a segment of its own: the smoother
