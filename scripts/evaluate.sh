@@ -128,6 +128,10 @@ for run in fast mid; do
   score uwb-lias "$run" "tuned (raw ranges), tightly coupled EKF" "$d/truth-late.csv" "$d/tuned-tc.tracks.jsonl"
   score uwb-lias "$run" "tuned (raw ranges), fix-then-filter KF" "$d/truth-late.csv" "$d/tuned-ftf.tracks.jsonl"
   score uwb-lias "$run" "tuned (raw ranges), raw fixes" "$d/truth-late.csv" "$d/tuned-ftf.fixes.jsonl"
+  SITE="$d/tuned-tc.tuned.toml" track "$d" tuned-tc-smooth measurements-raw.jsonl --pipeline tightly-coupled --filter ekf --smooth
+  SITE="$d/tuned-ftf.tuned.toml" track "$d" tuned-ftf-smooth measurements-raw.jsonl --pipeline fix-then-filter --filter kf --smooth
+  score uwb-lias "$run" "tuned (raw ranges), tightly coupled EKF, smoothed" "$d/truth-late.csv" "$d/tuned-tc-smooth.tracks.jsonl"
+  score uwb-lias "$run" "tuned (raw ranges), fix-then-filter KF, smoothed" "$d/truth-late.csv" "$d/tuned-ftf-smooth.tracks.jsonl"
 done
 for d in "$OUT"/ble/*/; do
   d=${d%/}; run=$(basename "$d")
@@ -144,6 +148,10 @@ tuned "$d" tuned-odo measurements.jsonl --pipeline tightly-coupled --filter ekf
 tuned "$d" tuned-uwb measurements-uwb-only.jsonl --pipeline tightly-coupled --filter ekf
 score labyrinth labyrinth "tuned, UWB + odometry, tightly coupled EKF" "$d/truth-late.csv" "$d/tuned-odo.tracks.jsonl"
 score labyrinth labyrinth "tuned, UWB only, tightly coupled EKF" "$d/truth-late.csv" "$d/tuned-uwb.tracks.jsonl"
+SITE="$d/tuned-odo.tuned.toml" track "$d" tuned-odo-smooth measurements.jsonl --pipeline tightly-coupled --filter ekf --smooth
+SITE="$d/tuned-uwb.tuned.toml" track "$d" tuned-uwb-smooth measurements-uwb-only.jsonl --pipeline tightly-coupled --filter ekf --smooth
+score labyrinth labyrinth "tuned, UWB + odometry, tightly coupled EKF, smoothed" "$d/truth-late.csv" "$d/tuned-odo-smooth.tracks.jsonl"
+score labyrinth labyrinth "tuned, UWB only, tightly coupled EKF, smoothed" "$d/truth-late.csv" "$d/tuned-uwb-smooth.tracks.jsonl"
 d=$OUT/uji/validation
 tuned "$d" tuned-fp measurements.jsonl
 score uji validation "tuned σ_a, fingerprint WKNN, KF" "$d/truth-late.csv" "$d/tuned-fp.tracks.jsonl" --max-gap 0
