@@ -529,8 +529,9 @@ fn write_smoothed(smoother: Smoother, updates_out: &mut dyn Write) -> anyhow::Re
     eprintln!("smoothed {count} of {} track updates", smoothed.updates.len());
     let fitted = smoothed.fits.iter().filter(|f| f.fit.is_some()).count();
     eprintln!(
-        "{fitted} of {} segments smoothed with their own fitted noise (the others — fewer than \
-         {FIT_STATES_MIN} measured states, or a velocity, odometry or offset update — with the site's)",
+        "{fitted} of {} segments smoothed with their own fitted noise (the rest with the site's: \
+         under {FIT_STATES_MIN} measured states, odometry whose heading drift is estimated, range \
+         offsets, an accelerometer's control input, or the IMM)",
         smoothed.fits.len()
     );
     // each tag's longest fitted segment

@@ -466,9 +466,10 @@ pub struct ReportedState {
     pub information: [f64; 36],
     /// … and `j = P⁺⁻¹ x⁺ − P⁻⁻¹ x⁻` (first `N` entries), summed over those updates.
     pub information_vector: [f64; 6],
-    /// Whether one of those updates told more than `information` says (a velocity or odometry
-    /// update, one correlated with states outside the CV layout — the heading's drift, a
-    /// range offset — or the IMM's mixture).
+    /// Whether one of those updates told more than `information` says (one correlated with
+    /// states outside the CV layout — a speed whose heading's drift is considered, a range
+    /// whose offset is —, one predicted with an accelerometer's control input, or the IMM's
+    /// mixture).
     pub partial_information: bool,
 }
 

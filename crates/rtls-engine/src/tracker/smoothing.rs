@@ -31,8 +31,9 @@
 //! `σ_a` is set to follow a turn now; a smoother can average over a longer window where the
 //! track shows a steady walk (BLE path loss: 1.82 → 1.65 m, docs/EVALUATION.md). Segments of
 //! fewer than [`FIT_STATES_MIN`] measured states, and those whose updates told more than their
-//! information in the CV layout says (odometry, velocities, states correlated with the
-//! heading's drift or a range offset: [`ReportedState::partial_information`]), are smoothed
+//! information in the CV layout says (updates correlated with the heading's drift or a range
+//! offset, predicted with an accelerometer's control input, the IMM's mixtures:
+//! [`ReportedState::partial_information`]), are smoothed
 //! with the site's model over the tracker's states as above. The reported covariance is the
 //! bound above either way: the fitted model assumes white errors and its own covariances are
 //! overconfident on recorded data.

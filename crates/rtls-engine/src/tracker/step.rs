@@ -66,17 +66,13 @@ pub(super) fn predict<const N: usize>(
 
 /// Adds what the update from `prior` to `posterior` told (`J = P⁺⁻¹ − P⁻⁻¹`,
 /// `j = P⁺⁻¹ x⁺ − P⁻⁻¹ x⁻`) to the track's information since its last reported state, for a
-/// smoother ([`super::Smoother`]). A velocity update, one correlated with states outside the
-/// CV layout, and the IMM's (`modes`: its combined prior and posterior are mixtures, not one
-/// linear update) mark it partial; so does one whose covariances cannot be inverted.
-fn keep_information<const N: usize>(
-    track: &mut Track<N>,
-    prior: &Gaussian<N>,
-    posterior: &Gaussian<N>,
-    source: UpdateSource,
-    modes: bool,
-) {
-    if modes || source == UpdateSource::Velocity || track.heading_cross.is_some() || track.offset_cross.is_some() {
+/// smoother ([`super::Smoother`]). An update correlated with states outside the CV layout (a
+/// speed whose heading's drift is considered, a range whose offset is), one whose prior was
+/// predicted with an accelerometer's control input (the re-filter has no `B u`) and the IMM's
+/// (`modes`: its combined prior and posterior are mixtures, not one linear update) mark it
+/// partial; so does one whose covariances cannot be inverted.
+fn keep_information<const N: usize>(track: &mut Track<N>, prior: &Gaussian<N>, posterior: &Gaussian<N>, modes: bool) {
+    if modes || track.acceleration.is_some() || track.heading_cross.is_some() || track.offset_cross.is_some() {
         track.information_partial = true;
     }
     let Ok(step) = InformationStep::between(prior, posterior) else {
@@ -166,7 +162,7 @@ pub(super) fn accept<const N: usize, U: UpdateOutcome<N>>(
             .unwrap_or(1.0);
     }
     if out.states.is_some() {
-        keep_information(track, prior, updated.state(), source, shared.manoeuvres.is_some());
+        keep_information(track, prior, updated.state(), shared.manoeuvres.is_some());
     }
     track.state = Some(updated.into_state());
     track.lost_state = None;

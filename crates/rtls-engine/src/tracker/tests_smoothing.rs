@@ -240,6 +240,26 @@ fn fixes_are_smoothed_with_their_own_fitted_noise_and_odometry_with_the_sites() 
     assert!(smoothed.updates.iter().all(|u| u.smoothed));
 }
 
+/// A track predicted with an accelerometer's control input: the re-filter has no `B u`, so its
+/// segment is smoothed with the site's model (seed 002's node: fitted 1.26 m against 0.86 m).
+#[test]
+fn accelerometer_aided_tracks_are_smoothed_with_the_sites_model() {
+    let mut records = fixes(1, 40.0, |_, t| [0.25 * t * t, 0.0]);
+    records.extend((0..400).map(|k| Record {
+        time_s: f64::from(k) * 0.1 + 0.05,
+        tag: "w0".into(),
+        measurement: Measurement::Accelerometer {
+            acceleration_mps2: vec![0.5, 0.0],
+            std_mps2: Some(0.05),
+        },
+    }));
+    records.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    let (_, smoothed) = track_and_smooth(records);
+    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
+    assert!(!smoothed.fits.is_empty());
+    assert!(smoothed.fits.iter().all(|segment| segment.fit.is_none()), "{:?}", smoothed.fits);
+}
+
 /// Under the IMM a track's combined prior and posterior are mixtures, not one linear update:
 /// its segments are smoothed with the site's model.
 #[test]

@@ -199,8 +199,8 @@ pub(crate) struct Track<const N: usize> {
     #[serde(skip)]
     pub(super) information: Option<InformationStep<N>>,
     /// Whether an update since the last reported state told more than its `information`
-    /// says: a velocity or odometry update, one correlated with states outside the CV layout
-    /// (the heading's drift, a range offset), or the IMM's.
+    /// says: one correlated with states outside the CV layout (the heading's drift, a range
+    /// offset), one predicted with an accelerometer's control input, or the IMM's.
     #[serde(skip)]
     pub(super) information_partial: bool,
 }
