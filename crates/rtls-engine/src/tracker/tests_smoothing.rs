@@ -257,7 +257,11 @@ fn accelerometer_aided_tracks_are_smoothed_with_the_sites_model() {
     let (_, smoothed) = track_and_smooth(records);
     assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
     assert!(!smoothed.fits.is_empty());
-    assert!(smoothed.fits.iter().all(|segment| segment.fit.is_none()), "{:?}", smoothed.fits);
+    assert!(
+        smoothed.fits.iter().all(|segment| segment.fit.is_none()),
+        "{:?}",
+        smoothed.fits
+    );
 }
 
 /// Under the IMM a track's combined prior and posterior are mixtures, not one linear update:
