@@ -105,7 +105,7 @@ pub struct TrackArgs {
     /// with the process noise and noise scale that fit it best (maximum likelihood), then a
     /// Rauch–Tung–Striebel smoother; each update also knows the measurements after it, and
     /// carries `"smoothed": true`. For replays, reports and evaluation, not for what a live
-    /// tracker knew; the history is held until the end (~0.9 kB per update).
+    /// tracker knew; the history is held until the end (~1.6 kB per update).
     #[arg(long)]
     pub smooth: bool,
     /// No progress bar.

@@ -46,7 +46,9 @@
 //! keeps its filtered updates and is reported in [`SmoothedTracks::failures`].
 //!
 //! # Memory
-//! The whole history is held until [`Smoother::finish`]: about 0.9 kB per track update.
+//! The whole history is held until [`Smoother::finish`]: about 1.6 kB per track update
+//! (`rtls track --smooth` on LIAS's fast run, 40 443 updates: peak resident memory 76 MB
+//! against 11 MB without smoothing; 2.0 s against 0.9 s).
 //!
 //! # References
 //! Rauch, Tung, Striebel (1965), "Maximum likelihood estimates of linear dynamic systems",
