@@ -34,7 +34,7 @@ use rtls_engine::site::{
     read_text_file, FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site, MAX_RADIO_MAP_BYTES, MAX_SITE_BYTES,
 };
 use rtls_engine::survey::{SurveyMap, SurveySettings};
-use rtls_engine::tracker::{Event, Output, SegmentFit, Smoother, Tracker, ANONYMOUS_TAG, FIT_STATES_MIN};
+use rtls_engine::tracker::{Event, NoiseFit, Output, SegmentFit, Smoother, Tracker, ANONYMOUS_TAG, FIT_STATES_MIN};
 
 /// A pipeline named on the command line.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -105,7 +105,7 @@ pub struct TrackArgs {
     /// with the process noise and noise scale that fit it best (maximum likelihood), then a
     /// Rauch–Tung–Striebel smoother; each update also knows the measurements after it, and
     /// carries `"smoothed": true`. For replays, reports and evaluation, not for what a live
-    /// tracker knew; the history is held until the end (~1.6 kB per update).
+    /// tracker knew; the history is held until the end (~1.3 kB per update).
     #[arg(long)]
     pub smooth: bool,
     /// No progress bar.
@@ -527,28 +527,41 @@ fn write_smoothed(smoother: Smoother, updates_out: &mut dyn Write) -> anyhow::Re
     }
     let count = smoothed.updates.iter().filter(|u| u.smoothed).count();
     eprintln!("smoothed {count} of {} track updates", smoothed.updates.len());
-    let fitted = smoothed.fits.iter().filter(|f| f.fit.is_some()).count();
+    let fitted = smoothed.fits.iter().filter(|f| f.fit.is_ok()).count();
     eprintln!(
-        "{fitted} of {} segments smoothed with their own fitted noise (the rest with the site's: \
-         under {FIT_STATES_MIN} measured states, odometry whose heading drift is estimated, range \
-         offsets, an accelerometer's control input, or the IMM)",
+        "{fitted} of {} segments smoothed with their own fitted noise",
         smoothed.fits.len()
     );
-    // each tag's longest fitted segment
-    let mut longest: BTreeMap<&str, &SegmentFit> = BTreeMap::new();
-    for segment in smoothed.fits.iter().filter(|f| f.fit.is_some()) {
-        let entry = longest.entry(&*segment.tag).or_insert(segment);
-        if segment.to_s - segment.from_s > entry.to_s - entry.from_s {
-            *entry = segment;
+    // why the others kept the site's model, by reason (a short segment's count of measured
+    // states folded into one reason)
+    let mut site_model: BTreeMap<&str, usize> = BTreeMap::new();
+    for segment in &smoothed.fits {
+        if let Err(reason) = &segment.fit {
+            let reason = if reason.ends_with(&format!("fewer than {FIT_STATES_MIN}")) {
+                "too few measured states"
+            } else {
+                reason.as_str()
+            };
+            *site_model.entry(reason).or_default() += 1;
         }
     }
-    for (tag, segment) in longest {
-        if let Some(fit) = segment.fit {
-            eprintln!(
-                "tag {tag}: smoothed with q {:.4} m²/s³ and the noise × {:.1} ({:.1}–{:.1} s)",
-                fit.acceleration_psd_m2ps3, fit.noise_scale, segment.from_s, segment.to_s
-            );
+    for (reason, count) in site_model {
+        eprintln!("{count} segments smoothed with the site's model: {reason}");
+    }
+    // each tag's longest fitted segment
+    let mut longest: BTreeMap<&str, (&SegmentFit, &NoiseFit)> = BTreeMap::new();
+    for segment in &smoothed.fits {
+        let Ok(fit) = &segment.fit else { continue };
+        let entry = longest.entry(&*segment.tag).or_insert((segment, fit));
+        if segment.to_s - segment.from_s > entry.0.to_s - entry.0.from_s {
+            *entry = (segment, fit);
         }
+    }
+    for (tag, (segment, fit)) in longest {
+        eprintln!(
+            "tag {tag}: smoothed with q {:.4} m²/s³ and the noise × {:.1} ({:.1}–{:.1} s)",
+            fit.acceleration_psd_m2ps3, fit.noise_scale, segment.from_s, segment.to_s
+        );
     }
     for failure in &smoothed.failures {
         eprintln!(

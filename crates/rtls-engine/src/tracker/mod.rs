@@ -224,6 +224,7 @@ pub use checkpoint::TrackerState;
 pub use noise::{InnovationTotals, Innovations, NoiseClass};
 pub use output::{status_name, Event, Output, RawFix, ReportedState, TrackUpdate, UpdateSource};
 pub use range_bias::{AnchorOffsetSummary, RangeOffset};
+pub use rtls_estimation::smoother::NoiseFit;
 pub(crate) use schedule::scheduling_layout;
 pub use smoothing::{SegmentFit, SmoothedTracks, Smoother, SmoothingFailure, FIT_STATES_MIN};
 

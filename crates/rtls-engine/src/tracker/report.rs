@@ -50,8 +50,7 @@ fn push_update<const N: usize>(
     update: TrackUpdate,
     state: &Gaussian<N>,
     segment: u64,
-    information: Option<InformationStep<N>>,
-    partial_information: bool,
+    (information, partial_information): (Option<InformationStep<N>>, bool),
 ) {
     if let Some(states) = out.states.as_mut() {
         let mut kept = ReportedState {
@@ -90,8 +89,7 @@ pub(super) fn report<const N: usize>(
         track_update(shared, track, &state, false, status, source),
         &state,
         track.segment,
-        track.information.take(),
-        std::mem::take(&mut track.information_partial),
+        track.take_information(),
     );
     track.last_output_s = state.time_s();
     track.last_reported_s = track.last_reported_s.max(state.time_s());
@@ -119,7 +117,7 @@ pub(super) fn coast<const N: usize>(
         TrackStatus::Coasting,
         UpdateSource::Prediction,
     );
-    push_update(out, update, predicted, track.segment, None, false);
+    push_update(out, update, predicted, track.segment, (None, false));
     track.last_output_s = now_s;
     track.last_reported_s = track.last_reported_s.max(now_s);
     zones_and_alarms(shared, track, predicted, monitor, out)

@@ -46,9 +46,9 @@
 //! keeps its filtered updates and is reported in [`SmoothedTracks::failures`].
 //!
 //! # Memory
-//! The whole history is held until [`Smoother::finish`]: about 1.6 kB per track update
-//! (`rtls track --smooth` on LIAS's fast run, 40 443 updates: peak resident memory 76 MB
-//! against 11 MB without smoothing; 2.0 s against 0.9 s).
+//! The whole history is held until [`Smoother::finish`]: about 1.3 kB per track update
+//! (`rtls track --smooth` on LIAS's fast run, 40 443 updates: peak resident memory 61 MB
+//! against 11 MB without smoothing; 1.4 s against 0.6 s).
 //!
 //! # References
 //! Rauch, Tung, Striebel (1965), "Maximum likelihood estimates of linear dynamic systems",
@@ -132,10 +132,11 @@ pub struct SegmentFit {
     pub from_s: f64,
     /// Last time of the segment, s.
     pub to_s: f64,
-    /// The maximum-likelihood model ([`tuned_smooth`]), or `None` where the segment was too
-    /// short to fit (fewer than [`FIT_STATES_MIN`] states with a measurement) or the fit
-    /// failed numerically: then the site's CV model smoothed the tracker's own states.
-    pub fit: Option<NoiseFit>,
+    /// The maximum-likelihood noise ([`tuned_smooth`]), or why the site's CV model smoothed
+    /// the tracker's own states instead: fewer than [`FIT_STATES_MIN`] states with a
+    /// measurement, an update that told more than its information
+    /// ([`ReportedState::partial_information`]), or the fit's numerical error.
+    pub fit: Result<NoiseFit, String>,
 }
 
 /// The fewest states with a measurement a segment needs for its noise model to be fitted.
@@ -222,12 +223,13 @@ impl Smoother {
     }
 
     /// Smooths the updates `run` (indices into `kept`, one segment, time order) in place and
-    /// returns the fitted noise model; on an error none of them is changed.
+    /// returns the fitted noise (or why the site's model was used); on an error none of them
+    /// is changed.
     fn smooth_run(
         &self,
         kept: &mut [(TrackUpdate, Option<ReportedState>)],
         run: &[usize],
-    ) -> Result<Option<NoiseFit>, String> {
+    ) -> Result<Result<NoiseFit, String>, String> {
         match kept[run[0]].0.dimensions {
             2 => self.smooth_sized::<4>(kept, run),
             3 => self.smooth_sized::<6>(kept, run),
@@ -239,25 +241,23 @@ impl Smoother {
         &self,
         kept: &mut [(TrackUpdate, Option<ReportedState>)],
         run: &[usize],
-    ) -> Result<Option<NoiseFit>, String> {
-        let filtered = run
-            .iter()
-            .map(|&i| {
-                let state = kept[i].1.ok_or("an update without its state")?;
-                let mean = Vector::<N>::from_column_slice(&state.mean[..N]);
-                let covariance = Matrix::<N>::from_row_slice(&state.covariance[..N * N]);
-                Gaussian::new(mean, covariance, kept[i].0.time_s).map_err(|e| e.to_string())
-            })
-            .collect::<Result<Vec<Gaussian<N>>, String>>()?;
-        let steps: Vec<InformationStep<N>> = run
-            .iter()
-            .filter_map(|&i| kept[i].1.map(|state| (kept[i].0.time_s, state)))
-            .map(|(time_s, state)| InformationStep {
+    ) -> Result<Result<NoiseFit, String>, String> {
+        // the tracker's filtered states and what each update added, in one pass over the run
+        let mut filtered: Vec<Gaussian<N>> = Vec::with_capacity(run.len());
+        let mut steps: Vec<InformationStep<N>> = Vec::with_capacity(run.len());
+        let mut partial = false;
+        for &i in run {
+            let (time_s, state) = (kept[i].0.time_s, kept[i].1.ok_or("an update without its state")?);
+            let mean = Vector::<N>::from_column_slice(&state.mean[..N]);
+            let covariance = Matrix::<N>::from_row_slice(&state.covariance[..N * N]);
+            filtered.push(Gaussian::new(mean, covariance, time_s).map_err(|e| e.to_string())?);
+            steps.push(InformationStep {
                 time_s,
                 information: Matrix::<N>::from_column_slice(&state.information[..N * N]),
                 information_vector: Vector::<N>::from_column_slice(&state.information_vector[..N]),
-            })
-            .collect();
+            });
+            partial |= state.partial_information;
+        }
         // Pₖ|ₙ's bound for correlated past and future errors (traced over the position axes),
         // from the backward pass of the site's model over the tracker's own states: the
         // tracker's covariances are calibrated online (adaptive noise, correlated errors'
@@ -272,22 +272,26 @@ impl Smoother {
                 Gaussian::new(*state.mean(), bound, state.time_s()).map_err(|e| e.to_string())
             })
             .collect::<Result<Vec<Gaussian<N>>, String>>()?;
-        // x̂ₖ|ₙ from the smoother tuned to the segment, where the segment's updates say all
-        // they told in their information (no velocity or odometry update, no state outside the
-        // CV layout) and enough of them measured
-        let complete = run.iter().all(|&i| kept[i].1.is_some_and(|s| !s.partial_information));
+        // x̂ₖ|ₙ from the smoother tuned to the segment, where its updates say all they told in
+        // their information and enough of them measured (the first state's is its start)
         let measured = steps.iter().skip(1).filter(|s| s.information.norm() > 0.0).count();
-        let tuned = (complete && measured >= FIT_STATES_MIN)
-            .then(|| tuned_smooth(&filtered[0], &steps, self.q_mps2).ok())
-            .flatten();
-        let fit = tuned.map(|tuned| {
+        let tuned = if partial {
+            Err(
+                "an update told more than its information in the CV layout (the heading's drift, a \
+                 range offset, an accelerometer's control input, the IMM)"
+                    .to_string(),
+            )
+        } else if measured < FIT_STATES_MIN {
+            Err(format!("{measured} measured states, fewer than {FIT_STATES_MIN}"))
+        } else {
+            tuned_smooth(&filtered[0], &steps, self.q_mps2).map_err(|e| format!("the fit failed: {e}"))
+        };
+        if let Ok(tuned) = &tuned {
             for (state, better) in reported.iter_mut().zip(&tuned.smoothed) {
-                if let Ok(moved) = Gaussian::new(*better.mean(), *state.covariance(), state.time_s()) {
-                    *state = moved;
-                }
+                *state =
+                    Gaussian::new(*better.mean(), *state.covariance(), state.time_s()).map_err(|e| e.to_string())?;
             }
-            tuned.fit
-        });
+        }
         for (&i, state) in run.iter().zip(&reported) {
             let update = &mut kept[i].0;
             let (position_m, covariance_m2) = position_of(state, self.tag_height_m);
@@ -298,6 +302,6 @@ impl Smoother {
             }
             update.smoothed = true;
         }
-        Ok(fit)
+        Ok(tuned.map(|tuned| tuned.fit))
     }
 }

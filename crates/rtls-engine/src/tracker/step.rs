@@ -75,15 +75,10 @@ fn keep_information<const N: usize>(track: &mut Track<N>, prior: &Gaussian<N>, p
     if modes || track.acceleration.is_some() || track.heading_cross.is_some() || track.offset_cross.is_some() {
         track.information_partial = true;
     }
-    let Ok(step) = InformationStep::between(prior, posterior) else {
-        track.information_partial = true;
-        return;
-    };
-    {
-        match track.information.as_mut() {
-            Some(kept) => kept.add(&step),
-            None => track.information = Some(step),
-        }
+    match (InformationStep::between(prior, posterior), track.information.as_mut()) {
+        (Ok(step), Some(kept)) => kept.add(&step),
+        (Ok(step), None) => track.information = Some(Box::new(step)),
+        (Err(_), _) => track.information_partial = true,
     }
 }
 

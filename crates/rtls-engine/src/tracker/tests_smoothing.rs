@@ -67,6 +67,17 @@ fn track_and_smooth_on(site: &Site, records: Vec<Record>) -> (Vec<TrackUpdate>, 
     (filtered, smoother.finish())
 }
 
+/// Every segment smoothed, each with the site's model for an update that told more than its
+/// information (the reason says so).
+fn assert_site_model_for_every_segment(smoothed: &SmoothedTracks) {
+    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
+    assert!(!smoothed.fits.is_empty());
+    for segment in &smoothed.fits {
+        let reason = segment.fit.as_ref().expect_err("the site's model");
+        assert!(reason.contains("told more than its information"), "{reason}");
+    }
+}
+
 /// Squared position error and its Mahalanobis distance `d² = eᵀ P⁻¹ e` (2-D).
 fn error_and_distance(update: &TrackUpdate, truth: [f64; 2]) -> (f64, f64) {
     let e = [update.position_m[0] - truth[0], update.position_m[1] - truth[1]];
@@ -197,7 +208,7 @@ fn fixes_are_smoothed_with_their_own_fitted_noise_and_odometry_with_the_sites() 
     let (_, smoothed) = track_and_smooth(fixes(3, 120.0, |tag, t| [1.0 * t, 3.0 * tag as f64]));
     assert_eq!(smoothed.fits.len(), 3, "{:?}", smoothed.fits);
     for segment in &smoothed.fits {
-        let fit = segment.fit.expect("a fitted segment");
+        let fit = segment.fit.as_ref().expect("a fitted segment");
         assert!(fit.acceleration_psd_m2ps3 < 0.25, "{fit:?}");
     }
 
@@ -230,13 +241,7 @@ fn fixes_are_smoothed_with_their_own_fitted_noise_and_odometry_with_the_sites() 
     tracker.finish(&mut out).unwrap();
     smoother.take(&out);
     let smoothed = smoother.finish();
-    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
-    assert!(!smoothed.fits.is_empty());
-    assert!(
-        smoothed.fits.iter().all(|segment| segment.fit.is_none()),
-        "{:?}",
-        smoothed.fits
-    );
+    assert_site_model_for_every_segment(&smoothed);
     assert!(smoothed.updates.iter().all(|u| u.smoothed));
 }
 
@@ -255,13 +260,7 @@ fn accelerometer_aided_tracks_are_smoothed_with_the_sites_model() {
     }));
     records.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
     let (_, smoothed) = track_and_smooth(records);
-    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
-    assert!(!smoothed.fits.is_empty());
-    assert!(
-        smoothed.fits.iter().all(|segment| segment.fit.is_none()),
-        "{:?}",
-        smoothed.fits
-    );
+    assert_site_model_for_every_segment(&smoothed);
 }
 
 /// Under the IMM a track's combined prior and posterior are mixtures, not one linear update:
@@ -272,13 +271,7 @@ fn imm_tracks_are_smoothed_with_the_sites_model() {
         super::tests::site_text("fix-then-filter", "kf", "").replace("motion_model = \"cv\"", "motion_model = \"imm\"");
     let imm = Site::from_toml_str(&text, "imm.toml").unwrap();
     let (_, smoothed) = track_and_smooth_on(&imm, fixes(1, 60.0, |_, t| circle(t)));
-    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
-    assert!(!smoothed.fits.is_empty());
-    assert!(
-        smoothed.fits.iter().all(|segment| segment.fit.is_none()),
-        "{:?}",
-        smoothed.fits
-    );
+    assert_site_model_for_every_segment(&smoothed);
 }
 
 /// A tag whose track was deleted and created again starts a segment of its own: the smoother

@@ -197,7 +197,8 @@ pub(crate) struct Track<const N: usize> {
     /// only when the output keeps states, for [`super::Smoother`]; handed to the next reported
     /// state, so not part of a checkpoint.
     #[serde(skip)]
-    pub(super) information: Option<InformationStep<N>>,
+    /// (Boxed: a track that is not smoothed pays one pointer for it.)
+    pub(super) information: Option<Box<InformationStep<N>>>,
     /// Whether an update since the last reported state told more than its `information`
     /// says: one correlated with states outside the CV layout (the heading's drift, a range
     /// offset), one predicted with an accelerometer's control input, or the IMM's.
@@ -254,6 +255,23 @@ impl<const N: usize> Track<N> {
             information: None,
             information_partial: false,
         }
+    }
+
+    /// A (re)start from a fix: the next segment (the restarts count in the low 32 bits of
+    /// [`Self::segment`], the creation number stays), with no information kept from before.
+    pub(super) fn start_segment(&mut self) {
+        self.segment = (self.segment & !0xffff_ffff) | u64::from((self.segment as u32).wrapping_add(1));
+        self.information = None;
+        self.information_partial = false;
+    }
+
+    /// What the updates since the last reported state added, and whether it is partial; both
+    /// reset.
+    pub(super) fn take_information(&mut self) -> (Option<InformationStep<N>>, bool) {
+        (
+            self.information.take().map(|step| *step),
+            std::mem::take(&mut self.information_partial),
+        )
     }
 
     pub(super) fn status(&self) -> Option<TrackStatus> {

@@ -235,10 +235,7 @@ fn start_at<const N: usize>(
     }
     let position_m = position_of(&state, shared.tag_height_m).0;
     track.state = Some(state);
-    // (the restarts count in the low 32 bits; the creation number stays)
-    track.segment = (track.segment & !0xffff_ffff) | u64::from((track.segment as u32).wrapping_add(1));
-    track.information = None;
-    track.information_partial = false;
+    track.start_segment();
     track.heading_cross = None;
     track.offset_cross = None;
     track.lost_state = None;

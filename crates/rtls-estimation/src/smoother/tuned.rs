@@ -15,7 +15,7 @@
 //!          zᵢ = uᵢᵀ j_k / λᵢ = uᵢᵀ x + wᵢ,  wᵢ ~ N(0, c / λᵢ)
 //! fit      (q, c) = argmax Σₖ Σᵢ −½ (νᵢ² / Sᵢ + ln Sᵢ + ln 2π)   over a grid (the innovations
 //!          of the forward pass over the first [`FIT_STEPS_MAX`] steps)
-//! smooth   the Rauch–Tung–Striebel backward pass with the fitted (q, c)
+//! smooth   the Rauch–Tung–Striebel backward pass with the fitted q ([`KalmanFilter::smooth`])
 //! ```
 //!
 //! The grid: `q` from 10⁻³ to 10 × the tracker's own in half decades; `c` ∈ {0.5, 0.7, 1, 1.4,
@@ -36,11 +36,13 @@
 
 use alloc::vec::Vec;
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 use crate::error::{EstimationError, Result};
+use crate::filter::KalmanFilter;
 use crate::gaussian::{Gaussian, Matrix, Vector};
 use crate::math::ln;
+use crate::motion::{ConstantVelocity, ProcessNoise};
 
 /// The most steps the noise is fitted on (the first ones of a segment); the smoother then
 /// runs over all of them.
@@ -145,25 +147,17 @@ pub struct TunedSmoothing<const N: usize> {
 }
 
 /// One scalar measurement of a step: `z = h·x + w`, `w ~ N(0, c · variance)`.
-#[derive(Debug, Clone)]
-struct Scalar {
-    row: DVector<f64>,
+#[derive(Debug, Clone, Copy)]
+struct Scalar<const N: usize> {
+    row: Vector<N>,
     value: f64,
     variance: f64,
 }
 
 /// A step's time and scalar measurements.
-struct Prepared {
+struct Prepared<const N: usize> {
     time_s: f64,
-    scalars: Vec<Scalar>,
-}
-
-/// A forward pass: the log-likelihood and, when kept, each step's prediction `(x⁻, P⁻, F)`
-/// and posterior.
-struct Pass {
-    log_likelihood: f64,
-    predicted: Vec<(DVector<f64>, DMatrix<f64>, DMatrix<f64>)>,
-    filtered: Vec<(DVector<f64>, DMatrix<f64>)>,
+    scalars: Vec<Scalar<N>>,
 }
 
 /// Fits `q` and `c` to a track segment by maximum likelihood and smooths it.
@@ -176,7 +170,8 @@ struct Pass {
 /// [`EstimationError::TimeWentBackwards`] if the steps are out of order;
 /// [`EstimationError::InvalidParameter`] for an empty segment or `q ≤ 0`;
 /// [`EstimationError::NonFinite`] if no model of the grid gives a finite likelihood;
-/// [`EstimationError::NotPositiveDefinite`] if the backward pass fails.
+/// [`EstimationError::NotPositiveDefinite`] / [`EstimationError::NonFinite`] if the final passes
+/// fail.
 ///
 /// # Example
 /// ```
@@ -221,7 +216,7 @@ pub fn tuned_smooth<const N: usize>(
             });
         }
     }
-    let prepared: Vec<Prepared> = steps
+    let prepared: Vec<Prepared<N>> = steps
         .iter()
         .enumerate()
         .map(|(k, step)| prepare(step, k == 0))
@@ -232,14 +227,14 @@ pub fn tuned_smooth<const N: usize>(
     for factor in Q_FACTORS {
         for noise_scale in NOISE_SCALES {
             let q = factor * q_m2ps3;
-            let Ok(pass) = forward(start, fit_steps, q, noise_scale, false) else {
+            let Ok((log_likelihood, _)) = forward(start, fit_steps, q, noise_scale, false) else {
                 continue;
             };
-            if best.is_none_or(|b| pass.log_likelihood > b.log_likelihood) {
+            if best.is_none_or(|b| log_likelihood > b.log_likelihood) {
                 best = Some(NoiseFit {
                     acceleration_psd_m2ps3: q,
                     noise_scale,
-                    log_likelihood: pass.log_likelihood,
+                    log_likelihood,
                 });
             }
         }
@@ -247,8 +242,10 @@ pub fn tuned_smooth<const N: usize>(
     let fit = best.ok_or(EstimationError::NonFinite {
         what: "tuned smoother likelihood",
     })?;
-    let pass = forward(start, &prepared, fit.acceleration_psd_m2ps3, fit.noise_scale, true)?;
-    let (filtered, smoothed) = backward::<N>(&prepared, &pass)?;
+    let (_, filtered) = forward(start, &prepared, fit.acceleration_psd_m2ps3, fit.noise_scale, true)?;
+    // x̂ₖ|ₙ, Pₖ|ₙ: the RTS backward pass with the fitted q
+    let motion = ConstantVelocity::new(ProcessNoise::continuous(fit.acceleration_psd_m2ps3))?;
+    let smoothed = KalmanFilter::default().smooth(&filtered, &motion)?;
     Ok(TunedSmoothing {
         fit,
         filtered,
@@ -258,23 +255,23 @@ pub fn tuned_smooth<const N: usize>(
 
 /// A step's scalar measurements: `J = Σ λᵢ uᵢ uᵢᵀ` (λᵢ above 10⁻⁶ λ_max: the rest is the
 /// rounding of `P⁺⁻¹ − P⁻⁻¹`), `zᵢ = uᵢᵀ j / λᵢ`, variance `1/λᵢ`, row `uᵢ`.
-fn prepare<const N: usize>(step: &InformationStep<N>, first: bool) -> Prepared {
+fn prepare<const N: usize>(step: &InformationStep<N>, first: bool) -> Prepared<N> {
     let mut scalars = Vec::new();
     let finite =
         step.information.iter().all(|v| v.is_finite()) && step.information_vector.iter().all(|v| v.is_finite());
     if !first && finite {
+        // (the eigen-decomposition of a const-generic size needs the heap-sized matrix)
         let eigen = DMatrix::from_column_slice(N, N, step.information.as_slice()).symmetric_eigen();
         let largest = eigen.eigenvalues.max();
         for (i, &lambda) in eigen.eigenvalues.iter().enumerate() {
             if !(largest > 0.0 && lambda > 1e-6 * largest) {
                 continue;
             }
-            let row = eigen.eigenvectors.column(i).into_owned();
-            // zᵢ = uᵢᵀ j / λᵢ
-            let value = row.dot(&DVector::from_column_slice(step.information_vector.as_slice())) / lambda;
+            let row = Vector::<N>::from_iterator(eigen.eigenvectors.column(i).iter().copied());
             scalars.push(Scalar {
                 row,
-                value,
+                // zᵢ = uᵢᵀ j / λᵢ
+                value: row.dot(&step.information_vector) / lambda,
                 variance: 1.0 / lambda,
             });
         }
@@ -285,114 +282,52 @@ fn prepare<const N: usize>(step: &InformationStep<N>, first: bool) -> Prepared {
     }
 }
 
-/// `F` and `Q` of the CV layout over `dt_s`.
-fn transition(n: usize, dt_s: f64, q: f64) -> (DMatrix<f64>, DMatrix<f64>) {
-    let mut f = DMatrix::identity(n, n);
-    let mut noise = DMatrix::zeros(n, n);
-    for axis in 0..n / 2 {
-        let (p, v) = (2 * axis, 2 * axis + 1);
-        // F_cv = [1 Δt; 0 1],  Q_cv = q [Δt³/3 Δt²/2; Δt²/2 Δt]
-        f[(p, v)] = dt_s;
-        noise[(p, p)] = q * dt_s * dt_s * dt_s / 3.0;
-        noise[(p, v)] = q * dt_s * dt_s / 2.0;
-        noise[(v, p)] = noise[(p, v)];
-        noise[(v, v)] = q * dt_s;
-    }
-    (f, noise)
-}
-
-/// The forward (Kalman) pass with `q` and `c` over `steps` from `start`.
+/// The forward (Kalman) pass with `q` and `c` over `steps` from `start`: the log-likelihood of
+/// its innovations and, when `keep`, each step's posterior.
 fn forward<const N: usize>(
     start: &Gaussian<N>,
-    steps: &[Prepared],
+    steps: &[Prepared<N>],
     q: f64,
     noise_scale: f64,
     keep: bool,
-) -> Result<Pass> {
-    let mut x = DVector::from_column_slice(start.mean().as_slice());
-    let mut p = DMatrix::from_column_slice(N, N, start.covariance().as_slice());
-    let mut pass = Pass {
-        log_likelihood: 0.0,
-        predicted: Vec::new(),
-        filtered: Vec::new(),
-    };
-    let mut time_s = steps[0].time_s;
+) -> Result<(f64, Vec<Gaussian<N>>)> {
+    let kf = KalmanFilter::default();
+    let motion = ConstantVelocity::new(ProcessNoise::continuous(q))?;
+    let mut log_likelihood = 0.0;
+    let mut filtered = Vec::with_capacity(if keep { steps.len() } else { 0 });
+    let mut state = Gaussian::new(*start.mean(), *start.covariance(), steps[0].time_s)?;
     for step in steps {
-        let dt_s = step.time_s - time_s;
-        time_s = step.time_s;
-        let (f, noise) = transition(N, dt_s, q);
         // x⁻ = F x,  P⁻ = F P Fᵀ + Q
-        x = &f * &x;
-        p = &f * &p * f.transpose() + noise;
-        if keep {
-            pass.predicted.push((x.clone(), p.clone(), f));
-        }
+        let prior = kf.predict(&state, &motion, step.time_s)?;
+        let (mut x, mut p) = (*prior.mean(), *prior.covariance());
         for scalar in &step.scalars {
             let h = &scalar.row;
             // ν = z − h x,  S = h P hᵀ + c σ²,  K = P hᵀ / S
-            let ph = &p * h;
+            let ph = p * h;
             let s = h.dot(&ph) + noise_scale * scalar.variance;
             if !(s.is_finite() && s > 0.0) {
                 return Err(EstimationError::InnovationNotPositiveDefinite);
             }
             let nu = scalar.value - h.dot(&x);
             // ln L += −½ (ν²/S + ln S + ln 2π)
-            pass.log_likelihood -= 0.5 * (nu * nu / s + ln(s) + LN_2PI);
+            log_likelihood -= 0.5 * (nu * nu / s + ln(s) + LN_2PI);
             let k = ph / s;
             // x ← x + K ν,  P ← P − K S Kᵀ
-            x += &k * nu;
-            p -= &k * k.transpose() * s;
+            x += k * nu;
+            p -= k * k.transpose() * s;
         }
-        p = (&p + p.transpose()) * 0.5;
-        if !(x.iter().all(|v| v.is_finite()) && pass.log_likelihood.is_finite()) {
+        if !log_likelihood.is_finite() {
             return Err(EstimationError::NonFinite {
-                what: "tuned smoother state",
+                what: "tuned smoother likelihood",
             });
         }
+        // (validates the posterior: finite, symmetric after symmetrising)
+        state = Gaussian::new(x, (p + p.transpose()) * 0.5, step.time_s)?;
         if keep {
-            pass.filtered.push((x.clone(), p.clone()));
+            filtered.push(state);
         }
     }
-    Ok(pass)
-}
-
-/// The RTS backward pass over a kept forward pass.
-fn backward<const N: usize>(steps: &[Prepared], pass: &Pass) -> Result<(Vec<Gaussian<N>>, Vec<Gaussian<N>>)> {
-    let count = pass.filtered.len();
-    let mut smoothed = pass.filtered.clone();
-    for k in (0..count.saturating_sub(1)).rev() {
-        let (x_f, p_f) = &pass.filtered[k];
-        let (x_p, p_p, f) = &pass.predicted[k + 1];
-        // G = P Fᵀ (P⁻ₖ₊₁)⁻¹  (Gᵀ = P⁻⁻¹ F P, by Cholesky)
-        let chol = p_p.clone().cholesky().ok_or(EstimationError::NotPositiveDefinite {
-            what: "tuned smoother predicted covariance",
-        })?;
-        let g = chol.solve(&(f * p_f)).transpose();
-        let (x_next, p_next) = &smoothed[k + 1];
-        // x̂ₖ|ₙ = x̂ₖ|ₖ + G (x̂ₖ₊₁|ₙ − x⁻ₖ₊₁),  Pₖ|ₙ = Pₖ|ₖ + G (Pₖ₊₁|ₙ − P⁻ₖ₊₁) Gᵀ
-        let x_s = x_f + &g * (x_next - x_p);
-        let p_s = p_f + &g * (p_next - p_p) * g.transpose();
-        smoothed[k] = (x_s, (&p_s + p_s.transpose()) * 0.5);
-    }
-    let gaussian = |(x, p): &(DVector<f64>, DMatrix<f64>), time_s: f64| {
-        Gaussian::new(
-            Vector::<N>::from_column_slice(x.as_slice()),
-            Matrix::<N>::from_column_slice(p.as_slice()),
-            time_s,
-        )
-    };
-    let filtered = pass
-        .filtered
-        .iter()
-        .zip(steps)
-        .map(|(state, step)| gaussian(state, step.time_s))
-        .collect::<Result<Vec<_>>>()?;
-    let smoothed = smoothed
-        .iter()
-        .zip(steps)
-        .map(|(state, step)| gaussian(state, step.time_s))
-        .collect::<Result<Vec<_>>>()?;
-    Ok((filtered, smoothed))
+    Ok((log_likelihood, filtered))
 }
 
 #[cfg(test)]
