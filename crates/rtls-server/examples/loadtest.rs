@@ -15,12 +15,22 @@
 //! ```
 //! `--rate-hz 0` sends as fast as the acknowledgements allow (each publisher keeps 64 batches
 //! in flight).
+//!
+//! Against a running `rtls serve` (the soak, `scripts/soak.sh`): `--mqtt HOST:PORT --http
+//! HOST:PORT` connect to it instead of starting one (`--token` its write token, `--read-token`
+//! its read token for the WebSocket), `--server-pid PID` reads the server's resident memory
+//! instead of this process's, `--report-s S` prints a JSON line on stderr every `S` seconds
+//! (that window's acknowledged records/s, latency percentiles and resident memory; the final
+//! line lists them as `windows`), and `--write-site PATH` writes the site the in-process server
+//! uses (for `rtls serve --site PATH`) and exits.
 
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use futures_util::StreamExt;
+use hdrhistogram::Histogram;
 use rtls_engine::site::Site;
 use rtls_server::auth::Tokens;
 use rtls_server::config::ServerConfig;
@@ -75,6 +85,13 @@ struct Args {
     tags: usize,
     rate_hz: f64,
     seconds: f64,
+    /// An external server's broker and HTTP addresses (both or neither).
+    external: Option<(SocketAddr, SocketAddr)>,
+    token: String,
+    read_token: Option<String>,
+    server_pid: Option<u32>,
+    report_s: Option<f64>,
+    write_site: Option<std::path::PathBuf>,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -82,7 +99,14 @@ fn parse_args() -> Result<Args, String> {
         tags: 600,
         rate_hz: 10.0,
         seconds: 20.0,
+        external: None,
+        token: TOKEN.into(),
+        read_token: None,
+        server_pid: None,
+        report_s: None,
+        write_site: None,
     };
+    let (mut mqtt, mut http) = (None, None);
     let argv: Vec<String> = std::env::args().skip(1).collect();
     for pair in argv.chunks(2) {
         let value = pair.get(1).map_or("", String::as_str);
@@ -109,13 +133,35 @@ fn parse_args() -> Result<Args, String> {
                     .filter(|s: &f64| s.is_finite() && *s > 0.0)
                     .ok_or_else(|| bad("a duration > 0 s"))?;
             }
+            "--mqtt" => mqtt = Some(value.parse().map_err(|_| bad("HOST:PORT"))?),
+            "--http" => http = Some(value.parse().map_err(|_| bad("HOST:PORT"))?),
+            "--token" => args.token = value.to_string(),
+            "--read-token" => args.read_token = Some(value.to_string()),
+            "--server-pid" => args.server_pid = Some(value.parse().map_err(|_| bad("a process id"))?),
+            "--report-s" => {
+                args.report_s = Some(
+                    value
+                        .parse()
+                        .ok()
+                        .filter(|s: &f64| s.is_finite() && *s >= 1.0)
+                        .ok_or_else(|| bad("a period ≥ 1 s"))?,
+                )
+            }
+            "--write-site" => args.write_site = Some(value.into()),
             other => {
                 return Err(format!(
-                    "unknown argument {other}; use --tags N, --rate-hz HZ, --seconds S"
+                    "unknown argument {other}; use --tags N, --rate-hz HZ, --seconds S, --mqtt HOST:PORT \
+                     --http HOST:PORT [--token T] [--read-token T] [--server-pid PID], --report-s S, \
+                     --write-site PATH"
                 ))
             }
         }
     }
+    args.external = match (mqtt, http) {
+        (Some(mqtt), Some(http)) => Some((mqtt, http)),
+        (None, None) => None,
+        _ => return Err("--mqtt and --http go together (an external server)".into()),
+    };
     Ok(args)
 }
 
@@ -126,22 +172,52 @@ fn unix_s() -> f64 {
         .as_secs_f64()
 }
 
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+/// Latencies (ms) in an HDR histogram: 3 significant digits from 1 µs to an hour.
+fn latency_histogram() -> Histogram<u64> {
+    Histogram::new_with_bounds(1, 3_600_000_000, 3).expect("histogram bounds")
 }
 
-#[tokio::main]
-async fn main() {
-    let args = match parse_args() {
-        Ok(args) => args,
-        Err(message) => {
-            eprintln!("error: {message}");
-            std::process::exit(2);
-        }
-    };
+/// The `p` quantile of `histogram` in ms (one decimal), `None` when empty.
+fn quantile_ms(histogram: &Histogram<u64>, p: f64) -> Option<f64> {
+    (!histogram.is_empty()).then(|| (histogram.value_at_quantile(p) as f64 / 100.0).round() / 10.0)
+}
+
+/// The latencies measured: the whole run's and the current report window's.
+struct Latencies {
+    total: Histogram<u64>,
+    window: Histogram<u64>,
+}
+
+impl Latencies {
+    fn record(&mut self, latency_s: f64) {
+        // µs, at least 1 (a clock a hair behind the sender's)
+        let us = (latency_s * 1e6).round().clamp(1.0, 3_600_000_000.0) as u64;
+        self.total.saturating_record(us);
+        self.window.saturating_record(us);
+    }
+}
+
+/// An in-process server's task.
+type ServerTask = tokio::task::JoinHandle<Result<(), rtls_server::serve::ServeError>>;
+
+/// The server started in this process, or the addresses of one already running.
+struct Target {
+    mqtt: SocketAddr,
+    http: SocketAddr,
+    /// The in-process server's task and its stop signal.
+    own: Option<(ServerTask, tokio::sync::oneshot::Sender<()>)>,
+    dir: Option<std::path::PathBuf>,
+}
+
+async fn start_target(args: &Args) -> Target {
+    if let Some((mqtt, http)) = args.external {
+        return Target {
+            mqtt,
+            http,
+            own: None,
+            dir: None,
+        };
+    }
     let dir = std::env::temp_dir().join(format!("rtls-loadtest-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let mut config = ServerConfig::default();
@@ -171,10 +247,36 @@ async fn main() {
         },
     ));
     let bound = bound_rx.await.expect("server started");
-    let mqtt = bound.mqtt.expect("embedded broker");
+    Target {
+        mqtt: bound.mqtt.expect("embedded broker"),
+        http: bound.http,
+        own: Some((server, stop_tx)),
+        dir: Some(dir),
+    }
+}
+
+#[tokio::main]
+async fn main() {
+    let args = match parse_args() {
+        Ok(args) => args,
+        Err(message) => {
+            eprintln!("error: {message}");
+            std::process::exit(2);
+        }
+    };
+    if let Some(path) = &args.write_site {
+        std::fs::write(path, SITE).unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
+        return;
+    }
+    let target = start_target(&args).await;
+    let resident = || resident_mb(args.server_pid);
 
     // the WebSocket client: latency of every location update
-    let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{}/v2/ws/socket", bound.http))
+    let query = args
+        .read_token
+        .as_ref()
+        .map_or(String::new(), |t| format!("?token={t}"));
+    let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{}/v2/ws/socket{query}", target.http))
         .await
         .unwrap();
     futures_util::SinkExt::send(
@@ -183,7 +285,10 @@ async fn main() {
     )
     .await
     .unwrap();
-    let latencies = Arc::new(Mutex::new(Vec::<f64>::new()));
+    let latencies = Arc::new(Mutex::new(Latencies {
+        total: latency_histogram(),
+        window: latency_histogram(),
+    }));
     let measuring = Arc::new(std::sync::atomic::AtomicBool::new(false));
     let ws_task = {
         let latencies = Arc::clone(&latencies);
@@ -201,7 +306,7 @@ async fn main() {
                     };
                     let t = rtls_server::omlox::time::parse_timestamp(stamp, "t").unwrap();
                     if measuring.load(Ordering::Relaxed) {
-                        latencies.lock().unwrap().push(received - t);
+                        latencies.lock().unwrap().record(received - t);
                     }
                 }
             }
@@ -219,9 +324,10 @@ async fn main() {
         let tags: Vec<usize> = (0..args.tags).filter(|t| t % PUBLISHERS == p).collect();
         let (acked, sent) = (Arc::clone(&acked), Arc::clone(&sent));
         let rate_hz = args.rate_hz;
+        let (mqtt, token) = (target.mqtt, args.token.clone());
         publishers.push(tokio::spawn(async move {
             let mut options = MqttOptions::new(format!("loadtest-{p}"), mqtt.ip().to_string(), mqtt.port());
-            options.set_credentials("load", TOKEN);
+            options.set_credentials("load", token);
             options.set_inflight(64);
             options.set_max_packet_size(1 << 20, 1 << 20);
             let (client, mut event_loop) = AsyncClient::new(options, 128);
@@ -235,7 +341,6 @@ async fn main() {
             });
             let period = (rate_hz > 0.0).then(|| Duration::from_secs_f64(1.0 / rate_hz));
             let mut next = Instant::now();
-            let mut k = 0u64;
             while started.elapsed() < warmup + run {
                 let t = unix_s();
                 let mut payload = String::with_capacity(tags.len() * 120);
@@ -251,13 +356,11 @@ async fn main() {
                     break;
                 }
                 sent.fetch_add(per_batch, Ordering::Relaxed);
-                k += 1;
                 if let Some(period) = period {
                     next += period;
                     tokio::time::sleep_until(next.into()).await;
                 }
             }
-            let _ = k;
             tokio::time::sleep(Duration::from_secs(2)).await;
             let _ = client.disconnect().await;
             acks.abort();
@@ -265,19 +368,41 @@ async fn main() {
     }
     tokio::time::sleep(warmup).await;
     measuring.store(true, Ordering::Relaxed);
-    let rss_mb_start = resident_mb();
+    let rss_mb_start = resident();
     let acked_at_start = acked.load(Ordering::Relaxed);
     let measure_start = Instant::now();
-    tokio::time::sleep(run).await;
+    let mut windows = Vec::new();
+    if let Some(report_s) = args.report_s {
+        // one JSON line per window on stderr, and the list at the end
+        let (mut window_start, mut acked_before) = (measure_start, acked_at_start);
+        let period = Duration::from_secs_f64(report_s);
+        for k in 1..=(args.seconds / report_s).floor() as u32 {
+            tokio::time::sleep_until((measure_start + period * k).into()).await;
+            let acked_now = acked.load(Ordering::Relaxed);
+            let seconds = window_start.elapsed().as_secs_f64();
+            let window = std::mem::replace(&mut latencies.lock().unwrap().window, latency_histogram());
+            let line = serde_json::json!({
+                "t_s": (measure_start.elapsed().as_secs_f64()).round(),
+                "acknowledged_rps": ((acked_now - acked_before) as f64 / seconds).round(),
+                "p50_ms": quantile_ms(&window, 0.5),
+                "p99_ms": quantile_ms(&window, 0.99),
+                "location_updates": window.len(),
+                "rss_mb": resident(),
+            });
+            eprintln!("{line}");
+            windows.push(line);
+            (window_start, acked_before) = (Instant::now(), acked_now);
+        }
+    }
+    tokio::time::sleep_until((measure_start + run).into()).await;
     let acked_in_run = acked.load(Ordering::Relaxed) - acked_at_start;
     let elapsed = measure_start.elapsed().as_secs_f64();
     measuring.store(false, Ordering::Relaxed);
-    let rss_mb_end = resident_mb();
+    let rss_mb_end = resident();
     for publisher in publishers {
         let _ = publisher.await;
     }
-    let mut latencies = latencies.lock().unwrap().clone();
-    latencies.sort_by(f64::total_cmp);
+    let total = std::mem::replace(&mut latencies.lock().unwrap().total, latency_histogram());
     let offered = if args.rate_hz > 0.0 {
         Some(args.tags as f64 * args.rate_hz)
     } else {
@@ -288,8 +413,8 @@ async fn main() {
     let report = serde_json::json!({
         "offered_rps": offered,
         "sustained_rps": (acked_in_run as f64 / elapsed).round(),
-        "p50_ms": (percentile(&latencies, 0.5) * 1000.0 * 10.0).round() / 10.0,
-        "p99_ms": (percentile(&latencies, 0.99) * 1000.0 * 10.0).round() / 10.0,
+        "p50_ms": quantile_ms(&total, 0.5),
+        "p99_ms": quantile_ms(&total, 0.99),
         "sent": sent,
         "acknowledged": acknowledged,
         "lost": sent.saturating_sub(acknowledged),
@@ -297,20 +422,26 @@ async fn main() {
         "rss_mb_end": rss_mb_end,
         "tags": args.tags,
         "rate_hz": args.rate_hz,
-        "location_updates_measured": latencies.len(),
+        "location_updates_measured": total.len(),
         "measured_s": elapsed,
+        "windows": windows,
     });
     println!("{report}");
-    let _ = stop_tx.send(());
-    let _ = server.await;
+    if let Some((server, stop)) = target.own {
+        let _ = stop.send(());
+        let _ = server.await;
+    }
     ws_task.abort();
-    let _ = std::fs::remove_dir_all(&dir);
+    if let Some(dir) = target.dir {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
 
-/// This process's resident memory (server and load generator together), MB, from
-/// `/proc/self/status` (`VmRSS`); `None` where there is no procfs.
-fn resident_mb() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+/// Resident memory (MB) of process `pid`, or of this process (server and load generator
+/// together) without one, from `/proc/…/status` (`VmRSS`); `None` where there is no procfs.
+fn resident_mb(pid: Option<u32>) -> Option<f64> {
+    let path = pid.map_or_else(|| "/proc/self/status".to_string(), |pid| format!("/proc/{pid}/status"));
+    let status = std::fs::read_to_string(path).ok()?;
     let kb: f64 = status
         .lines()
         .find_map(|line| line.strip_prefix("VmRSS:"))?
