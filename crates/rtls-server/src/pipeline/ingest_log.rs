@@ -53,6 +53,8 @@ pub(super) enum PartitionInput {
 
 /// At most this many records are committed in one transaction (and dispatched at once).
 const GROUP_COMMIT_RECORDS: usize = 20_000;
+/// At most this many records go to a partition in one batch ([`chunked`]).
+pub(super) const PARTITION_BATCH_RECORDS: usize = 1_024;
 /// Records replayed per store query on start.
 const REPLAY_PAGE: usize = 10_000;
 /// Groups of payloads dispatched and waiting for their commit: with the ingest queue before
@@ -303,7 +305,7 @@ fn fail(metrics: &Metrics, batches: Vec<IngestBatch>, reason: &str) {
 /// with the database's write lock held: back-pressure reaches `submit` through the bounded
 /// ingest queue).
 fn dispatch(partitions: &[SyncSender<PartitionInput>], progress: &Progress, batches: Vec<(usize, PartitionBatch)>) {
-    let full = send_without_waiting(partitions, progress, batches);
+    let full = send_without_waiting(partitions, progress, chunked(batches));
     send_waiting(partitions, full);
 }
 
@@ -314,6 +316,25 @@ fn send_waiting(partitions: &[SyncSender<PartitionInput>], batches: Vec<(usize, 
             tracing::error!(partition = index, "partition stopped; records not tracked");
         }
     }
+}
+
+/// Each partition's records in batches of at most [`PARTITION_BATCH_RECORDS`], in order: a
+/// partition's queue is bounded in batches, so a batch's size bounds the records waiting for
+/// it (a commit group of 20 000 records would otherwise make 256 queued batches seconds of
+/// backlog and gigabytes of memory under overload).
+fn chunked(batches: Vec<(usize, PartitionBatch)>) -> Vec<(usize, PartitionBatch)> {
+    if batches.iter().all(|(_, batch)| batch.len() <= PARTITION_BATCH_RECORDS) {
+        return batches;
+    }
+    let mut chunks = Vec::new();
+    for (index, mut batch) in batches {
+        while batch.len() > PARTITION_BATCH_RECORDS {
+            let rest = batch.split_off(PARTITION_BATCH_RECORDS);
+            chunks.push((index, std::mem::replace(&mut batch, rest)));
+        }
+        chunks.push((index, batch));
+    }
+    chunks
 }
 
 /// Replays the ingest log after `after_id` through the trackers; returns the ids of the
@@ -398,8 +419,14 @@ fn send_without_waiting(
             progress.dispatched[*index].fetch_max(last_id, Ordering::AcqRel);
         }
     }
-    let mut full = Vec::new();
+    let mut full: Vec<(usize, PartitionBatch)> = Vec::new();
     for (index, batch) in batches {
+        // behind a batch that found its partition full, the partition's later batches wait
+        // too (in order)
+        if full.iter().any(|(waiting, _)| *waiting == index) {
+            full.push((index, batch));
+            continue;
+        }
         match partitions[index].try_send(PartitionInput::Records(batch)) {
             Ok(()) => {}
             Err(TrySendError::Full(PartitionInput::Records(batch))) => full.push((index, batch)),
@@ -410,4 +437,64 @@ fn send_without_waiting(
         }
     }
     full
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rtls_engine::record::Measurement;
+
+    fn batch(first_id: i64, n: usize) -> PartitionBatch {
+        (0..n as i64)
+            .map(|k| {
+                let record = Record {
+                    time_s: k as f64,
+                    tag: "t".into(),
+                    measurement: Measurement::Fix {
+                        position_m: vec![0.0, 0.0],
+                        covariance_m2: vec![1.0, 0.0, 0.0, 1.0],
+                    },
+                };
+                (first_id + k, record)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_large_batch_goes_to_its_partition_in_bounded_chunks_in_order() {
+        let n = 2 * PARTITION_BATCH_RECORDS + 5;
+        let chunks = chunked(vec![(0, batch(1, n)), (1, batch(10_000, 3))]);
+        let sizes: Vec<(usize, usize)> = chunks.iter().map(|(p, b)| (*p, b.len())).collect();
+        assert_eq!(
+            sizes,
+            vec![
+                (0, PARTITION_BATCH_RECORDS),
+                (0, PARTITION_BATCH_RECORDS),
+                (0, 5),
+                (1, 3)
+            ]
+        );
+        let ids: Vec<i64> = chunks
+            .iter()
+            .filter(|(p, _)| *p == 0)
+            .flat_map(|(_, b)| b.iter().map(|(id, _)| *id))
+            .collect();
+        assert_eq!(ids, (1..=n as i64).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn behind_a_full_partition_its_later_batches_wait_in_order() {
+        let (tx, rx) = std::sync::mpsc::sync_channel(1);
+        let progress = Progress::new(1, 0);
+        // the queue holds one batch: the first goes, the second finds it full, and the third
+        // must wait behind it even when the partition makes room in between
+        let full = send_without_waiting(
+            std::slice::from_ref(&tx),
+            &progress,
+            vec![(0, batch(1, 2)), (0, batch(3, 2)), (0, batch(5, 2))],
+        );
+        let waiting: Vec<i64> = full.iter().map(|(_, b)| b[0].0).collect();
+        assert_eq!(waiting, vec![3, 5]);
+        assert!(matches!(rx.try_recv(), Ok(PartitionInput::Records(b)) if b[0].0 == 1));
+    }
 }

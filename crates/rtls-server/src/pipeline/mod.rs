@@ -36,6 +36,7 @@ mod admission;
 mod cluster_side;
 pub mod collision_news;
 pub(crate) mod collisions;
+mod event_clock;
 mod fanout;
 mod ingest_log;
 mod live;
@@ -128,8 +129,12 @@ impl Default for PipelineConfig {
         Self {
             partitions: std::thread::available_parallelism().map_or(2, |n| n.get()),
             ingest_queue_batches: 1024,
-            partition_queue_batches: 256,
-            output_queue_batches: 256,
+            // at most 16 × 1 024 records wait for a partition (`ingest_log::PARTITION_BATCH_RECORDS`)
+            // and 32 batches of outputs for the store: under overload the queues fill in
+            // about a second and back-pressure reaches the senders, instead of a backlog of
+            // minutes in memory
+            partition_queue_batches: 16,
+            output_queue_batches: 32,
             broadcast_capacity: 65_536,
             max_records_per_payload: 100_000,
             submit_timeout: Duration::from_secs(5),
@@ -368,6 +373,7 @@ impl Pipeline {
                 progress: Arc::clone(&progress),
                 live_clock: config.live_clock,
                 clock_lag_s: config.clock_lag_s,
+                event_clock: Default::default(),
                 zone_entries: Default::default(),
                 reported_lost: Default::default(),
                 source: site.name.clone().unwrap_or_else(|| "rtls".into()),

@@ -47,6 +47,8 @@ pub(super) struct PartitionWorker {
     pub progress: Arc<Progress>,
     pub live_clock: bool,
     pub clock_lag_s: f64,
+    /// The newest record taken, which caps the live clock ([`super::event_clock`]).
+    pub event_clock: super::event_clock::EventClock,
     /// Entry time (s) of each (tag, zone) the tag is in, for the exit's `entry_time`.
     pub zone_entries: HashMap<(String, String), f64>,
     /// Tags whose lost state (the frozen last position) has been stored and published once:
@@ -89,6 +91,7 @@ impl PartitionWorker {
                     self.follow_zone_edits();
                     let started = Instant::now();
                     for (id, record) in batch {
+                        self.event_clock.observe(record.time_s);
                         let tag = record.tag.clone();
                         let (tracker, step) = (&mut self.tracker, self.track_step);
                         if let Err(reason) = guarded(|| step(tracker, record, &mut out)) {
@@ -131,7 +134,8 @@ impl PartitionWorker {
             }
             if self.live_clock && caught_up && last_clock.elapsed() >= CLOCK_TICK {
                 last_clock = Instant::now();
-                if let Err(e) = self.tracker.advance_to(unix_s() - self.clock_lag_s, &mut out) {
+                let target_s = self.event_clock.target_s(unix_s(), self.clock_lag_s);
+                if let Err(e) = self.tracker.advance_to(target_s, &mut out) {
                     tracing::warn!(partition = self.index, error = %e, "advancing the clock failed");
                 }
             }
@@ -147,6 +151,7 @@ impl PartitionWorker {
         self.follow_zone_edits();
         let count = records.len();
         for record in records {
+            self.event_clock.observe(record.time_s);
             let (tracker, step) = (&mut self.tracker, self.track_step);
             let _ = guarded(|| step(tracker, record, out));
         }
@@ -206,7 +211,7 @@ impl PartitionWorker {
                 event,
                 kind,
                 tag = parsed["tag"].as_str().unwrap_or(""),
-                reason = parsed["reason"].as_str().unwrap_or(""),
+                reason = %unused_reason(parsed),
                 records,
                 "record not used (the count is since the last such line; every one is an event)"
             );
@@ -496,4 +501,14 @@ impl PartitionWorker {
 /// A tag as one MQTT topic level: `/`, `+` and `#` would change the topic's structure.
 fn mqtt_level(tag: &str) -> String {
     tag.replace(['/', '+', '#'], "_")
+}
+
+/// Why a record was not used, for the log: a rejection's reason, or how late a late record
+/// was.
+fn unused_reason(event: &Value) -> String {
+    match (event["reason"].as_str(), event["lateness_s"].as_f64()) {
+        (Some(reason), _) => reason.to_string(),
+        (None, Some(lateness_s)) => format!("{lateness_s:.3} s behind its track (beyond the rewind horizon)"),
+        (None, None) => String::new(),
+    }
 }
