@@ -4,9 +4,12 @@
 # SECONDS, then SILENCE_S seconds with every tag silent, then SIGTERM.
 #
 #   scripts/soak.sh [OUT_DIR]          (default: target/soak)
-#   TAGS=6000 RATE_HZ=10 SECONDS=600 REPORT_S=60 SILENCE_S=40 scripts/soak.sh
+#   TAGS=6000 RATE_HZ=10 SECONDS=600 REPORT_S=60 SILENCE_S=40 HISTORY_INTERVAL_S=0 scripts/soak.sh
 #
-# Writes OUT_DIR/{site.toml, rtls.db, serve.out, serve.err, loadtest.json, windows.jsonl} and
+# HISTORY_INTERVAL_S is the server's `server.history_interval_s` (0, the default: every track
+# state stored); everything else is the server's default configuration.
+#
+# Writes OUT_DIR/{site.toml, server.toml, rtls.db, serve.out, serve.err, loadtest.json, windows.jsonl} and
 # prints one JSON line: the load test's result (per-window acknowledged records/s, latency and
 # the server's resident memory), the track rows stored while the tags were silent
 # (`rtls_stored_locations_total`, from 20 s after the last record to the end of the silence),
@@ -16,16 +19,17 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-target/soak}
 TAGS=${TAGS:-6000} RATE_HZ=${RATE_HZ:-10} SECONDS_RUN=${SECONDS:-600}
-REPORT_S=${REPORT_S:-60} SILENCE_S=${SILENCE_S:-40}
+REPORT_S=${REPORT_S:-60} SILENCE_S=${SILENCE_S:-40} HISTORY_INTERVAL_S=${HISTORY_INTERVAL_S:-0}
 rm -rf "$OUT" && mkdir -p "$OUT"
 cargo build --release -q -p rtls-cli --bin rtls
 cargo build --release -q -p rtls-server --example loadtest
 RTLS=target/release/rtls
 LOADTEST=target/release/examples/loadtest
 "$LOADTEST" --write-site "$OUT/site.toml"
+printf '[server]\nhistory_interval_s = %s\n' "$HISTORY_INTERVAL_S" > "$OUT/server.toml"
 
 export RTLS_WRITE_TOKEN="soak-write-$RANDOM$RANDOM" RTLS_READ_TOKEN="soak-read-$RANDOM$RANDOM"
-"$RTLS" serve --site "$OUT/site.toml" --db "sqlite:$OUT/rtls.db" --http 127.0.0.1:0 \
+"$RTLS" serve --config "$OUT/server.toml" --site "$OUT/site.toml" --db "sqlite:$OUT/rtls.db" --http 127.0.0.1:0 \
   --mqtt-listen 127.0.0.1:0 > "$OUT/serve.out" 2> "$OUT/serve.err" &
 PID=$!
 trap 'kill -9 $PID 2>/dev/null || true' EXIT

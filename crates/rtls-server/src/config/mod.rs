@@ -8,6 +8,7 @@
 //! retention_days = 92            # history, events and the ingest log (mine rules: ≥ 3 months)
 //! raw_retention_days = 1         # raw records in the ingest log (once their outputs are stored)
 //! compact_after_s = 300          # older track states and tracked records: packed into compressed blocks
+//! history_interval_s = 0.0       # a tag's stored track states at least this far apart (0: every one)
 //! log_format = "text"            # or "json"
 //! default_accuracy_m = 1.0       # omlox locations without `accuracy`
 //! sqlite_sync = "full"           # or "normal": safe against a crash, not a power loss
@@ -243,6 +244,12 @@ pub struct ServerSection {
     /// compressed blocks (about 15× smaller; states keep 1 mm, 1 mm/s, σ to 0.1 mm), every
     /// this often. Queries read blocks and rows alike.
     pub compact_after_s: f64,
+    /// A tag's stored track states are at least this far apart (s, 0–3 600; 0, the default:
+    /// every state is stored). Live outputs (WebSocket, MQTT), zones and alarms still see every
+    /// state; a change of status (coasting, lost), a switch between measured and predicted, and
+    /// a revision of the newest stored state are stored whatever the interval. A 10 Hz site
+    /// stores a tenth of the rows at 1 s (docs/SERVER.md, sizing).
+    pub history_interval_s: f64,
     /// `text` or `json` logs.
     pub log_format: String,
     /// Accuracy of omlox locations without one (m).
@@ -275,6 +282,7 @@ impl Default for ServerSection {
             retention_days: 92.0,
             raw_retention_days: 1.0,
             compact_after_s: 300.0,
+            history_interval_s: 0.0,
             log_format: "text".into(),
             default_accuracy_m: 1.0,
             sqlite_sync: "full".into(),
@@ -426,6 +434,12 @@ impl ServerConfig {
             return Err(invalid(
                 "server.compact_after_s",
                 format!("must be 1–86400 s, got {}", s.compact_after_s),
+            ));
+        }
+        if !(s.history_interval_s.is_finite() && (0.0..=3_600.0).contains(&s.history_interval_s)) {
+            return Err(invalid(
+                "server.history_interval_s",
+                format!("must be 0–3600 s, got {}", s.history_interval_s),
             ));
         }
         if !matches!(s.log_format.as_str(), "text" | "json") {

@@ -38,6 +38,7 @@ pub mod collision_news;
 pub(crate) mod collisions;
 mod event_clock;
 mod fanout;
+mod history_rate;
 mod ingest_log;
 mod live;
 mod outputs;
@@ -117,6 +118,9 @@ pub struct PipelineConfig {
     /// The accuracy (σ, m) of a vendor adapter's fix whose message gives none
     /// (`server.default_accuracy_m`; [`crate::adapters`]).
     pub default_accuracy_m: f64,
+    /// A tag's stored track states at least this far apart (s; 0: every one;
+    /// `server.history_interval_s`, [`history_rate`]).
+    pub history_interval_s: f64,
     /// The generic adapter's field names (`[adapters.generic]`); `None`: `generic` payloads
     /// are refused.
     pub generic_adapter: Option<crate::adapters::GenericAdapter>,
@@ -145,6 +149,7 @@ impl Default for PipelineConfig {
                 max_lead_s: 60.0,
             }),
             default_accuracy_m: 1.0,
+            history_interval_s: 0.0,
             generic_adapter: None,
             zebra_adapter: crate::adapters::ZebraAdapter::default(),
             track_step: Tracker::push,
@@ -374,6 +379,7 @@ impl Pipeline {
                 live_clock: config.live_clock,
                 clock_lag_s: config.clock_lag_s,
                 event_clock: Default::default(),
+                history: history_rate::HistoryRate::new(config.history_interval_s),
                 zone_entries: Default::default(),
                 reported_lost: Default::default(),
                 source: site.name.clone().unwrap_or_else(|| "rtls".into()),

@@ -49,6 +49,8 @@ pub(super) struct PartitionWorker {
     pub clock_lag_s: f64,
     /// The newest record taken, which caps the live clock ([`super::event_clock`]).
     pub event_clock: super::event_clock::EventClock,
+    /// Which track states are stored (`server.history_interval_s`).
+    pub history: super::history_rate::HistoryRate,
     /// Entry time (s) of each (tag, zone) the tag is in, for the exit's `entry_time`.
     pub zone_entries: HashMap<(String, String), f64>,
     /// Tags whose lost state (the frozen last position) has been stored and published once:
@@ -177,6 +179,7 @@ impl PartitionWorker {
         self.pending_events.clear();
         self.zone_entries.clear();
         self.reported_lost.clear();
+        self.history.clear();
         // the fresh tracker has the site's zones: hand it the live set at once
         self.zones_version = u64::MAX;
         self.follow_zone_edits();
@@ -331,17 +334,31 @@ impl PartitionWorker {
         }
         let json_line = update.to_json_line();
         let d = update.dimensions.clamp(2, 3);
-        batch.locations.push(LocationRow {
-            received_ms,
-            time_s: update.time_s,
-            tag: update.tag.to_string(),
-            x_m: update.position_m[0],
-            y_m: update.position_m[1],
-            z_m: (d == 3).then_some(update.position_m[2]),
-            accuracy_m: Some(accuracy_m(&update.position_covariance_m2, d)),
-            predicted: update.predicted,
-            json: json_line.clone(),
-        });
+        let stored = self.history.keep(
+            &update.tag,
+            super::history_rate::StateKind {
+                time_s: update.time_s,
+                status: update.status,
+                predicted: update.predicted,
+                revised: update.revised,
+            },
+        );
+        if update.status == TrackStatus::Deleted {
+            self.history.forget(&update.tag);
+        }
+        if stored {
+            batch.locations.push(LocationRow {
+                received_ms,
+                time_s: update.time_s,
+                tag: update.tag.to_string(),
+                x_m: update.position_m[0],
+                y_m: update.position_m[1],
+                z_m: (d == 3).then_some(update.position_m[2]),
+                accuracy_m: Some(accuracy_m(&update.position_covariance_m2, d)),
+                predicted: update.predicted,
+                json: json_line.clone(),
+            });
+        }
         self.fanout.publish(Publication {
             topic: format!("rtls/v1/tracks/{}", mqtt_level(&update.tag)),
             payload: json_line.into(),

@@ -165,6 +165,7 @@ pub async fn serve(
             peers: peers_tx,
         }),
         default_accuracy_m: config.server.default_accuracy_m,
+        history_interval_s: config.server.history_interval_s,
         generic_adapter: config.adapters.generic.clone(),
         zebra_adapter: config.adapters.zebra.clone(),
         ..PipelineConfig::default()
