@@ -69,6 +69,9 @@ pub struct Metrics {
     pub stored_events: Counter,
     /// Output writes that failed.
     pub output_store_failures: Counter,
+    /// Output batches a partition had to wait for the store with (its queue full): the store
+    /// is the pipeline's limit (`server.history_interval_s` stores fewer rows).
+    pub output_store_waits: Counter,
     /// Tags with a live track.
     pub tags: Gauge,
     /// Open WebSocket connections.
@@ -160,6 +163,7 @@ impl Metrics {
             stored_locations: Counter::default(),
             stored_events: Counter::default(),
             output_store_failures: Counter::default(),
+            output_store_waits: Counter::default(),
             tags: Gauge::default(),
             websocket_clients: Gauge::default(),
             websocket_dropped: Counter::default(),
@@ -274,6 +278,11 @@ impl Metrics {
             "output_store_failures",
             "Output writes that failed",
             m.output_store_failures.clone(),
+        );
+        registry.register(
+            "output_store_waits",
+            "Output batches a partition waited for the store with (the store is the limit)",
+            m.output_store_waits.clone(),
         );
         registry.register("tags", "Tags with a live track", m.tags.clone());
         registry.register(

@@ -119,7 +119,7 @@ pub struct PipelineConfig {
     /// (`server.default_accuracy_m`; [`crate::adapters`]).
     pub default_accuracy_m: f64,
     /// A tag's stored track states at least this far apart (s; 0: every one;
-    /// `server.history_interval_s`, [`history_rate`]).
+    /// `server.history_interval_s`, `src/pipeline/history_rate.rs`).
     pub history_interval_s: f64,
     /// The generic adapter's field names (`[adapters.generic]`); `None`: `generic` payloads
     /// are refused.
@@ -388,6 +388,7 @@ impl Pipeline {
                 track_step: config.track_step,
                 pending_events: Vec::new(),
                 unused_log: crate::log_limit::LogLimiter::default(),
+                store_wait_log: crate::log_limit::LogLimiter::default(),
             };
             threads.push(spawn(
                 format!("rtls-partition-{index}"),

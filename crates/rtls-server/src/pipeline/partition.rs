@@ -2,7 +2,7 @@
 
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::Ordering;
-use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -69,6 +69,8 @@ pub(super) struct PartitionWorker {
     pub pending_events: Vec<EventRow>,
     /// How often an unused record is logged ([`crate::log_limit::LOG_PERIOD`]).
     pub unused_log: crate::log_limit::LogLimiter,
+    /// How often a wait for the store is logged.
+    pub store_wait_log: crate::log_limit::LogLimiter,
 }
 
 impl PartitionWorker {
@@ -282,6 +284,25 @@ impl PartitionWorker {
             self.publish_occupants();
         }
         out.clear();
+        let batch = match self.outputs.try_send(batch) {
+            Ok(()) => return,
+            Err(TrySendError::Full(batch)) => {
+                // the store cannot keep up: tracking waits for it, and back-pressure reaches
+                // the senders; say so, and what helps
+                self.metrics.output_store_waits.inc();
+                if let Some(waits) = self.store_wait_log.occurred() {
+                    tracing::warn!(
+                        partition = self.index,
+                        waits,
+                        "the store cannot keep up with the track states and events (output queue full; \
+                         the count is since the last such line): ingest is held back. \
+                         server.history_interval_s stores fewer states"
+                    );
+                }
+                batch
+            }
+            Err(TrySendError::Disconnected(batch)) => batch,
+        };
         if self.outputs.send(batch).is_err() {
             tracing::error!(partition = self.index, "output thread stopped; outputs not stored");
             if let Some(id) = processed {
