@@ -14,7 +14,8 @@
 # the server's resident memory), the track rows stored while the tags were silent
 # (`rtls_stored_locations_total`, from 20 s after the last record to the end of the silence),
 # the time SIGTERM took to drain, and the records stored (ingest log rows + record blocks)
-# against those acknowledged. Exits non-zero when an acknowledged record is missing.
+# against those acknowledged. Exits non-zero when an acknowledged record is missing. The
+# database stays in OUT_DIR for inspection: about 8 GB after the default run; delete it after.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-target/soak}
