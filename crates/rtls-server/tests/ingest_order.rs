@@ -81,3 +81,46 @@ async fn records_that_keep_coming_behind_the_wall_clock_are_tracked_not_reported
     assert_eq!(late, 0.0, "records reported late while the stream kept coming");
     state.pipeline.shutdown();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn records_delivered_late_in_bursts_are_tracked_not_overtaken_by_the_clock_between_them() {
+    // a gateway (or publishers' payloads in flight) delivering each record 1.5 s after its
+    // time, every 400 ms: between two, the partition is idle long enough to move its clock,
+    // and a clock at the wall clock minus the 0.5 s lag would pass the next record before it
+    // came (the 6 000-tag soak: every record reported late after the first minute); the clock
+    // follows the records' own time instead (`pipeline/event_clock.rs`)
+    let state = state_on(
+        "ingest-late-bursts",
+        PipelineConfig {
+            partitions: 1,
+            live_clock: true,
+            clock_lag_s: 0.5,
+            ..PipelineConfig::default()
+        },
+    );
+    let app = rtls_server::http::router(state.clone());
+    let unix_s = || {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64()
+    };
+    for k in 0..12 {
+        let line = format!(
+            r#"{{"t": {}, "tag": "B1", "kind": "fix", "position_m": [{}, 2.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#,
+            unix_s() - 1.5,
+            1.0 + 0.1 * k as f64
+        );
+        assert_eq!(state.pipeline.submit_lines("http", line.as_bytes()).await, Ok(1));
+        tokio::time::sleep(Duration::from_millis(400)).await;
+    }
+    let live = state.pipeline.live().clone();
+    assert!(
+        eventually(Duration::from_secs(10), || live.tag("B1").is_some()).await,
+        "B1 was not tracked"
+    );
+    let metrics = call(&app, Method::GET, "/metrics", Some(READ), "").await.text();
+    let late = metric_value(&metrics, "rtls_records_unused_total{event=\"late\",kind=\"fix\"}");
+    assert_eq!(late, 0.0, "records reported late between bursts");
+    state.pipeline.shutdown();
+}

@@ -10,16 +10,17 @@
 //! (the 6 000-tag soak of 2026-11-28: records 13.6 s behind the clock, every one of them late).
 //!
 //! The clock therefore follows event time: from the newest record the partition has taken, it
-//! runs on at the wall clock's rate, and the wall clock minus the lag caps it:
+//! runs on at the wall clock's rate, capped by the wall clock, and the lag applies to both:
 //!
 //! ```text
-//! target = min(t_wall − lag,  t_newest + (t_wall − t_wall at which t_newest was taken))
+//! target = min(t_wall,  t_newest + (t_wall − t_wall at which t_newest was taken)) − lag
 //! ```
 //!
-//! When records keep coming this is their own time (the trackers are driven by them anyway);
-//! when every tag falls silent it runs on from the last one, so tracks coast and are lost
-//! `coast_timeout_s` after it, as they would on a prompt stream. Without any record it is the
-//! wall clock minus the lag.
+//! When records keep coming this stays behind their own time (the trackers are driven by them
+//! anyway), by the lag: a record delivered a little later than the one before it (jitter in
+//! the path) is not overtaken. When every tag falls silent the clock runs on from the last
+//! record, so tracks coast and are lost `coast_timeout_s` after it, as they would on a prompt
+//! stream. Without any record it is the wall clock minus the lag.
 
 use std::time::Instant;
 
@@ -44,11 +45,11 @@ impl EventClock {
     /// The time the live clock may move the tracker to (s): the module's `target` at wall
     /// time `wall_s` with lag `lag_s`.
     pub(super) fn target_s(&self, wall_s: f64, lag_s: f64) -> f64 {
-        let wall_target = wall_s - lag_s;
-        match self.newest {
-            Some((newest_s, taken)) => wall_target.min(newest_s + taken.elapsed().as_secs_f64()),
-            None => wall_target,
-        }
+        let event_s = match self.newest {
+            Some((newest_s, taken)) => wall_s.min(newest_s + taken.elapsed().as_secs_f64()),
+            None => wall_s,
+        };
+        event_s - lag_s
     }
 }
 
@@ -64,19 +65,24 @@ mod tests {
     #[test]
     fn a_backlog_holds_the_clock_at_its_records_time() {
         let mut clock = EventClock::default();
-        // records 16 s old (a backlog upstream): the clock stays with them, not at wall − 2 s
+        // records 16 s old (a backlog upstream): the clock stays the lag behind them, not at
+        // wall − 2 s
         clock.observe(984.0);
         let target = clock.target_s(1000.0, 2.0);
-        assert!((984.0..984.5).contains(&target), "{target}");
+        assert!((982.0..982.5).contains(&target), "{target}");
         // an older record does not move it back
         clock.observe(980.0);
-        assert!(clock.target_s(1000.0, 2.0) >= 984.0);
+        assert!(clock.target_s(1000.0, 2.0) >= 982.0);
     }
 
     #[test]
-    fn prompt_records_leave_the_wall_clock_in_charge() {
+    fn prompt_records_keep_the_clock_the_lag_behind_them_and_the_wall() {
         let mut clock = EventClock::default();
         clock.observe(999.9);
+        let target = clock.target_s(1000.0, 2.0);
+        assert!((997.9..=998.0).contains(&target), "{target}");
+        // a record stamped ahead of the wall clock does not move the clock ahead of it
+        clock.observe(1005.0);
         assert_eq!(clock.target_s(1000.0, 2.0), 998.0);
     }
 
@@ -86,7 +92,7 @@ mod tests {
         clock.observe(900.0);
         std::thread::sleep(std::time::Duration::from_millis(60));
         let target = clock.target_s(1000.0, 2.0);
-        assert!((900.05..901.0).contains(&target), "{target}");
+        assert!((898.05..899.0).contains(&target), "{target}");
     }
 
     #[test]
