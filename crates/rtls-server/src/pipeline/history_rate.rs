@@ -134,40 +134,23 @@ mod tests {
         let mut rate = HistoryRate::new(1.0);
         assert!(rate.keep("a", at(10.0)));
         assert!(!rate.keep("a", at(10.1)));
-        let coasting = StateKind {
+        let coasting = |time_s, revised| StateKind {
+            time_s,
             status: TrackStatus::Coasting,
             predicted: true,
-            ..at(10.2)
+            revised,
         };
-        assert!(rate.keep("a", coasting));
-        assert!(!rate.keep("a", StateKind { ..coasting }.with_time(10.4)));
-        let revision = StateKind {
-            revised: true,
-            ..coasting
-        };
-        assert!(rate.keep("a", revision), "a revision of the newest stored state");
-        assert!(!rate.keep(
-            "a",
-            StateKind {
-                revised: true,
-                ..at(10.1)
-            }
-            .with_status(TrackStatus::Coasting, true)
-        ));
+        assert!(rate.keep("a", coasting(10.2, false)), "a change of status");
+        assert!(!rate.keep("a", coasting(10.4, false)));
+        assert!(
+            rate.keep("a", coasting(10.2, true)),
+            "a revision of the newest stored state"
+        );
+        assert!(
+            !rate.keep("a", coasting(10.1, true)),
+            "a revision of a state not stored"
+        );
         rate.forget("a");
         assert!(rate.keep("a", at(10.5)), "a deleted tag starts again");
-    }
-
-    impl StateKind {
-        fn with_time(self, time_s: f64) -> Self {
-            Self { time_s, ..self }
-        }
-        fn with_status(self, status: TrackStatus, predicted: bool) -> Self {
-            Self {
-                status,
-                predicted,
-                ..self
-            }
-        }
     }
 }

@@ -419,17 +419,21 @@ fn send_without_waiting(
             progress.dispatched[*index].fetch_max(last_id, Ordering::AcqRel);
         }
     }
-    let mut full: Vec<(usize, PartitionBatch)> = Vec::new();
+    let mut full = Vec::new();
+    // behind a batch that found its partition full, the partition's later batches wait too
+    // (in order)
+    let mut blocked = vec![false; partitions.len()];
     for (index, batch) in batches {
-        // behind a batch that found its partition full, the partition's later batches wait
-        // too (in order)
-        if full.iter().any(|(waiting, _)| *waiting == index) {
+        if blocked[index] {
             full.push((index, batch));
             continue;
         }
         match partitions[index].try_send(PartitionInput::Records(batch)) {
             Ok(()) => {}
-            Err(TrySendError::Full(PartitionInput::Records(batch))) => full.push((index, batch)),
+            Err(TrySendError::Full(PartitionInput::Records(batch))) => {
+                blocked[index] = true;
+                full.push((index, batch));
+            }
             Err(TrySendError::Full(_)) => unreachable!("a batch of records comes back as one"),
             Err(TrySendError::Disconnected(_)) => {
                 tracing::error!(partition = index, "partition stopped; records not tracked");

@@ -94,8 +94,12 @@ impl PartitionWorker {
                     // an edit made while this batch waited applies to it
                     self.follow_zone_edits();
                     let started = Instant::now();
+                    let newest_s = batch
+                        .iter()
+                        .map(|(_, record)| record.time_s)
+                        .fold(f64::NEG_INFINITY, f64::max);
+                    self.event_clock.observe(newest_s);
                     for (id, record) in batch {
-                        self.event_clock.observe(record.time_s);
                         let tag = record.tag.clone();
                         let (tracker, step) = (&mut self.tracker, self.track_step);
                         if let Err(reason) = guarded(|| step(tracker, record, &mut out)) {
@@ -154,8 +158,12 @@ impl PartitionWorker {
     fn warm_up(&mut self, records: Vec<Record>, out: &mut Output) {
         self.follow_zone_edits();
         let count = records.len();
+        let newest_s = records
+            .iter()
+            .map(|record| record.time_s)
+            .fold(f64::NEG_INFINITY, f64::max);
+        self.event_clock.observe(newest_s);
         for record in records {
-            self.event_clock.observe(record.time_s);
             let (tracker, step) = (&mut self.tracker, self.track_step);
             let _ = guarded(|| step(tracker, record, out));
         }
