@@ -224,7 +224,7 @@ impl PartitionWorker {
                 event,
                 kind,
                 tag = parsed["tag"].as_str().unwrap_or(""),
-                reason = %unused_reason(parsed),
+                reason = unused_reason(parsed).as_str(),
                 records,
                 "record not used (the count is since the last such line; every one is an event)"
             );
