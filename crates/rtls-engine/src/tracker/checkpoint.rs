@@ -77,6 +77,11 @@ pub(super) struct CoreState<const N: usize> {
     /// The alarm zones each track's `alarmed` flags are indexed by.
     alarm_zone_ids: Vec<String>,
     memberships: Memberships,
+    /// The core's count of tracks created, so a track created after the restore does not
+    /// number its segments as a deleted one did (0 in a checkpoint from before it was kept:
+    /// the restore then counts from the restored tracks' creation numbers).
+    #[serde(default)]
+    tracks_created: u64,
 }
 
 impl<const N: usize> Core<N> {
@@ -87,6 +92,7 @@ impl<const N: usize> Core<N> {
             histories: self.histories.clone(),
             alarm_zone_ids: self.shared.alarm_zones.iter().map(|zone| zone.id.clone()).collect(),
             memberships: self.monitor.memberships(),
+            tracks_created: self.tracks_created,
         }
     }
 
@@ -103,6 +109,7 @@ impl<const N: usize> Core<N> {
             histories,
             alarm_zone_ids,
             memberships,
+            tracks_created,
         } = state;
         if !histories.is_empty() && histories.len() != tracks.len() {
             return Err(EngineError::Checkpoint(format!(
@@ -145,6 +152,11 @@ impl<const N: usize> Core<N> {
         } else {
             histories
         };
+        // never below a restored track's creation number (segment = creation << 32 | restarts)
+        self.tracks_created = tracks
+            .iter()
+            .map(|track| (track.segment >> 32) + 1)
+            .fold(tracks_created, u64::max);
         self.tracks = tracks;
         self.index = index;
         self.touched.clear();

@@ -46,6 +46,9 @@ pub(crate) struct Core<const N: usize> {
     /// The tracks the next tick visits, and when the others wake ([`DueTracks`]).
     pub(super) due: DueTracks,
     pub(crate) monitor: ZoneMonitor,
+    /// Tracks this core has created (restored ones included): the next track's creation
+    /// number, which numbers its segments ([`Track::new`]).
+    pub(super) tracks_created: u64,
 }
 
 impl<const N: usize> Core<N> {
@@ -84,6 +87,7 @@ impl<const N: usize> Core<N> {
             touched: Vec::new(),
             due,
             monitor,
+            tracks_created: 0,
         }
     }
 
@@ -138,7 +142,8 @@ impl<const N: usize> Core<N> {
         let index = match self.index.get(tag, &self.tracks) {
             Some(i) => i,
             None => {
-                let track = Track::new(Arc::from(tag), self.shared.alarm_zones.len());
+                let track = Track::new(Arc::from(tag), self.shared.alarm_zones.len(), self.tracks_created);
+                self.tracks_created += 1;
                 if self.shared.settings.rewind_horizon_s > 0.0 {
                     self.histories.push(History::new(&track));
                 }

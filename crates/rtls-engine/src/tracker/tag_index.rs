@@ -83,7 +83,7 @@ mod tests {
     #[test]
     fn tags_are_found_at_their_track_and_duplicates_named() {
         let tags = ["tag-000123", "", "a-tag-id-longer-than-twenty-two-bytes", "tag-000124"];
-        let tracks: Vec<Track<4>> = tags.iter().map(|&tag| Track::new(Arc::from(tag), 0)).collect();
+        let tracks: Vec<Track<4>> = tags.iter().map(|&tag| Track::new(Arc::from(tag), 0, 0)).collect();
         let mut grown = TagIndex::default();
         for i in 0..tracks.len() {
             grown.push(&tracks[..=i]);
@@ -96,7 +96,7 @@ mod tests {
         }
         let twice: Vec<Track<4>> = ["a", "b", "a"]
             .iter()
-            .map(|&tag| Track::new(Arc::from(tag), 0))
+            .map(|&tag| Track::new(Arc::from(tag), 0, 0))
             .collect();
         assert_eq!(TagIndex::of(&twice).unwrap_err(), "a");
     }

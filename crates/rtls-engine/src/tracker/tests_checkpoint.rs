@@ -124,3 +124,55 @@ fn alarm_flags_and_zone_memberships_follow_their_zone_ids() {
     assert_eq!(resumed.head_count("office"), inside);
     assert_eq!(resumed.head_count("pit"), 0);
 }
+
+/// The segments each reported state belongs to, in output order.
+fn segments(out: &Output) -> Vec<u64> {
+    out.states.iter().flatten().map(|state| state.segment).collect()
+}
+
+/// The segments of `tag`'s reported states.
+fn segments_of(out: &Output, tag: &str) -> Vec<u64> {
+    out.states
+        .iter()
+        .flatten()
+        .filter(|state| &*out.updates[state.update].tag == tag)
+        .map(|state| state.segment)
+        .collect()
+}
+
+/// A track's segments are numbered by its own tracker, not by the process: two trackers given
+/// the same records report the same segments, and a track created after a restore does not
+/// take a restored track's number.
+#[test]
+fn segments_are_numbered_per_tracker_and_survive_a_restore() {
+    let site = Site::from_toml_str(&site_text("fix-then-filter", "ekf", ""), "segments.toml").unwrap();
+    let records = three_walkers(8.0, 5);
+    let run = || {
+        let mut tracker = Tracker::new(&site).unwrap();
+        let mut out = Output::keeping_states();
+        feed(&mut tracker, &records, &mut out);
+        (tracker, out)
+    };
+    let (first, first_out) = run();
+    let (_, second_out) = run();
+    assert!(!segments(&first_out).is_empty());
+    assert_eq!(segments(&first_out), segments(&second_out));
+
+    let mut restored = Tracker::new(&site).unwrap();
+    restored.restore(encoded_and_decoded(&first.state())).unwrap();
+    let newcomer: Vec<Record> = records
+        .iter()
+        .filter(|record| record.tag == records[0].tag)
+        .map(|record| Record {
+            time_s: record.time_s + 8.0,
+            tag: "newcomer".into(),
+            measurement: record.measurement.clone(),
+        })
+        .collect();
+    let mut out = Output::keeping_states();
+    feed(&mut restored, &newcomer, &mut out);
+    let old: std::collections::HashSet<u64> = segments(&first_out).iter().map(|s| s >> 32).collect();
+    let new = segments_of(&out, "newcomer");
+    assert!(!new.is_empty());
+    assert!(new.iter().all(|s| !old.contains(&(s >> 32))), "{old:?} {new:?}");
+}

@@ -302,7 +302,7 @@ fn a_record_behind_a_tick_rewinds_over_the_ticks_only() {
     use super::rewind::{History, Input};
     use super::track::Track;
     let horizon_s = 2.0;
-    let track = Track::<4>::new(std::sync::Arc::from("w1"), 0);
+    let track = Track::<4>::new(std::sync::Arc::from("w1"), 0, 0);
     let record = || {
         Input::Record(Measurement::Fix {
             position_m: vec![1.0, 2.0],

@@ -3,7 +3,6 @@
 //! of the tracker uses. The lowest file of the tracker: it imports the channels' state types,
 //! never their logic.
 
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use rtls_estimation::adaptive::corrections::{CorrectionTest, CorrectionWindow};
@@ -188,7 +187,7 @@ pub(crate) struct Track<const N: usize> {
     #[serde(skip, default = "no_fading")]
     pub(super) fading: f64,
     /// The segment its reported states belong to ([`super::ReportedState::segment`]): the
-    /// track's creation number (unique in the process, [`TRACKS_CREATED`]) in the high 32
+    /// track's creation number (distinct among its tracker's tracks) in the high 32
     /// bits, how often it has (re)started from a fix in the low ones — so a tag whose track
     /// was deleted and created again never continues the old track's segment.
     #[serde(default)]
@@ -206,16 +205,14 @@ pub(crate) struct Track<const N: usize> {
     pub(super) information_partial: bool,
 }
 
-/// Tracks created in this process: each track's segments are numbered from its own creation
-/// number (only their equality matters).
-static TRACKS_CREATED: AtomicU64 = AtomicU64::new(0);
-
 fn no_fading() -> f64 {
     1.0
 }
 
 impl<const N: usize> Track<N> {
-    pub(super) fn new(tag: Arc<str>, alarm_zones: usize) -> Self {
+    /// A track of `tag` without a state, with `alarm_zones` alarm flags clear; `creation`
+    /// (distinct for each track its tracker creates) numbers its segments.
+    pub(super) fn new(tag: Arc<str>, alarm_zones: usize, creation: u64) -> Self {
         Self {
             tag,
             state: None,
@@ -251,7 +248,7 @@ impl<const N: usize> Track<N> {
             check_cost: 0.0,
             check_distances: Vec::new(),
             fading: 1.0,
-            segment: TRACKS_CREATED.fetch_add(1, Ordering::Relaxed) << 32,
+            segment: creation << 32,
             information: None,
             information_partial: false,
         }
