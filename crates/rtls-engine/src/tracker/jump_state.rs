@@ -6,8 +6,8 @@ use rtls_estimation::Gaussian;
 /// it since ([`super::jump`]).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Alternation<const N: usize> {
-    /// The dropped hypothesis.
-    pub(super) departed: Option<JumpHypothesis<N>>,
+    /// The dropped hypothesis (boxed, like the track's own).
+    pub(super) departed: Option<Box<JumpHypothesis<N>>>,
     /// Gated-out fixes that fell inside its gate after it was dropped.
     pub(super) returns: u32,
     /// Whether the track reported `alternating`.

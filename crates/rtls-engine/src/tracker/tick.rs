@@ -121,7 +121,7 @@ fn tick_track<const N: usize>(
                     // keep the last estimated position (where the tag was last seen)
                     let frozen = *state;
                     let position_m = position_of(&frozen, shared.tag_height_m).0;
-                    track.lost_state = Some(frozen);
+                    track.lost_state = Some(Box::new(frozen));
                     position_m
                 }
                 (_, Some(state)) => position_of(state, shared.tag_height_m).0,

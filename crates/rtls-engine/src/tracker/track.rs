@@ -139,7 +139,9 @@ pub(crate) struct Track<const N: usize> {
     /// Alarm zones with a raised predictive alarm.
     pub(super) alarmed: Vec<bool>,
     /// The state frozen when the track was lost (its last position is kept and reported).
-    pub(super) lost_state: Option<Gaussian<N>>,
+    /// Boxed, as the jump hypotheses are: rarely held, and a track is loaded on every record
+    /// (a 100 000-tag site keeps each out of the cache), so what it seldom needs is not inline.
+    pub(super) lost_state: Option<Box<Gaussian<N>>>,
     /// Under `[scheduling]`: the track's task nodes and last reported firing set.
     pub(super) schedule: TrackSchedule,
     /// The anchors' range offsets this track has learnt (tightly coupled).
@@ -161,7 +163,7 @@ pub(crate) struct Track<const N: usize> {
     /// Gated-out fixes that agree with each other: where the tag may have jumped to
     /// ([`super::jump`]).
     #[serde(default)]
-    pub(super) jump: Option<JumpHypothesis<N>>,
+    pub(super) jump: Option<Box<JumpHypothesis<N>>>,
     /// The jump hypothesis the track's own fixes last dropped, and how often gated-out fixes
     /// came back to it ([`super::jump::Alternation`]).
     #[serde(default)]

@@ -119,7 +119,13 @@ pub(super) fn jump_hypothesis<const N: usize>(
             ],
         });
     }
-    let hypothesis = jump::absorb(track.jump.take(), shared, time_s, position, covariance);
+    let hypothesis = jump::absorb(
+        track.jump.take().map(|kept| *kept),
+        shared,
+        time_s,
+        position,
+        covariance,
+    );
     let Some(hypothesis) = hypothesis else {
         return Ok(());
     };
@@ -130,7 +136,7 @@ pub(super) fn jump_hypothesis<const N: usize>(
                 hypothesis.fixes
             ));
         }
-        track.jump = Some(hypothesis);
+        track.jump = Some(Box::new(hypothesis));
         return Ok(());
     }
     // the fix is used: its rejection is withdrawn
