@@ -3,7 +3,9 @@
 //! - `fix_then_filter/100k_tags`: a stream of position fixes spread over 100 000 tags (one fix
 //!   per tag per second, in time order), every track already started: records per second on one
 //!   thread, next to the bare KF predict + update of one 4-state track (the floor the tracker's
-//!   bookkeeping adds to).
+//!   bookkeeping adds to). `fix_then_filter/1k_tags`: the same over 1 000 tags (100 rounds),
+//!   whose tracks stay in the cache — the difference between the two is what the memory costs
+//!   (a 2-D track is 2.1 kB; its tag's index entry and text are further loads).
 //! - `tightly_coupled/ranges`: UWB ranges of 1 000 tags to 4 anchors (one per record) into the
 //!   EKF, next to the bare EKF predict + range update.
 //! - `checkpoint`: a cluster checkpoint of the 1 000 tightly coupled tracks — the tracker's state
@@ -149,32 +151,40 @@ fn latency(name: &str, tracker: &Tracker, records: &[Record]) {
 
 fn fix_then_filter(c: &mut Criterion) {
     let site = site("fix-then-filter", "kf");
-    let (tracker, next) = warmed(&site, &|r| fix_round(FIX_TAGS, r), 3);
-    latency("fix-then-filter (100k tags)", &tracker, &next);
     let mut group = c.benchmark_group("fix_then_filter");
     group.sample_size(10);
-    group.throughput(Throughput::Elements(next.len() as u64));
-    // one output list for every batch, cleared after each record, as a live caller keeps it
-    // (the server's partitions do): a fresh one per batch would time its growth to the
-    // 50 000 updates of one tick — reallocations and first-touch page faults, 10–15 % of the
-    // batch — rather than the tracker
-    let spare = RefCell::new(Output::default());
-    group.bench_function("100k_tags", |b| {
-        b.iter_batched(
-            || (tracker.clone(), next.clone()),
-            |(mut tracker, mut records)| {
-                let mut out = spare.take();
-                for record in records.drain(..) {
-                    tracker.push(record, &mut out).expect("push");
-                    out.clear();
-                }
-                spare.replace(out);
-                // dropped after the timing: the emptied batch and the tracker
-                (tracker, records)
-            },
-            BatchSize::PerIteration,
-        );
-    });
+    // 100 000 tags: every record's track, index entry and tag text are cache misses; 1 000
+    // tags (10 rounds per batch): all of them stay in the cache — the two apart say what the
+    // memory costs
+    let mut batch_len = 0;
+    for (name, tags, rounds) in [("100k_tags", FIX_TAGS, 1), ("1k_tags", 1_000, 100)] {
+        let (tracker, _) = warmed(&site, &|r| fix_round(tags, r), 3);
+        let next: Vec<Record> = (3..3 + rounds).flat_map(|r| fix_round(tags, r)).collect();
+        latency(&format!("fix-then-filter ({name})"), &tracker, &next);
+        batch_len = next.len();
+        group.throughput(Throughput::Elements(next.len() as u64));
+        // one output list for every batch, cleared after each record, as a live caller keeps
+        // it (the server's partitions do): a fresh one per batch would time its growth to the
+        // 50 000 updates of one tick — reallocations and first-touch page faults, 10–15 % of
+        // the batch — rather than the tracker
+        let spare = RefCell::new(Output::default());
+        group.bench_function(name, |b| {
+            b.iter_batched(
+                || (tracker.clone(), next.clone()),
+                |(mut tracker, mut records)| {
+                    let mut out = spare.take();
+                    for record in records.drain(..) {
+                        tracker.push(record, &mut out).expect("push");
+                        out.clear();
+                    }
+                    spare.replace(out);
+                    // dropped after the timing: the emptied batch and the tracker
+                    (tracker, records)
+                },
+                BatchSize::PerIteration,
+            );
+        });
+    }
     // baseline: the bare KF predict + update of one 4-state track per record
     let motion = ConstantVelocity::new(ProcessNoise::continuous(1.0)).expect("cv");
     let model = ComponentSelection::<4>::position(2, NoiseCovariance::isotropic(2, 0.04).expect("R")).expect("H");
@@ -185,7 +195,7 @@ fn fix_then_filter(c: &mut Criterion) {
         b.iter_batched(
             || (start, 0.0),
             |(mut state, mut t)| {
-                for _ in 0..next.len() {
+                for _ in 0..batch_len {
                     t += 1.0;
                     let prior = kf.predict(&state, &motion, t).expect("predict");
                     state = kf.update(&prior, &model, black_box(&z)).expect("update").state;
