@@ -95,7 +95,7 @@ pub(crate) struct Shared {
 ///
 /// `repr(C)` keeps the fields in this order: what a record's update and every clock tick read
 /// (the state, lifecycle, open epochs, report times, the GNSS epoch) come first, in the first
-/// ~520 bytes of the ~2.2 kB, so a tick over 100 000 tracks loads a few adjacent cache lines of
+/// ~520 bytes of the 2.1 kB (2-D), so a tick over 100 000 tracks loads a few adjacent cache lines of
 /// each instead of lines spread over the whole track (the compiler's order scattered them).
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 #[repr(C)]
