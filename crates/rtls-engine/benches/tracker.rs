@@ -21,7 +21,8 @@ use std::cell::RefCell;
 use std::hint::black_box;
 use std::time::Instant;
 
-use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkGroup, Criterion, Throughput};
 use nalgebra::DVector;
 use rtls_engine::record::{Measurement, Record};
 use rtls_engine::site::Site;
@@ -31,7 +32,8 @@ use rtls_estimation::measurement::{ComponentSelection, NoiseCovariance, Ranges};
 use rtls_estimation::motion::{ConstantVelocity, ProcessNoise};
 use rtls_estimation::{Gaussian, Matrix, Vector};
 
-const FIX_TAGS: usize = 100_000;
+/// Records per timed fix-then-filter batch (and bare KF steps).
+const FIX_BATCH: usize = 100_000;
 const RANGE_TAGS: usize = 1_000;
 
 fn site(pipeline: &str, filter: &str) -> Site {
@@ -149,41 +151,45 @@ fn latency(name: &str, tracker: &Tracker, records: &[Record]) {
     println!("{name} per-record latency: {}", percentiles(samples));
 }
 
+/// Times pushing `records` into copies of `tracker` as benchmark `name` of `group`.
+///
+/// One output list serves every batch, cleared after each record, as a live caller keeps it
+/// (the server's partitions do): a fresh one per batch would time its growth to the 50 000
+/// updates of one tick — reallocations and first-touch page faults, 10–15 % of the batch —
+/// rather than the tracker. The emptied batch and the tracker are dropped after the timing.
+fn bench_pushes(group: &mut BenchmarkGroup<'_, WallTime>, name: &str, tracker: &Tracker, records: &[Record]) {
+    group.throughput(Throughput::Elements(records.len() as u64));
+    let spare = RefCell::new(Output::default());
+    group.bench_function(name, |b| {
+        b.iter_batched(
+            || (tracker.clone(), records.to_vec()),
+            |(mut tracker, mut records)| {
+                let mut out = spare.take();
+                for record in records.drain(..) {
+                    tracker.push(record, &mut out).expect("push");
+                    out.clear();
+                }
+                spare.replace(out);
+                (tracker, records)
+            },
+            BatchSize::PerIteration,
+        );
+    });
+}
+
 fn fix_then_filter(c: &mut Criterion) {
     let site = site("fix-then-filter", "kf");
     let mut group = c.benchmark_group("fix_then_filter");
     group.sample_size(10);
     // 100 000 tags: every record's track, index entry and tag text are cache misses; 1 000
-    // tags (10 rounds per batch): all of them stay in the cache — the two apart say what the
-    // memory costs
-    let mut batch_len = 0;
-    for (name, tags, rounds) in [("100k_tags", FIX_TAGS, 1), ("1k_tags", 1_000, 100)] {
+    // tags (100 rounds per batch): all of them stay in the cache — the two apart say what the
+    // memory costs. Each batch holds FIX_BATCH records.
+    for (name, tags) in [("100k_tags", 100_000), ("1k_tags", 1_000)] {
         let (tracker, _) = warmed(&site, &|r| fix_round(tags, r), 3);
+        let rounds = FIX_BATCH / tags;
         let next: Vec<Record> = (3..3 + rounds).flat_map(|r| fix_round(tags, r)).collect();
         latency(&format!("fix-then-filter ({name})"), &tracker, &next);
-        batch_len = next.len();
-        group.throughput(Throughput::Elements(next.len() as u64));
-        // one output list for every batch, cleared after each record, as a live caller keeps
-        // it (the server's partitions do): a fresh one per batch would time its growth to the
-        // 50 000 updates of one tick — reallocations and first-touch page faults, 10–15 % of
-        // the batch — rather than the tracker
-        let spare = RefCell::new(Output::default());
-        group.bench_function(name, |b| {
-            b.iter_batched(
-                || (tracker.clone(), next.clone()),
-                |(mut tracker, mut records)| {
-                    let mut out = spare.take();
-                    for record in records.drain(..) {
-                        tracker.push(record, &mut out).expect("push");
-                        out.clear();
-                    }
-                    spare.replace(out);
-                    // dropped after the timing: the emptied batch and the tracker
-                    (tracker, records)
-                },
-                BatchSize::PerIteration,
-            );
-        });
+        bench_pushes(&mut group, name, &tracker, &next);
     }
     // baseline: the bare KF predict + update of one 4-state track per record
     let motion = ConstantVelocity::new(ProcessNoise::continuous(1.0)).expect("cv");
@@ -191,11 +197,12 @@ fn fix_then_filter(c: &mut Criterion) {
     let kf = KalmanFilter::default();
     let start = Gaussian::new(Vector::<4>::new(15.0, 0.0, 15.0, 0.0), Matrix::<4>::identity(), 0.0).expect("x0");
     let z = DVector::from_vec(vec![15.1, 14.9]);
+    group.throughput(Throughput::Elements(FIX_BATCH as u64));
     group.bench_function("bare_kf_step", |b| {
         b.iter_batched(
             || (start, 0.0),
             |(mut state, mut t)| {
-                for _ in 0..batch_len {
+                for _ in 0..FIX_BATCH {
                     t += 1.0;
                     let prior = kf.predict(&state, &motion, t).expect("predict");
                     state = kf.update(&prior, &model, black_box(&z)).expect("update").state;
@@ -218,24 +225,7 @@ fn tightly_coupled(c: &mut Criterion) {
     latency("tightly coupled (1k tags, ranges)", &tracker, &records);
     let mut group = c.benchmark_group("tightly_coupled");
     group.sample_size(10);
-    group.throughput(Throughput::Elements(records.len() as u64));
-    let spare = RefCell::new(Output::default());
-    group.bench_function("ranges_1k_tags", |b| {
-        b.iter_batched(
-            || (tracker.clone(), records.clone()),
-            |(mut tracker, mut records)| {
-                let mut out = spare.take();
-                for record in records.drain(..) {
-                    tracker.push(record, &mut out).expect("push");
-                    out.clear();
-                }
-                spare.replace(out);
-                // dropped after the timing: the emptied batch and the tracker
-                (tracker, records)
-            },
-            BatchSize::PerIteration,
-        );
-    });
+    bench_pushes(&mut group, "ranges_1k_tags", &tracker, &records);
     let motion = ConstantVelocity::new(ProcessNoise::continuous(1.0)).expect("cv");
     let ekf = ExtendedKalmanFilter::default();
     let start = Gaussian::new(Vector::<4>::new(15.0, 0.0, 15.0, 0.0), Matrix::<4>::identity(), 0.0).expect("x0");
