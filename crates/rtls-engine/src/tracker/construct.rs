@@ -158,6 +158,7 @@ impl Tracker {
             output_interval_s: settings.output_interval_s,
             rewind_horizon_s: settings.rewind_horizon_s,
             now_s: f64::NEG_INFINITY,
+            watermark_s: None,
             released: Vec::new(),
         })
     }

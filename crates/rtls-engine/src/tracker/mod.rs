@@ -145,6 +145,7 @@ mod anonymous;
 mod bounds;
 mod check;
 mod checkpoint;
+mod clock;
 mod consider;
 mod constraint_model;
 mod constraints;
@@ -215,6 +216,8 @@ mod tests_schedule;
 mod tests_smoothing;
 #[cfg(test)]
 mod tests_timing;
+#[cfg(test)]
+mod tests_watermark;
 mod tick;
 mod track;
 mod update;
@@ -273,6 +276,8 @@ pub struct Tracker {
     output_interval_s: f64,
     rewind_horizon_s: f64,
     now_s: f64,
+    /// The caller's watermark ([`Tracker::set_watermark`]), s.
+    watermark_s: Option<f64>,
     /// [`Tracker::push`]'s buffer of the records the re-ordering window releases (empty
     /// between calls).
     released: Vec<Emitted>,
@@ -431,69 +436,6 @@ impl Tracker {
         }
         self.now_s = self.now_s.max(record.time_s);
         self.run_ticks(self.now_s, TicksDue::Through, out)
-    }
-
-    /// Runs the ticks due before `time_s` ([`TicksDue::Before`]) or by it
-    /// ([`TicksDue::Through`]). Ticks lie on a grid of half the output interval from the first
-    /// record, so a coasting output is at most half an interval late; after a silence longer
-    /// than [`MAX_CATCH_UP_TICKS`] ticks the grid restarts at `time_s`.
-    fn run_ticks(&mut self, time_s: f64, due: TicksDue, out: &mut Output) -> Result<()> {
-        let period_s = self.output_interval_s / 2.0;
-        let mut next_s = *self.next_tick_s.get_or_insert(time_s);
-        if (time_s - next_s) / period_s > MAX_CATCH_UP_TICKS {
-            next_s = time_s;
-        }
-        let mut ticks = 0.0;
-        while next_s < time_s || (due == TicksDue::Through && next_s == time_s) {
-            match &mut self.tracks {
-                Tracks::Planar(core) => core.tick(next_s, out)?,
-                Tracks::Spatial(core) => core.tick(next_s, out)?,
-            }
-            if let Some(front) = &mut self.anonymous {
-                let mark = (out.updates.len(), out.events.len());
-                front.tick(next_s, self.output_interval_s, out)?;
-                anonymous_zones(&mut self.tracks, out, mark)?;
-            }
-            ticks += 1.0;
-            let after_s = next_s + period_s;
-            if after_s <= next_s || ticks > MAX_CATCH_UP_TICKS {
-                // bounded work: a step lost in rounding (|t| ≫ the period) cannot loop forever
-                next_s = if next_s < time_s { time_s } else { time_s.next_up() };
-                continue;
-            }
-            next_s = after_s;
-        }
-        self.next_tick_s = Some(next_s);
-        Ok(())
-    }
-
-    /// Advances the tracker's clock to `time_s` without a record (a live server calls this
-    /// with its clock): records held in the re-ordering window at or before
-    /// `time_s − reorder_window_s` are applied, and the ticks due by then run, so coasting
-    /// tracks are predicted, lost and deleted. A record older than that arriving later is
-    /// reported [`Event::Late`].
-    ///
-    /// # Errors
-    /// A non-finite `time_s`.
-    pub fn advance_to(&mut self, time_s: f64, out: &mut Output) -> Result<()> {
-        if !time_s.is_finite() {
-            return Err(EngineError::InvalidParameter {
-                name: "time_s",
-                reason: "must be finite",
-            });
-        }
-        // records the clock says can no longer be overtaken leave the re-ordering window, and
-        // the ticks run up to the window's far edge only: a record still inside the window
-        // can be applied after them
-        for emitted in self.reorderer.release_until(time_s) {
-            self.emitted(emitted, out)?;
-        }
-        let clock_s = time_s - self.reorderer.window_s();
-        if clock_s > self.now_s {
-            self.now_s = clock_s;
-            self.run_ticks(clock_s, TicksDue::Through, out)?;
-        }
-        Ok(())
     }
 
     /// Reports every track's pending update now (see the module's *Time, order and output*):

@@ -14,7 +14,7 @@ use crate::record::Measurement;
 use crate::site::Site;
 
 /// The test site without a re-ordering window, re-filtering records up to 2 s late.
-fn rewinding(pipeline: &str) -> Tracker {
+pub(super) fn rewinding(pipeline: &str) -> Tracker {
     let text = site_text(pipeline, "ekf", "").replace(
         "reorder_window_s = 0.5",
         "reorder_window_s = 0.0\nrewind_horizon_s = 2.0",
@@ -49,7 +49,7 @@ pub(super) fn three_walkers(seconds: f64, seed: u64) -> Vec<Record> {
     records
 }
 
-fn run(mut tracker: Tracker, records: Vec<Record>) -> Output {
+pub(super) fn run(mut tracker: Tracker, records: Vec<Record>) -> Output {
     let mut out = Output::default();
     for record in records {
         tracker.push(record, &mut out).unwrap();
@@ -72,7 +72,7 @@ fn final_revisions(out: &Output) -> BTreeMap<(String, i64), ([f64; 3], [f64; 9])
 
 /// `got` reports every (tag, time) `expected` does, and nothing else, with the same final
 /// position (1e-9 m) and covariance (1e-12 m²).
-fn assert_same_final_revisions(expected: &Output, got: &Output, label: &str) {
+pub(super) fn assert_same_final_revisions(expected: &Output, got: &Output, label: &str) {
     let (expected, got) = (final_revisions(expected), final_revisions(got));
     let missing: Vec<_> = expected.keys().filter(|k| !got.contains_key(*k)).collect();
     assert!(missing.is_empty(), "{label}: (tag, time)s not reported: {missing:?}");
