@@ -22,7 +22,10 @@
 //! instead of this process's, `--report-s S` prints a JSON line on stderr every `S` seconds
 //! (that window's acknowledged records/s, latency percentiles and resident memory; the final
 //! line lists them as `windows`), and `--write-site PATH` writes the site the in-process server
-//! uses (for `rtls serve --site PATH`) and exits.
+//! uses (for `rtls serve --site PATH`) and exits. `--slow-publisher-s S` has the first of the
+//! four publishers send each batch `S` seconds after stamping it (a gateway with a slower
+//! backhaul); the final line then also gives the server's track updates, those revised and
+//! the records reported late (from its `/metrics`).
 
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -92,6 +95,9 @@ struct Args {
     server_pid: Option<u32>,
     report_s: Option<f64>,
     write_site: Option<std::path::PathBuf>,
+    /// How long after stamping the first publisher sends each batch, s (a sender with a slower
+    /// backhaul than the others).
+    slow_publisher_s: f64,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -105,6 +111,7 @@ fn parse_args() -> Result<Args, String> {
         server_pid: None,
         report_s: None,
         write_site: None,
+        slow_publisher_s: 0.0,
     };
     let (mut mqtt, mut http) = (None, None);
     let argv: Vec<String> = std::env::args().skip(1).collect();
@@ -148,11 +155,18 @@ fn parse_args() -> Result<Args, String> {
                 )
             }
             "--write-site" => args.write_site = Some(value.into()),
+            "--slow-publisher-s" => {
+                args.slow_publisher_s = value
+                    .parse()
+                    .ok()
+                    .filter(|s: &f64| (0.0..=60.0).contains(s))
+                    .ok_or_else(|| bad("a delay of 0 to 60 s"))?;
+            }
             other => {
                 return Err(format!(
                     "unknown argument {other}; use --tags N, --rate-hz HZ, --seconds S, --mqtt HOST:PORT \
                      --http HOST:PORT [--token T] [--read-token T] [--server-pid PID], --report-s S, \
-                     --write-site PATH"
+                     --write-site PATH, --slow-publisher-s S"
                 ))
             }
         }
@@ -323,7 +337,7 @@ async fn main() {
     for p in 0..PUBLISHERS {
         let tags: Vec<usize> = (0..args.tags).filter(|t| t % PUBLISHERS == p).collect();
         let (acked, sent) = (Arc::clone(&acked), Arc::clone(&sent));
-        let rate_hz = args.rate_hz;
+        let (rate_hz, slow_publisher_s) = (args.rate_hz, args.slow_publisher_s);
         let (mqtt, token) = (target.mqtt, args.token.clone());
         publishers.push(tokio::spawn(async move {
             let mut options = MqttOptions::new(format!("loadtest-{p}"), mqtt.ip().to_string(), mqtt.port());
@@ -352,7 +366,14 @@ async fn main() {
                         "{{\"t\": {t:.4}, \"tag\": \"tag-{tag:04}\", \"kind\": \"fix\", \"position_m\": [{x:.3}, {y:.3}], \"covariance_m2\": [0.09, 0, 0, 0.09]}}\n"
                     ));
                 }
-                if client.publish("rtls/v1/measurements/load", QoS::AtLeastOnce, false, payload).await.is_err() {
+                if p == 0 && slow_publisher_s > 0.0 {
+                    // a slower backhaul: the batch leaves slow_publisher_s after its stamp
+                    let client = client.clone();
+                    tokio::spawn(async move {
+                        tokio::time::sleep(Duration::from_secs_f64(slow_publisher_s)).await;
+                        let _ = client.publish("rtls/v1/measurements/load", QoS::AtLeastOnce, false, payload).await;
+                    });
+                } else if client.publish("rtls/v1/measurements/load", QoS::AtLeastOnce, false, payload).await.is_err() {
                     break;
                 }
                 sent.fetch_add(per_batch, Ordering::Relaxed);
@@ -361,7 +382,7 @@ async fn main() {
                     tokio::time::sleep_until(next.into()).await;
                 }
             }
-            tokio::time::sleep(Duration::from_secs(2)).await;
+            tokio::time::sleep(Duration::from_secs_f64(2.0 + slow_publisher_s)).await;
             let _ = client.disconnect().await;
             acks.abort();
         }));
@@ -403,6 +424,7 @@ async fn main() {
         let _ = publisher.await;
     }
     let total = std::mem::replace(&mut latencies.lock().unwrap().total, latency_histogram());
+    let counters = server_counters(target.http, &args.token).await;
     let offered = if args.rate_hz > 0.0 {
         Some(args.tags as f64 * args.rate_hz)
     } else {
@@ -425,6 +447,10 @@ async fn main() {
         "location_updates_measured": total.len(),
         "measured_s": elapsed,
         "windows": windows,
+        "slow_publisher_s": args.slow_publisher_s,
+        "track_updates": counters.as_ref().map(|c| c.0),
+        "track_updates_revised": counters.as_ref().map(|c| c.1),
+        "records_late": counters.as_ref().map(|c| c.2),
     });
     println!("{report}");
     if let Some((server, stop)) = target.own {
@@ -435,6 +461,33 @@ async fn main() {
     if let Some(dir) = target.dir {
         let _ = std::fs::remove_dir_all(&dir);
     }
+}
+
+/// The server's `rtls_track_updates_total`, `rtls_track_updates_revised_total` and its
+/// records reported late (`rtls_records_unused_total{event="late"}`, summed over kinds), from
+/// `GET /metrics`; `None` when it cannot be read.
+async fn server_counters(http: SocketAddr, token: &str) -> Option<(f64, f64, f64)> {
+    let text = reqwest::Client::new()
+        .get(format!("http://{http}/metrics"))
+        .bearer_auth(token)
+        .send()
+        .await
+        .ok()?
+        .text()
+        .await
+        .ok()?;
+    let value = |line: &str| line.rsplit(' ').next().and_then(|v| v.parse::<f64>().ok());
+    let mut counters = (0.0, 0.0, 0.0);
+    for line in text.lines() {
+        if line.starts_with("rtls_track_updates_total ") {
+            counters.0 = value(line)?;
+        } else if line.starts_with("rtls_track_updates_revised_total ") {
+            counters.1 = value(line)?;
+        } else if line.starts_with("rtls_records_unused_total{") && line.contains("event=\"late\"") {
+            counters.2 += value(line)?;
+        }
+    }
+    Some(counters)
 }
 
 /// Resident memory (MB) of process `pid`, or of this process (server and load generator

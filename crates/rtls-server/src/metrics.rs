@@ -48,6 +48,9 @@ pub struct Metrics {
     pub pipeline_latency_seconds: Histogram,
     /// Tracker time per batch of records (s).
     pub tracking_seconds: Histogram,
+    /// How far a batch's newest record is ahead of the slowest active sender, which the
+    /// tracker's clock ticks wait for (s, at most the rewind horizon).
+    pub watermark_lag_seconds: Histogram,
     /// Track updates produced.
     pub track_updates: Counter,
     /// Track updates that replace one already published (a late record re-filtered, or a
@@ -153,6 +156,7 @@ impl Metrics {
             ingest_ack_seconds: latency(),
             pipeline_latency_seconds: latency(),
             tracking_seconds: latency(),
+            watermark_lag_seconds: latency(),
             track_updates: Counter::default(),
             track_updates_revised: Counter::default(),
             tracker_errors: Counter::default(),
@@ -234,6 +238,11 @@ impl Metrics {
             "tracking_seconds",
             "Tracker time per batch of records",
             m.tracking_seconds.clone(),
+        );
+        registry.register(
+            "watermark_lag_seconds",
+            "How far a batch's newest record is ahead of the slowest active sender (the ticks wait for it)",
+            m.watermark_lag_seconds.clone(),
         );
         registry.register("track_updates", "Track updates produced", m.track_updates.clone());
         registry.register(

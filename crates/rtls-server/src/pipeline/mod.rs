@@ -50,6 +50,7 @@ mod submit;
 mod trackable_fences;
 pub mod trackable_location;
 pub mod trackables;
+mod watermark;
 
 use std::sync::atomic::{AtomicI64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -379,6 +380,7 @@ impl Pipeline {
                 live_clock: config.live_clock,
                 clock_lag_s: config.clock_lag_s,
                 event_clock: Default::default(),
+                watermark: Default::default(),
                 history: history_rate::HistoryRate::new(config.history_interval_s),
                 zone_entries: Default::default(),
                 reported_lost: Default::default(),

@@ -49,6 +49,9 @@ pub(super) struct PartitionWorker {
     pub clock_lag_s: f64,
     /// The newest record taken, which caps the live clock ([`super::event_clock`]).
     pub event_clock: super::event_clock::EventClock,
+    /// The slowest active sender's position in record time, which holds the tracker's ticks
+    /// ([`super::watermark`]).
+    pub watermark: super::watermark::Watermark,
     /// Which track states are stored (`server.history_interval_s`).
     pub history: super::history_rate::HistoryRate,
     /// Entry time (s) of each (tag, zone) the tag is in, for the exit's `entry_time`.
@@ -99,6 +102,7 @@ impl PartitionWorker {
                         .map(|(_, record)| record.time_s)
                         .fold(f64::NEG_INFINITY, f64::max);
                     self.event_clock.observe(newest_s);
+                    self.hold_ticks(&batch);
                     for (id, record) in batch {
                         let tag = record.tag.clone();
                         let (tracker, step) = (&mut self.tracker, self.track_step);
@@ -143,6 +147,7 @@ impl PartitionWorker {
             if self.live_clock && caught_up && last_clock.elapsed() >= CLOCK_TICK {
                 last_clock = Instant::now();
                 let target_s = self.event_clock.target_s(unix_s(), self.clock_lag_s);
+                self.hold_ticks(&[]);
                 if let Err(e) = self.tracker.advance_to(target_s, &mut out) {
                     tracing::warn!(partition = self.index, error = %e, "advancing the clock failed");
                 }
@@ -150,6 +155,27 @@ impl PartitionWorker {
             self.post_offsets();
             self.emit(&mut out, processed, quarantined);
         }
+    }
+
+    /// Notes the batch's arrivals and sets the tracker's watermark from them
+    /// ([`super::watermark`]): the ticks wait for the slowest sender still heard, so its tags
+    /// are not coasted and then rewound by the other senders' newer records. The lag it holds
+    /// the ticks by is observed in `rtls_watermark_lag_seconds`.
+    fn hold_ticks(&mut self, batch: &[(i64, Record)]) {
+        let (wall_s, now) = (unix_s(), Instant::now());
+        let mut newest_s = f64::NEG_INFINITY;
+        for (_, record) in batch {
+            self.watermark.observe(&record.tag, record.time_s, wall_s, now);
+            newest_s = newest_s.max(record.time_s);
+        }
+        let horizon_s = self.site.tracker.rewind_horizon_s;
+        let watermark_s = self.watermark.watermark_s(wall_s, now, horizon_s);
+        if let Some(watermark_s) = watermark_s.filter(|_| newest_s.is_finite()) {
+            // ticks are held by at most the horizon (the tracker's floor)
+            let lag_s = (newest_s - watermark_s).clamp(0.0, horizon_s);
+            self.metrics.watermark_lag_seconds.observe(lag_s);
+        }
+        self.tracker.set_watermark(watermark_s);
     }
 
     /// Records a peer already tracked and stored (cluster takeover): they rebuild the tracks'
