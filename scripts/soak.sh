@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # The soak of issue 20 against a real `rtls serve` process (release build, SQLite, the default
 # server configuration, the load test's site): TAGS tags × RATE_HZ fixes over MQTT QoS 1 for
-# SECONDS, then SILENCE_S seconds with every tag silent, then SIGTERM.
+# RUN_S seconds, then SILENCE_S seconds with every tag silent, then SIGTERM.
 #
 #   scripts/soak.sh [OUT_DIR]          (default: target/soak)
-#   TAGS=6000 RATE_HZ=10 SECONDS=600 REPORT_S=60 SILENCE_S=40 HISTORY_INTERVAL_S=0 scripts/soak.sh
+#   TAGS=6000 RATE_HZ=10 RUN_S=600 REPORT_S=60 SILENCE_S=40 HISTORY_INTERVAL_S=0 scripts/soak.sh
 #
 # HISTORY_INTERVAL_S is the server's `server.history_interval_s` (0, the default: every track
 # state stored); everything else is the server's default configuration.
@@ -19,7 +19,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-target/soak}
-TAGS=${TAGS:-6000} RATE_HZ=${RATE_HZ:-10} SECONDS_RUN=${SECONDS:-600}
+TAGS=${TAGS:-6000} RATE_HZ=${RATE_HZ:-10} SECONDS_RUN=${RUN_S:-600}  # (not SECONDS: bash counts the seconds since its start in it)
 REPORT_S=${REPORT_S:-60} SILENCE_S=${SILENCE_S:-40} HISTORY_INTERVAL_S=${HISTORY_INTERVAL_S:-0}
 rm -rf "$OUT" && mkdir -p "$OUT"
 cargo build --release -q -p rtls-cli --bin rtls
