@@ -74,7 +74,9 @@ fn backward_step<const N: usize>(
 /// (the worst case: fully correlated errors add nothing).
 ///
 /// `P_f⁻¹` is its pseudo-inverse where `P_f` is singular (eigenvalues below `10⁻¹²` of the
-/// largest).
+/// largest). Where the smoother's model and the filter disagree so that `P_s ⋠ P_f` along some
+/// direction (`M_b` would not be semi-definite: a CV backward pass over a coordinated turn's
+/// states), nothing is taken from the future along it (`split_where_the_future_informs`).
 ///
 /// # Errors
 /// [`EstimationError::NotPositiveDefinite`] if `P_f` is zero or not finite, or the bound is
@@ -124,6 +126,13 @@ pub fn intersection_bound<const N: usize>(
     let m_f = (m_f + m_f.transpose()) * 0.5;
     // M_b = P_s I_b P_s = P_s − M_f
     let m_b = p_s - m_f;
+    let (m_f, m_b) = if least_eigenvalue(&m_b) >= -1e-9 * largest {
+        (m_f, m_b)
+    } else {
+        // the smoother's model and the filter disagree: somewhere P_s ⋠ P_f (the future "took"
+        // information), e.g. a CV backward pass over a coordinated turn's states
+        split_where_the_future_informs(&eigen, p_s)
+    };
     // a = tr_S(M_f), b = tr_S(M_b) (b ≥ 0 unless the future lost information: then none is
     // taken from it)
     let a: f64 = components.iter().map(|&i| m_f[(i, i)]).sum();
@@ -142,9 +151,7 @@ pub fn intersection_bound<const N: usize>(
         m_f / omega + m_b / (1.0 - omega)
     };
     // (semi-definite, like the P_s it bounds where a direction is known exactly)
-    let least = DMatrix::from_column_slice(N, N, bound.as_slice())
-        .symmetric_eigenvalues()
-        .min();
+    let least = least_eigenvalue(&bound);
     if least.is_finite() && least >= -1e-9 * largest {
         Ok(bound)
     } else {
@@ -152,6 +159,64 @@ pub fn intersection_bound<const N: usize>(
             what: "smoothed covariance bound",
         })
     }
+}
+
+/// The least eigenvalue of a symmetric matrix.
+fn least_eigenvalue<const N: usize>(m: &Matrix<N>) -> f64 {
+    DMatrix::from_column_slice(N, N, m.as_slice())
+        .symmetric_eigenvalues()
+        .min()
+}
+
+/// [`intersection_bound`]'s `M_f` and `M_b` where `P_s ⋠ P_f`. In coordinates that whiten the
+/// filtered covariance (`P_f = R Rᵀ`, `R = U Λ^½` from its eigenvectors `U` and values `Λ`,
+/// `W = U Λ^−½` on its range), `P_f` is `I` and `S = Wᵀ P_s W = V diag(s) Vᵀ`; there
+/// `M_f = S²` and `M_b = S − S²`, each diagonal in `V`. Along a direction with `s ≤ 1` that is
+/// the usual split; along one with `s > 1` the smoothed estimate claims to be less sure than
+/// the filtered one (the smoother's model and the filter disagree) and nothing is taken from
+/// the future: the whole of `s` is counted as the past's, which `1/ω` then inflates:
+/// ```text
+/// f = s², b = s − s²  (s ≤ 1);      f = s, b = 0  (s > 1)
+/// M_f = R V diag(f) Vᵀ Rᵀ,   M_b = R V diag(b) Vᵀ Rᵀ
+/// ```
+/// Both are positive semi-definite, and `M_f + M_b ≽ P_s` on the range of `P_f`.
+fn split_where_the_future_informs<const N: usize>(
+    filtered: &nalgebra::SymmetricEigen<f64, nalgebra::Dyn>,
+    p_s: &Matrix<N>,
+) -> (Matrix<N>, Matrix<N>) {
+    let largest = filtered.eigenvalues.max();
+    let root = filtered.eigenvalues.map(|lambda| sqrt(lambda.max(0.0)));
+    let inverse_root = filtered.eigenvalues.map(|lambda| {
+        if lambda > 1e-12 * largest {
+            1.0 / sqrt(lambda)
+        } else {
+            0.0
+        }
+    });
+    // R = U Λ^½,  W = U Λ^−½
+    let r = &filtered.eigenvectors * DMatrix::from_diagonal(&root);
+    let w = &filtered.eigenvectors * DMatrix::from_diagonal(&inverse_root);
+    // S = Wᵀ P_s W = V diag(s) Vᵀ
+    let s = w.transpose() * DMatrix::from_column_slice(N, N, p_s.as_slice()) * &w;
+    let s = (&s + s.transpose()) * 0.5;
+    let eigen = s.symmetric_eigen();
+    let (mut f, mut b) = (eigen.eigenvalues.clone(), eigen.eigenvalues.clone());
+    for (i, &value) in eigen.eigenvalues.iter().enumerate() {
+        let value = value.max(0.0);
+        (f[i], b[i]) = if value <= 1.0 {
+            (value * value, value - value * value)
+        } else {
+            (value, 0.0)
+        };
+    }
+    // M = R V diag(·) Vᵀ Rᵀ
+    let rv = r * &eigen.eigenvectors;
+    let back = |d: &nalgebra::DVector<f64>| {
+        let m = &rv * DMatrix::from_diagonal(d) * rv.transpose();
+        let m = Matrix::<N>::from_column_slice(m.as_slice());
+        (m + m.transpose()) * 0.5
+    };
+    (back(&f), back(&b))
 }
 
 /// Runs the backward pass with a per-step prediction function returning `(x⁻, P⁻, C)`.
@@ -304,6 +369,35 @@ mod tests {
                 let traced = |m: &Matrix<4>| components.iter().map(|&i| m[(i, i)]).sum::<f64>();
                 assert!(traced(&actual) <= traced(&bound) + 1e-9);
             }
+        }
+    }
+
+    /// Where the smoothed covariance exceeds the filtered one along a direction (the
+    /// smoother's model and the filter disagree), the bound still exists and holds `P_s`:
+    /// nothing is taken from the future along it.
+    #[test]
+    fn a_smoothed_covariance_above_the_filtered_one_takes_nothing_from_the_future_there() {
+        // whitened: s = 2 along x (P_s ⋠ P_f), s = 0.5 along y
+        let filtered = Gaussian::new(Vector::<2>::zeros(), Matrix::<2>::identity(), 0.0).unwrap();
+        let smoothed = Gaussian::new(Vector::<2>::zeros(), Matrix::<2>::new(2.0, 0.0, 0.0, 0.5), 0.0).unwrap();
+        let bound = intersection_bound(&filtered, &smoothed, &[0, 1]).unwrap();
+        // f = (2, 0.25), b = (0, 0.25): a = 2.25, b = 0.25, ω = 1.5 / 2 = 0.75
+        // P_ci = diag(2 / 0.75, 0.25 / 0.75 + 0.25 / 0.25)
+        let expected = Matrix::<2>::new(2.0 / 0.75, 0.0, 0.0, 0.25 / 0.75 + 1.0);
+        assert!((bound - expected).norm() < 1e-9, "{bound}");
+        // and in a rotated, scaled frame, the bound is never below P_s
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..200 {
+            let p_f = random_spd(&mut rng);
+            let p_s = random_spd(&mut rng) * 2.0;
+            let bound = intersection_bound(
+                &Gaussian::new(Vector::<4>::zeros(), p_f, 0.0).unwrap(),
+                &Gaussian::new(Vector::<4>::zeros(), p_s, 0.0).unwrap(),
+                &[0, 2],
+            )
+            .unwrap();
+            let least = (bound - p_s).symmetric_eigenvalues().min();
+            assert!(least > -1e-9, "P_ci − P_s has eigenvalue {least}");
         }
     }
 
