@@ -225,7 +225,7 @@ mod update;
 pub use anonymous::ANONYMOUS_TAG;
 pub use checkpoint::TrackerState;
 pub use noise::{InnovationTotals, Innovations, NoiseClass};
-pub use output::{status_name, Event, Output, RawFix, ReportedState, TrackUpdate, UpdateSource};
+pub use output::{status_name, Event, Output, RawFix, ReportedState, TrackUpdate, TurnState, UpdateSource};
 pub use range_bias::{AnchorOffsetSummary, RangeOffset};
 pub use rtls_estimation::smoother::NoiseFit;
 pub(crate) use schedule::scheduling_layout;
@@ -470,17 +470,30 @@ impl Tracker {
         }
     }
 
-    /// A smoother for this tracker's track updates ([`Smoother`]): the site's CV model and
-    /// tag height. Feed it outputs made by [`Output::keeping_states`].
+    /// A smoother for this tracker's track updates ([`Smoother`]): the site's CV model (and,
+    /// with `motion_model = "ct"`, its coordinated turn) and tag height. Feed it outputs made
+    /// by [`Output::keeping_states`].
     #[must_use]
     pub fn smoother(&self) -> Smoother {
         let shared = self.shared();
+        let settings = &shared.settings;
+        let turn = (settings.motion_model == crate::site::MotionModelKind::Ct)
+            .then(|| {
+                // the tracker's own CT model: q = σ_a² on the velocity, σ_ω̇² on the rate
+                rtls_estimation::motion::CoordinatedTurnWithRate::new(
+                    rtls_estimation::motion::ProcessNoise::continuous(settings.acceleration_noise_std_mps2.powi(2)),
+                    settings.turn_rate_noise_std_radps2.powi(2),
+                )
+                .ok()
+            })
+            .flatten();
         Smoother::new(
             shared.kf,
             shared.motion,
-            shared.settings.acceleration_noise_std_mps2.powi(2),
+            settings.acceleration_noise_std_mps2.powi(2),
             shared.tag_height_m,
         )
+        .with_turn(turn)
     }
 
     /// The anchors' range offsets the tracks have learnt (`[tracker.range_bias]`), by tag then

@@ -471,6 +471,37 @@ pub struct ReportedState {
     /// whose offset is —, one predicted with an accelerometer's control input, or the IMM's
     /// mixture).
     pub partial_information: bool,
+    /// A track whose motion model has the turn rate as a state (`motion_model = "ct"`): its
+    /// whole state `[x, vx, y, vy, ω]`, so the smoother's backward pass follows the turn.
+    pub turn: Option<TurnState>,
+}
+
+/// The whole state of a coordinated-turn track, `[x, vx, y, vy, ω]` (m, m/s, rad/s), and its
+/// covariance (5 × 5, symmetric).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TurnState {
+    /// The mean.
+    pub mean: [f64; 5],
+    /// The covariance (row- and column-major agree).
+    pub covariance: [f64; 25],
+}
+
+impl TurnState {
+    /// The single coordinated-turn mode of `modes`, when that is what they are.
+    pub(super) fn of(modes: Option<&rtls_estimation::imm::ImmState>) -> Option<Self> {
+        let [estimate] = modes?.estimates() else {
+            return None;
+        };
+        (estimate.mean.len() == 5 && estimate.covariance.len() == 25).then(|| {
+            let mut turn = Self {
+                mean: [0.0; 5],
+                covariance: [0.0; 25],
+            };
+            turn.mean.copy_from_slice(estimate.mean.as_slice());
+            turn.covariance.copy_from_slice(estimate.covariance.as_slice());
+            turn
+        })
+    }
 }
 
 impl Output {

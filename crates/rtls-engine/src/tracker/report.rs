@@ -6,7 +6,7 @@ use rtls_estimation::smoother::InformationStep;
 use rtls_estimation::Gaussian;
 
 use super::alarms::{position_of, predict_entries};
-use super::output::{Event, Output, ReportedState, TrackUpdate, UpdateSource};
+use super::output::{Event, Output, ReportedState, TrackUpdate, TurnState, UpdateSource};
 use super::track::{dimensions, Shared, Track};
 use crate::error::Result;
 use crate::lifecycle::TrackStatus;
@@ -51,6 +51,7 @@ fn push_update<const N: usize>(
     state: &Gaussian<N>,
     segment: u64,
     (information, partial_information): (Option<InformationStep<N>>, bool),
+    turn: Option<TurnState>,
 ) {
     if let Some(states) = out.states.as_mut() {
         let mut kept = ReportedState {
@@ -61,6 +62,7 @@ fn push_update<const N: usize>(
             information: [0.0; 36],
             information_vector: [0.0; 6],
             partial_information,
+            turn,
         };
         kept.mean[..N].copy_from_slice(state.mean().as_slice());
         // (column-major storage of a symmetric matrix: its row-major entries too)
@@ -74,6 +76,11 @@ fn push_update<const N: usize>(
     out.updates.push(update);
 }
 
+/// The coordinated turn's whole state behind an update, when the output keeps states.
+fn kept_turn(out: &Output, modes: Option<&rtls_estimation::imm::ImmState>) -> Option<TurnState> {
+    out.states.as_ref().and_then(|_| TurnState::of(modes))
+}
+
 /// Reports the track's latest update, then its zones and alarms.
 pub(super) fn report<const N: usize>(
     shared: &Shared,
@@ -84,12 +91,14 @@ pub(super) fn report<const N: usize>(
     let (Some(source), Some(state), Some(status)) = (track.unreported.take(), track.state, track.status()) else {
         return Ok(());
     };
+    let turn = kept_turn(out, track.modes.as_ref());
     push_update(
         out,
         track_update(shared, track, &state, false, status, source),
         &state,
         track.segment,
         track.take_information(),
+        turn,
     );
     track.last_output_s = state.time_s();
     track.last_reported_s = track.last_reported_s.max(state.time_s());
@@ -104,7 +113,7 @@ pub(super) fn report<const N: usize>(
 pub(super) fn coast<const N: usize>(
     shared: &Shared,
     track: &mut Track<N>,
-    predicted: &Gaussian<N>,
+    (predicted, predicted_modes): (&Gaussian<N>, Option<&rtls_estimation::imm::ImmState>),
     now_s: f64,
     monitor: &mut ZoneMonitor,
     out: &mut Output,
@@ -117,7 +126,8 @@ pub(super) fn coast<const N: usize>(
         TrackStatus::Coasting,
         UpdateSource::Prediction,
     );
-    push_update(out, update, predicted, track.segment, (None, false));
+    let turn = kept_turn(out, predicted_modes);
+    push_update(out, update, predicted, track.segment, (None, false), turn);
     track.last_output_s = now_s;
     track.last_reported_s = track.last_reported_s.max(now_s);
     zones_and_alarms(shared, track, predicted, monitor, out)

@@ -360,3 +360,37 @@ fn a_revised_update_replaces_the_kept_updates_at_and_after_its_time() {
         .collect();
     assert_eq!(kept, vec![(1.0, 1.0, false), (2.0, 20.0, false)]);
 }
+
+#[test]
+fn a_coordinated_turn_is_smoothed_with_its_own_model() {
+    // tags circling 4 m about (10, 10) at 1.2 m/s (ω = 0.3 rad/s), tracked with the turn rate
+    // as a state: a CV backward pass would cut every arc short
+    let truth = |tag: usize, t: f64| {
+        let angle = 0.3 * t + tag as f64;
+        [10.0 + 4.0 * angle.cos(), 10.0 + 4.0 * angle.sin()]
+    };
+    let text =
+        super::tests::site_text("fix-then-filter", "ekf", "").replace("motion_model = \"cv\"", "motion_model = \"ct\"");
+    let site = Site::from_toml_str(&text, "ct.toml").unwrap();
+    let (filtered, smoothed) = track_and_smooth_on(&site, fixes(6, 120.0, truth));
+    assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
+    assert!(smoothed.updates.iter().all(|u| u.smoothed));
+    for segment in &smoothed.fits {
+        let reason = segment.fit.as_ref().expect_err("the tracker's own model");
+        assert!(reason.contains("coordinated turn"), "{reason}");
+    }
+    let (filtered_rmse, filtered_coverage, n) = score(&filtered, truth);
+    let (smoothed_rmse, smoothed_coverage, _) = score(&smoothed.updates, truth);
+    println!(
+        "{n} updates: filtered RMSE {filtered_rmse:.3} m, 95 % coverage {filtered_coverage:.3}; \
+         smoothed {smoothed_rmse:.3} m, {smoothed_coverage:.3}"
+    );
+    assert!(
+        smoothed_rmse < 0.8 * filtered_rmse,
+        "smoothed {smoothed_rmse} m against filtered {filtered_rmse} m"
+    );
+    assert!(
+        (0.9..=1.0).contains(&smoothed_coverage),
+        "smoothed 95 % ellipses hold the truth {smoothed_coverage:.3} of the time"
+    );
+}

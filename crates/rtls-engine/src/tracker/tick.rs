@@ -184,7 +184,7 @@ fn coast_if_sound<const N: usize>(
             Ok(())
         }
         // the prediction just checked is the one output
-        None => coast(shared, track, &prior.state, now_s, monitor, out),
+        None => coast(shared, track, (&prior.state, prior.modes.as_ref()), now_s, monitor, out),
     }
 }
 
