@@ -255,6 +255,19 @@ fn the_demo_on_screen_counts_its_tags_acknowledges_an_alarm_everywhere_and_repla
         .unwrap()
         .click()
         .unwrap();
+    // the zone table is rebuilt whenever zones or head counts change: a click that landed
+    // while its row was being replaced is repeated on the row now there (editing starts
+    // synchronously, so a click that took is never repeated)
+    wait_for(
+        &tab,
+        &format!(
+            "(() => {{ const editing = () => window.rtls.map.editing && window.rtls.map.editing.zoneId === '{id}'; \
+             if (!editing()) {{ const b = document.querySelector(\"tr[data-zone-id='{id}'] .zone-edit\"); if (b) b.click(); }} \
+             return editing(); }})()"
+        ),
+        Duration::from_secs(10),
+        "the zone's corners are editable after its row's Edit button",
+    );
     let handles = eval(
         &tab,
         &format!(
