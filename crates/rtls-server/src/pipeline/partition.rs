@@ -102,7 +102,7 @@ impl PartitionWorker {
                         .map(|(_, record)| record.time_s)
                         .fold(f64::NEG_INFINITY, f64::max);
                     self.event_clock.observe(newest_s);
-                    self.hold_ticks(&batch);
+                    self.hold_ticks(&batch, newest_s);
                     for (id, record) in batch {
                         let tag = record.tag.clone();
                         let (tracker, step) = (&mut self.tracker, self.track_step);
@@ -147,7 +147,7 @@ impl PartitionWorker {
             if self.live_clock && caught_up && last_clock.elapsed() >= CLOCK_TICK {
                 last_clock = Instant::now();
                 let target_s = self.event_clock.target_s(unix_s(), self.clock_lag_s);
-                self.hold_ticks(&[]);
+                self.hold_ticks(&[], f64::NEG_INFINITY);
                 if let Err(e) = self.tracker.advance_to(target_s, &mut out) {
                     tracing::warn!(partition = self.index, error = %e, "advancing the clock failed");
                 }
@@ -159,16 +159,19 @@ impl PartitionWorker {
 
     /// Notes the batch's arrivals and sets the tracker's watermark from them
     /// ([`super::watermark`]): the ticks wait for the slowest sender still heard, so its tags
-    /// are not coasted and then rewound by the other senders' newer records. The lag it holds
-    /// the ticks by is observed in `rtls_watermark_lag_seconds`.
-    fn hold_ticks(&mut self, batch: &[(i64, Record)]) {
+    /// are not coasted and then rewound by the other senders' newer records. `newest_s`: the
+    /// batch's newest record time (−∞ for none). The lag it holds the ticks by is observed in
+    /// `rtls_watermark_lag_seconds`. Nothing is done without a rewind horizon (the tracker
+    /// ignores a watermark then).
+    fn hold_ticks(&mut self, batch: &[(i64, Record)], newest_s: f64) {
+        let horizon_s = self.site.tracker.rewind_horizon_s;
+        if horizon_s <= 0.0 {
+            return;
+        }
         let (wall_s, now) = (unix_s(), Instant::now());
-        let mut newest_s = f64::NEG_INFINITY;
         for (_, record) in batch {
             self.watermark.observe(&record.tag, record.time_s, wall_s, now);
-            newest_s = newest_s.max(record.time_s);
         }
-        let horizon_s = self.site.tracker.rewind_horizon_s;
         let watermark_s = self.watermark.watermark_s(wall_s, now, horizon_s);
         if let Some(watermark_s) = watermark_s.filter(|_| newest_s.is_finite()) {
             // ticks are held by at most the horizon (the tracker's floor)

@@ -24,6 +24,11 @@ use std::time::{Duration, Instant};
 /// A tag not heard for this long (wall time) no longer holds the watermark.
 pub(super) const ACTIVE: Duration = Duration::from_secs(5);
 
+/// How often the tags are scanned again (forgetting silent ones, leaving out hopeless ones);
+/// in between, a record that lowers a tag's offset lowers the watermark at once, and one that
+/// raises it waits for the scan — the watermark is then a little behind, never ahead.
+const RESCAN: Duration = Duration::from_millis(50);
+
 /// A tag's newest record time, that less the wall time of its arrival, and when it was heard.
 #[derive(Debug, Clone, Copy)]
 struct Arrival {
@@ -33,9 +38,23 @@ struct Arrival {
 }
 
 /// The partition's tags' arrivals (see the module).
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub(super) struct Watermark {
     tags: HashMap<String, Arrival>,
+    /// The slowest offset as of the last scan, lowered by records since (+∞: no tag).
+    slowest_offset_s: f64,
+    /// When the tags were last scanned.
+    scanned: Option<Instant>,
+}
+
+impl Default for Watermark {
+    fn default() -> Self {
+        Self {
+            tags: HashMap::new(),
+            slowest_offset_s: f64::INFINITY,
+            scanned: None,
+        }
+    }
 }
 
 impl Watermark {
@@ -48,6 +67,7 @@ impl Watermark {
         }
         // offset = t_newest − w at its arrival (a sender falling further behind lowers it)
         let offset_s = time_s - wall_s;
+        self.slowest_offset_s = self.slowest_offset_s.min(offset_s);
         match self.tags.get_mut(tag) {
             Some(arrival) => {
                 if time_s > arrival.newest_s {
@@ -68,19 +88,29 @@ impl Watermark {
     }
 
     /// The watermark at wall time `wall_s` (s) and `now`, or `None` when no tag has been
-    /// heard within [`ACTIVE`]; forgets such tags. `horizon_s`: the tracker's rewind horizon.
+    /// heard within [`ACTIVE`]. `horizon_s`: the tracker's rewind horizon. Scans the tags
+    /// (forgetting those not heard within [`ACTIVE`]) at most every [`RESCAN`]; a batch
+    /// costs one hash lookup per record otherwise.
     pub(super) fn watermark_s(&mut self, wall_s: f64, now: Instant, horizon_s: f64) -> Option<f64> {
-        self.tags
-            .retain(|_, a| now.saturating_duration_since(a.heard) <= ACTIVE);
-        let newest_offset_s = self.tags.values().map(|a| a.offset_s).fold(f64::NEG_INFINITY, f64::max);
-        let slowest_offset_s = self
-            .tags
-            .values()
-            .map(|a| a.offset_s)
-            .filter(|&offset_s| offset_s >= newest_offset_s - horizon_s)
-            .fold(f64::INFINITY, f64::min);
+        if self
+            .scanned
+            .is_none_or(|at| now.saturating_duration_since(at) >= RESCAN)
+        {
+            self.scanned = Some(now);
+            self.tags
+                .retain(|_, a| now.saturating_duration_since(a.heard) <= ACTIVE);
+            let newest_offset_s = self.tags.values().map(|a| a.offset_s).fold(f64::NEG_INFINITY, f64::max);
+            self.slowest_offset_s = self
+                .tags
+                .values()
+                .map(|a| a.offset_s)
+                .filter(|&offset_s| offset_s >= newest_offset_s - horizon_s)
+                .fold(f64::INFINITY, f64::min);
+        }
         // W = w + min offset
-        slowest_offset_s.is_finite().then_some(wall_s + slowest_offset_s)
+        self.slowest_offset_s
+            .is_finite()
+            .then_some(wall_s + self.slowest_offset_s)
     }
 
     /// How many tags hold the watermark (heard within [`ACTIVE`] at the last
@@ -98,22 +128,28 @@ mod tests {
     #[test]
     fn the_slowest_active_sender_sets_the_watermark() {
         let mut marks = Watermark::default();
-        let now = Instant::now();
+        let start = Instant::now();
+        // scans k apart
+        let at = |k: u32| start + RESCAN * k;
         // at wall 1000: a prompt tag's record of 999.98, a slow sender's of 998.5
-        marks.observe("prompt", 999.98, 1000.0, now);
-        marks.observe("slow", 998.5, 1000.0, now);
-        let w = marks.watermark_s(1000.2, now, 2.0).unwrap();
+        marks.observe("prompt", 999.98, 1000.0, at(0));
+        marks.observe("slow", 998.5, 1000.0, at(0));
+        let w = marks.watermark_s(1000.2, at(0), 2.0).unwrap();
         assert!((w - 998.7).abs() < 1e-9, "{w}");
-        // the slow tag's newer record moves it
-        marks.observe("slow", 999.0, 1000.3, now);
-        let w = marks.watermark_s(1000.3, now, 2.0).unwrap();
+        // the slow tag's newer record moves it up, at the next scan (until then it stays
+        // behind: never ahead)
+        marks.observe("slow", 999.0, 1000.3, at(0));
+        let w = marks.watermark_s(1000.3, at(0), 2.0).unwrap();
+        assert!((w - 998.8).abs() < 1e-9, "{w}");
+        let w = marks.watermark_s(1000.3, at(1), 2.0).unwrap();
         assert!((w - 999.0).abs() < 1e-9, "{w}");
         // an older record of a tag does not move it back
-        marks.observe("slow", 997.0, 1000.3, now);
-        assert!((marks.watermark_s(1000.3, now, 2.0).unwrap() - 999.0).abs() < 1e-9);
+        marks.observe("slow", 997.0, 1000.3, at(2));
+        assert!((marks.watermark_s(1000.3, at(2), 2.0).unwrap() - 999.0).abs() < 1e-9);
         // a sender falling further behind: its newer record, 1.8 s old on arrival, lowers it
-        marks.observe("slow", 999.1, 1000.9, now);
-        let w = marks.watermark_s(1000.9, now, 2.0).unwrap();
+        // at once, between scans
+        marks.observe("slow", 999.1, 1000.9, at(2));
+        let w = marks.watermark_s(1000.9, at(2), 2.0).unwrap();
         assert!((w - 999.1).abs() < 1e-9, "{w}");
     }
 
@@ -136,7 +172,7 @@ mod tests {
         let w = marks.watermark_s(1005.0, start + ACTIVE, 2.0).unwrap();
         assert!((w - 1003.0).abs() < 1e-9, "{w}");
         assert_eq!(marks.active(), 2);
-        let later = start + ACTIVE + Duration::from_millis(1);
+        let later = start + ACTIVE + RESCAN;
         assert_eq!(marks.watermark_s(1005.0, later, 2.0), Some(1005.0));
         assert_eq!(marks.active(), 1);
         // nobody heard: no watermark
