@@ -476,24 +476,14 @@ impl Tracker {
     #[must_use]
     pub fn smoother(&self) -> Smoother {
         let shared = self.shared();
-        let settings = &shared.settings;
-        let turn = (settings.motion_model == crate::site::MotionModelKind::Ct)
-            .then(|| {
-                // the tracker's own CT model: q = σ_a² on the velocity, σ_ω̇² on the rate
-                rtls_estimation::motion::CoordinatedTurnWithRate::new(
-                    rtls_estimation::motion::ProcessNoise::continuous(settings.acceleration_noise_std_mps2.powi(2)),
-                    settings.turn_rate_noise_std_radps2.powi(2),
-                )
-                .ok()
-            })
-            .flatten();
         Smoother::new(
             shared.kf,
             shared.motion,
-            settings.acceleration_noise_std_mps2.powi(2),
+            shared.settings.acceleration_noise_std_mps2.powi(2),
             shared.tag_height_m,
         )
-        .with_turn(turn)
+        // the tracker's own coordinated turn, the very model its tracks were predicted with
+        .with_turn(shared.manoeuvres.as_ref().and_then(|m| m.sole_turn()))
     }
 
     /// The anchors' range offsets the tracks have learnt (`[tracker.range_bias]`), by tag then

@@ -56,9 +56,17 @@ pub(crate) struct Manoeuvres {
     ukf: Option<UnscentedKalmanFilter>,
     /// `σ_ω₀²` of a new track's turn rate, (rad/s)².
     initial_turn_rate_variance: f64,
+    /// The coordinated turn when it is the only mode (`motion_model = "ct"`): the model a
+    /// smoother of these tracks runs backwards.
+    sole_turn: Option<CoordinatedTurnWithRate>,
 }
 
 impl Manoeuvres {
+    /// The coordinated turn when it is the only mode (`motion_model = "ct"`), else `None`.
+    pub(crate) fn sole_turn(&self) -> Option<CoordinatedTurnWithRate> {
+        self.sole_turn
+    }
+
     /// The modes of `motion_model = "imm"` (`[tracker.imm] modes`; by default CV, CA and, in
     /// 2-D, CT) or the coordinated turn alone (`motion_model = "ct"`, an IMM of one mode, which
     /// is the plain filter). CV uses `tracker.imm.cv_acceleration_noise_std_mps2` (by default
@@ -115,6 +123,7 @@ impl Manoeuvres {
         let ukf = UnscentedKalmanFilter::new(SigmaPointParameters::default());
         let mut modes: Vec<Box<dyn ImmMode>> = Vec::with_capacity(kinds.len());
         let mut sojourn_s = Vec::with_capacity(kinds.len());
+        let mut sole_turn = None;
         for kind in &kinds {
             let name = kind.name();
             let mode: Box<dyn ImmMode> = match (kind, planar) {
@@ -148,6 +157,9 @@ impl Manoeuvres {
                 )?),
                 (ImmModeKind::Ct, _) => {
                     let motion = CoordinatedTurnWithRate::new(cv_noise, ct_rate_noise.powi(2))?;
+                    if kinds.len() == 1 {
+                        sole_turn = Some(motion);
+                    }
                     let selection = ComponentSelection::<5>::position(2, placeholder.clone())?;
                     if settings.filter == FilterKind::Ukf {
                         Box::new(FilterMode::<5, _, _, _>::new(
@@ -204,6 +216,7 @@ impl Manoeuvres {
             switch_probability: imm.switch_probability,
             ukf: (settings.filter == FilterKind::Ukf).then_some(ukf),
             initial_turn_rate_variance: settings.initial_turn_rate_std_radps.powi(2),
+            sole_turn,
         })
     }
 

@@ -247,9 +247,11 @@ impl Smoother {
         run: &[usize],
     ) -> Result<Result<NoiseFit, String>, String> {
         if let Some(turn) = &self.turn {
-            if run.iter().all(|&i| kept[i].1.is_some_and(|s| s.turn.is_some())) {
-                return self.smooth_turn(turn, kept, run);
+            // a CV backward pass over a turn's states would cut every arc short: never that
+            if !run.iter().all(|&i| kept[i].1.is_some_and(|s| s.turn.is_some())) {
+                return Err("a coordinated-turn segment with updates that keep no turn rate".into());
             }
+            return self.smooth_turn(turn, kept, run);
         }
         match kept[run[0]].0.dimensions {
             2 => self.smooth_sized::<4>(kept, run),
@@ -314,20 +316,25 @@ impl Smoother {
             }
         }
         for (&i, state) in run.iter().zip(&reported) {
-            let update = &mut kept[i].0;
-            let (position_m, covariance_m2) = position_of(state, self.tag_height_m);
-            update.position_m = position_m;
-            update.position_covariance_m2 = covariance_m2;
-            for axis in 0..N / 2 {
-                update.velocity_mps[axis] = state.mean()[2 * axis + 1];
-            }
-            update.smoothed = true;
+            self.write_smoothed(&mut kept[i].0, state);
         }
         Ok(tuned.map(|tuned| tuned.fit))
     }
 }
 
 impl Smoother {
+    /// Writes a smoothed CV-layout state into its update: position and its covariance at the
+    /// tag's height, velocity, and the `smoothed` flag.
+    fn write_smoothed<const N: usize>(&self, update: &mut TrackUpdate, state: &Gaussian<N>) {
+        let (position_m, covariance_m2) = position_of(state, self.tag_height_m);
+        update.position_m = position_m;
+        update.position_covariance_m2 = covariance_m2;
+        for axis in 0..N / 2 {
+            update.velocity_mps[axis] = state.mean()[2 * axis + 1];
+        }
+        update.smoothed = true;
+    }
+
     /// Smooths a coordinated-turn segment with the tracker's own model (the extended RTS
     /// smoother over `[x, vx, y, vy, ω]`, linearised at each filtered state), so the backward
     /// pass follows the turn a CV model would cut short; the covariance is the intersection
@@ -356,18 +363,12 @@ impl Smoother {
             // P_ci over x and y, then the [x, vx, y, vy] marginal of it
             let bound = intersection_bound(past, state, &[0, 2]).map_err(|e| e.to_string())?;
             let marginal = Gaussian::<4>::new(
-                Vector::<4>::from_fn(|r, _| state.mean()[r]),
-                Matrix::<4>::from_fn(|r, c| bound[(r, c)]),
+                state.mean().fixed_rows::<4>(0).into_owned(),
+                bound.fixed_view::<4, 4>(0, 0).into_owned(),
                 state.time_s(),
             )
             .map_err(|e| e.to_string())?;
-            let update = &mut kept[i].0;
-            let (position_m, covariance_m2) = position_of(&marginal, self.tag_height_m);
-            update.position_m = position_m;
-            update.position_covariance_m2 = covariance_m2;
-            update.velocity_mps[0] = marginal.mean()[1];
-            update.velocity_mps[1] = marginal.mean()[3];
-            update.smoothed = true;
+            self.write_smoothed(&mut kept[i].0, &marginal);
         }
         Ok(Err(
             "a coordinated turn, smoothed with the tracker's own model (the turn rate a state; not fitted)".into(),

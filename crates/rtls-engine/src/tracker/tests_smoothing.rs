@@ -110,20 +110,32 @@ fn smoothing_a_noisy_walk_lowers_its_error_and_its_ellipses_still_hold_the_truth
     assert_eq!(smoothed.updates.len(), filtered.len());
     assert!(smoothed.updates.iter().all(|u| u.smoothed));
 
-    let (filtered_rmse, filtered_coverage, n) = score(&filtered, truth);
+    // the reported covariance is a bound for any correlation of past and future errors: with
+    // white errors (as here) it is conservative
+    assert_smoothing_helps(&filtered, &smoothed, truth, 0.85, 0.95);
+}
+
+/// The smoothed updates' RMSE is below `ratio` × the filtered one's, and their 95 % ellipses
+/// hold the truth at least `coverage` of the time (scored as [`score`]).
+fn assert_smoothing_helps(
+    filtered: &[TrackUpdate],
+    smoothed: &SmoothedTracks,
+    truth: impl Fn(usize, f64) -> [f64; 2] + Copy,
+    ratio: f64,
+    coverage: f64,
+) {
+    let (filtered_rmse, filtered_coverage, n) = score(filtered, truth);
     let (smoothed_rmse, smoothed_coverage, _) = score(&smoothed.updates, truth);
     println!(
         "{n} updates: filtered RMSE {filtered_rmse:.3} m, 95 % coverage {filtered_coverage:.3}; \
          smoothed {smoothed_rmse:.3} m, {smoothed_coverage:.3}"
     );
     assert!(
-        smoothed_rmse < 0.85 * filtered_rmse,
+        smoothed_rmse < ratio * filtered_rmse,
         "smoothed {smoothed_rmse} m against filtered {filtered_rmse} m"
     );
-    // the reported covariance is a bound for any correlation of past and future errors: with
-    // white errors (as here) it is conservative
     assert!(
-        smoothed_coverage >= 0.95,
+        smoothed_coverage >= coverage,
         "smoothed 95 % ellipses hold the truth {smoothed_coverage:.3} of the time"
     );
 }
@@ -379,18 +391,5 @@ fn a_coordinated_turn_is_smoothed_with_its_own_model() {
         let reason = segment.fit.as_ref().expect_err("the tracker's own model");
         assert!(reason.contains("coordinated turn"), "{reason}");
     }
-    let (filtered_rmse, filtered_coverage, n) = score(&filtered, truth);
-    let (smoothed_rmse, smoothed_coverage, _) = score(&smoothed.updates, truth);
-    println!(
-        "{n} updates: filtered RMSE {filtered_rmse:.3} m, 95 % coverage {filtered_coverage:.3}; \
-         smoothed {smoothed_rmse:.3} m, {smoothed_coverage:.3}"
-    );
-    assert!(
-        smoothed_rmse < 0.8 * filtered_rmse,
-        "smoothed {smoothed_rmse} m against filtered {filtered_rmse} m"
-    );
-    assert!(
-        (0.9..=1.0).contains(&smoothed_coverage),
-        "smoothed 95 % ellipses hold the truth {smoothed_coverage:.3} of the time"
-    );
+    assert_smoothing_helps(&filtered, &smoothed, truth, 0.8, 0.9);
 }

@@ -105,17 +105,3 @@ fn ticks_held_at_the_watermark_still_reach_the_newest_record_less_the_horizon() 
     assert!((9.9..=10.5).contains(&lost_s[0]), "lost at {} s", lost_s[0]);
     assert!(count(&out, "w3", |u| u.predicted) > 0, "w3 coasted");
 }
-
-#[test]
-fn without_a_rewind_horizon_the_watermark_is_ignored() {
-    let records = three_walkers(8.0, 19);
-    let plain = run(
-        Tracker::new(&super::tests::site("fix-then-filter", "ekf", "")).unwrap(),
-        records.clone(),
-    );
-    let mut tracker = Tracker::new(&super::tests::site("fix-then-filter", "ekf", "")).unwrap();
-    tracker.set_watermark(Some(0.0));
-    let held = run(tracker, records);
-    assert_eq!(plain.updates.len(), held.updates.len());
-    assert_same_final_revisions(&plain, &held, "no rewind horizon");
-}
