@@ -238,7 +238,6 @@ async fn start_target(args: &Args) -> Target {
     config.server.http = "127.0.0.1:0".parse().unwrap();
     config.mqtt.listen = "127.0.0.1:0".parse().unwrap();
     config.server.db = format!("sqlite:{}", dir.join("rtls.db").display());
-    config.pipeline.clock_lag_s = 1.0;
     let site = Site::from_toml_str(SITE, "loadtest-site.toml").unwrap();
     let options = ServeOptions {
         config,

@@ -51,6 +51,9 @@ pub struct Metrics {
     /// How far a batch's newest record is ahead of the slowest active sender, which the
     /// tracker's clock ticks wait for (s, at most the rewind horizon).
     pub watermark_lag_seconds: Histogram,
+    /// How far behind the wall clock an idle partition's live clock moves its tracker (s;
+    /// `pipeline.clock_lag_s`, measured when `"auto"`), at each such move.
+    pub live_clock_lag_seconds: Histogram,
     /// Track updates produced.
     pub track_updates: Counter,
     /// Track updates that replace one already published (a late record re-filtered, or a
@@ -157,6 +160,7 @@ impl Metrics {
             pipeline_latency_seconds: latency(),
             tracking_seconds: latency(),
             watermark_lag_seconds: latency(),
+            live_clock_lag_seconds: latency(),
             track_updates: Counter::default(),
             track_updates_revised: Counter::default(),
             tracker_errors: Counter::default(),
@@ -243,6 +247,11 @@ impl Metrics {
             "watermark_lag_seconds",
             "How far a batch's newest record is ahead of the slowest active sender (the ticks wait for it)",
             m.watermark_lag_seconds.clone(),
+        );
+        registry.register(
+            "live_clock_lag_seconds",
+            "How far behind the wall clock an idle partition's live clock moves its tracker",
+            m.live_clock_lag_seconds.clone(),
         );
         registry.register("track_updates", "Track updates produced", m.track_updates.clone());
         registry.register(

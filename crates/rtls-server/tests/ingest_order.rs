@@ -11,7 +11,7 @@ use std::time::Duration;
 use axum::http::Method;
 use bytes::Bytes;
 use common::{call, eventually, metric_value, state, state_on, READ};
-use rtls_server::pipeline::PipelineConfig;
+use rtls_server::pipeline::{ClockLag, PipelineConfig};
 use rtls_server::sink::{IngestOrder, MeasurementSink};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -50,7 +50,7 @@ async fn late_deliveries(name: &str, tag: &str, count: usize, period: Duration, 
         PipelineConfig {
             partitions: 1,
             live_clock: true,
-            clock_lag_s: 0.5,
+            clock_lag: ClockLag::Fixed(0.5),
             ..PipelineConfig::default()
         },
     );
@@ -96,4 +96,118 @@ async fn records_delivered_late_in_bursts_are_tracked_not_overtaken_by_the_clock
     // minute); the clock follows the records' own time instead (`pipeline/event_clock.rs`)
     let late = late_deliveries("ingest-late-bursts", "B1", 12, Duration::from_millis(400), 1.5).await;
     assert_eq!(late, 0.0, "records reported late between bursts");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_prompt_tag_falling_silent_coasts_a_measured_lag_after_its_output_interval_not_two_seconds() {
+    // records delivered at once: the measured lag (`pipeline/clock_lag.rs`) is ~0.1 s, so
+    // the tag's first coasting output (the site's output interval, 1 s, after its last
+    // record) comes ~1.1–1.4 s after it; the former fixed lag of 2 s made it 3 s
+    let state = state_on(
+        "ingest-measured-lag",
+        PipelineConfig {
+            partitions: 1,
+            live_clock: true,
+            ..PipelineConfig::default()
+        },
+    );
+    assert_eq!(PipelineConfig::default().clock_lag, ClockLag::Auto);
+    let app = rtls_server::http::router(state.clone());
+    let unix_s = || {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64()
+    };
+    let mut last_sent = std::time::Instant::now();
+    for k in 0..15 {
+        let line = format!(
+            r#"{{"t": {}, "tag": "S1", "kind": "fix", "position_m": [{}, 2.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#,
+            unix_s(),
+            1.0 + 0.1 * k as f64
+        );
+        assert_eq!(state.pipeline.submit_lines("http", line.as_bytes()).await, Ok(1));
+        last_sent = std::time::Instant::now();
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let live = state.pipeline.live().clone();
+    assert!(
+        eventually(Duration::from_secs(10), || live
+            .tag("S1")
+            .is_some_and(|tag| tag.status == "coasting"))
+        .await,
+        "S1 never coasted"
+    );
+    let coasted_after_s = last_sent.elapsed().as_secs_f64();
+    let metrics = call(&app, Method::GET, "/metrics", Some(READ), "").await.text();
+    state.pipeline.shutdown();
+    assert!(
+        coasted_after_s < 2.5,
+        "the first coasting output came {coasted_after_s:.2} s after the last record"
+    );
+    let count = metric_value(&metrics, "rtls_live_clock_lag_seconds_count");
+    let sum = metric_value(&metrics, "rtls_live_clock_lag_seconds_sum");
+    assert!(count > 0.0, "the live clock never moved");
+    assert!(sum / count < 0.5, "mean live-clock lag {} s", sum / count);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_sender_behind_the_others_is_neither_coasted_nor_revised() {
+    // two gateways into one partition of a site that re-filters within 2 s and reports every
+    // 0.5 s: one delivers each record at once, the other 1.2 s after its time. Ticks driven by
+    // the prompt gateway's records would coast the slow one's tag, and each of its records
+    // would then rewind its track and publish its updates again as revisions; the partition's
+    // watermark (`pipeline/watermark.rs`) holds the ticks for the slow gateway instead
+    let site_text = common::SITE.replace(
+        "reorder_window_s = 0.2",
+        "reorder_window_s = 0.0\nrewind_horizon_s = 2.0\noutput_interval_s = 0.5",
+    );
+    let site = rtls_engine::site::Site::from_toml_str(&site_text, "watermark-site.toml").expect("site");
+    let state = common::state_on_site(
+        "ingest-watermark",
+        site,
+        PipelineConfig {
+            partitions: 1,
+            live_clock: true,
+            ..PipelineConfig::default()
+        },
+    );
+    let app = rtls_server::http::router(state.clone());
+    let unix_s = || {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64()
+    };
+    let line = |tag: &str, t: f64, x: f64| {
+        format!(
+            r#"{{"t": {t}, "tag": "{tag}", "kind": "fix", "position_m": [{x}, 2.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#
+        )
+    };
+    let delay_s = 1.2;
+    let start_s = unix_s();
+    for k in 0..50 {
+        let now_s = unix_s();
+        let x = 1.0 + 0.05 * f64::from(k);
+        let prompt = line("PROMPT", now_s, x);
+        assert_eq!(state.pipeline.submit_lines("fast", prompt.as_bytes()).await, Ok(1));
+        if now_s - delay_s >= start_s {
+            let slow = line("SLOW", now_s - delay_s, x);
+            assert_eq!(state.pipeline.submit_lines("slow", slow.as_bytes()).await, Ok(1));
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let live = state.pipeline.live().clone();
+    assert!(
+        eventually(Duration::from_secs(10), || live.tag("SLOW").is_some()).await,
+        "the slow gateway's tag was not tracked"
+    );
+    let metrics = call(&app, Method::GET, "/metrics", Some(READ), "").await.text();
+    state.pipeline.shutdown();
+    let updates = metric_value(&metrics, "rtls_track_updates_total");
+    let revised = metric_value(&metrics, "rtls_track_updates_revised_total");
+    let late = metric_value(&metrics, "rtls_records_unused_total{event=\"late\",kind=\"fix\"}");
+    assert!(updates > 50.0, "{updates} track updates");
+    assert_eq!(revised, 0.0, "{revised} of {updates} updates revised");
+    assert_eq!(late, 0.0, "{late} records late");
 }

@@ -34,7 +34,7 @@
 //! [pipeline]
 //! partitions = 2                 # tag partitions (worker threads); default: the CPU count
 //! live_clock = true              # advance tracks with the wall clock (records in Unix time)
-//! clock_lag_s = 2.0
+//! clock_lag_s = "auto"           # how far the live clock runs behind the wall: measured, or seconds
 //! max_record_age_s = 86400.0     # with live_clock: older records are refused at ingest
 //! max_record_lead_s = 60.0       # with live_clock: records this far ahead of the clock are refused
 //!
@@ -351,8 +351,9 @@ pub struct PipelineSection {
     pub partitions: usize,
     /// Advance tracks with the wall clock.
     pub live_clock: bool,
-    /// How far behind the wall clock (s).
-    pub clock_lag_s: f64,
+    /// How far behind the wall clock: seconds, or `"auto"` (measured from the records'
+    /// delivery delays, [`crate::pipeline::clock_lag`]).
+    pub clock_lag_s: crate::pipeline::ClockLag,
     /// With `live_clock`: records more than this behind the server clock are refused at ingest
     /// (s, > 0; a relative clock, a long-buffered replay).
     pub max_record_age_s: f64,
@@ -366,7 +367,7 @@ impl Default for PipelineSection {
         Self {
             partitions: 0,
             live_clock: true,
-            clock_lag_s: 2.0,
+            clock_lag_s: crate::pipeline::ClockLag::Auto,
             max_record_age_s: 86_400.0,
             max_record_lead_s: 60.0,
         }
@@ -500,11 +501,13 @@ impl ServerConfig {
             return Err(invalid("mqtt.url", "required when mqtt.mode = \"external\"".into()));
         }
         let p = &self.pipeline;
-        if !(p.clock_lag_s.is_finite() && p.clock_lag_s >= 0.0) {
-            return Err(invalid(
-                "pipeline.clock_lag_s",
-                format!("must be ≥ 0 s, got {}", p.clock_lag_s),
-            ));
+        if let crate::pipeline::ClockLag::Fixed(lag_s) = p.clock_lag_s {
+            if !(lag_s.is_finite() && lag_s >= 0.0) {
+                return Err(invalid(
+                    "pipeline.clock_lag_s",
+                    format!("must be ≥ 0 s or \"auto\", got {lag_s}"),
+                ));
+            }
         }
         for (field, value) in [
             ("pipeline.max_record_age_s", p.max_record_age_s),

@@ -1,7 +1,7 @@
 //! Where a partition's live clock may move its tracker: the wall clock, but never ahead of the
 //! records still on their way.
 //!
-//! With `pipeline.live_clock` the wall clock (minus `clock_lag_s`) moves the trackers while no
+//! With `pipeline.live_clock` the wall clock (minus the lag, [`super::clock_lag`]) moves the trackers while no
 //! records come, so silent tags coast and are lost. Under a backlog upstream of the partition
 //! (publishers with many unacknowledged payloads in flight, an ingest log catching up after a
 //! stall) the records that arrive are seconds old; a partition whose queue empties for a

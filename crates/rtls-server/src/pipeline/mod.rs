@@ -33,6 +33,7 @@
 //! above the checkpoint, the log's last id and every quarantined record's.
 
 mod admission;
+pub mod clock_lag;
 mod cluster_side;
 pub mod collision_news;
 pub(crate) mod collisions;
@@ -63,6 +64,7 @@ use rtls_engine::tracker::{Output, Tracker};
 use tokio::sync::{broadcast, mpsc, oneshot};
 
 pub use admission::TimeWindow;
+pub use clock_lag::ClockLag;
 pub use cluster_side::{ClusterHooks, ReplicatedLog};
 pub use fanout::PeerMessage;
 pub use live::{CollisionListener, HubMessage, LastSeen, LiveState, TagState};
@@ -99,12 +101,13 @@ pub struct PipelineConfig {
     /// How long `submit` waits for room in the ingest queue before answering
     /// [`IngestError::Unavailable`].
     pub submit_timeout: Duration,
-    /// Advance the trackers with the wall clock (Unix seconds, minus `clock_lag_s`) so silent
+    /// Advance the trackers with the wall clock (Unix seconds, minus `clock_lag`) so silent
     /// tags coast, get lost and are deleted in real time; off: only records move time.
     pub live_clock: bool,
-    /// How far behind the wall clock the trackers are advanced (s): records may arrive this
-    /// late without being judged late.
-    pub clock_lag_s: f64,
+    /// How far behind the wall clock the trackers are advanced: records may arrive this late
+    /// without being judged late. [`ClockLag::Auto`] (the default) measures it from the
+    /// records' delivery delays ([`clock_lag`]).
+    pub clock_lag: ClockLag,
     /// With `live_clock`: records outside this window around the server clock are refused at
     /// ingest ([`TimeWindow`]); `None`: any time the parser accepts.
     pub time_window: Option<TimeWindow>,
@@ -144,7 +147,7 @@ impl Default for PipelineConfig {
             max_records_per_payload: 100_000,
             submit_timeout: Duration::from_secs(5),
             live_clock: true,
-            clock_lag_s: 2.0,
+            clock_lag: ClockLag::Auto,
             time_window: Some(TimeWindow {
                 max_age_s: 86_400.0,
                 max_lead_s: 60.0,
@@ -378,7 +381,7 @@ impl Pipeline {
                 metrics: Arc::clone(&metrics),
                 progress: Arc::clone(&progress),
                 live_clock: config.live_clock,
-                clock_lag_s: config.clock_lag_s,
+                clock_lag: clock_lag::LiveClockLag::new(config.clock_lag),
                 event_clock: Default::default(),
                 watermark: Default::default(),
                 history: history_rate::HistoryRate::new(config.history_interval_s),

@@ -46,7 +46,8 @@ pub(super) struct PartitionWorker {
     pub metrics: Arc<Metrics>,
     pub progress: Arc<Progress>,
     pub live_clock: bool,
-    pub clock_lag_s: f64,
+    /// How far behind the wall clock the live clock runs ([`super::clock_lag`]).
+    pub clock_lag: super::clock_lag::LiveClockLag,
     /// The newest record taken, which caps the live clock ([`super::event_clock`]).
     pub event_clock: super::event_clock::EventClock,
     /// The slowest active sender's position in record time, which holds the tracker's ticks
@@ -97,11 +98,12 @@ impl PartitionWorker {
                     // an edit made while this batch waited applies to it
                     self.follow_zone_edits();
                     let started = Instant::now();
-                    let newest_s = batch
-                        .iter()
-                        .map(|(_, record)| record.time_s)
-                        .fold(f64::NEG_INFINITY, f64::max);
+                    let (oldest_s, newest_s) = batch.iter().fold(
+                        (f64::INFINITY, f64::NEG_INFINITY),
+                        |(oldest_s, newest_s), (_, record)| (oldest_s.min(record.time_s), newest_s.max(record.time_s)),
+                    );
                     self.event_clock.observe(newest_s);
+                    self.clock_lag.observe(oldest_s, unix_s());
                     self.hold_ticks(&batch, newest_s);
                     for (id, record) in batch {
                         let tag = record.tag.clone();
@@ -146,7 +148,10 @@ impl PartitionWorker {
             }
             if self.live_clock && caught_up && last_clock.elapsed() >= CLOCK_TICK {
                 last_clock = Instant::now();
-                let target_s = self.event_clock.target_s(unix_s(), self.clock_lag_s);
+                let wall_s = unix_s();
+                let lag_s = self.clock_lag.lag_s(wall_s);
+                self.metrics.live_clock_lag_seconds.observe(lag_s);
+                let target_s = self.event_clock.target_s(wall_s, lag_s);
                 self.hold_ticks(&[], f64::NEG_INFINITY);
                 if let Err(e) = self.tracker.advance_to(target_s, &mut out) {
                     tracing::warn!(partition = self.index, error = %e, "advancing the clock failed");

@@ -155,7 +155,7 @@ pub async fn serve(
             config.pipeline.partitions
         },
         live_clock: config.pipeline.live_clock,
-        clock_lag_s: config.pipeline.clock_lag_s,
+        clock_lag: config.pipeline.clock_lag_s,
         time_window: Some(TimeWindow {
             max_age_s: config.pipeline.max_record_age_s,
             max_lead_s: config.pipeline.max_record_lead_s,
