@@ -353,7 +353,7 @@ pub struct PipelineSection {
     pub live_clock: bool,
     /// How far behind the wall clock: seconds, or `"auto"` (measured from the records'
     /// delivery delays, [`crate::pipeline::clock_lag`]).
-    pub clock_lag_s: crate::pipeline::ClockLag,
+    pub clock_lag_s: crate::pipeline::clock_lag::ClockLag,
     /// With `live_clock`: records more than this behind the server clock are refused at ingest
     /// (s, > 0; a relative clock, a long-buffered replay).
     pub max_record_age_s: f64,
@@ -367,7 +367,7 @@ impl Default for PipelineSection {
         Self {
             partitions: 0,
             live_clock: true,
-            clock_lag_s: crate::pipeline::ClockLag::Auto,
+            clock_lag_s: crate::pipeline::clock_lag::ClockLag::Auto,
             max_record_age_s: 86_400.0,
             max_record_lead_s: 60.0,
         }
@@ -501,7 +501,7 @@ impl ServerConfig {
             return Err(invalid("mqtt.url", "required when mqtt.mode = \"external\"".into()));
         }
         let p = &self.pipeline;
-        if let crate::pipeline::ClockLag::Fixed(lag_s) = p.clock_lag_s {
+        if let crate::pipeline::clock_lag::ClockLag::Fixed(lag_s) = p.clock_lag_s {
             if !(lag_s.is_finite() && lag_s >= 0.0) {
                 return Err(invalid(
                     "pipeline.clock_lag_s",
