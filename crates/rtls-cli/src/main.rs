@@ -35,6 +35,7 @@
 mod demo;
 mod eval;
 mod import;
+mod malformed;
 mod markdown;
 mod plot;
 mod repro;

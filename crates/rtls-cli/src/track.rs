@@ -34,7 +34,14 @@ use rtls_engine::site::{
     read_text_file, FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site, MAX_RADIO_MAP_BYTES, MAX_SITE_BYTES,
 };
 use rtls_engine::survey::{SurveyMap, SurveySettings};
-use rtls_engine::tracker::{Event, NoiseFit, Output, SegmentFit, Smoother, Tracker, ANONYMOUS_TAG, FIT_STATES_MIN};
+use rtls_engine::tracker::{Event, NoiseFit, Output, SegmentFit, Smoother, Tracker, FIT_STATES_MIN};
+
+use crate::malformed::Malformed;
+
+mod summary;
+
+pub use summary::UntrackedTags;
+use summary::{event_type, range_offsets_line, reason_category, rejections_line, untracked_tags, Counts};
 
 /// A pipeline named on the command line.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -73,7 +80,11 @@ pub const EXIT_UNTRACKED: u8 = 3;
 #[command(
     after_help = "Exit status: 0 when every tag with records got a track; 3 when the run finished \
 but a tag with records got no track output (the summary names it, with its rejected records by \
-reason); 1 when an error stopped the run (site, input or outputs)."
+reason); 1 when an error stopped the run (site, input or outputs). A record that cannot be used \
+as written (a malformed line, a missing or mistyped field, an unknown reader id) costs only itself: \
+a `malformed` event and a line of the summary, the run goes on (`--strict`: it stops there); a \
+read error, an input of which no record could be used or whose first 1000 records are all \
+malformed stops the run."
 )]
 pub struct TrackArgs {
     /// Site model (TOML; see examples/site.toml).
@@ -108,6 +119,11 @@ pub struct TrackArgs {
     /// tracker knew; the history is held until the end (~1.3 kB per update).
     #[arg(long)]
     pub smooth: bool,
+    /// Stop at the first record that cannot be used as written (a malformed line, a missing
+    /// or mistyped field, an unknown reader id); without it each such record is skipped, a
+    /// `malformed` event and counted in the summary.
+    #[arg(long)]
+    pub strict: bool,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -244,88 +260,6 @@ fn radio_map_summary(name: &str, map: &RadioMap, load_s: f64) -> String {
     )
 }
 
-/// The run finished, but tags with records got no track output (exit status
-/// [`EXIT_UNTRACKED`]).
-#[derive(Debug)]
-pub struct UntrackedTags(pub usize);
-
-impl std::fmt::Display for UntrackedTags {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{} tag(s) had records but no track output (listed above)", self.0)
-    }
-}
-
-impl std::error::Error for UntrackedTags {}
-
-/// Rejected (or late) records by `(kind, reason category)`.
-type Rejections = BTreeMap<(&'static str, String), usize>;
-
-/// What a run produced, for the summary.
-#[derive(Debug, Default)]
-struct Counts {
-    records: usize,
-    updates: usize,
-    predicted: usize,
-    fixes: usize,
-    events: BTreeMap<&'static str, usize>,
-    rejected: Rejections,
-    tags: BTreeMap<String, TagCounts>,
-    /// Tags whose gated-out fixes kept returning to one other place (`alternating`), with it.
-    alternating: BTreeMap<String, [f64; 3]>,
-}
-
-/// One tag's records, track updates and rejected or late records.
-#[derive(Debug, Default)]
-struct TagCounts {
-    records: usize,
-    updates: usize,
-    rejected: Rejections,
-}
-
-/// A reason without its numbers (each run of digits, with its decimal point, becomes `#`) and
-/// without the detail after its first `: `, so that reasons of one cause count together:
-/// `outside the χ²(2) validation gate: NIS 14.1 > 13.8` → `outside the χ²(#) validation gate`.
-fn reason_category(reason: &str) -> String {
-    let head = reason.split(": ").next().unwrap_or(reason);
-    let mut category = String::with_capacity(head.len());
-    let mut in_number = false;
-    for c in head.chars() {
-        let numeric = c.is_ascii_digit() || (in_number && c == '.');
-        if numeric && !in_number {
-            category.push('#');
-        } else if !numeric {
-            category.push(c);
-        }
-        in_number = numeric;
-    }
-    category
-}
-
-/// `count kind: category` items, most frequent first.
-fn rejections_line(rejected: &Rejections) -> String {
-    let mut items: Vec<(&(&'static str, String), &usize)> = rejected.iter().collect();
-    items.sort_by(|a, b| b.1.cmp(a.1).then_with(|| a.0.cmp(b.0)));
-    items
-        .iter()
-        .map(|((kind, category), count)| format!("{count} {kind}: {category}"))
-        .collect::<Vec<_>>()
-        .join("; ")
-}
-
-fn event_type(event: &Event) -> &'static str {
-    match event {
-        Event::Zone(_) => "zone",
-        Event::Lifecycle { .. } => "lifecycle",
-        Event::HazardPredicted { .. } => "hazard-predicted",
-        Event::HazardCleared { .. } => "hazard-cleared",
-        Event::NoCoverage { .. } => "no-coverage",
-        Event::ModelSwitch { .. } => "model-switch",
-        Event::Schedule { .. } => "schedule",
-        Event::Late { .. } => "late",
-        Event::Rejected { .. } => "rejected",
-    }
-}
-
 /// Runs `rtls track`.
 ///
 /// # Errors
@@ -440,6 +374,11 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
                 writeln!(w, "{}", event.to_json_line()).context("writing events")?;
             }
         }
+        for event in counts.malformed_events.drain(..) {
+            if let Some(w) = events_out.as_mut() {
+                writeln!(w, "{event}").context("writing events")?;
+            }
+        }
         for fix in &out.fixes {
             counts.fixes += 1;
             if let Some(w) = fixes_out.as_mut() {
@@ -449,33 +388,50 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
         out.clear();
         Ok(())
     };
-    let mut push = |record: Record, line: usize, counts: &mut Counts, out: &mut Output| -> anyhow::Result<()> {
-        tracker.check_record(&record, &input_name, line)?;
-        let record = match (&correction, positions.borrow().get(&record.tag)) {
-            (Some(map), Some(position_m)) => map.correct_record(&record, *position_m),
-            _ => record,
-        };
-        counts.tags.entry(record.tag.clone()).or_default().records += 1;
-        tracker.push(record, out)?;
-        counts.records += 1;
-        Ok(())
+    // a record that cannot be used as written costs only itself (`malformed.rs`)
+    let mut malformed = Malformed::new(args.strict);
+    let mut newest_s = f64::NEG_INFINITY;
+    let mut take = |record: rtls_engine::Result<Record>,
+                    line: usize,
+                    counts: &mut Counts,
+                    out: &mut Output|
+     -> anyhow::Result<()> {
+        match record.and_then(|record| tracker.check_record(&record, &input_name, line).map(|()| record)) {
+            Ok(record) => {
+                if record.time_s.is_finite() {
+                    newest_s = newest_s.max(record.time_s);
+                }
+                let record = match (&correction, positions.borrow().get(&record.tag)) {
+                    (Some(map), Some(position_m)) => map.correct_record(&record, *position_m),
+                    _ => record,
+                };
+                counts.tags.entry(record.tag.clone()).or_default().records += 1;
+                tracker.push(record, out)?;
+                counts.records += 1;
+            }
+            Err(error) => {
+                let event = malformed.skip(error, counts.records, newest_s)?;
+                *counts.events.entry("malformed").or_default() += 1;
+                counts.malformed_events.push(event);
+            }
+        }
+        write(out, counts)
     };
     let is_csv = args.input.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
     if is_csv {
         let mut records = CsvRecords::new(reader, &input_name)?;
         while let Some(record) = records.next() {
             let line = records.line();
-            push(record?, line, &mut counts, &mut out)?;
-            write(&mut out, &mut counts)?;
+            take(record, line, &mut counts, &mut out)?;
         }
     } else {
         let mut records = JsonLines::new(reader, &input_name);
         while let Some(record) = records.next() {
             let line = records.line();
-            push(record?, line, &mut counts, &mut out)?;
-            write(&mut out, &mut counts)?;
+            take(record, line, &mut counts, &mut out)?;
         }
     }
+    malformed.check_some_usable(counts.records, &input_name)?;
     tracker.finish(&mut out)?;
     write(&mut out, &mut counts)?;
     bar.finish_and_clear();
@@ -504,6 +460,9 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     );
     if !counts.rejected.is_empty() {
         eprintln!("rejected by reason: {}", rejections_line(&counts.rejected));
+    }
+    if let Some(line) = malformed.summary() {
+        eprintln!("{line}");
     }
     for (tag, [x, y, _]) in &counts.alternating {
         eprintln!(
@@ -570,50 +529,4 @@ fn write_smoothed(smoother: Smoother, updates_out: &mut dyn Write) -> anyhow::Re
         );
     }
     Ok(())
-}
-
-/// The range offsets the tracks learnt (`[tracker.range_bias]`), per anchor: `A1 +0.123 ± 0.010 m`
-/// when one tag learnt it, `A1 +0.123 m over 12 tags (+0.05…+0.20), ± 0.010 m` when several
-/// did (one line, whatever the number of tags).
-fn range_offsets_line(offsets: &[rtls_engine::tracker::RangeOffset]) -> String {
-    let anchors: Vec<String> = rtls_engine::tracker::AnchorOffsetSummary::by_anchor(offsets)
-        .iter()
-        .map(|s| match s.tags {
-            1 => format!("{} {:+.3} ± {:.3} m", s.anchor, s.mean_m, s.mean_std_m),
-            n => format!(
-                "{} {:+.3} m over {n} tags ({:+.3}…{:+.3}), ± {:.3} m",
-                s.anchor, s.mean_m, s.min_m, s.max_m, s.mean_std_m
-            ),
-        })
-        .collect();
-    format!(
-        "range offsets learnt (beyond the site's bias_m): {}",
-        anchors.join(", ")
-    )
-}
-
-/// Names every tag that had records but no track output, with its rejected and late records
-/// by reason. Anonymous detections (tag `*`) are tracked under ids of their own and are not
-/// checked.
-///
-/// # Errors
-/// [`UntrackedTags`] when there is such a tag.
-fn untracked_tags(counts: &Counts) -> anyhow::Result<()> {
-    let untracked: Vec<(&String, &TagCounts)> = counts
-        .tags
-        .iter()
-        .filter(|(tag, c)| tag.as_str() != ANONYMOUS_TAG && c.records > 0 && c.updates == 0)
-        .collect();
-    if untracked.is_empty() {
-        return Ok(());
-    }
-    for (tag, c) in &untracked {
-        let rejected = if c.rejected.is_empty() {
-            "none rejected".to_string()
-        } else {
-            format!("rejected {}", rejections_line(&c.rejected))
-        };
-        eprintln!("no track for tag {tag}: {} records, {rejected}", c.records);
-    }
-    Err(UntrackedTags(untracked.len()).into())
 }

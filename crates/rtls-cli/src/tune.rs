@@ -24,6 +24,7 @@ use rtls_engine::tracker::{NoiseClass, Tracker};
 use rtls_engine::tuning::{tune, Tuning, TuningSettings};
 use toml_edit::{value, DocumentMut, InlineTable, Item, TableLike, Value};
 
+use crate::malformed::Malformed;
 use crate::track::{load_site_file, ModelOverrides};
 
 /// Arguments of `rtls tune`.
@@ -50,22 +51,37 @@ pub struct TuneArgs {
     /// Print the result as one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Stop at the first record that cannot be used as written; without it each is skipped
+    /// and counted (as in `rtls track`).
+    #[arg(long)]
+    pub strict: bool,
     /// `--pipeline`, `--filter`, `--motion-model`: tune the site as it will be tracked (the
     /// same flags as `rtls track`); the overrides are written into the tuned site.
     #[command(flatten)]
     pub overrides: ModelOverrides,
 }
 
-/// Reads every record of `path`, checking reader ids against the site (errors name file, line
-/// and field), keeping those at or before `until_s`.
-fn read_records(path: &Path, tracker: &Tracker, until_s: f64) -> anyhow::Result<Vec<Record>> {
+/// Reads every record of `path`, checking reader ids against the site, keeping those at or
+/// before `until_s`. A record that cannot be used as written is skipped and counted, as in
+/// `rtls track` ([`Malformed`]; `strict`: it stops the run, naming file, line and field).
+fn read_records(path: &Path, tracker: &Tracker, until_s: f64, strict: bool) -> anyhow::Result<Vec<Record>> {
     let name = path.display().to_string();
     let file = BufReader::new(File::open(path).with_context(|| format!("opening {name}"))?);
     let mut records = Vec::new();
-    let mut keep = |record: Record, line: usize| -> anyhow::Result<()> {
-        tracker.check_record(&record, &name, line)?;
-        if record.time_s <= until_s {
-            records.push(record);
+    let (mut malformed, mut good, mut newest_s) = (Malformed::new(strict), 0, f64::NEG_INFINITY);
+    let mut keep = |record: rtls_engine::Result<Record>, line: usize| -> anyhow::Result<()> {
+        match record.and_then(|record| tracker.check_record(&record, &name, line).map(|()| record)) {
+            Ok(record) => {
+                good += 1;
+                if record.time_s.is_finite() {
+                    newest_s = newest_s.max(record.time_s);
+                }
+                if record.time_s <= until_s {
+                    records.push(record);
+                }
+            }
+            // no event file here: the summary line below names the first few
+            Err(error) => drop(malformed.skip(error, good, newest_s)?),
         }
         Ok(())
     };
@@ -73,14 +89,18 @@ fn read_records(path: &Path, tracker: &Tracker, until_s: f64) -> anyhow::Result<
         let mut reader = CsvRecords::new(file, &name)?;
         while let Some(record) = reader.next() {
             let line = reader.line();
-            keep(record?, line)?;
+            keep(record, line)?;
         }
     } else {
         let mut reader = JsonLines::new(file, &name);
         while let Some(record) = reader.next() {
             let line = reader.line();
-            keep(record?, line)?;
+            keep(record, line)?;
         }
+    }
+    malformed.check_some_usable(good, &name)?;
+    if let Some(line) = malformed.summary() {
+        eprintln!("{line}");
     }
     Ok(records)
 }
@@ -98,7 +118,7 @@ pub fn run(args: &TuneArgs) -> anyhow::Result<()> {
     let (mut site, radio_map) = load_site_file(&args.site)?;
     args.overrides.apply(&mut site)?;
     let tracker = Tracker::new(&site)?;
-    let records = read_records(&args.input, &tracker, until_s)?;
+    let records = read_records(&args.input, &tracker, until_s, args.strict)?;
     if records.is_empty() {
         bail!(
             "{}: no record at or before --until-s {until_s} s: nothing to tune on",

@@ -124,26 +124,58 @@ fn track_writes_updates_and_events_that_eval_scores() {
 }
 
 #[test]
-fn track_errors_name_the_file_line_and_field() {
+fn a_bad_record_costs_itself_named_by_file_line_and_field_and_strict_stops_there() {
     let dir = temp_dir("bad");
     let (site, input, _) = inputs(&dir);
-    // an anchor the site does not have, on line 4
+    let events = dir.join("events.jsonl").display().to_string();
     let text = std::fs::read_to_string(&input).unwrap();
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    // an anchor the site does not have on line 4, a malformed value on line 9, a time in
+    // nanoseconds on line 20 and a line that is not JSON at the end (a negative range is
+    // valid: Wi-Fi FTM/RTT reports them)
     lines[3] = lines[3].replace("\"A4\"", "\"A9\"");
+    lines[8] = lines[8].replace("\"range_m\": ", "\"range_m\": true, \"x\": ");
+    lines[19] = lines[19].replace("\"t\": 1.9", "\"t\": 1900000000000000000");
+    lines.push("{\"t\": 15.0, \"tag\": \"w\"".into());
     std::fs::write(&input, lines.join("\n")).unwrap();
-    let output = rtls(&["track", "--site", &site, "--input", &input, "--quiet"]);
+    let output = rtls(&[
+        "track", "--site", &site, "--input", &input, "--events", &events, "--quiet",
+    ]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains("4 malformed record(s) skipped"), "{stderr}");
+    assert!(stderr.contains(&format!("{input}:4: field `anchor`")), "{stderr}");
+    assert!(stderr.contains(&format!("{input}:9: field `range_m`")), "{stderr}");
+    assert!(stderr.contains("147 records"), "{stderr}");
+    let malformed: Vec<serde_json::Value> = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(|line| serde_json::from_str::<serde_json::Value>(line).unwrap())
+        .filter(|event| event["type"] == "malformed")
+        .collect();
+    let at: Vec<(u64, &str)> = malformed
+        .iter()
+        .map(|e| (e["line"].as_u64().unwrap(), e["field"].as_str().unwrap()))
+        .collect();
+    assert_eq!(at[..3], [(4, "anchor"), (9, "range_m"), (20, "t")]);
+    // the truncated line: the parser names where it ended
+    assert_eq!(at[3].0, 151);
+    // each at the newest record time read before it
+    assert_eq!(malformed[0]["t"], 0.2);
+    assert!(malformed.iter().all(|e| e["t"].as_f64().is_some_and(f64::is_finite)));
+    // --strict: the first stops the run, named
+    let output = rtls(&["track", "--site", &site, "--input", &input, "--strict", "--quiet"]);
     assert!(!output.status.success());
     let error = String::from_utf8_lossy(&output.stderr);
     assert!(error.contains(&format!("{input}:4: field `anchor`")), "{error}");
-    // a malformed value (a negative range is valid: Wi-Fi FTM/RTT reports them)
-    lines[3] = lines[3]
-        .replace("\"A9\"", "\"A4\"")
-        .replace("\"range_m\": ", "\"range_m\": true, \"x\": ");
-    std::fs::write(&input, lines.join("\n")).unwrap();
-    let error =
-        String::from_utf8_lossy(&rtls(&["track", "--site", &site, "--input", &input, "--quiet"]).stderr).to_string();
-    assert!(error.contains(&format!("{input}:4: field `range_m`")), "{error}");
+    // an input of which nothing can be used is an error, not an empty run
+    let garbage = dir.join("garbage.jsonl");
+    std::fs::write(&garbage, "not a record\n{}\n").unwrap();
+    let garbage = garbage.display().to_string();
+    let output = rtls(&["track", "--site", &site, "--input", &garbage, "--quiet"]);
+    assert!(!output.status.success());
+    let error = String::from_utf8_lossy(&output.stderr);
+    assert!(error.contains("none of its records could be used"), "{error}");
     // a tightly coupled KF is refused
     let output = rtls(&["track", "--site", &site, "--input", &input, "--filter", "kf", "--quiet"]);
     assert!(String::from_utf8_lossy(&output.stderr).contains("needs --filter ekf or ukf"));

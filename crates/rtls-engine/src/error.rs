@@ -19,6 +19,17 @@ pub enum EngineError {
         /// What is wrong and what is allowed.
         reason: String,
     },
+    /// A text input could not be read (an I/O error, not its content): the records after
+    /// `line` are unknown, so a caller stops rather than skipping them.
+    #[error("{file}: read error after line {line}: {reason}")]
+    Read {
+        /// File name as given by the caller.
+        file: String,
+        /// The last line read (1-based; 0 before the first).
+        line: usize,
+        /// The I/O error.
+        reason: String,
+    },
     /// A parameter is outside its valid range.
     #[error("invalid parameter `{name}`: {reason}")]
     InvalidParameter {

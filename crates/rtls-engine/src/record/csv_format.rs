@@ -241,7 +241,11 @@ impl<R: BufRead> Iterator for CsvRecords<R> {
             }
             Err(e) => {
                 self.done = true;
-                return Some(Err(error(self.line, format!("read error after this line: {e}"))));
+                return Some(Err(EngineError::Read {
+                    file: self.file.clone(),
+                    line: self.line,
+                    reason: e.to_string(),
+                }));
             }
         };
         let row = match row {

@@ -495,7 +495,11 @@ impl<R: BufRead> Iterator for JsonLines<R> {
                 }
                 Err(error) => {
                     self.done = true;
-                    return Some(Err(self.error(&format!("read error after this line: {error}"))));
+                    return Some(Err(EngineError::Read {
+                        file: self.file.clone(),
+                        line: self.line,
+                        reason: error.to_string(),
+                    }));
                 }
             }
         }
