@@ -203,7 +203,26 @@ fn tune_without_truth_reports_the_noise_it_found_and_bad_input_is_named() {
     let text = std::fs::read_to_string(&tuned).unwrap();
     assert!(!text.contains("range_std_m = 0.01,"), "{text}");
 
-    // a bad record is named by file, line and field; nothing is written
+    // a bad record among good ones costs only itself, named in the summary; --strict stops
+    let good = std::fs::read_to_string(&input).unwrap();
+    let bad_line = "{\"t\": 0, \"tag\": \"w\", \"kind\": \"range\", \"anchor\": \"Z9\", \"range_m\": 1}";
+    std::fs::write(&input, format!("{bad_line}\n{good}")).unwrap();
+    let out = rtls(&[
+        "tune", "--site", &site, "--input", &input, "--out", &tuned, "--grid", "0.2,3",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("1 malformed record(s) skipped") && stderr.contains("ranges.jsonl:1: field `anchor`"),
+        "{stderr}"
+    );
+    let strict = dir.join("strict.toml").display().to_string();
+    let out = rtls(&["tune", "--site", &site, "--input", &input, "--out", &strict, "--strict"]);
+    assert!(!out.status.success());
+    assert!(!std::path::Path::new(&strict).exists());
+
+    // an input of which no record can be used is named by file, line and field; nothing is
+    // written
     std::fs::write(
         &input,
         "{\"t\": 0, \"tag\": \"w\", \"kind\": \"range\", \"anchor\": \"Z9\", \"range_m\": 1}\n",
