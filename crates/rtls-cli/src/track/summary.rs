@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use rtls_engine::tracker::{Event, ANONYMOUS_TAG};
 
 /// The run finished, but tags with records got no track output (exit status
-/// [`EXIT_UNTRACKED`]).
+/// [`super::EXIT_UNTRACKED`]).
 #[derive(Debug)]
 pub struct UntrackedTags(pub usize);
 

@@ -1,7 +1,7 @@
 //! How far behind the wall clock a partition's live clock runs: a fixed lag, or one measured
 //! from how late the records reach the partition (the default, `pipeline.clock_lag_s = "auto"`).
 //!
-//! The live clock moves the trackers while no records come ([`super::event_clock`]), so silent
+//! The live clock moves the trackers while no records come (`pipeline/event_clock.rs`), so silent
 //! tags coast, are lost and raise alarms in real time, and records held in a site's re-ordering
 //! window are released. A record whose time is behind a tick its track already had is re-filtered
 //! (within the rewind horizon) or reported late. A record reaching the partition at wall time
