@@ -29,14 +29,13 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use rtls_engine::lifecycle::LifecycleEvent;
 use rtls_engine::radio_map::RadioMap;
-use rtls_engine::record::{CsvRecords, JsonLines, Record};
 use rtls_engine::site::{
     read_text_file, FilterKind, FingerprintFormat, MotionModelKind, Pipeline, Site, MAX_RADIO_MAP_BYTES, MAX_SITE_BYTES,
 };
 use rtls_engine::survey::{SurveyMap, SurveySettings};
 use rtls_engine::tracker::{Event, NoiseFit, Output, SegmentFit, Smoother, Tracker, FIT_STATES_MIN};
 
-use crate::malformed::Malformed;
+use crate::malformed::InputRecords;
 
 mod summary;
 
@@ -323,7 +322,7 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     } else {
         Output::default()
     };
-    let mut write = |out: &mut Output, counts: &mut Counts| -> anyhow::Result<()> {
+    let mut write = |out: &mut Output, counts: &mut Counts, malformed: Vec<String>| -> anyhow::Result<()> {
         if correction.is_some() {
             let mut positions = positions.borrow_mut();
             for update in out.updates.iter().filter(|u| !u.predicted) {
@@ -374,7 +373,8 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
                 writeln!(w, "{}", event.to_json_line()).context("writing events")?;
             }
         }
-        for event in counts.malformed_events.drain(..) {
+        for event in malformed {
+            *counts.events.entry("malformed").or_default() += 1;
             if let Some(w) = events_out.as_mut() {
                 writeln!(w, "{event}").context("writing events")?;
             }
@@ -389,51 +389,25 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
         Ok(())
     };
     // a record that cannot be used as written costs only itself (`malformed.rs`)
-    let mut malformed = Malformed::new(args.strict);
-    let mut newest_s = f64::NEG_INFINITY;
-    let mut take = |record: rtls_engine::Result<Record>,
-                    line: usize,
-                    counts: &mut Counts,
-                    out: &mut Output|
-     -> anyhow::Result<()> {
-        match record.and_then(|record| tracker.check_record(&record, &input_name, line).map(|()| record)) {
-            Ok(record) => {
-                if record.time_s.is_finite() {
-                    newest_s = newest_s.max(record.time_s);
-                }
-                let record = match (&correction, positions.borrow().get(&record.tag)) {
-                    (Some(map), Some(position_m)) => map.correct_record(&record, *position_m),
-                    _ => record,
-                };
-                counts.tags.entry(record.tag.clone()).or_default().records += 1;
-                tracker.push(record, out)?;
-                counts.records += 1;
-            }
-            Err(error) => {
-                let event = malformed.skip(error, counts.records, newest_s)?;
-                *counts.events.entry("malformed").or_default() += 1;
-                counts.malformed_events.push(event);
-            }
-        }
-        write(out, counts)
-    };
     let is_csv = args.input.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
-    if is_csv {
-        let mut records = CsvRecords::new(reader, &input_name)?;
-        while let Some(record) = records.next() {
-            let line = records.line();
-            take(record, line, &mut counts, &mut out)?;
+    let mut records = InputRecords::new(reader, &input_name, is_csv, args.strict)?;
+    while let Some((record, line)) = records.next_record()? {
+        if let Err(error) = tracker.check_record(&record, &input_name, line) {
+            records.refuse(error)?;
+        } else {
+            let record = match (&correction, positions.borrow().get(&record.tag)) {
+                (Some(map), Some(position_m)) => map.correct_record(&record, *position_m),
+                _ => record,
+            };
+            counts.tags.entry(record.tag.clone()).or_default().records += 1;
+            tracker.push(record, &mut out)?;
+            counts.records += 1;
         }
-    } else {
-        let mut records = JsonLines::new(reader, &input_name);
-        while let Some(record) = records.next() {
-            let line = records.line();
-            take(record, line, &mut counts, &mut out)?;
-        }
+        write(&mut out, &mut counts, records.take_events())?;
     }
-    malformed.check_some_usable(counts.records, &input_name)?;
+    let skipped = records.finish()?;
     tracker.finish(&mut out)?;
-    write(&mut out, &mut counts)?;
+    write(&mut out, &mut counts, records.take_events())?;
     bar.finish_and_clear();
     if let Some(smoother) = smoother {
         write_smoothed(smoother, &mut updates_out)?;
@@ -461,7 +435,7 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     if !counts.rejected.is_empty() {
         eprintln!("rejected by reason: {}", rejections_line(&counts.rejected));
     }
-    if let Some(line) = malformed.summary() {
+    if let Some(line) = skipped {
         eprintln!("{line}");
     }
     for (tag, [x, y, _]) in &counts.alternating {

@@ -19,12 +19,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use rtls_engine::evaluation::parse_truth_csv;
-use rtls_engine::record::{CsvRecords, JsonLines, Record};
+use rtls_engine::record::Record;
 use rtls_engine::tracker::{NoiseClass, Tracker};
 use rtls_engine::tuning::{tune, Tuning, TuningSettings};
 use toml_edit::{value, DocumentMut, InlineTable, Item, TableLike, Value};
 
-use crate::malformed::Malformed;
+use crate::malformed::InputRecords;
 use crate::track::{load_site_file, ModelOverrides};
 
 /// Arguments of `rtls tune`.
@@ -63,43 +63,22 @@ pub struct TuneArgs {
 
 /// Reads every record of `path`, checking reader ids against the site, keeping those at or
 /// before `until_s`. A record that cannot be used as written is skipped and counted, as in
-/// `rtls track` ([`Malformed`]; `strict`: it stops the run, naming file, line and field).
+/// `rtls track` ([`InputRecords`]; `strict`: it stops the run, naming file, line and field).
 fn read_records(path: &Path, tracker: &Tracker, until_s: f64, strict: bool) -> anyhow::Result<Vec<Record>> {
     let name = path.display().to_string();
     let file = BufReader::new(File::open(path).with_context(|| format!("opening {name}"))?);
+    let csv = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+    let mut input = InputRecords::new(file, &name, csv, strict)?;
     let mut records = Vec::new();
-    let (mut malformed, mut good, mut newest_s) = (Malformed::new(strict), 0, f64::NEG_INFINITY);
-    let mut keep = |record: rtls_engine::Result<Record>, line: usize| -> anyhow::Result<()> {
-        match record.and_then(|record| tracker.check_record(&record, &name, line).map(|()| record)) {
-            Ok(record) => {
-                good += 1;
-                if record.time_s.is_finite() {
-                    newest_s = newest_s.max(record.time_s);
-                }
-                if record.time_s <= until_s {
-                    records.push(record);
-                }
-            }
-            // no event file here: the summary line below names the first few
-            Err(error) => drop(malformed.skip(error, good, newest_s)?),
-        }
-        Ok(())
-    };
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
-        let mut reader = CsvRecords::new(file, &name)?;
-        while let Some(record) = reader.next() {
-            let line = reader.line();
-            keep(record, line)?;
-        }
-    } else {
-        let mut reader = JsonLines::new(file, &name);
-        while let Some(record) = reader.next() {
-            let line = reader.line();
-            keep(record, line)?;
+    while let Some((record, line)) = input.next_record()? {
+        match tracker.check_record(&record, &name, line) {
+            Err(error) => input.refuse(error)?,
+            Ok(()) if record.time_s <= until_s => records.push(record),
+            Ok(()) => {}
         }
     }
-    malformed.check_some_usable(good, &name)?;
-    if let Some(line) = malformed.summary() {
+    // no event file here: the summary line names the first few
+    if let Some(line) = input.finish()? {
         eprintln!("{line}");
     }
     Ok(records)

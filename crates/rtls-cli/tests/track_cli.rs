@@ -160,8 +160,10 @@ fn a_bad_record_costs_itself_named_by_file_line_and_field_and_strict_stops_there
     assert_eq!(at[..3], [(4, "anchor"), (9, "range_m"), (20, "t")]);
     // the truncated line: the parser names where it ended
     assert_eq!(at[3].0, 151);
-    // each at the newest record time read before it
-    assert_eq!(malformed[0]["t"], 0.2);
+    // each at the newest record time read so far: the unknown anchor's own (its record
+    // parsed), the mistyped value's line 8 before it
+    assert_eq!(malformed[0]["t"], 0.30000000000000004);
+    assert_eq!(malformed[1]["t"], 0.7000000000000001);
     assert!(malformed.iter().all(|e| e["t"].as_f64().is_some_and(f64::is_finite)));
     // --strict: the first stops the run, named
     let output = rtls(&["track", "--site", &site, "--input", &input, "--strict", "--quiet"]);

@@ -34,8 +34,6 @@ pub(super) struct Counts {
     pub(super) tags: BTreeMap<String, TagCounts>,
     /// Tags whose gated-out fixes kept returning to one other place (`alternating`), with it.
     pub(super) alternating: BTreeMap<String, [f64; 3]>,
-    /// `malformed` events (JSON lines) not written yet.
-    pub(super) malformed_events: Vec<String>,
 }
 
 /// One tag's records, track updates and rejected or late records.
