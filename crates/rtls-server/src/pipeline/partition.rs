@@ -102,9 +102,11 @@ impl PartitionWorker {
                         (f64::INFINITY, f64::NEG_INFINITY),
                         |(oldest_s, newest_s), (_, record)| (oldest_s.min(record.time_s), newest_s.max(record.time_s)),
                     );
+                    // the batch's arrival, for the live clock's lag and the watermark
+                    let wall_s = unix_s();
                     self.event_clock.observe(newest_s);
-                    self.clock_lag.observe(oldest_s, unix_s());
-                    self.hold_ticks(&batch, newest_s);
+                    self.clock_lag.observe(oldest_s, wall_s);
+                    self.hold_ticks(&batch, newest_s, wall_s);
                     for (id, record) in batch {
                         let tag = record.tag.clone();
                         let (tracker, step) = (&mut self.tracker, self.track_step);
@@ -152,7 +154,7 @@ impl PartitionWorker {
                 let lag_s = self.clock_lag.lag_s(wall_s);
                 self.metrics.live_clock_lag_seconds.observe(lag_s);
                 let target_s = self.event_clock.target_s(wall_s, lag_s);
-                self.hold_ticks(&[], f64::NEG_INFINITY);
+                self.hold_ticks(&[], f64::NEG_INFINITY, wall_s);
                 if let Err(e) = self.tracker.advance_to(target_s, &mut out) {
                     tracing::warn!(partition = self.index, error = %e, "advancing the clock failed");
                 }
@@ -165,15 +167,15 @@ impl PartitionWorker {
     /// Notes the batch's arrivals and sets the tracker's watermark from them
     /// ([`super::watermark`]): the ticks wait for the slowest sender still heard, so its tags
     /// are not coasted and then rewound by the other senders' newer records. `newest_s`: the
-    /// batch's newest record time (−∞ for none). The lag it holds the ticks by is observed in
+    /// batch's newest record time (−∞ for none); `wall_s`: the Unix time of its arrival. The lag it holds the ticks by is observed in
     /// `rtls_watermark_lag_seconds`. Nothing is done without a rewind horizon (the tracker
     /// ignores a watermark then).
-    fn hold_ticks(&mut self, batch: &[(i64, Record)], newest_s: f64) {
+    fn hold_ticks(&mut self, batch: &[(i64, Record)], newest_s: f64, wall_s: f64) {
         let horizon_s = self.site.tracker.rewind_horizon_s;
         if horizon_s <= 0.0 {
             return;
         }
-        let (wall_s, now) = (unix_s(), Instant::now());
+        let now = Instant::now();
         for (_, record) in batch {
             self.watermark.observe(&record.tag, record.time_s, wall_s, now);
         }
