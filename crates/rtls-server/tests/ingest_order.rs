@@ -22,10 +22,7 @@ async fn payloads_of_one_sender_are_logged_in_arrival_order_whatever_the_polling
     let payloads = 40;
     let futures: Vec<_> = (0..payloads)
         .map(|k| {
-            let line = format!(
-                r#"{{"t": {}, "tag": "T1", "kind": "fix", "position_m": [1.0, 2.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#,
-                100.0 + 0.1 * k as f64
-            );
+            let line = fix_line("T1", 100.0 + 0.1 * k as f64, 1.0);
             sink.ingest("mqtt:rtls/v1/measurements/r1", Bytes::from(line), &mut order)
         })
         .collect();
@@ -41,32 +38,39 @@ async fn payloads_of_one_sender_are_logged_in_arrival_order_whatever_the_polling
     );
 }
 
+/// The wall clock, Unix seconds.
+fn unix_s() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64()
+}
+
+/// A fix of `tag` at time `t_s` at `(x_m, 2)` m, σ = 0.2 m: one measurement line.
+fn fix_line(tag: &str, t_s: f64, x_m: f64) -> String {
+    format!(
+        r#"{{"t": {t_s}, "tag": "{tag}", "kind": "fix", "position_m": [{x_m}, 2.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#
+    )
+}
+
+/// One partition, advanced by the wall clock with `clock_lag`.
+fn live_pipeline(clock_lag: ClockLag) -> PipelineConfig {
+    PipelineConfig {
+        partitions: 1,
+        live_clock: true,
+        clock_lag,
+        ..PipelineConfig::default()
+    }
+}
+
 /// Records of tag `tag` sent one every `period`, each `delay_s` after its time, to a live
 /// pipeline whose clock lags the wall by 0.5 s (the test site re-filters nothing): how many
 /// were reported late. The tag must be tracked.
 async fn late_deliveries(name: &str, tag: &str, count: usize, period: Duration, delay_s: f64) -> f64 {
-    let state = state_on(
-        name,
-        PipelineConfig {
-            partitions: 1,
-            live_clock: true,
-            clock_lag: ClockLag::Fixed(0.5),
-            ..PipelineConfig::default()
-        },
-    );
+    let state = state_on(name, live_pipeline(ClockLag::Fixed(0.5)));
     let app = rtls_server::http::router(state.clone());
-    let unix_s = || {
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_secs_f64()
-    };
     for k in 0..count {
-        let line = format!(
-            r#"{{"t": {}, "tag": "{tag}", "kind": "fix", "position_m": [{}, 2.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#,
-            unix_s() - delay_s,
-            1.0 + 0.02 * k as f64
-        );
+        let line = fix_line(tag, unix_s() - delay_s, 1.0 + 0.02 * k as f64);
         assert_eq!(state.pipeline.submit_lines("http", line.as_bytes()).await, Ok(1));
         tokio::time::sleep(period).await;
     }
@@ -103,29 +107,12 @@ async fn a_prompt_tag_falling_silent_coasts_a_measured_lag_after_its_output_inte
     // records delivered at once: the measured lag (`pipeline/clock_lag.rs`) is ~0.1 s, so
     // the tag's first coasting output (the site's output interval, 1 s, after its last
     // record) comes ~1.1–1.4 s after it; the former fixed lag of 2 s made it 3 s
-    let state = state_on(
-        "ingest-measured-lag",
-        PipelineConfig {
-            partitions: 1,
-            live_clock: true,
-            ..PipelineConfig::default()
-        },
-    );
+    let state = state_on("ingest-measured-lag", live_pipeline(ClockLag::Auto));
     assert_eq!(PipelineConfig::default().clock_lag, ClockLag::Auto);
     let app = rtls_server::http::router(state.clone());
-    let unix_s = || {
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_secs_f64()
-    };
     let mut last_sent = std::time::Instant::now();
     for k in 0..15 {
-        let line = format!(
-            r#"{{"t": {}, "tag": "S1", "kind": "fix", "position_m": [{}, 2.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#,
-            unix_s(),
-            1.0 + 0.1 * k as f64
-        );
+        let line = fix_line("S1", unix_s(), 1.0 + 0.1 * k as f64);
         assert_eq!(state.pipeline.submit_lines("http", line.as_bytes()).await, Ok(1));
         last_sent = std::time::Instant::now();
         tokio::time::sleep(Duration::from_millis(100)).await;
@@ -163,36 +150,17 @@ async fn a_sender_behind_the_others_is_neither_coasted_nor_revised() {
         "reorder_window_s = 0.0\nrewind_horizon_s = 2.0\noutput_interval_s = 0.5",
     );
     let site = rtls_engine::site::Site::from_toml_str(&site_text, "watermark-site.toml").expect("site");
-    let state = common::state_on_site(
-        "ingest-watermark",
-        site,
-        PipelineConfig {
-            partitions: 1,
-            live_clock: true,
-            ..PipelineConfig::default()
-        },
-    );
+    let state = common::state_on_site("ingest-watermark", site, live_pipeline(ClockLag::Auto));
     let app = rtls_server::http::router(state.clone());
-    let unix_s = || {
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_secs_f64()
-    };
-    let line = |tag: &str, t: f64, x: f64| {
-        format!(
-            r#"{{"t": {t}, "tag": "{tag}", "kind": "fix", "position_m": [{x}, 2.0], "covariance_m2": [0.04, 0.0, 0.0, 0.04]}}"#
-        )
-    };
     let delay_s = 1.2;
     let start_s = unix_s();
     for k in 0..50 {
         let now_s = unix_s();
         let x = 1.0 + 0.05 * f64::from(k);
-        let prompt = line("PROMPT", now_s, x);
+        let prompt = fix_line("PROMPT", now_s, x);
         assert_eq!(state.pipeline.submit_lines("fast", prompt.as_bytes()).await, Ok(1));
         if now_s - delay_s >= start_s {
-            let slow = line("SLOW", now_s - delay_s, x);
+            let slow = fix_line("SLOW", now_s - delay_s, x);
             assert_eq!(state.pipeline.submit_lines("slow", slow.as_bytes()).await, Ok(1));
         }
         tokio::time::sleep(Duration::from_millis(100)).await;
