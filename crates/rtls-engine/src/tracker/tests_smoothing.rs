@@ -140,6 +140,53 @@ fn assert_smoothing_helps(
     );
 }
 
+/// Fix errors that stay for far longer than the filter's memory (a UWB fix off by the
+/// anchors' geometry wherever the tag walks slowly): the past and the future share them, and
+/// the smoothed ellipses must not claim the future halved them. The bound over the whole state
+/// (`intersection_bound`) did, and held the truth markedly less often than the filter's.
+#[test]
+fn with_fix_errors_that_persist_for_a_minute_the_smoothed_ellipses_keep_the_filters_calibration() {
+    // e_k = ρ e_{k−1} + √(1 − ρ²) w_k, ρ = 0.99 per 0.5 s (a correlation time of 50 s), σ = 1 m
+    let truth = |tag: usize, t: f64| circle(t + 7.0 * tag as f64);
+    let rho: f64 = 0.99;
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let noise = Normal::new(0.0, 1.0).unwrap();
+    let mut errors = [[0.0, 0.0]; 24];
+    let mut records = Vec::new();
+    for k in 0..240 {
+        let t = 0.5 * f64::from(k);
+        for (tag, error) in errors.iter_mut().enumerate() {
+            for e in error.iter_mut() {
+                *e = if k == 0 {
+                    noise.sample(&mut rng)
+                } else {
+                    rho * *e + (1.0 - rho * rho).sqrt() * noise.sample(&mut rng)
+                };
+            }
+            let p = truth(tag, t);
+            records.push(Record {
+                time_s: t,
+                tag: format!("w{tag}"),
+                measurement: Measurement::Fix {
+                    position_m: vec![p[0] + error[0], p[1] + error[1]],
+                    covariance_m2: vec![1.0, 0.0, 0.0, 1.0],
+                },
+            });
+        }
+    }
+    let (filtered, smoothed) = track_and_smooth(records);
+    let (filtered_rmse, filtered_coverage, n) = score(&filtered, truth);
+    let (smoothed_rmse, smoothed_coverage, _) = score(&smoothed.updates, truth);
+    println!(
+        "{n} updates: filtered RMSE {filtered_rmse:.3} m, 95 % coverage {filtered_coverage:.3}; \
+         smoothed {smoothed_rmse:.3} m, {smoothed_coverage:.3}"
+    );
+    assert!(
+        smoothed_coverage >= filtered_coverage - 0.02,
+        "smoothed 95 % ellipses hold the truth {smoothed_coverage:.3} of the time, filtered {filtered_coverage:.3}"
+    );
+}
+
 #[test]
 fn with_fix_errors_that_persist_for_seconds_the_smoothed_ellipses_keep_the_filters_calibration() {
     // each tag's fix errors are AR(1): e_k = ρ e_{k−1} + √(1 − ρ²) w_k, ρ = 0.8 per 0.5 s

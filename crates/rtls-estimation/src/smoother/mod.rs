@@ -17,8 +17,10 @@
 //! Rauch, Tung, Striebel (1965); Bar-Shalom, Li, Kirubarajan (2001) §8.6; Särkkä (2008),
 //! "Unscented Rauch–Tung–Striebel smoother", IEEE TAC 53(3).
 
+mod marginal;
 mod tuned;
 
+pub use marginal::marginal_intersection_bound;
 pub use tuned::{tuned_smooth, InformationStep, NoiseFit, TunedSmoothing, FIT_STEPS_MAX};
 
 use alloc::vec::Vec;
