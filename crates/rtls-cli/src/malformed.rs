@@ -1,5 +1,5 @@
-//! The records of a measurement file for `rtls track` and `rtls tune` (`tune` has no event
-//! file: its summary names them), where a record that cannot be used as written — a malformed
+//! The records of a measurement file for `rtls track`, `rtls tune` and `rtls survey` (`tune` and
+//! `survey` have no event file: their summaries name them), where a record that cannot be used as written — a malformed
 //! line, a mistyped or missing field, a reader id the site does not know — costs only itself.
 //!
 //! A recording from another deployment may hold a few such lines (a gateway's truncated write

@@ -5,7 +5,7 @@
 //! rtls survey --site SITE --input RECORDS --tracks TRACKS --out CELLS.csv [--readers-out READERS.csv]
 //!             [--png MAP.png] [--cell-m 10] [--max-gap-s 2] [--skip-initial-s 5] [--min-count 50]
 //!             [--z 3.5] [--min-effect-db 3] [--min-effect-m 0.3] [--distance-band-m 10 | --one-population]
-//!             [--flag-spread] [--top 10]
+//!             [--flag-spread] [--top 10] [--strict]
 //! ```
 //! Every range / RSSI measurement is compared with the site's model at the tag's tracked position
 //! (`rtls_engine::survey`); the residuals are summarised per (10 m cell, reader) and per reader,
@@ -13,6 +13,11 @@
 //! flagged. Prints a summary (what was matched, how many entries are flagged, the most
 //! significant ones), writes the cell table (and the reader table), and draws the map: cells
 //! coloured by bias, flagged cells outlined, readers, flagged readers in red.
+//!
+//! A measurement record that cannot be read as written costs only itself, as in `rtls track`
+//! ([`crate::malformed`]): the summary counts the skipped records and names the first; `--strict`
+//! stops at the first instead. A malformed track line stops the run (the tracks are this
+//! program's own output).
 
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Write};
@@ -22,9 +27,10 @@ use anyhow::{anyhow, Context, Result};
 use clap::Args;
 use plotters::prelude::*;
 
+use crate::malformed::InputRecords;
 use crate::plot::{padded_ranges, register_font};
 use rtls_engine::evaluation::{parse_track_lines, TRACKS_SOURCE};
-use rtls_engine::record::{CsvRecords, JsonLines, Record};
+use rtls_engine::record::Record;
 use rtls_engine::site::Site;
 use rtls_engine::survey::{residuals, ResidualKind, SurveyMap, SurveySettings, RECORDS_SOURCE};
 use rtls_engine::EngineError;
@@ -83,6 +89,9 @@ pub struct SurveyArgs {
     /// How many flagged cells and readers the summary lists.
     #[arg(long, value_name = "N", default_value_t = 10)]
     pub top: usize,
+    /// Stop at the first malformed measurement record instead of skipping it.
+    #[arg(long)]
+    pub strict: bool,
 }
 
 fn positive(text: &str) -> core::result::Result<f64, String> {
@@ -120,26 +129,20 @@ fn read(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
 }
 
-/// Every record of the input file and its 1-based line (errors name the file, line and field).
-fn read_records(path: &Path) -> Result<(Vec<Record>, Vec<usize>)> {
+/// The usable records of the input file and their 1-based lines, and the summary's line on
+/// the malformed ones skipped (see the module; errors name the file, line and field).
+fn read_records(path: &Path, strict: bool) -> Result<(Vec<Record>, Vec<usize>, Option<String>)> {
     let name = path.display().to_string();
     let file = File::open(path).with_context(|| format!("opening {name}"))?;
-    let reader = BufReader::new(file);
+    let csv = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+    let mut input = InputRecords::new(BufReader::new(file), &name, csv, strict)?;
     let (mut records, mut lines) = (Vec::new(), Vec::new());
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
-        let mut rows = CsvRecords::new(reader, &name)?;
-        while let Some(record) = rows.next() {
-            records.push(record?);
-            lines.push(rows.line());
-        }
-    } else {
-        let mut rows = JsonLines::new(reader, &name);
-        while let Some(record) = rows.next() {
-            records.push(record?);
-            lines.push(rows.line());
-        }
+    while let Some((record, line)) = input.next_record()? {
+        records.push(record);
+        lines.push(line);
     }
-    Ok((records, lines))
+    let skipped = input.finish()?;
+    Ok((records, lines, skipped))
 }
 
 /// Replaces the survey's placeholder file names with the real ones (and a record's index with
@@ -186,7 +189,7 @@ fn create(path: &Path) -> Result<BufWriter<File>> {
 pub fn run(args: &SurveyArgs) -> Result<()> {
     let site_name = args.site.display().to_string();
     let site = Site::from_toml_str(&read(&args.site)?, &site_name)?;
-    let (records, lines) = read_records(&args.input)?;
+    let (records, lines, skipped) = read_records(&args.input, args.strict)?;
     let tracks_name = args.tracks.display().to_string();
     let tracks = parse_track_lines(&read(&args.tracks)?, &tracks_name)?;
     let settings = args.settings();
@@ -225,6 +228,9 @@ pub fn run(args: &SurveyArgs) -> Result<()> {
         ));
     }
     println!("{summary}");
+    if let Some(skipped) = skipped {
+        println!("{skipped}");
+    }
     let scored = |z: Option<f64>| usize::from(z.is_some());
     println!(
         "cells: {} entries ({} scored), {} flagged; readers: {} entries ({} scored), {} flagged",

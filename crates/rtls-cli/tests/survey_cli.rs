@@ -169,6 +169,43 @@ fn survey_errors_name_the_file_line_and_field() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A malformed measurement record costs only itself: the survey of the rest is the same but
+/// for that record, and its summary names it; `--strict` stops at it.
+#[test]
+fn survey_skips_a_malformed_record_and_names_it() {
+    let dir = temp_dir("malformed");
+    let (site, records, tracks) = inputs(&dir);
+    let out = dir.join("cells.csv").display().to_string();
+    let survey = |extra: &[&str]| {
+        let mut args = vec![
+            "survey", "--site", &site, "--input", &records, "--tracks", &tracks, "--out", &out,
+        ];
+        args.extend_from_slice(extra);
+        rtls(&args)
+    };
+    let good = survey(&[]);
+    assert!(good.status.success(), "{}", String::from_utf8_lossy(&good.stderr));
+    let good = String::from_utf8_lossy(&good.stdout).to_string();
+    // line 3: a mistyped RSSI
+    let text = std::fs::read_to_string(&records).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let value = lines[2].rsplit_once("\"rssi_dbm\": ").unwrap().0.to_string();
+    lines[2] = format!("{value}\"rssi_dbm\": \"loud\"}}");
+    std::fs::write(&records, lines.join("\n") + "\n").unwrap();
+    let skipped = survey(&[]);
+    assert!(skipped.status.success(), "{}", String::from_utf8_lossy(&skipped.stderr));
+    let stdout = String::from_utf8_lossy(&skipped.stdout);
+    let count = |summary: &str| -> usize { summary.split(" records:").next().unwrap().trim().parse().unwrap() };
+    assert_eq!(count(&stdout) + 1, count(&good), "{stdout}\n---\n{good}");
+    assert!(stdout.contains("1 malformed record(s) skipped"), "{stdout}");
+    assert!(stdout.contains(&format!("{records}:3: field `rssi_dbm`")), "{stdout}");
+    let strict = survey(&["--strict"]);
+    assert!(!strict.status.success());
+    let stderr = String::from_utf8_lossy(&strict.stderr);
+    assert!(stderr.contains(&format!("{records}:3: field `rssi_dbm`")), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// RMSE of a track file against the walk of `inputs` where R4 is attenuated (42 ≤ x ≤ 60 m).
 fn shadowed_rmse(tracks_path: &Path) -> f64 {
     let text = std::fs::read_to_string(tracks_path).unwrap();
