@@ -266,6 +266,8 @@ fn site_toml(
     let _ = writeln!(
         s,
         "[tracker]\n\
+         # The beacon was carried by a person on foot (the walker's speed limit, 6 m/s, among its defaults).\n\
+         platform = \"walker\"\n\
          # RSSI is turned into position fixes by multilateration with the path-loss laws above, then filtered.\n\
          pipeline = \"fix-then-filter\"\n\
          # A carried beacon walks at 0.15-0.74 m/s along straight, rectangular and zigzag tracks: constant\n\

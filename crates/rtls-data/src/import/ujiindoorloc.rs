@@ -303,6 +303,8 @@ fn site_toml(c: &Converted) -> String {
     );
     s.push_str(
         "[tracker]\n\
+         # The phones were carried by people on foot (the walker's speed limit, 6 m/s, among its defaults).\n\
+         platform = \"walker\"\n\
          # Each scan becomes a fingerprint (WKNN) fix; the filter smooths a phone's fixes.\n\
          pipeline = \"fix-then-filter\"\n\
          # Fixes are positions, so the filter is linear.\n\

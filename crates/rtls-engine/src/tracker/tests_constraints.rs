@@ -125,7 +125,12 @@ fn site(knowledge: Knowledge) -> Site {
     if knowledge.max_speed {
         text.push_str("max_speed_mps = 2.0\n");
     }
-    Site::from_toml_str(&text, "mine-section.toml").unwrap()
+    let mut site = Site::from_toml_str(&text, "mine-section.toml").unwrap();
+    if !knowledge.max_speed {
+        // nor the walker's default limit
+        site.tracker.max_speed_mps = None;
+    }
+    site
 }
 
 /// One scan a second for `seconds`: every working reader sharing a corridor with the miner
@@ -407,4 +412,40 @@ fn a_track_the_readers_cannot_see_moves_to_the_corridor_they_can_see() {
     );
     // (before the move: 5 of 1 806, 0.28 %)
     assert_eq!(rock, 0, "{rock} of {outputs} outputs in the rock");
+}
+
+/// In fix-then-filter each fix closes an epoch, and the speed limit applies there: a track
+/// whose fixes run away (fingerprints on the wrong floor) never reports, nor coasts at, more
+/// than the limit. Without the limit the same fixes give it more than twice that.
+#[test]
+fn a_fix_then_filter_track_never_reports_more_than_the_speed_limit() {
+    // fixes σ = 3 m, 0.1 s apart (faster than the tracker reports), moving east at 8 m/s from
+    // t = 5 s on
+    let records: Vec<Record> = (0..200)
+        .map(|k| {
+            let t = 0.1 * f64::from(k);
+            let x = 8.0 * (t - 5.0).max(0.0);
+            Record {
+                time_s: t,
+                tag: "phone".into(),
+                measurement: Measurement::Fix {
+                    position_m: vec![x, 0.0],
+                    covariance_m2: vec![9.0, 0.0, 0.0, 9.0],
+                },
+            }
+        })
+        .collect();
+    let fastest = |extra: &str| {
+        let mut tracker = Tracker::new(&super::tests::site("fix-then-filter", "kf", extra)).unwrap();
+        let out = super::tests::run(&mut tracker, records.clone());
+        assert!(out.updates.iter().filter(|u| !u.predicted).count() >= 150);
+        out.updates
+            .iter()
+            .map(|u| u.velocity_mps[0].hypot(u.velocity_mps[1]))
+            .fold(0.0, f64::max)
+    };
+    let free = fastest("");
+    assert!(free > 6.0, "fastest without a limit: {free} m/s");
+    let limited = fastest("max_speed_mps = 3.0");
+    assert!(limited <= 3.0 + 1e-9, "fastest with the 3 m/s limit: {limited} m/s");
 }
