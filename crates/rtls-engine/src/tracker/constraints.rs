@@ -175,19 +175,26 @@ pub(super) fn coast<const N: usize>(shared: &Shared, track: &mut Track<N>, now_s
     constrain(shared, constraints, track, &[])
 }
 
-/// Silence, map and speed on the track's state, in that order.
+/// Silence, map and speed on the track's state, in that order. A state they changed was told
+/// more than the information the track keeps for a smoother (pseudo-measurements and
+/// projections are not measurements): it is marked partial, and a smoother runs the site's
+/// model over the tracker's states there instead of re-filtering without them.
 fn constrain<const N: usize>(
     shared: &Shared,
     constraints: &Constraints,
     track: &mut Track<N>,
     heard: &[usize],
 ) -> Result<()> {
+    let before = track.state;
     silence(shared, constraints, track, heard)?;
     if constraints.map_enabled {
         map(shared, constraints, track)?;
     }
     if let Some(max_speed_mps) = constraints.max_speed_mps {
         limit_speed(shared, track, max_speed_mps)?;
+    }
+    if track.state != before {
+        track.information_partial = true;
     }
     Ok(())
 }

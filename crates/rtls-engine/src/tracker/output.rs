@@ -469,7 +469,8 @@ pub struct ReportedState {
     /// Whether one of those updates told more than `information` says (one correlated with
     /// states outside the CV layout — a speed whose heading's drift is considered, a range
     /// whose offset is —, one predicted with an accelerometer's control input, or the IMM's
-    /// mixture).
+    /// mixture), or a constraint moved the state since (silent readers, the corridors, the
+    /// speed limit).
     pub partial_information: bool,
     /// A track whose motion model has the turn rate as a state (`motion_model = "ct"`): its
     /// whole state `[x, vx, y, vy, ω]`, so the smoother's backward pass follows the turn.

@@ -40,7 +40,8 @@
 //! track shows a steady walk (BLE path loss: 1.82 → 1.65 m, docs/EVALUATION.md). Segments of
 //! fewer than [`FIT_STATES_MIN`] measured states, and those whose updates told more than their
 //! information in the CV layout says (updates correlated with the heading's drift or a range
-//! offset, predicted with an accelerometer's control input, the IMM's mixtures:
+//! offset, predicted with an accelerometer's control input, the IMM's mixtures, states a
+//! constraint moved — silent readers, the corridors, the speed limit:
 //! [`ReportedState::partial_information`]), are smoothed
 //! with the site's model over the tracker's states as above. The reported covariance is the
 //! bound above either way (the fitted model assumes white errors and its own covariances are
@@ -298,7 +299,7 @@ impl Smoother {
         // tracker's covariances are calibrated online (adaptive noise, correlated errors'
         // inflation), the tuned model's are not. Where the tracker's updates told more than
         // the CV layout holds (`partial`: odometry's heading drift, range offsets, control
-        // inputs, the IMM), that backward pass is not the tracker's own model, and what it
+        // inputs, the IMM, constraints), that backward pass is not the tracker's own model, and what it
         // says the future knows is not credited: the filtered covariance is reported
         let smoothed = self.kf.smooth(&filtered, &self.motion).map_err(|e| e.to_string())?;
         let positions: Vec<usize> = (0..N / 2).map(|axis| 2 * axis).collect();
@@ -320,7 +321,7 @@ impl Smoother {
         let tuned = if partial {
             Err(
                 "an update told more than its information in the CV layout (the heading's drift, a \
-                 range offset, an accelerometer's control input, the IMM)"
+                 range offset, an accelerometer's control input, the IMM, a constraint)"
                     .to_string(),
             )
         } else if measured < FIT_STATES_MIN {

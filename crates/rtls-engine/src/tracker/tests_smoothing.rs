@@ -440,3 +440,29 @@ fn a_coordinated_turn_is_smoothed_with_its_own_model() {
     }
     assert_smoothing_helps(&filtered, &smoothed, truth, 0.8, 0.9);
 }
+
+/// A track whose speed the limit cut is smoothed with the site's model over its own states,
+/// which hold the cut, not re-filtered from its updates' information, which does not: the
+/// smoothed speed stays near the limit instead of the fixes' run.
+#[test]
+fn a_track_the_speed_limit_cut_is_smoothed_over_its_own_states() {
+    // fixes σ = 3 m, 1 s apart, running east at 8 m/s from t = 5 s on; the limit is 3 m/s
+    let records: Vec<Record> = (0..30)
+        .map(|k| {
+            let t = f64::from(k);
+            Record {
+                time_s: t,
+                tag: "phone".into(),
+                measurement: Measurement::Fix {
+                    position_m: vec![8.0 * (t - 5.0).max(0.0), 0.0],
+                    covariance_m2: vec![9.0, 0.0, 0.0, 9.0],
+                },
+            }
+        })
+        .collect();
+    let (_, smoothed) = track_and_smooth_on(&site("fix-then-filter", "kf", "max_speed_mps = 3.0"), records.clone());
+    assert_site_model_for_every_segment(&smoothed);
+    // without the limit the same fixes are re-filtered with their own fitted noise
+    let (_, free) = track_and_smooth_on(&site("fix-then-filter", "kf", ""), records);
+    assert!(free.fits.iter().all(|segment| segment.fit.is_ok()), "{:?}", free.fits);
+}

@@ -202,7 +202,8 @@ pub(crate) struct Track<const N: usize> {
     pub(super) information: Option<Box<InformationStep<N>>>,
     /// Whether an update since the last reported state told more than its `information`
     /// says: one correlated with states outside the CV layout (the heading's drift, a range
-    /// offset), one predicted with an accelerometer's control input, or the IMM's.
+    /// offset), one predicted with an accelerometer's control input, or the IMM's; or a
+    /// constraint (silent readers, the corridors, the speed limit) moved the state.
     #[serde(skip)]
     pub(super) information_partial: bool,
 }
