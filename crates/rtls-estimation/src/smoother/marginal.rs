@@ -9,6 +9,8 @@ use crate::error::{EstimationError, Result};
 use crate::gaussian::{Gaussian, Matrix};
 use crate::math::sqrt;
 
+use super::psd_pseudo_inverse;
+
 /// Golden-section steps of the search for `ω*` (the bracket shrinks by 0.618 per step: 10⁻¹⁰
 /// of `[0, 1]` after 48).
 const OMEGA_STEPS: usize = 48;
@@ -88,13 +90,14 @@ pub fn marginal_intersection_bound<const N: usize>(
         return Err(not_definite("smoothed covariance bound (its components)"));
     }
     let p_f = DMatrix::from_column_slice(N, N, filtered.covariance().as_slice());
-    let p_s = DMatrix::from_column_slice(N, N, smoothed.covariance().as_slice());
-    let largest = p_f.symmetric_eigenvalues().max();
+    let eigen_f = p_f.clone().symmetric_eigen();
+    let largest = eigen_f.eigenvalues.max();
     if !(largest.is_finite() && largest > 0.0) {
         return Err(not_definite("filtered covariance (smoothed covariance bound)"));
     }
+    let eigen_s = DMatrix::from_column_slice(N, N, smoothed.covariance().as_slice()).symmetric_eigen();
     // I_b = P_s⁺ − P_f⁺, its negative part (the future taking information) dropped
-    let info_b = clamped(&(pseudo_inverse(&p_s) - pseudo_inverse(&p_f)), 0.0);
+    let info_b = clamped(&(psd_pseudo_inverse(&eigen_s) - psd_pseudo_inverse(&eigen_f)), 0.0);
     // J_b = I_b,SS − I_b,SR I_b,RR⁺ I_b,RS
     let rest: Vec<usize> = (0..N).filter(|i| !components.contains(i)).collect();
     let block = |m: &DMatrix<f64>, rows: &[usize], cols: &[usize]| {
@@ -106,7 +109,10 @@ pub fn marginal_intersection_bound<const N: usize>(
     } else {
         let i_sr = block(&info_b, components, &rest);
         let i_rr = block(&info_b, &rest, &rest);
-        clamped(&(&i_ss - &i_sr * pseudo_inverse(&i_rr) * i_sr.transpose()), 0.0)
+        clamped(
+            &(&i_ss - &i_sr * psd_pseudo_inverse(&i_rr.symmetric_eigen()) * i_sr.transpose()),
+            0.0,
+        )
     };
     // A = (P_f,SS)⁻¹
     let a = block(&p_f, components, components)
@@ -133,9 +139,11 @@ pub fn marginal_intersection_bound<const N: usize>(
             f_right = trace(right);
         }
     }
-    let best = 0.5 * (low + high);
-    let omega = if trace(best) < trace(1.0) { best } else { 1.0 };
-    let p_ci = fused(omega).ok_or(not_definite("smoothed covariance bound"))?;
+    let p_ci = [fused(0.5 * (low + high)), fused(1.0)]
+        .into_iter()
+        .flatten()
+        .min_by(|a, b| a.trace().total_cmp(&b.trace()))
+        .ok_or(not_definite("smoothed covariance bound"))?;
     // P_s with its S × S block replaced by P_ci(ω*)
     let mut bound = *smoothed.covariance();
     for (r, &i) in components.iter().enumerate() {
@@ -151,22 +159,6 @@ pub fn marginal_intersection_bound<const N: usize>(
     } else {
         Err(not_definite("smoothed covariance bound"))
     }
-}
-
-/// The pseudo-inverse of a symmetric matrix by its eigenvalues (those at most `10⁻¹²` of the
-/// largest magnitude taken as zero).
-fn pseudo_inverse(m: &DMatrix<f64>) -> DMatrix<f64> {
-    let symmetric = (m + m.transpose()) * 0.5;
-    let eigen = symmetric.symmetric_eigen();
-    let largest = eigen.eigenvalues.amax();
-    let inverted = eigen.eigenvalues.map(|lambda| {
-        if largest > 0.0 && lambda.abs() > 1e-12 * largest {
-            1.0 / lambda
-        } else {
-            0.0
-        }
-    });
-    &eigen.eigenvectors * DMatrix::from_diagonal(&inverted) * eigen.eigenvectors.transpose()
 }
 
 /// A symmetric matrix with its eigenvalues below `floor` raised to it.

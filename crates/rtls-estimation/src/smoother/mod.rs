@@ -118,11 +118,7 @@ pub fn intersection_bound<const N: usize>(
             what: "filtered covariance (smoothed covariance bound)",
         });
     }
-    let inverted = eigen
-        .eigenvalues
-        .map(|lambda| if lambda > 1e-12 * largest { 1.0 / lambda } else { 0.0 });
-    let pinv = &eigen.eigenvectors * DMatrix::from_diagonal(&inverted) * eigen.eigenvectors.transpose();
-    let pinv = Matrix::<N>::from_column_slice(pinv.as_slice());
+    let pinv = Matrix::<N>::from_column_slice(psd_pseudo_inverse(&eigen).as_slice());
     // M_f = P_s P_f⁺ P_s
     let m_f = p_s * pinv * p_s;
     let m_f = (m_f + m_f.transpose()) * 0.5;
@@ -161,6 +157,16 @@ pub fn intersection_bound<const N: usize>(
             what: "smoothed covariance bound",
         })
     }
+}
+
+/// `M⁺` of a symmetric positive semi-definite matrix from its eigendecomposition: eigenvalues
+/// at most `10⁻¹²` of the largest are taken as zero (the limit of `M⁻¹` on its range).
+fn psd_pseudo_inverse(eigen: &nalgebra::SymmetricEigen<f64, nalgebra::Dyn>) -> DMatrix<f64> {
+    let largest = eigen.eigenvalues.max();
+    let inverted = eigen
+        .eigenvalues
+        .map(|lambda| if lambda > 1e-12 * largest { 1.0 / lambda } else { 0.0 });
+    &eigen.eigenvectors * DMatrix::from_diagonal(&inverted) * eigen.eigenvectors.transpose()
 }
 
 /// The least eigenvalue of a symmetric matrix.
