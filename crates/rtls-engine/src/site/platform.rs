@@ -121,10 +121,10 @@ pub(super) fn apply(settings: &mut TrackerSettings, tracker_table: Option<&toml:
             .and_then(toml::Value::as_table)
             .is_some_and(|t| t.contains_key(key))
     };
-    let (motion_model, acceleration, slip, random_walk) = match platform {
-        Platform::Walker => (MotionModelKind::Cv, 1.0, 0.2, 0.5),
-        Platform::Vehicle => (MotionModelKind::Imm, 2.0, 0.05, 0.2),
-        Platform::Robot => (MotionModelKind::Cv, 0.5, 0.03, 0.3),
+    let (motion_model, acceleration, slip, random_walk, max_speed_mps) = match platform {
+        Platform::Walker => (MotionModelKind::Cv, 1.0, 0.2, 0.5, Some(WALKER_MAX_SPEED_MPS)),
+        Platform::Vehicle => (MotionModelKind::Imm, 2.0, 0.05, 0.2, None),
+        Platform::Robot => (MotionModelKind::Cv, 0.5, 0.03, 0.3, None),
     };
     if !given("motion_model") {
         settings.motion_model = motion_model;
@@ -138,8 +138,8 @@ pub(super) fn apply(settings: &mut TrackerSettings, tracker_table: Option<&toml:
     if !heading_given("heading_random_walk_rad_per_sqrt_s") {
         settings.heading.heading_random_walk_rad_per_sqrt_s = random_walk;
     }
-    if platform == Platform::Walker && !given("max_speed_mps") {
-        settings.max_speed_mps = Some(WALKER_MAX_SPEED_MPS);
+    if !given("max_speed_mps") {
+        settings.max_speed_mps = max_speed_mps;
     }
 }
 

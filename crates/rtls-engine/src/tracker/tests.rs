@@ -163,6 +163,25 @@ pub(super) fn jump_times(out: &Output) -> Vec<f64> {
         .collect()
 }
 
+/// Fixes of tag `phone`, σ = 3 m, every `step_s` for `count` steps: at rest at the origin until
+/// t = 5 s, then running east at 8 m/s (fixes that run away, as a fingerprint's on the wrong
+/// floor do).
+pub(super) fn running_fixes(step_s: f64, count: u32) -> Vec<Record> {
+    (0..count)
+        .map(|k| {
+            let t = step_s * f64::from(k);
+            Record {
+                time_s: t,
+                tag: "phone".into(),
+                measurement: Measurement::Fix {
+                    position_m: vec![8.0 * (t - 5.0).max(0.0), 0.0],
+                    covariance_m2: vec![9.0, 0.0, 0.0, 9.0],
+                },
+            }
+        })
+        .collect()
+}
+
 pub(super) fn run(tracker: &mut Tracker, records: Vec<Record>) -> Output {
     let mut out = Output::default();
     for record in records {

@@ -419,22 +419,8 @@ fn a_track_the_readers_cannot_see_moves_to_the_corridor_they_can_see() {
 /// than the limit. Without the limit the same fixes give it more than twice that.
 #[test]
 fn a_fix_then_filter_track_never_reports_more_than_the_speed_limit() {
-    // fixes σ = 3 m, 0.1 s apart (faster than the tracker reports), moving east at 8 m/s from
-    // t = 5 s on
-    let records: Vec<Record> = (0..200)
-        .map(|k| {
-            let t = 0.1 * f64::from(k);
-            let x = 8.0 * (t - 5.0).max(0.0);
-            Record {
-                time_s: t,
-                tag: "phone".into(),
-                measurement: Measurement::Fix {
-                    position_m: vec![x, 0.0],
-                    covariance_m2: vec![9.0, 0.0, 0.0, 9.0],
-                },
-            }
-        })
-        .collect();
+    // 0.1 s apart: faster than the tracker reports
+    let records = super::tests::running_fixes(0.1, 200);
     let fastest = |extra: &str| {
         let mut tracker = Tracker::new(&super::tests::site("fix-then-filter", "kf", extra)).unwrap();
         let out = super::tests::run(&mut tracker, records.clone());

@@ -104,15 +104,30 @@ fn score(updates: &[TrackUpdate], truth: impl Fn(usize, f64) -> [f64; 2]) -> (f6
 
 #[test]
 fn smoothing_a_noisy_walk_lowers_its_error_and_its_ellipses_still_hold_the_truth() {
-    let truth = |tag: usize, t: f64| circle(t + 7.0 * tag as f64);
-    let (filtered, smoothed) = track_and_smooth(fixes(12, 120.0, truth));
+    let (filtered, smoothed) = track_and_smooth(fixes(12, 120.0, on_circle));
     assert!(smoothed.failures.is_empty(), "{:?}", smoothed.failures);
     assert_eq!(smoothed.updates.len(), filtered.len());
     assert!(smoothed.updates.iter().all(|u| u.smoothed));
 
     // the reported covariance is a bound for any correlation of past and future errors: with
     // white errors (as here) it is conservative
-    assert_smoothing_helps(&filtered, &smoothed, truth, 0.85, 0.95);
+    assert_smoothing_helps(&filtered, &smoothed, on_circle, 0.85, 0.95);
+}
+
+/// `[(RMSE, 95 % coverage)]` of the filtered and the smoothed updates (scored as [`score`]),
+/// printed.
+fn compared(
+    filtered: &[TrackUpdate],
+    smoothed: &SmoothedTracks,
+    truth: impl Fn(usize, f64) -> [f64; 2] + Copy,
+) -> [(f64, f64); 2] {
+    let (filtered_rmse, filtered_coverage, n) = score(filtered, truth);
+    let (smoothed_rmse, smoothed_coverage, _) = score(&smoothed.updates, truth);
+    println!(
+        "{n} updates: filtered RMSE {filtered_rmse:.3} m, 95 % coverage {filtered_coverage:.3}; \
+         smoothed {smoothed_rmse:.3} m, {smoothed_coverage:.3}"
+    );
+    [(filtered_rmse, filtered_coverage), (smoothed_rmse, smoothed_coverage)]
 }
 
 /// The smoothed updates' RMSE is below `ratio` × the filtered one's, and their 95 % ellipses
@@ -124,12 +139,7 @@ fn assert_smoothing_helps(
     ratio: f64,
     coverage: f64,
 ) {
-    let (filtered_rmse, filtered_coverage, n) = score(filtered, truth);
-    let (smoothed_rmse, smoothed_coverage, _) = score(&smoothed.updates, truth);
-    println!(
-        "{n} updates: filtered RMSE {filtered_rmse:.3} m, 95 % coverage {filtered_coverage:.3}; \
-         smoothed {smoothed_rmse:.3} m, {smoothed_coverage:.3}"
-    );
+    let [(filtered_rmse, _), (smoothed_rmse, smoothed_coverage)] = compared(filtered, smoothed, truth);
     assert!(
         smoothed_rmse < ratio * filtered_rmse,
         "smoothed {smoothed_rmse} m against filtered {filtered_rmse} m"
@@ -140,18 +150,17 @@ fn assert_smoothing_helps(
     );
 }
 
-/// Fix errors that stay for far longer than the filter's memory (a UWB fix off by the
-/// anchors' geometry wherever the tag walks slowly): the past and the future share them, and
-/// the smoothed ellipses must not claim the future halved them. The bound over the whole state
-/// (`intersection_bound`) did, and held the truth markedly less often than the filter's.
-#[test]
-fn with_fix_errors_that_persist_for_a_minute_the_smoothed_ellipses_keep_the_filters_calibration() {
-    // e_k = ρ e_{k−1} + √(1 − ρ²) w_k, ρ = 0.99 per 0.5 s (a correlation time of 50 s), σ = 1 m
-    let truth = |tag: usize, t: f64| circle(t + 7.0 * tag as f64);
-    let rho: f64 = 0.99;
-    let mut rng = ChaCha8Rng::seed_from_u64(5);
+/// Where tag `tag` is at `t`: its own phase of [`circle`].
+fn on_circle(tag: usize, t: f64) -> [f64; 2] {
+    circle(t + 7.0 * tag as f64)
+}
+
+/// Fixes every 0.5 s for 120 s of `tags` tags on [`on_circle`], each tag's errors AR(1) per axis:
+/// `e_k = ρ e_{k−1} + √(1 − ρ²) w_k`, `w ~ N(0, 1 m²)` (σ = 1 m, as each fix states).
+fn ar1_fix_records(rho: f64, tags: usize, seed: u64) -> Vec<Record> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, 1.0).unwrap();
-    let mut errors = [[0.0, 0.0]; 24];
+    let mut errors = vec![[0.0, 0.0]; tags];
     let mut records = Vec::new();
     for k in 0..240 {
         let t = 0.5 * f64::from(k);
@@ -163,7 +172,7 @@ fn with_fix_errors_that_persist_for_a_minute_the_smoothed_ellipses_keep_the_filt
                     rho * *e + (1.0 - rho * rho).sqrt() * noise.sample(&mut rng)
                 };
             }
-            let p = truth(tag, t);
+            let p = on_circle(tag, t);
             records.push(Record {
                 time_s: t,
                 tag: format!("w{tag}"),
@@ -174,13 +183,18 @@ fn with_fix_errors_that_persist_for_a_minute_the_smoothed_ellipses_keep_the_filt
             });
         }
     }
-    let (filtered, smoothed) = track_and_smooth(records);
-    let (filtered_rmse, filtered_coverage, n) = score(&filtered, truth);
-    let (smoothed_rmse, smoothed_coverage, _) = score(&smoothed.updates, truth);
-    println!(
-        "{n} updates: filtered RMSE {filtered_rmse:.3} m, 95 % coverage {filtered_coverage:.3}; \
-         smoothed {smoothed_rmse:.3} m, {smoothed_coverage:.3}"
-    );
+    records
+}
+
+/// Fix errors that stay for far longer than the filter's memory (a UWB fix off by the
+/// anchors' geometry wherever the tag walks slowly): the past and the future share them, and
+/// the smoothed ellipses must not claim the future halved them. The bound over the whole state
+/// (`intersection_bound`) did, and held the truth markedly less often than the filter's.
+#[test]
+fn with_fix_errors_that_persist_for_a_minute_the_smoothed_ellipses_keep_the_filters_calibration() {
+    // e_k = ρ e_{k−1} + √(1 − ρ²) w_k, ρ = 0.99 per 0.5 s (a correlation time of 50 s), σ = 1 m
+    let (filtered, smoothed) = track_and_smooth(ar1_fix_records(0.99, 24, 5));
+    let [(_, filtered_coverage), (_, smoothed_coverage)] = compared(&filtered, &smoothed, on_circle);
     assert!(
         smoothed_coverage >= filtered_coverage - 0.02,
         "smoothed 95 % ellipses hold the truth {smoothed_coverage:.3} of the time, filtered {filtered_coverage:.3}"
@@ -191,40 +205,9 @@ fn with_fix_errors_that_persist_for_a_minute_the_smoothed_ellipses_keep_the_filt
 fn with_fix_errors_that_persist_for_seconds_the_smoothed_ellipses_keep_the_filters_calibration() {
     // each tag's fix errors are AR(1): e_k = ρ e_{k−1} + √(1 − ρ²) w_k, ρ = 0.8 per 0.5 s
     // (a correlation time of 2.2 s: a multipath or a fade that stays), σ = 1 m
-    let truth = |tag: usize, t: f64| circle(t + 7.0 * tag as f64);
-    let rho: f64 = 0.8;
-    let mut rng = ChaCha8Rng::seed_from_u64(11);
-    let noise = Normal::new(0.0, 1.0).unwrap();
-    let mut errors = [[0.0, 0.0]; 12];
-    let mut records = Vec::new();
-    for k in 0..240 {
-        let t = 0.5 * f64::from(k);
-        for (tag, error) in errors.iter_mut().enumerate() {
-            for e in error.iter_mut() {
-                *e = if k == 0 {
-                    noise.sample(&mut rng)
-                } else {
-                    rho * *e + (1.0 - rho * rho).sqrt() * noise.sample(&mut rng)
-                };
-            }
-            let p = truth(tag, t);
-            records.push(Record {
-                time_s: t,
-                tag: format!("w{tag}"),
-                measurement: Measurement::Fix {
-                    position_m: vec![p[0] + error[0], p[1] + error[1]],
-                    covariance_m2: vec![1.0, 0.0, 0.0, 1.0],
-                },
-            });
-        }
-    }
-    let (filtered, smoothed) = track_and_smooth(records);
-    let (filtered_rmse, filtered_coverage, n) = score(&filtered, truth);
-    let (smoothed_rmse, smoothed_coverage, _) = score(&smoothed.updates, truth);
-    println!(
-        "{n} updates: filtered RMSE {filtered_rmse:.3} m, 95 % coverage {filtered_coverage:.3}; \
-         smoothed {smoothed_rmse:.3} m, {smoothed_coverage:.3}"
-    );
+    let (filtered, smoothed) = track_and_smooth(ar1_fix_records(0.8, 12, 11));
+    let [(filtered_rmse, filtered_coverage), (smoothed_rmse, smoothed_coverage)] =
+        compared(&filtered, &smoothed, on_circle);
     assert!(smoothed_rmse < 0.9 * filtered_rmse);
     // the smoother keeps the filter's calibration (the filter's own, under errors it takes as
     // white, is short of 95 %: 0.79); the smoother's own covariance Pₖ|ₙ would lose it
@@ -446,20 +429,8 @@ fn a_coordinated_turn_is_smoothed_with_its_own_model() {
 /// smoothed speed stays near the limit instead of the fixes' run.
 #[test]
 fn a_track_the_speed_limit_cut_is_smoothed_over_its_own_states() {
-    // fixes σ = 3 m, 1 s apart, running east at 8 m/s from t = 5 s on; the limit is 3 m/s
-    let records: Vec<Record> = (0..30)
-        .map(|k| {
-            let t = f64::from(k);
-            Record {
-                time_s: t,
-                tag: "phone".into(),
-                measurement: Measurement::Fix {
-                    position_m: vec![8.0 * (t - 5.0).max(0.0), 0.0],
-                    covariance_m2: vec![9.0, 0.0, 0.0, 9.0],
-                },
-            }
-        })
-        .collect();
+    // fixes 1 s apart running at 8 m/s; the limit is 3 m/s
+    let records = super::tests::running_fixes(1.0, 30);
     let (_, smoothed) = track_and_smooth_on(&site("fix-then-filter", "kf", "max_speed_mps = 3.0"), records.clone());
     assert_site_model_for_every_segment(&smoothed);
     // without the limit the same fixes are re-filtered with their own fitted noise
