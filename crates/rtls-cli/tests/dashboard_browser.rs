@@ -251,13 +251,13 @@ fn the_demo_on_screen_counts_its_tags_acknowledges_an_alarm_everywhere_and_repla
 
     // edit it: drag its two eastern corners past the mine's east end with the mouse, save, and
     // the stored fence and its head count follow
-    tab.find_element(&format!("tr[data-zone-id='{id}'] .zone-edit"))
-        .unwrap()
-        .click()
-        .unwrap();
-    // the zone table is rebuilt whenever zones or head counts change: a click that landed
-    // while its row was being replaced is repeated on the row now there (editing starts
-    // synchronously, so a click that took is never repeated)
+    // the zone table is rebuilt whenever zones or head counts change, so the row found here
+    // may be replaced before the mouse reaches it (the click then fails: the element is gone)
+    // or the click may land on a row being replaced; either way it is repeated on the row now
+    // there (editing starts synchronously, so a click that took is never repeated)
+    if let Ok(edit) = tab.find_element(&format!("tr[data-zone-id='{id}'] .zone-edit")) {
+        let _ = edit.click();
+    }
     wait_for(
         &tab,
         &format!(
