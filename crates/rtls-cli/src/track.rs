@@ -441,7 +441,8 @@ pub fn run(args: &TrackArgs) -> anyhow::Result<()> {
     for (tag, [x, y, _]) in &counts.alternating {
         eprintln!(
             "tag {tag}: its fixes alternate between its track and ({x:.1}, {y:.1}) m: two transmitters \
-             sending as one id, or a recurring reflection (an `alternating` lifecycle event)"
+             sending as one id, or a recurring reflection (an `alternating` lifecycle event); from then \
+             on the track keeps a state at each place and updates the one each fix is likelier from"
         );
     }
     let offsets = tracker.range_offsets();

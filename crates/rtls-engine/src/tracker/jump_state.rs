@@ -8,10 +8,16 @@ use rtls_estimation::Gaussian;
 pub(crate) struct Alternation<const N: usize> {
     /// The dropped hypothesis (boxed, like the track's own).
     pub(super) departed: Option<Box<JumpHypothesis<N>>>,
-    /// Gated-out fixes that fell inside its gate after it was dropped.
+    /// Gated-out fixes that fell inside its gate after it was dropped (once the track
+    /// switches places, the fixes the place it left took).
     pub(super) returns: u32,
     /// Whether the track reported `alternating`.
     pub(super) reported: bool,
+    /// Fixes the track took itself while it held a dropped hypothesis, since the report once
+    /// `reported`: with `returns`, the share of the fixes that came from the other place
+    /// ([`super::jump::from_departed`]).
+    #[serde(default)]
+    pub(super) taken: u32,
 }
 
 impl<const N: usize> Default for Alternation<N> {
@@ -20,6 +26,7 @@ impl<const N: usize> Default for Alternation<N> {
             departed: None,
             returns: 0,
             reported: false,
+            taken: 0,
         }
     }
 }

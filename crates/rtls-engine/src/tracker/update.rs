@@ -52,6 +52,16 @@ pub(super) fn fix_update_as<const N: usize>(
         // a new track, or a lost one whose prior is too stale to update
         return start_from_fix(shared, track, time_s, position, covariance, kind, out).map(|()| false);
     };
+    // one id sent by two transmitters: each keeps its own state, the fix goes to the likelier
+    // (only where the state is all the track learnt: no heading, offsets or modes beside it)
+    let plain = track.modes.is_none() && track.heading_cross.is_none() && track.offset_cross.is_none();
+    let switched = plain && jump::from_departed(&mut track.alternation, state, shared, time_s, position, covariance);
+    if switched {
+        jump::switch_places(track);
+    }
+    let Some(state) = track.state.as_ref() else {
+        return Ok(false);
+    };
     let indices = AxisIndices::new(0, k);
     let prior = predict(shared, track, state, time_s)?;
     let verdict = component_update(
@@ -65,8 +75,15 @@ pub(super) fn fix_update_as<const N: usize>(
         (UpdateSource::Fix, class),
         out,
     )?;
+    if switched && verdict != Verdict::Taken && track.state.is_some() {
+        // the place it switched to did not take the fix after all: back to the track's own
+        jump::switch_places(track);
+    }
     match verdict {
         Verdict::Taken => {
+            if track.alternation.departed.is_some() {
+                track.alternation.taken += 1;
+            }
             // the track explains its fixes again; the hypothesis it drops is kept, to tell
             // fixes that come back to it (an id sent by two transmitters)
             if let Some(dropped) = track.jump.take() {
