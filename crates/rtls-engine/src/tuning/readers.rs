@@ -24,6 +24,12 @@ const SCALE_RANGE: (f64, f64) = (0.5, 2.0);
 /// Distances below this are clamped in the path-loss fit (the law is a far-field one), m.
 const MIN_FIT_DISTANCE_M: f64 = 0.5;
 
+/// The spread of one site's links' path-loss exponents about the site's law: the prior a
+/// refitted exponent is shrunk toward ([`shrunk_exponent`]). An assumption: across sites,
+/// in-building exponents run from 1.6–1.8 in line of sight to 4–6 obstructed (Rappaport,
+/// Table 4.2); one site's links differ from its law by less, taken as about ±1 (2σ).
+const EXPONENT_PRIOR_STD: f64 = 0.5;
+
 /// Path-loss exponents outside this interval are not physical for a site; the fit is clamped.
 const EXPONENT_RANGE: (f64, f64) = (1.0, 6.0);
 
@@ -94,7 +100,8 @@ pub enum PathLossChoice {
     Kept,
     /// The site's exponent (2, free space, when the site has no law) with `ρ₀` refitted.
     Offset,
-    /// `ρ₀` and `n` both refitted (least squares, `n` clamped to 1–6).
+    /// `ρ₀` and `n` both refitted (`n` the least-squares exponent shrunk toward the site's by
+    /// how well the samples determine it, then clamped to 1–6).
     Refitted,
 }
 
@@ -269,14 +276,70 @@ fn law_of(choice: PathLossChoice, samples: &[(f64, f64)], prior: Option<(f64, f6
             Some((mean_rho + 10.0 * exponent * mean_x, exponent))
         }
         PathLossChoice::Refitted => {
-            let sxx: f64 = samples.iter().map(|s| (s.0 - mean_x).powi(2)).sum();
-            let sxr: f64 = samples.iter().map(|s| (s.0 - mean_x) * (s.1 - mean_rho)).sum();
-            // slope b = Sxρ / Sxx = −10 n; n clamped to a physical range; ρ₀ = ρ̄ + 10 n x̄
-            let exponent = if sxx > 1e-9 { -sxr / sxx / 10.0 } else { 2.0 };
+            let prior_exponent = prior.map_or(2.0, |(_, n)| n);
+            let exponent = shrunk_exponent(samples, prior_exponent);
+            // n clamped to a physical range; ρ₀ = ρ̄ + 10 n x̄
             let exponent = exponent.clamp(EXPONENT_RANGE.0, EXPONENT_RANGE.1);
             Some((mean_rho + 10.0 * exponent * mean_x, exponent))
         }
     }
+}
+
+/// The least-squares exponent of `(x, ρ)` samples: `n = −Sxρ / (10 Sxx)`; `None` when the
+/// distances do not spread.
+fn least_squares_exponent(samples: &[(f64, f64)]) -> Option<f64> {
+    let n = samples.len() as f64;
+    let mean_x = samples.iter().map(|s| s.0).sum::<f64>() / n;
+    let mean_rho = samples.iter().map(|s| s.1).sum::<f64>() / n;
+    // Sxx = Σ (x − x̄)², Sxρ = Σ (x − x̄)(ρ − ρ̄)
+    let sxx: f64 = samples.iter().map(|s| (s.0 - mean_x).powi(2)).sum();
+    let sxr: f64 = samples.iter().map(|s| (s.0 - mean_x) * (s.1 - mean_rho)).sum();
+    // slope b = Sxρ / Sxx = −10 n
+    (sxx > 1e-9).then(|| -sxr / sxx / 10.0)
+}
+
+/// The exponent of `(x, ρ)` samples (record order) shrunk toward `prior_exponent` by how well
+/// the samples determine it:
+///
+/// ```text
+/// n = n₀ + (n̂ − n₀) · τ² / (τ² + se²),   se² = (B−1)/B · Σ_b (n̂₍₋b₎ − n̄₍·₎)²
+/// ```
+///
+/// `n̂` the least-squares exponent, `se` its delete-one-block jackknife standard error over
+/// `B` = [`PATH_LOSS_FOLDS`] contiguous blocks (shadowing persists along a walk, so the
+/// samples' own residuals would overstate what they say), `τ` =
+/// [`EXPONENT_PRIOR_STD`] the spread of a site's links' exponents about its law. A walk over a
+/// narrow band of distances barely determines `n`: its `se` is large and the site's law
+/// stays; a walk that spans the distances moves it. `n₀` when the samples do not spread.
+///
+/// # References
+/// B. Efron, C. Stein, "The jackknife estimate of variance", *Ann. Stat.* 9(3), 1981 (the
+/// delete-a-group jackknife); T. S. Rappaport, *Wireless Communications*, 2nd ed. (2002),
+/// Table 4.2 (path-loss exponents by environment).
+fn shrunk_exponent(samples: &[(f64, f64)], prior_exponent: f64) -> f64 {
+    let Some(exponent) = least_squares_exponent(samples) else {
+        return prior_exponent;
+    };
+    let block = samples.len().div_ceil(PATH_LOSS_FOLDS).max(1);
+    // n̂₍₋b₎: the exponent without block b
+    let deleted: Vec<f64> = (0..samples.len())
+        .step_by(block)
+        .filter_map(|start| {
+            let end = (start + block).min(samples.len());
+            let kept: Vec<(f64, f64)> = samples[..start].iter().chain(&samples[end..]).copied().collect();
+            least_squares_exponent(&kept)
+        })
+        .collect();
+    let blocks = deleted.len() as f64;
+    if blocks < 2.0 {
+        return prior_exponent;
+    }
+    let centre = deleted.iter().sum::<f64>() / blocks;
+    // se² = (B − 1)/B Σ (n̂₍₋b₎ − n̄)²
+    let jackknife_variance = (blocks - 1.0) / blocks * deleted.iter().map(|e| (e - centre).powi(2)).sum::<f64>();
+    let tau2 = EXPONENT_PRIOR_STD * EXPONENT_PRIOR_STD;
+    // n = n₀ + (n̂ − n₀) τ² / (τ² + se²)
+    prior_exponent + (exponent - prior_exponent) * tau2 / (tau2 + jackknife_variance)
 }
 
 /// `Σ (ρ − ρ₀ + 10 n x)²` over `samples`.
@@ -590,6 +653,47 @@ mod tests {
         assert_ne!(fit.choice, PathLossChoice::Refitted, "{fit:?}");
         assert_eq!(fit.exponent, 2.0);
         assert!(fit.held_out_rms_db.is_finite() && fit.held_out_rms_db > 0.0);
+    }
+
+    /// A walk that spans 1–30 m determines the exponent and moves it off the site's; a walk
+    /// from 2 to 3 m whose shadowing persists over blocks of ten samples does not, and keeps
+    /// it near the site's whatever slope its least squares finds.
+    #[test]
+    fn a_refitted_exponent_moves_as_far_as_the_walk_determines_it() {
+        let mut state = 11_u64;
+        let mut uniform = || {
+            // SplitMix64 → [0, 1)
+            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1_u64 << 53) as f64
+        };
+        // ρ = −45 − 30 log₁₀ d ± 2 dB over 1–30 m, the site saying n = 2
+        let wide: Vec<(f64, f64)> = (0..200)
+            .map(|k| {
+                let x = (1.0 + 29.0 * f64::from(k) / 199.0).log10();
+                (x, -45.0 - 30.0 * x + 4.0 * (uniform() - 0.5))
+            })
+            .collect();
+        let n = shrunk_exponent(&wide, 2.0);
+        assert!((n - 3.0).abs() < 0.1, "{n}");
+        // ρ = −50 − 20 log₁₀ d walking from 2 to 3 m, shadowing ±6 dB per block of ten
+        let mut narrow = Vec::new();
+        for block in 0..10 {
+            let shadow = 12.0 * (uniform() - 0.5);
+            for _ in 0..10 {
+                let x = (2.0 + 0.1 * f64::from(block) + 0.1 * uniform()).log10();
+                narrow.push((x, -50.0 - 20.0 * x + shadow + (uniform() - 0.5)));
+            }
+        }
+        let least_squares = least_squares_exponent(&narrow).unwrap();
+        let n = shrunk_exponent(&narrow, 2.0);
+        assert!((least_squares - 2.0).abs() > 1.0, "least squares {least_squares}");
+        assert!(
+            (n - 2.0).abs() < 0.5 * (least_squares - 2.0).abs(),
+            "{n} against {least_squares}"
+        );
     }
 
     #[test]
