@@ -130,7 +130,7 @@ pub(super) fn check_reading<const N: usize>(
     }
     track.check_distances.push(distance2);
     let flat: Vec<f64> = covariance.transpose().iter().copied().collect();
-    if distance2 > shared.gates[k.clamp(1, 3) - 1] {
+    if distance2 > shared.gate(k) {
         return jump_hypothesis(shared, track, (time_s, position, &flat), "check", false, out);
     }
     if run_disagrees(&track.check_distances, shared.check_run_gates[k.clamp(1, 3) - 1]) {

@@ -136,7 +136,7 @@ fn updated<const N: usize>(
 ) -> Option<JumpHypothesis<N>> {
     let updated = fix_on(&held.state, shared, time_s, position, covariance)?;
     // νᵀ S⁻¹ ν ≤ γ
-    (updated.nis <= shared.gates[position.len().clamp(1, 3) - 1]).then(|| JumpHypothesis {
+    (updated.nis <= shared.gate(position.len())).then(|| JumpHypothesis {
         state: updated.state,
         fixes: held.fixes + 1,
         first_s: held.first_s,
@@ -204,7 +204,7 @@ pub(super) fn from_departed<const N: usize>(
     let Some(there) = fix_on(&departed.state, shared, time_s, position, covariance) else {
         return false;
     };
-    if there.nis > shared.gates[position.len().clamp(1, 3) - 1] {
+    if there.nis > shared.gate(position.len()) {
         return false;
     }
     let log_likelihood = |u: &Updated<N>| -0.5 * (u.nis + u.log_det_innovation_covariance);
@@ -217,8 +217,9 @@ pub(super) fn from_departed<const N: usize>(
 
 /// Switches an alternating track to the place it departed: the departed hypothesis's state
 /// becomes the track's and the track's becomes the departed one, so each transmitter keeps
-/// its own state; their counts of fixes (`returns`, `taken`) are swapped with them. The track's next reported state starts a new segment (a smoother does not
-/// cross between the two places).
+/// its own state; their counts of fixes (`returns`, `taken`) are swapped with them. The
+/// track's next reported state starts a new segment (a smoother does not cross between the
+/// two places).
 pub(super) fn switch_places<const N: usize>(track: &mut Track<N>) {
     let (Some(departed), Some(state)) = (track.alternation.departed.take(), track.state.take()) else {
         return;
@@ -226,8 +227,7 @@ pub(super) fn switch_places<const N: usize>(track: &mut Track<N>) {
     let departed = *departed;
     track.state = Some(departed.state);
     // each place keeps its count of fixes: the track's are now the departed place's
-    let alternation = &mut track.alternation;
-    std::mem::swap(&mut alternation.returns, &mut alternation.taken);
+    std::mem::swap(&mut track.alternation.returns, &mut track.alternation.taken);
     track.alternation.departed = Some(Box::new(JumpHypothesis {
         first_s: state.time_s(),
         state,

@@ -11,28 +11,50 @@ use super::*;
 use crate::lifecycle::LifecycleEvent;
 use crate::record::Measurement;
 
-/// One fix per second (σ = 0.5 m) of a tag walking east at 1 m/s from (5, 5); `displaced`
-/// gives each fix's offset from the walk.
-fn fixes(seconds: u32, displaced: impl Fn(f64) -> [f64; 2]) -> Vec<Record> {
-    let mut rng = ChaCha8Rng::seed_from_u64(21);
-    let noise = Normal::new(0.0, 0.5).unwrap();
-    (0..seconds)
+/// A tag `p1` walking east from (5, 5), located every `period_s` with fixes of `std_m` noise
+/// (stated as it is), the noise drawn from `seed`.
+#[derive(Clone, Copy)]
+struct Walk {
+    period_s: f64,
+    speed_mps: f64,
+    std_m: f64,
+    seed: u64,
+}
+
+/// `count` fixes of `walk`; `displaced(k, t)` gives fix `k`'s offset from the walk at `t`.
+fn walk_fixes(walk: Walk, count: u32, displaced: impl Fn(u32, f64) -> [f64; 2]) -> Vec<Record> {
+    let mut rng = ChaCha8Rng::seed_from_u64(walk.seed);
+    let noise = Normal::new(0.0, walk.std_m).unwrap();
+    let variance = walk.std_m * walk.std_m;
+    (0..count)
         .map(|k| {
-            let t = f64::from(k);
-            let offset = displaced(t);
+            let t = f64::from(k) * walk.period_s;
+            let offset = displaced(k, t);
             Record {
                 time_s: t,
                 tag: "p1".into(),
                 measurement: Measurement::Fix {
                     position_m: vec![
-                        5.0 + t + offset[0] + noise.sample(&mut rng),
+                        5.0 + walk.speed_mps * t + offset[0] + noise.sample(&mut rng),
                         5.0 + offset[1] + noise.sample(&mut rng),
                     ],
-                    covariance_m2: vec![0.25, 0.0, 0.0, 0.25],
+                    covariance_m2: vec![variance, 0.0, 0.0, variance],
                 },
             }
         })
         .collect()
+}
+
+/// One fix per second (σ = 0.5 m) of a tag walking east at 1 m/s from (5, 5); `displaced`
+/// gives each fix's offset from the walk.
+fn fixes(seconds: u32, displaced: impl Fn(f64) -> [f64; 2]) -> Vec<Record> {
+    let walk = Walk {
+        period_s: 1.0,
+        speed_mps: 1.0,
+        std_m: 0.5,
+        seed: 21,
+    };
+    walk_fixes(walk, seconds, |_, t| displaced(t))
 }
 
 fn track(records: Vec<Record>) -> Output {
@@ -105,22 +127,19 @@ fn outliers_that_do_not_agree_never_move_the_track() {
 #[test]
 fn a_burst_of_agreeing_outliers_shorter_than_the_span_does_not_move_a_fast_track() {
     // 10 Hz fixes; for 0.5 s (6 fixes) they agree on a point 3 m off, a persisting reflection
-    let mut rng = ChaCha8Rng::seed_from_u64(3);
-    let noise = Normal::new(0.0, 0.1).unwrap();
-    let records: Vec<Record> = (0..200)
-        .map(|k| {
-            let t = f64::from(k) * 0.1;
-            let off = if (100..106).contains(&k) { 3.0 } else { 0.0 };
-            Record {
-                time_s: t,
-                tag: "p1".into(),
-                measurement: Measurement::Fix {
-                    position_m: vec![5.0 + t + noise.sample(&mut rng), 5.0 + off + noise.sample(&mut rng)],
-                    covariance_m2: vec![0.01, 0.0, 0.0, 0.01],
-                },
-            }
-        })
-        .collect();
+    let walk = Walk {
+        period_s: 0.1,
+        speed_mps: 1.0,
+        std_m: 0.1,
+        seed: 3,
+    };
+    let records = walk_fixes(walk, 200, |k, _| {
+        if (100..106).contains(&k) {
+            [0.0, 3.0]
+        } else {
+            [0.0, 0.0]
+        }
+    });
     let out = track(records);
     assert!(jump_times(&out).is_empty(), "{:?}", jump_times(&out));
     for (t, p) in measured_from(&out, 1.0) {
@@ -272,25 +291,13 @@ fn outliers_at_scattered_places_are_not_alternating() {
 /// out.
 #[test]
 fn a_recurring_reflection_is_reported_but_never_followed() {
-    let mut rng = ChaCha8Rng::seed_from_u64(12);
-    let noise = Normal::new(0.0, 0.3).unwrap();
-    let records: Vec<Record> = (0..800)
-        .map(|k| {
-            let t = f64::from(k) * 0.25;
-            let reflected = if k % 12 == 11 { 25.0 } else { 0.0 };
-            Record {
-                time_s: t,
-                tag: "p1".into(),
-                measurement: Measurement::Fix {
-                    position_m: vec![
-                        5.0 + 0.7 * t + reflected + noise.sample(&mut rng),
-                        5.0 + noise.sample(&mut rng),
-                    ],
-                    covariance_m2: vec![0.09, 0.0, 0.0, 0.09],
-                },
-            }
-        })
-        .collect();
+    let walk = Walk {
+        period_s: 0.25,
+        speed_mps: 0.7,
+        std_m: 0.3,
+        seed: 12,
+    };
+    let records = walk_fixes(walk, 800, |k, _| if k % 12 == 11 { [25.0, 0.0] } else { [0.0, 0.0] });
     let out = track(records);
     assert_eq!(alternations(&out).len(), 1, "{:?}", alternations(&out));
     for (t, p) in measured_from(&out, 3.0) {

@@ -91,6 +91,14 @@ pub(crate) struct Shared {
     pub(crate) constraints: Option<Constraints>,
 }
 
+impl Shared {
+    /// The `χ²` gate for a measurement of `components` values (1–3; more take the 3-dof gate,
+    /// none the 1-dof one).
+    pub(super) fn gate(&self, components: usize) -> f64 {
+        self.gates[components.clamp(1, 3) - 1]
+    }
+}
+
 /// One tag's track: its state (a value it owns), lifecycle and pending work.
 ///
 /// `repr(C)` keeps the fields in this order: what a record's update and every clock tick read

@@ -627,20 +627,24 @@ mod tests {
         assert!((offset.reference_power_dbm + 45.0).abs() < 1e-9, "{offset:?}");
     }
 
-    #[test]
-    fn a_walk_over_few_distances_keeps_the_site_exponent() {
-        // a law ρ = −50 − 20 log₁₀ d, shadowing ±6 dB persisting over blocks of 10 samples,
-        // walked over 2–3 m only: the exponent is barely determined there, so a refit of it
-        // predicts held-out blocks worse than the site's law with ρ₀ refitted
-        let mut state = 7_u64;
-        let mut uniform = || {
-            // SplitMix64 → [0, 1)
+    /// Uniform numbers in `[0, 1)` from SplitMix64 seeded with `seed`.
+    fn split_mix(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
             state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
             let mut z = state;
             z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
             z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
             ((z ^ (z >> 31)) >> 11) as f64 / (1_u64 << 53) as f64
-        };
+        }
+    }
+
+    #[test]
+    fn a_walk_over_few_distances_keeps_the_site_exponent() {
+        // a law ρ = −50 − 20 log₁₀ d, shadowing ±6 dB persisting over blocks of 10 samples,
+        // walked over 2–3 m only: the exponent is barely determined there, so a refit of it
+        // predicts held-out blocks worse than the site's law with ρ₀ refitted
+        let mut uniform = split_mix(7);
         let mut samples = Vec::new();
         for _ in 0..10 {
             let shadow = 12.0 * (uniform() - 0.5);
@@ -660,15 +664,7 @@ mod tests {
     /// it near the site's whatever slope its least squares finds.
     #[test]
     fn a_refitted_exponent_moves_as_far_as_the_walk_determines_it() {
-        let mut state = 11_u64;
-        let mut uniform = || {
-            // SplitMix64 → [0, 1)
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1_u64 << 53) as f64
-        };
+        let mut uniform = split_mix(11);
         // ρ = −45 − 30 log₁₀ d ± 2 dB over 1–30 m, the site saying n = 2
         let wide: Vec<(f64, f64)> = (0..200)
             .map(|k| {
