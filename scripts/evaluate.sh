@@ -137,11 +137,18 @@ for d in "$OUT"/ble/*/; do
   d=${d%/}; run=$(basename "$d")
   tuned "$d" tuned-tc measurements.jsonl --pipeline tightly-coupled --filter ekf
   tuned "$d" tuned-ftf measurements.jsonl --pipeline fix-then-filter --filter kf
+  tuned "$d" tuned-fp measurements-vectors.jsonl --pipeline fix-then-filter --filter kf
+  SITE="$d/tuned-tc.tuned.toml" track "$d" tuned-tc-smooth measurements.jsonl --pipeline tightly-coupled --filter ekf --smooth
   SITE="$d/tuned-ftf.tuned.toml" track "$d" tuned-ftf-smooth measurements.jsonl --pipeline fix-then-filter --filter kf --smooth
+  SITE="$d/tuned-fp.tuned.toml" track "$d" tuned-fp-smooth measurements-vectors.jsonl --pipeline fix-then-filter --filter kf --smooth
   score ble "$run" "tuned path loss, tightly coupled EKF" "$d/truth-late.csv" "$d/tuned-tc.tracks.jsonl" --max-gap 1
   score ble "$run" "tuned path loss, fix-then-filter KF" "$d/truth-late.csv" "$d/tuned-ftf.tracks.jsonl" --max-gap 1
   score ble "$run" "tuned path loss, raw fixes" "$d/truth-late.csv" "$d/tuned-ftf.fixes.jsonl" --max-gap 1
+  score ble "$run" "tuned fingerprint WKNN, fix-then-filter KF" "$d/truth-late.csv" "$d/tuned-fp.tracks.jsonl" --max-gap 1
+  score ble "$run" "tuned fingerprint WKNN, raw fixes" "$d/truth-late.csv" "$d/tuned-fp.fixes.jsonl" --max-gap 1
+  score ble "$run" "tuned path loss, tightly coupled EKF, smoothed" "$d/truth-late.csv" "$d/tuned-tc-smooth.tracks.jsonl" --max-gap 1
   score ble "$run" "tuned path loss, fix-then-filter, smoothed" "$d/truth-late.csv" "$d/tuned-ftf-smooth.tracks.jsonl" --max-gap 1
+  score ble "$run" "tuned fingerprint WKNN, fix-then-filter, smoothed" "$d/truth-late.csv" "$d/tuned-fp-smooth.tracks.jsonl" --max-gap 1
 done
 d=$OUT/labyrinth/labyrinth
 tuned "$d" tuned-odo measurements.jsonl --pipeline tightly-coupled --filter ekf
@@ -156,3 +163,5 @@ d=$OUT/uji/validation
 tuned "$d" tuned-fp measurements.jsonl
 score uji validation "tuned σ_a, fingerprint WKNN, KF" "$d/truth-late.csv" "$d/tuned-fp.tracks.jsonl" --max-gap 0
 score uji validation "tuned σ_a, fingerprint WKNN, raw fixes" "$d/truth-late.csv" "$d/tuned-fp.fixes.jsonl" --max-gap 0
+SITE="$d/tuned-fp.tuned.toml" track "$d" tuned-fp-smooth measurements.jsonl --smooth
+score uji validation "tuned σ_a, fingerprint WKNN, KF, smoothed" "$d/truth-late.csv" "$d/tuned-fp-smooth.tracks.jsonl" --max-gap 0
