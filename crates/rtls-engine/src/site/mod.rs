@@ -301,9 +301,13 @@ pub struct TrackerSettings {
     #[serde(default = "default_dimensions")]
     pub dimensions: u8,
     /// Fix-then-filter: a tag's anchor measurements within this window from the first one are
-    /// solved together as one fix, s (≥ 0; 0 = equal time stamps only). Default 0.
+    /// solved together as one fix, s (≥ 0; 0 = equal time stamps only). Absent: automatic
+    /// epochs (`tracker::epoch::epoch_due`): readings with equal time stamps are one epoch, and
+    /// a tag whose readers report one at a time (Wi-Fi RTT, TDMA UWB) has its readings
+    /// collected until a reader of the epoch reports again, at most
+    /// [`AUTO_EPOCH_MAX_S`](crate::tracker::AUTO_EPOCH_MAX_S) after the first.
     #[serde(default)]
-    pub epoch_s: f64,
+    pub epoch_s: Option<f64>,
     /// 2-D tracking with anchors at other heights: the tag's height, m. Slant ranges `r` to an
     /// anchor at height `z_a` are projected to the plane, `√(r² − (z_a − h)²)`, and RSS laws use
     /// the 3-D distance. Absent: anchors and tag are taken to be coplanar.

@@ -422,7 +422,9 @@ fn tracker(site: &Site, out: &mut Vec<Check>) {
     out.push(within(at("reorder_window_s"), t.reorder_window_s, REORDER_WINDOW_S));
     out.push(within(at("rewind_horizon_s"), t.rewind_horizon_s, REWIND_HORIZON_S));
     out.push(count(at("dimensions"), usize::from(t.dimensions), 2, 3));
-    out.push(within(at("epoch_s"), t.epoch_s, EPOCH_S));
+    if let Some(epoch_s) = t.epoch_s {
+        out.push(within(at("epoch_s"), epoch_s, EPOCH_S));
+    }
     if let Some(height) = t.tag_height_m {
         out.push(within(at("tag_height_m"), height, COORDINATE_M));
     }

@@ -69,7 +69,7 @@ pub(super) fn close_epoch_if_due<const N: usize>(
     let Some(open_s) = track.hearing.open_since_s else {
         return Ok(());
     };
-    if now_s - open_s <= shared.settings.epoch_s {
+    if now_s - open_s <= shared.settings.epoch_s.unwrap_or(0.0) {
         return Ok(());
     }
     let heard = std::mem::take(&mut track.hearing.heard);

@@ -1,7 +1,7 @@
 //! Direct measurements of a track's state — position fixes (`fix` records, fingerprint scans),
 //! velocities and odometry — and their time order with the fix-then-filter pipeline's epochs.
 //!
-//! A fix-then-filter epoch's fix is dated at its last reading and applied when the epoch
+//! A fix-then-filter epoch's fix is dated at its readings' mean time and applied when the epoch
 //! closes. A direct measurement that arrives while an epoch is open is therefore held, and
 //! applied in time order when the epoch closes: those dated before the fix first, then the
 //! fix, then the others. Applied at once, it would move the state past the fix's time, and the

@@ -53,7 +53,7 @@ pub(super) fn anchor_reading<const N: usize>(
         }
         return Ok(());
     }
-    if !track.epoch.is_empty() && time_s - track.epoch_start_s > shared.settings.epoch_s {
+    if epoch_due(shared, track, time_s, Some(reading.anchor())) {
         close_epoch(shared, track, out)?;
     }
     if track.epoch.is_empty() {
@@ -68,6 +68,61 @@ pub(super) fn anchor_reading<const N: usize>(
         track.early_closed_s = Some(start_s);
     }
     Ok(())
+}
+
+/// Automatic epochs (`tracker.epoch_s` absent): the longest a tag's readings are collected
+/// into one fix-then-filter epoch, s. A walker moves about a metre in it.
+pub const AUTO_EPOCH_MAX_S: f64 = 1.0;
+
+/// Whether the open fix-then-filter epoch closes before a reading at `now_s` (of anchor
+/// `next_anchor`; `None` for a tick or a record of another kind).
+///
+/// - `tracker.epoch_s` set: when `now_s` is more than `epoch_s` after the epoch's first
+///   reading.
+/// - Automatic (absent): readings with equal time stamps stay together. An epoch whose
+///   readings share one time stamp closes at any later time, as with `epoch_s = 0`, unless it
+///   is a lone reading of a tag whose readers report one at a time (Wi-Fi RTT, TDMA UWB: every
+///   reading its own time stamp; `Track::one_reader_per_time`, learnt from the tag's previous
+///   epoch). Such an epoch collects the readings that follow until one comes from an anchor
+///   already in it (the next round), or until [`AUTO_EPOCH_MAX_S`] after its first reading.
+///
+/// A tag's first lone reading therefore closes alone and is refused ("1 distinct anchor
+/// position"), as every lone reading was before; the rule changes nothing for a tag whose
+/// epochs of equal time stamps name two or more anchors. Learning it from the previous epoch,
+/// not from the lone reading itself, keeps a re-filtered late record from merging time
+/// stamps: a replay that has taken only some of a late epoch's readings holds a lone reading
+/// after a full epoch, and closes it as before.
+pub(super) fn epoch_due<const N: usize>(
+    shared: &Shared,
+    track: &Track<N>,
+    now_s: f64,
+    next_anchor: Option<usize>,
+) -> bool {
+    let Some(&(_, first)) = track.epoch.first() else {
+        return false;
+    };
+    let start_s = track.epoch_start_s;
+    if let Some(window_s) = shared.settings.epoch_s {
+        return now_s - start_s > window_s;
+    }
+    if now_s <= start_s {
+        return false;
+    }
+    if now_s - start_s > AUTO_EPOCH_MAX_S {
+        return true;
+    }
+    let one_time = track.epoch.iter().all(|(t, _)| *t == start_s);
+    let one_anchor = track.epoch.iter().all(|(_, r)| r.anchor() == first.anchor());
+    if one_time && !(one_anchor && track.one_reader_per_time) {
+        return true;
+    }
+    next_anchor.is_some_and(|anchor| track.epoch.iter().any(|(_, r)| r.anchor() == anchor))
+}
+
+/// The window within which a straggling reading still belongs to an epoch closed early, s:
+/// `tracker.epoch_s`, or [`AUTO_EPOCH_MAX_S`] with automatic epochs.
+fn epoch_window_s(shared: &Shared) -> f64 {
+    shared.settings.epoch_s.unwrap_or(AUTO_EPOCH_MAX_S)
 }
 
 /// A tightly coupled track waits at most this long for readings of anchors off the line of
@@ -133,15 +188,17 @@ pub(super) fn straggles<const N: usize>(
 ) -> Option<f64> {
     track.early_closed_s.filter(|&start_s| {
         time_s >= start_s
-            && time_s - start_s <= shared.settings.epoch_s
+            && time_s - start_s <= epoch_window_s(shared)
             && !track.expected_readers.contains(&reading.anchor())
     })
 }
 
-/// Whether a reading at `time_s` opens a new epoch (fix-then-filter).
+/// Whether a reading at `time_s` opens a new epoch (fix-then-filter). With automatic epochs
+/// the reading's anchor is not known here, so an epoch its anchor's repeat closes is missed:
+/// the caller then keeps no copy at the epoch's start, and a straggler rewinds further.
 pub(super) fn opens_epoch<const N: usize>(shared: &Shared, track: &Track<N>, time_s: f64) -> bool {
     shared.settings.pipeline == Pipeline::FixThenFilter
-        && (track.epoch.is_empty() || time_s - track.epoch_start_s > shared.settings.epoch_s)
+        && (track.epoch.is_empty() || epoch_due(shared, track, time_s, None))
 }
 
 /// Closes the open epoch if `now_s` is past its window (fix-then-filter only), and the open
@@ -152,10 +209,7 @@ pub(super) fn close_due_epoch<const N: usize>(
     now_s: f64,
     out: &mut Output,
 ) -> Result<()> {
-    if shared.settings.pipeline == Pipeline::FixThenFilter
-        && !track.epoch.is_empty()
-        && now_s - track.epoch_start_s > shared.settings.epoch_s
-    {
+    if shared.settings.pipeline == Pipeline::FixThenFilter && epoch_due(shared, track, now_s, None) {
         close_epoch(shared, track, out)?;
     }
     if shared.settings.pipeline == Pipeline::TightlyCoupled {
@@ -206,12 +260,25 @@ pub(super) fn expire_initial_readings<const N: usize>(
     }
 }
 
-/// Solves the epoch into fixes and applies them at the epoch's last time.
+/// Solves the epoch into fixes and applies them at its readings' mean time.
 pub(super) fn close_epoch<const N: usize>(shared: &Shared, track: &mut Track<N>, out: &mut Output) -> Result<()> {
     let epoch = std::mem::take(&mut track.epoch);
-    let Some(&(time_s, _)) = epoch.last() else {
+    if epoch.is_empty() {
         return Ok(());
-    };
+    }
+    // the fix is dated at the mean time of the readings it is solved from: a least-squares
+    // fix from readings spread over an epoch is where the moving tag was about then, not at
+    // the last reading (dated there, a walker's fixes lagged ~v Δt/2 behind it). The track's
+    // lifecycle has not been ticked past the epoch's first reading
+    // (`tick::holds_earlier_readings`). The mean is taken as an offset from the first reading,
+    // so readings with one time stamp keep it exactly.
+    let first_s = epoch[0].0;
+    let time_s = first_s + epoch.iter().map(|(t, _)| t - first_s).sum::<f64>() / epoch.len() as f64;
+    // automatic epochs: a tag whose epoch spanned time stamps, or was a lone reading, reports
+    // one reader at a time; one with several readers at one time stamp does not
+    let first_anchor = epoch[0].1.anchor();
+    track.one_reader_per_time =
+        epoch.iter().any(|(t, _)| *t != first_s) || epoch.iter().all(|(_, r)| r.anchor() == first_anchor);
     // the readers the next epoch waits for (an early close sets its start after this)
     track.early_closed_s = None;
     track.expected_readers.clear();

@@ -101,7 +101,8 @@ pub(super) fn close_due_gnss_epoch<const N: usize>(
     out: &mut Output,
 ) -> Result<()> {
     match track.gnss.epoch.first() {
-        Some(first) if now_s - first.time_s > shared.settings.epoch_s => close(shared, track, out),
+        // (automatic epochs: a receiver's pseudoranges of one epoch share its time stamp)
+        Some(first) if now_s - first.time_s > shared.settings.epoch_s.unwrap_or(0.0) => close(shared, track, out),
         _ => Ok(()),
     }
 }

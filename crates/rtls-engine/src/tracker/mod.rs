@@ -2,9 +2,11 @@
 //! tags, deterministic and synchronous (no threads, no clock: time comes from the records).
 //!
 //! # Pipelines (`tracker.pipeline` in the site file)
-//! - **fix-then-filter** (seed 000): a tag's range / RSSI / TDOA readings within `epoch_s` are
-//!   solved into a fix (weighted Gauss–Newton multilateration with covariance; Chan + Taylor
-//!   for TDOA) which a linear KF on a CV state smooths.
+//! - **fix-then-filter** (seed 000): a tag's range / RSSI / TDOA readings within `epoch_s` (or,
+//!   without it, those of one time stamp, or of one round of readers that report one at a
+//!   time: [`AUTO_EPOCH_MAX_S`]) are solved into a fix dated at their mean time (weighted
+//!   Gauss–Newton multilateration with covariance; Chan + Taylor for TDOA) which a linear KF on
+//!   a CV state smooths.
 //! - **tightly coupled** (seeds 001, 003, 004): each raw reading updates an EKF or UKF directly,
 //!   one scalar measurement at a time (seed 003's one-observation update), with the slant
 //!   distance to anchors at other heights. A new track starts from a fix of its first readings
@@ -78,7 +80,7 @@
 //!
 //! In fix-then-filter, a fix, fingerprint scan, velocity or odometry record that arrives while
 //! the tag's epoch is open is held and applied in time order with the epoch's fix (which is
-//! dated at the epoch's last reading) when the epoch closes.
+//! dated at its readings' mean time) when the epoch closes.
 //!
 //! # Errors
 //! A measurement that cannot be used (unknown or broken reader, no noise level, outside the
@@ -224,6 +226,7 @@ mod update;
 
 pub use anonymous::ANONYMOUS_TAG;
 pub use checkpoint::TrackerState;
+pub use epoch::AUTO_EPOCH_MAX_S;
 pub use noise::{InnovationTotals, Innovations, NoiseClass};
 pub use output::{status_name, Event, Output, RawFix, ReportedState, TrackUpdate, TurnState, UpdateSource};
 pub use range_bias::{AnchorOffsetSummary, RangeOffset};

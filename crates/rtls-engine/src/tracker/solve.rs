@@ -204,9 +204,16 @@ fn range_fix<const D: usize>(
             method: fix.method.name(),
         }),
         Err(PositioningError::Underdetermined { anchors: distinct, .. }) => Err(format!(
-            "{distinct} distinct anchor position(s) in the epoch{}: a {D}-D fix needs {} (or {D} once the track \
-             exists)",
+            "{distinct} distinct anchor position(s) in the epoch{}{}: a {D}-D fix needs {} (or {D} once the \
+             track exists)",
             co_located_note::<D>(anchors, &indices),
+            // (before the `: `, so that `rtls track`'s summary of reasons shows it)
+            if distinct <= 1 {
+                " (readers that report one at a time need a `tracker.epoch_s` that spans a round, or none \
+                 for automatic epochs, which refuse only a tag's first lone reading)"
+            } else {
+                ""
+            },
             D + 1
         )),
         Err(e) => Err(format!(

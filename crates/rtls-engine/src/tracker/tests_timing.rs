@@ -144,7 +144,7 @@ fn a_tags_outputs_do_not_depend_on_other_tags_records() {
 /// Fix-then-filter with `epoch_s` = 0.3: each second's readings (two anchors at +0.3 s, two at
 /// +0.45 s) form one epoch that a tick (on the 0.5 s grid from another tag's record at 0)
 /// falls inside. The track is not ticked past its open epoch's readings: every push succeeds,
-/// and each fix updates the track at its epoch's last time, in order.
+/// and each fix updates the track at its epoch's mean reading time, in order.
 #[test]
 fn a_tick_inside_an_open_epoch_waits_for_its_fix() {
     let site = site("fix-then-filter", "kf", "output_interval_s = 1.0\nepoch_s = 0.3");
@@ -176,17 +176,91 @@ fn a_tick_inside_an_open_epoch_waits_for_its_fix() {
     assert_eq!(tracker.status("w1"), Some(TrackStatus::Confirmed));
     let (updates, events) = of_tag(&out, "w1");
     let measured: Vec<f64> = updates.iter().filter(|u| !u.predicted).map(|u| u.time_s).collect();
+    // each fix at its epoch's mean reading time, k + 0.375 s
     let expected: Vec<f64> = [0, 1, 2, 3, 4, 5, 6, 9, 10, 11]
         .iter()
-        .map(|&k| f64::from(k) + 0.45)
+        .map(|&k| f64::from(k) + 0.375)
         .collect();
-    assert_eq!(measured, expected);
+    assert_eq!(measured.len(), expected.len(), "{measured:?}");
+    assert!(
+        measured.iter().zip(&expected).all(|(m, e)| (m - e).abs() < 1e-9),
+        "{measured:?}"
+    );
     assert!(updates.windows(2).all(|w| w[0].time_s <= w[1].time_s));
     assert!(events.windows(2).all(|w| w[0].0 <= w[1].0), "{events:?}");
     assert!(
         updates.iter().any(|u| u.predicted),
         "the silence is filled with predictions"
     );
+}
+
+/// Ranges of `tag` walking `path`, one anchor at a time: in second `k`, anchor `i` at
+/// `k + 0.2 i` (Wi-Fi RTT, TDMA UWB), noise free apart from the site's +0.2 m bias.
+fn staggered_ranges(tag: &str, seconds: u32, path: fn(f64) -> [f64; 2]) -> Vec<Record> {
+    (0..seconds)
+        .flat_map(|k| (0..ANCHORS.len()).map(move |i| (f64::from(k) + 0.2 * i as f64, i)))
+        .map(|(t, i)| Record {
+            time_s: t,
+            tag: tag.into(),
+            measurement: Measurement::Range {
+                anchor: ANCHORS[i].0.into(),
+                range_m: slant(path(t), ANCHORS[i].1) + 0.2,
+                std_m: None,
+                anchor_position_m: None,
+            },
+        })
+        .collect()
+}
+
+/// Without `epoch_s`, fix-then-filter collects the readings of a tag whose anchors report one
+/// at a time until an anchor repeats: the first lone reading is refused (the tag's readers are
+/// not yet known to report one at a time), then one fix per round (A2, A3, A4, A1), dated at
+/// its readings' mean time, `k + 0.55` s, and the last, cut short by the end, at 7.4 s.
+/// With `epoch_s = 0` (equal time stamps only) every one-reading epoch is refused.
+#[test]
+fn without_epoch_s_readings_one_anchor_at_a_time_give_one_fix_per_round() {
+    let path = |t: f64| [5.0 + 0.4 * t, 6.0 + 0.2 * t];
+    let records = staggered_ranges("w1", 8, path);
+    let mut tracker = Tracker::new(&site("fix-then-filter", "kf", "output_interval_s = 1.0")).unwrap();
+    let out = run_checked(&mut tracker, records.clone(), "automatic epochs");
+    let refused: Vec<(f64, &str)> = out
+        .events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Rejected { time_s, reason, .. } => Some((*time_s, reason.as_str())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(refused.len(), 1, "{refused:?}");
+    assert!(
+        refused[0].0 == 0.0 && refused[0].1.contains("1 distinct anchor position"),
+        "{refused:?}"
+    );
+    let (updates, _) = of_tag(&out, "w1");
+    let measured: Vec<&TrackUpdate> = updates.iter().filter(|u| !u.predicted).collect();
+    let times: Vec<f64> = measured.iter().map(|u| u.time_s).collect();
+    let expected: Vec<f64> = (0..7).map(|k| f64::from(k) + 0.55).chain([7.4]).collect();
+    assert_eq!(times.len(), expected.len(), "{times:?}");
+    assert!(
+        times.iter().zip(&expected).all(|(t, e)| (t - e).abs() < 1e-9),
+        "{times:?}"
+    );
+    // the truth at the fix's time: within a few centimetres of the noise-free fixes
+    for update in &measured {
+        let truth = path(update.time_s);
+        let error_m = (update.position_m[0] - truth[0]).hypot(update.position_m[1] - truth[1]);
+        assert!(error_m < 0.1, "{error_m} m off at {} s", update.time_s);
+    }
+
+    let mut tracker = Tracker::new(&site("fix-then-filter", "kf", "output_interval_s = 1.0\nepoch_s = 0.0")).unwrap();
+    let out = run_checked(&mut tracker, records, "equal time stamps only");
+    assert!(out.updates.iter().all(|u| &*u.tag != "w1"));
+    let refused = out
+        .events
+        .iter()
+        .filter(|e| matches!(e, Event::Rejected { reason, .. } if reason.contains("1 distinct anchor position")))
+        .count();
+    assert_eq!(refused, 32);
 }
 
 /// A live clock (`advance_to`, as the server calls it with the wall clock) releases a silent

@@ -20,11 +20,12 @@ use crate::zones::ZoneMonitor;
 use rtls_estimation::Gaussian;
 
 /// Whether the track's open fix-then-filter epoch or GNSS epoch (either pipeline) holds readings
-/// from before `now_s`. Its fix will carry the epoch's last reading time, so ticking the track
-/// at `now_s` first would put the fix's update behind the tick (time going backwards for the
-/// lifecycle).
+/// from before `now_s`. Its fix will be dated at its readings' mean time (GNSS: at their time),
+/// before `now_s` unless every reading is at `now_s` (readings come in time order), so ticking
+/// the track at `now_s` first would put the fix's update behind the tick (time going backwards
+/// for the lifecycle and the state).
 fn holds_earlier_readings<const N: usize>(shared: &Shared, track: &Track<N>, now_s: f64) -> bool {
-    (shared.settings.pipeline == Pipeline::FixThenFilter && track.epoch.last().is_some_and(|&(t, _)| t < now_s))
+    (shared.settings.pipeline == Pipeline::FixThenFilter && track.epoch.first().is_some_and(|&(t, _)| t < now_s))
         || track.gnss.holds_readings_before(now_s)
 }
 

@@ -168,6 +168,11 @@ pub(crate) struct Track<const N: usize> {
     pub(super) early_closed_s: Option<f64>,
     /// Start time of an epoch re-opened for a straggler: it closes at its deadline, not early.
     pub(super) held_open_epoch_s: Option<f64>,
+    /// Fix-then-filter with automatic epochs: the tag's readers report one at a time (its last
+    /// epoch spanned several time stamps, or held a lone reading), so a lone reading opens an
+    /// epoch that collects a round ([`super::epoch::epoch_due`]).
+    #[serde(default)]
+    pub(super) one_reader_per_time: bool,
     /// Gated-out fixes that agree with each other: where the tag may have jumped to
     /// ([`super::jump`]).
     #[serde(default)]
@@ -252,6 +257,7 @@ impl<const N: usize> Track<N> {
             expected_readers: Vec::new(),
             early_closed_s: None,
             held_open_epoch_s: None,
+            one_reader_per_time: false,
             jump: None,
             alternation: Alternation::default(),
             corrections: CorrectionWindow::default(),

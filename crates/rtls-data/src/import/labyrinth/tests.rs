@@ -43,7 +43,7 @@ fn real_dataset_imports_with_valid_files_and_plausible_odometry() {
     let ids: Vec<&str> = site.readers.iter().map(|r| r.id.as_str()).collect();
     assert_eq!(ids, ["105", "107", "108", "109"]);
     assert_eq!(site.reader("108").unwrap().position_m, vec![2.385, 2.36]);
-    assert_eq!((site.tracker.dimensions, site.tracker.epoch_s), (2, 0.45));
+    assert_eq!((site.tracker.dimensions, site.tracker.epoch_s), (2, Some(0.45)));
 
     let all = read_records(&dir.join("measurements.jsonl"));
     let uwb = read_records(&dir.join("measurements-uwb-only.jsonl"));
