@@ -2,7 +2,7 @@
 """A simulated Wi-Fi RTT office walk whose readers report one at a time, for trying
 fix-then-filter and tightly coupled tracking on a kind of recording ../shared/data lacks.
 
-    scripts/wifi_rtt_walk.py OUT_DIR [SEED]
+    scripts/wifi_rtt_walk.py OUT_DIR [SEED] [--odometry]
 
 Writes OUT_DIR/{site.toml, measurements.jsonl, truth.csv}: 8 access points at 2.8 m on the
 walls of a 40 m x 20 m office, a phone at 1.2 m walking a loop three times at 1.2 m/s with
@@ -12,7 +12,9 @@ point's bias (N(0.5, 0.7) m, fixed per access point), a multipath error per acce
 (AR(1), correlation time 3 s, sigma 0.8 m), white noise (sigma 0.5 m) and, with probability
 0.12, a non-line-of-sight excess (exponential, mean 3 m); 10 % of the ranges are missing.
 Negative ranges are kept. The site states range_std_m = 1.0 and no bias, as a datasheet would;
-it sets no tracker.epoch_s. No Python packages beyond the standard library.
+it sets no tracker.epoch_s. With --odometry, OUT_DIR/measurements.jsonl also holds the phone's
+speed and heading every 0.5 s (pedestrian dead reckoning: sigma 0.1 m/s and 0.05 rad, stated
+in each record). No Python packages beyond the standard library.
 """
 import json
 import math
@@ -22,8 +24,10 @@ import sys
 
 
 def main():
-    out_dir = sys.argv[1]
-    seed = int(sys.argv[2]) if len(sys.argv) > 2 else 1
+    args = [a for a in sys.argv[1:] if a != "--odometry"]
+    odometry = "--odometry" in sys.argv[1:]
+    out_dir = args[0]
+    seed = int(args[1]) if len(args) > 1 else 1
     rng = random.Random(seed)
     os.makedirs(out_dir, exist_ok=True)
     aps = [(0, 0), (13, 0), (26, 0), (40, 0), (0, 20), (13, 20), (26, 20), (40, 20)]
@@ -66,6 +70,19 @@ def main():
                 continue
             records.append({"t": round(tk, 3), "tag": "phone", "kind": "range",
                             "anchor": f"AP{j + 1}", "range_m": round(r, 3)})
+    if odometry:
+        # speed and heading from the truth every 0.5 s, with the stated noise (its own stream,
+        # so the ranges are those of the run without odometry)
+        odo_rng = random.Random(seed + 1000)
+        samples = truth[::10]
+        for (t0, x0, y0), (t1, x1, y1) in zip(samples, samples[1:]):
+            speed = math.hypot(x1 - x0, y1 - y0) / (t1 - t0)
+            heading = math.atan2(y1 - y0, x1 - x0) if speed > 0.01 else 0.0
+            records.append({"t": round(t1, 3), "tag": "phone", "kind": "odometry",
+                            "speed_mps": round(max(0.0, speed + odo_rng.gauss(0, 0.1)), 3),
+                            "heading_rad": round(heading + odo_rng.gauss(0, 0.05), 4),
+                            "speed_std_mps": 0.1, "heading_std_rad": 0.05})
+        records.sort(key=lambda r: r["t"])
     with open(os.path.join(out_dir, "measurements.jsonl"), "w", encoding="utf-8") as f:
         for record in records:
             f.write(json.dumps(record) + "\n")
@@ -79,7 +96,7 @@ def main():
             f.write(f'[[readers]]\nid = "AP{j + 1}"\nposition_m = [{px}.0, {py}.0, {ap_height_m}]\n'
                     'technology = "wifi"\nradio = { range = { range_std_m = 1.0, bias_m = 0.0 } }\n\n')
         f.write(f'[tracker]\nplatform = "walker"\ntag_height_m = {tag_height_m}\n')
-    print(f"{len(records)} ranges over {end_s:.0f} s; access point biases (m): "
+    print(f"{len(records)} records over {end_s:.0f} s; access point biases (m): "
           + ", ".join(f"{b:+.2f}" for b in bias))
 
 

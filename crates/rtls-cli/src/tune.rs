@@ -158,6 +158,9 @@ fn tuned_site_text(
     // the error-correlation settings, where the tuning changed them
     let own = tuning.model.tried[0].0;
     let model = tuning.model.settings();
+    if model.correlation_s != own.correlation_s {
+        sub_table(tracker, "adaptive_noise").insert("correlation_s", value(model.correlation_s));
+    }
     if model.correlation_from_innovations != own.correlation_from_innovations {
         sub_table(tracker, "adaptive_noise").insert(
             "correlation_from_innovations",
@@ -348,13 +351,15 @@ fn text_report(tuning: &Tuning, records: usize, out: &Path) -> String {
     if tuning.model.tried.len() > 1 {
         let _ = writeln!(
             text,
-            "error correlation (at the chosen σ_a): correlation_from_innovations, heading_error_correlation_s"
+            "error correlation (at the chosen σ_a): correlation_s, correlation_from_innovations, \
+             heading_error_correlation_s"
         );
         for (i, (settings, run)) in tuning.model.tried.iter().enumerate() {
             let _ = writeln!(
                 text,
-                "{} {:>5} {:>6} s  log-likelihood {:>10.1}  RMSE {:>8}  in 95 % {:>7}{}",
+                "{} {:>5} s {:>5} {:>6} s  log-likelihood {:>10.1}  RMSE {:>8}  in 95 % {:>7}{}",
                 if i == tuning.model.chosen { "*" } else { " " },
+                settings.correlation_s,
                 settings.correlation_from_innovations,
                 settings.heading_error_correlation_s,
                 run.log_likelihood,
@@ -452,9 +457,11 @@ fn json_report(tuning: &Tuning, records: usize) -> serde_json::Value {
         "readers": readers,
         "noise_std_factors": factors,
         "error_correlation": {
+            "correlation_s": tuning.model.settings().correlation_s,
             "correlation_from_innovations": tuning.model.settings().correlation_from_innovations,
             "heading_error_correlation_s": tuning.model.settings().heading_error_correlation_s,
             "tried": tuning.model.tried.iter().map(|(s, c)| serde_json::json!({
+                "correlation_s": s.correlation_s,
                 "correlation_from_innovations": s.correlation_from_innovations,
                 "heading_error_correlation_s": s.heading_error_correlation_s,
                 "log_likelihood": c.log_likelihood,

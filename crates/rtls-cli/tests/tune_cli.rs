@@ -132,7 +132,10 @@ fn tune_with_truth_writes_a_site_that_tracks_the_rest_better_and_honestly() {
     // the error-correlation settings tried are reported, and the tuned site says the chosen one
     // where it differs from the file (the file keeps the default, off)
     assert!(stdout.contains("error correlation (at the chosen σ_a)"), "{stdout}");
-    let chose_innovations = stdout.lines().any(|l| l.starts_with("*  true"));
+    // (a chosen error-correlation line: `* 0.25 s  true 0 s …`)
+    let chose_innovations = stdout
+        .lines()
+        .any(|l| l.starts_with('*') && l.split_whitespace().nth(3) == Some("true"));
     assert_eq!(
         text.contains("correlation_from_innovations = true"),
         chose_innovations,
