@@ -151,19 +151,7 @@ fn a_tick_inside_an_open_epoch_waits_for_its_fix() {
     let mut tracker = Tracker::new(&site).unwrap();
     let path = |t: f64| [3.0 + 0.5 * t, 4.0 + 0.3 * t];
     let ranges = |t: f64, indices: &[usize]| -> Vec<Record> {
-        indices
-            .iter()
-            .map(|&i| Record {
-                time_s: t,
-                tag: "w1".into(),
-                measurement: Measurement::Range {
-                    anchor: ANCHORS[i].0.into(),
-                    range_m: slant(path(t), ANCHORS[i].1) + 0.2,
-                    std_m: None,
-                    anchor_position_m: None,
-                },
-            })
-            .collect()
+        indices.iter().map(|&i| range_from("w1", t, path(t), i)).collect()
     };
     let mut records = scan("w0", 0.0, [12.0, 12.0], &[0]);
     // a silence from 6.45 s to 9.3 s, so the track also coasts with an epoch open
@@ -194,21 +182,27 @@ fn a_tick_inside_an_open_epoch_waits_for_its_fix() {
     );
 }
 
+/// `tag`'s range at `time_s` from `position` to anchor `index`, noise free apart from the
+/// site's +0.2 m bias.
+fn range_from(tag: &str, time_s: f64, position: [f64; 2], index: usize) -> Record {
+    Record {
+        time_s,
+        tag: tag.into(),
+        measurement: Measurement::Range {
+            anchor: ANCHORS[index].0.into(),
+            range_m: slant(position, ANCHORS[index].1) + 0.2,
+            std_m: None,
+            anchor_position_m: None,
+        },
+    }
+}
+
 /// Ranges of `tag` walking `path`, one anchor at a time: in second `k`, anchor `i` at
-/// `k + 0.2 i` (Wi-Fi RTT, TDMA UWB), noise free apart from the site's +0.2 m bias.
+/// `k + 0.2 i` (Wi-Fi RTT, TDMA UWB).
 fn staggered_ranges(tag: &str, seconds: u32, path: fn(f64) -> [f64; 2]) -> Vec<Record> {
     (0..seconds)
         .flat_map(|k| (0..ANCHORS.len()).map(move |i| (f64::from(k) + 0.2 * i as f64, i)))
-        .map(|(t, i)| Record {
-            time_s: t,
-            tag: tag.into(),
-            measurement: Measurement::Range {
-                anchor: ANCHORS[i].0.into(),
-                range_m: slant(path(t), ANCHORS[i].1) + 0.2,
-                std_m: None,
-                anchor_position_m: None,
-            },
-        })
+        .map(|(t, i)| range_from(tag, t, path(t), i))
         .collect()
 }
 
